@@ -1,0 +1,229 @@
+"""The ``energy-margin`` command line: generate, analyze, evaluate."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Sequence
+from typing import NoReturn
+
+from energy_margin import __version__
+from energy_margin.errors import EnergyMarginError
+
+PROG = "energy-margin"
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every subcommand."""
+    parser = _Parser(prog=PROG, description="Energy-margin robustness of multi-object manipulation.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    generate = commands.add_parser("generate", help="record scripted roll-outs as a dataset")
+    generate.add_argument("--task", required=True, help="registered task name (e.g. pushing)")
+    generate.add_argument("--objects", type=int, required=True, help="objects per scene (>= 1)")
+    generate.add_argument("--trajectories", type=int, default=20, help="roll-outs (default 20)")
+    generate.add_argument("--frames", type=int, default=10, help="frames per roll-out (default 10)")
+    generate.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    generate.add_argument("--engine", default="mujoco", help="physics engine (default mujoco)")
+    generate.add_argument("--out", required=True, help="dataset directory to create")
+    generate.add_argument("--overwrite", action="store_true", help="replace an existing directory")
+    generate.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=JSON",
+        help="override a task setting, e.g. --set drive_jitter=0.1",
+    )
+
+    analyze = commands.add_parser("analyze", help="score every frame of a dataset")
+    analyze.add_argument("dataset", help="dataset directory")
+    analyze.add_argument(
+        "--iterations",
+        type=_non_negative_int,
+        default=None,
+        help="EST expansions per frame (default 300 when --nodes is absent)",
+    )
+    analyze.add_argument("--nodes", type=_non_negative_int, default=None, help="tree nodes per frame")
+    analyze.add_argument("--cost", choices=("wrench", "energy"), default="wrench", help="incremental cost")
+    analyze.add_argument(
+        "--lambda",
+        dest="likelihood_lambda",
+        type=_non_negative_float,
+        default=None,
+        help="softmax inverse temperature, 1/J (default: the task's)",
+    )
+    analyze.add_argument("--workers", type=_positive_int, default=1, help="local worker processes")
+    analyze.add_argument("--seed", type=_non_negative_int, default=0, help="seed (default 0)")
+    analyze.add_argument("--engine", default="mujoco", help="physics engine (default mujoco)")
+    analyze.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
+    analyze.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+    evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
+    evaluate.add_argument("dataset", help="dataset directory with scores.csv")
+    evaluate.add_argument("--json", action="store_true", help="print one JSON object")
+    evaluate.add_argument("--capture-window", type=_non_negative_int, default=0, help="k-hat (default 0)")
+    evaluate.add_argument("--success-frames", type=_positive_int, default=3, help="k-bar (default 3)")
+    evaluate.add_argument(
+        "--weights", choices=("linear", "uniform"), default="linear", help="trajectory success weights (default linear)"
+    )
+    return parser
+
+
+def _task_overrides(pairs: list[str]) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not key:
+            raise EnergyMarginError(f"--set expects KEY=JSON, got {pair!r}")
+        try:
+            overrides[key] = json.loads(text)
+        except json.JSONDecodeError:
+            raise EnergyMarginError(f"--set {key}: {text!r} is not valid JSON") from None
+    return overrides
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.command == "generate":
+        from energy_margin.dataset import generate_dataset
+
+        bar = _bar(args.trajectories, "generate")
+        try:
+            dataset = generate_dataset(
+                args.task,
+                n_objects=args.objects,
+                n_trajectories=args.trajectories,
+                n_frames=args.frames,
+                seed=args.seed,
+                out=args.out,
+                engine=args.engine,
+                task_config=_task_overrides(args.set),
+                overwrite=args.overwrite,
+                progress=bar.update,
+            )
+        finally:
+            bar.close()
+        labels = dataset.arrays
+        print(
+            f"wrote {args.out}: {dataset.n_trajectories} trajectories x {dataset.n_frames} frames, "
+            f"{dataset.n_objects} objects; captured frames {labels['captured'].mean():.2f}, "
+            f"successful trajectories {dataset.success_labels().mean():.2f}"
+        )
+        return 0
+    if args.command == "analyze":
+        from energy_margin.analysis import AnalyzerConfig, analyze
+
+        iterations = args.iterations if args.iterations is not None or args.nodes is not None else 300
+        try:
+            config = AnalyzerConfig(
+                iterations=iterations,
+                nodes=args.nodes,
+                cost=args.cost,
+                likelihood_lambda=args.likelihood_lambda,
+                engine=args.engine,
+            )
+        except ValueError as error:
+            raise EnergyMarginError(str(error)) from None
+        path = analyze(
+            args.dataset,
+            config,
+            seed=args.seed,
+            workers=args.workers,
+            overwrite=args.overwrite,
+            progress=not args.no_progress,
+        )
+        print(f"wrote {path}")
+        return 0
+    if args.command == "evaluate":
+        from energy_margin.evaluate import evaluate, format_table
+
+        result = evaluate(
+            args.dataset,
+            capture_window=args.capture_window,
+            success_frames=args.success_frames,
+            weights=args.weights,
+        )
+        print(json.dumps(result, sort_keys=True) if args.json else format_table(result))
+        return 0
+    raise AssertionError(args.command)
+
+
+class _Bar:
+    def __init__(self, total: int, desc: str) -> None:
+        self._bar = None
+        if sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1":
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, desc=desc, unit="traj")
+
+    def update(self, count: int) -> None:
+        if self._bar is not None:
+            self._bar.update(count)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _bar(total: int, desc: str) -> _Bar:
+    return _Bar(total if isinstance(total, int) and total > 0 else 0, desc)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return _run(args)
+    except EnergyMarginError as error:
+        print(f"{PROG}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; run the same command again to resume", file=sys.stderr)
+        return 130
+    except Exception as error:
+        if os.environ.get("ENERGY_MARGIN_DEBUG"):
+            raise
+        print(
+            f"{PROG}: error: {type(error).__name__}: {error} (set ENERGY_MARGIN_DEBUG=1 for details)", file=sys.stderr
+        )
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,220 @@
+"""Engine-agnostic scene description.
+
+A :class:`Scene` is an immutable model of the world: the free rigid objects that are manipulated,
+the robot's end-effector as a tree of links and joints, the static obstacles, one Coulomb friction
+coefficient for every contact, gravity and the physics time step. Simulator backends build their
+own model from it (MuJoCo generates MJCF in code); nothing here depends on an engine.
+
+Conventions (SI units throughout): positions in metres, masses in kilograms, quaternions
+``(w, x, y, z)``, angles in radians. An object's body frame is centred at its centre of mass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
+JointKind = Literal["slide", "hinge"]
+ObjectMotion = Literal["free", "upright"]
+
+_SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "plane": 2}
+
+
+@dataclass(frozen=True)
+class Geom:
+    """A primitive collision shape.
+
+    Attributes:
+        shape: ``"box"``, ``"cylinder"`` (axis along local z), ``"sphere"`` or ``"plane"`` (normal
+            along local z).
+        size: box half-extents ``(hx, hy, hz)``; cylinder ``(radius, half_height)``; sphere
+            ``(radius,)``; plane half-sizes ``(hx, hy)`` used for display only. Metres.
+        pos: position in the parent frame, metres.
+        quat: orientation in the parent frame ``(w, x, y, z)``.
+        name: optional name, unique within the scene when given.
+        rgba: colour for viewers.
+
+    """
+
+    shape: ShapeKind
+    size: tuple[float, ...]
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    name: str = ""
+    rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.6, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.shape not in _SIZE_LENGTH:
+            raise ValueError(f"shape must be one of {sorted(_SIZE_LENGTH)}, got {self.shape!r}")
+        if len(self.size) != _SIZE_LENGTH[self.shape]:
+            raise ValueError(f"size of a {self.shape} must have {_SIZE_LENGTH[self.shape]} values, got {self.size}")
+        if any(not np.isfinite(s) or s <= 0 for s in self.size):
+            raise ValueError(f"size must be finite and positive, got {self.size}")
+
+    def volume(self) -> float:
+        """Volume in cubic metres (0 for a plane)."""
+        if self.shape == "box":
+            return 8.0 * self.size[0] * self.size[1] * self.size[2]
+        if self.shape == "cylinder":
+            return float(np.pi * self.size[0] ** 2 * 2.0 * self.size[1])
+        if self.shape == "sphere":
+            return float(4.0 / 3.0 * np.pi * self.size[0] ** 3)
+        return 0.0
+
+    def principal_inertia(self, mass: float) -> tuple[float, float, float]:
+        """Principal moments of inertia about the geom's own axes for a uniform solid, kg m^2."""
+        if self.shape == "box":
+            hx, hy, hz = self.size
+            return (
+                mass * (hy**2 + hz**2) / 3.0,
+                mass * (hx**2 + hz**2) / 3.0,
+                mass * (hx**2 + hy**2) / 3.0,
+            )
+        if self.shape == "cylinder":
+            radius, half_height = self.size
+            lateral = mass * (3.0 * radius**2 + (2.0 * half_height) ** 2) / 12.0
+            return (lateral, lateral, 0.5 * mass * radius**2)
+        if self.shape == "sphere":
+            moment = 0.4 * mass * self.size[0] ** 2
+            return (moment, moment, moment)
+        raise ValueError("a plane has no inertia")
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A one-degree-of-freedom joint of the end-effector.
+
+    Attributes:
+        name: unique joint name.
+        kind: ``"slide"`` (prismatic, metres) or ``"hinge"`` (revolute, radians).
+        axis: joint axis in the link frame.
+        limits: ``(lower, upper)`` position limits, or ``None`` for unlimited.
+        damping: viscous damping, N s/m or N m s/rad.
+        stiffness: spring stiffness towards position 0, N/m or N m/rad.
+
+    """
+
+    name: str
+    kind: JointKind
+    axis: tuple[float, float, float]
+    limits: tuple[float, float] | None = None
+    damping: float = 0.0
+    stiffness: float = 0.0
+
+
+@dataclass(frozen=True)
+class Link:
+    """A rigid link of the end-effector, attached to its parent (or the world) by ``joints``.
+
+    Attributes:
+        name: unique link name.
+        geoms: collision shapes in the link frame.
+        mass: link mass, kg (inertia computed from the first geom as a uniform solid).
+        pos: link origin in the parent frame, metres.
+        joints: joints between the parent and this link, in order (may be empty: welded).
+        children: child links.
+
+    """
+
+    name: str
+    geoms: tuple[Geom, ...]
+    mass: float
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    joints: tuple[Joint, ...] = ()
+    children: tuple[Link, ...] = ()
+
+    def iter_links(self) -> list[Link]:
+        """This link and its descendants, depth first (the order of the generalized coordinates)."""
+        links = [self]
+        for child in self.children:
+            links.extend(child.iter_links())
+        return links
+
+
+@dataclass(frozen=True)
+class RigidObject:
+    """A free-floating manipulated object with its centre of mass at its body origin.
+
+    Attributes:
+        name: unique name.
+        geom: its collision shape, centred at the body origin.
+        mass: kg.
+
+    """
+
+    name: str
+    geom: Geom
+    mass: float
+
+    @property
+    def inertia(self) -> tuple[float, float, float]:
+        """Principal moments of inertia, kg m^2 (uniform solid)."""
+        return self.geom.principal_inertia(self.mass)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """An immutable world description shared by every simulator backend.
+
+    Attributes:
+        objects: the manipulated free objects.
+        robot: root link of the end-effector, attached to the world by its joints; ``None`` for none.
+        statics: fixed obstacles (ground, walls, tables) in the world frame.
+        friction: Coulomb coefficient of every contact, as the effective coefficient between two
+            bodies (backends translate it to their own combination rule).
+        timestep: physics time step, seconds.
+        gravity: gravitational acceleration, m/s^2.
+        object_motion: ``"free"`` (six degrees of freedom) or ``"upright"`` (objects translate in
+            x, y, z and rotate only about the world z axis: the planar state of a pushing task, with
+            the vertical kept so the ground carries the weight and friction acts as usual).
+
+    """
+
+    objects: tuple[RigidObject, ...]
+    robot: Link | None
+    statics: tuple[Geom, ...]
+    friction: float
+    timestep: float = 1.0 / 240.0
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    object_motion: ObjectMotion = "free"
+    robot_joint_names: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        if not self.objects:
+            raise ValueError("a scene needs at least one object")
+        if not np.isfinite(self.friction) or self.friction < 0:
+            raise ValueError(f"friction must be finite and >= 0, got {self.friction}")
+        if not np.isfinite(self.timestep) or self.timestep <= 0:
+            raise ValueError(f"timestep must be positive, got {self.timestep}")
+        if self.object_motion not in ("free", "upright"):
+            raise ValueError(f"object_motion must be 'free' or 'upright', got {self.object_motion!r}")
+        names = [joint.name for link in self.robot_links for joint in link.joints]
+        object.__setattr__(self, "robot_joint_names", tuple(names))
+
+    @property
+    def n_objects(self) -> int:
+        """Number of manipulated objects."""
+        return len(self.objects)
+
+    @property
+    def robot_links(self) -> list[Link]:
+        """End-effector links, depth first."""
+        return self.robot.iter_links() if self.robot is not None else []
+
+    @property
+    def n_robot_dofs(self) -> int:
+        """Number of end-effector joint coordinates."""
+        return len(self.robot_joint_names)
+
+    @property
+    def object_masses(self) -> np.ndarray:
+        """Object masses, shape (n_objects,), kg."""
+        return np.array([obj.mass for obj in self.objects])
+
+    @property
+    def object_inertias(self) -> np.ndarray:
+        """Principal inertias in each body frame, shape (n_objects, 3), kg m^2."""
+        return np.array([obj.inertia for obj in self.objects])

@@ -1,0 +1,87 @@
+"""Algorithm 1: likelihood of reached states and the capture and success scores."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
+    """Softmax likelihood ``L_m = exp(-lam (c_m - c_min)) / sum_j exp(-lam (c_j - c_min))`` (eq. 1).
+
+    Computed with the log-sum-exp shift, so any cost scale (up to 1e6 J and beyond) stays finite.
+
+    Args:
+        costs: energy costs of the tree's nodes, shape (M,), J; finite.
+        lam: inverse temperature lambda, 1/J, >= 0.
+
+    Returns:
+        Likelihoods, shape (M,), summing to 1.
+
+    """
+    costs = np.asarray(costs, dtype=float)
+    if costs.ndim != 1 or costs.size == 0:
+        raise ValueError(f"costs must be a non-empty 1-D array, got shape {costs.shape}")
+    if not np.all(np.isfinite(costs)):
+        raise ValueError("costs must be finite")
+    if not np.isfinite(lam) or lam < 0:
+        raise ValueError(f"lam must be finite and >= 0, got {lam}")
+    logits = -lam * (costs - costs.min())
+    logits -= logits.max()
+    weights = np.exp(logits)
+    return weights / weights.sum()
+
+
+def region_score(costs: np.ndarray, inside: np.ndarray, lam: float) -> float:
+    """Likelihood mass of the nodes inside a set (eq. 2 and 3).
+
+    Args:
+        costs: node costs, shape (M,), J.
+        inside: whether each node lies in the set, shape (M,), bool.
+        lam: inverse temperature, 1/J.
+
+    """
+    inside = np.asarray(inside, dtype=bool)
+    if inside.shape != np.shape(costs):
+        raise ValueError(f"inside must have shape {np.shape(costs)}, got {inside.shape}")
+    return float(np.sum(likelihood(costs, lam)[inside]))
+
+
+def trajectory_weights(n_frames: int, *, last: int, scheme: str = "linear") -> np.ndarray:
+    """Weights of a trajectory's frames for the trajectory-level success score.
+
+    Args:
+        n_frames: number of frames K.
+        last: the score averages the last ``last`` frames (k-bar), 1 <= last.
+        scheme: ``"linear"`` (weights 1, 2, ..., k-bar increasing towards the end) or ``"uniform"``.
+
+    Returns:
+        Weights, shape (n_frames,), zero before the window, summing to 1.
+
+    """
+    if last < 1:
+        raise ValueError(f"last must be >= 1, got {last}")
+    window = min(last, n_frames)
+    weights = np.zeros(n_frames)
+    if scheme == "linear":
+        weights[n_frames - window :] = np.arange(1, window + 1, dtype=float)
+    elif scheme == "uniform":
+        weights[n_frames - window :] = 1.0
+    else:
+        raise ValueError(f"scheme must be 'linear' or 'uniform', got {scheme!r}")
+    return weights / weights.sum()
+
+
+def trajectory_success_score(frame_scores: np.ndarray, *, last: int, scheme: str = "linear") -> np.ndarray:
+    """Weighted average of the last ``last`` frame success scores of every trajectory.
+
+    Args:
+        frame_scores: success scores, shape (n_trajectories, n_frames).
+        last: k-bar, the number of final frames averaged.
+        scheme: ``"linear"`` or ``"uniform"`` weights.
+
+    Returns:
+        Scores, shape (n_trajectories,).
+
+    """
+    frame_scores = np.asarray(frame_scores, dtype=float)
+    return frame_scores @ trajectory_weights(frame_scores.shape[1], last=last, scheme=scheme)

@@ -1,0 +1,96 @@
+"""The Simulator protocol: everything the analyzer and the data generator need from an engine."""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from energy_margin.scene import Scene
+from energy_margin.state import FrameState
+
+
+@runtime_checkable
+class Simulator(Protocol):
+    """A physics engine instance built from a :class:`~energy_margin.scene.Scene`.
+
+    The scene (model) is immutable; the simulator holds the changing state. ``get_state`` returns an
+    opaque float64 vector that ``set_state`` restores exactly: replaying the same wrenches from a
+    restored state gives bit-identical results.
+    """
+
+    scene: Scene
+
+    @property
+    def timestep(self) -> float:
+        """Physics time step, seconds."""
+        ...
+
+    @property
+    def state_size(self) -> int:
+        """Length of the vector returned by :meth:`get_state`."""
+        ...
+
+    def reset(self, frame: FrameState) -> None:
+        """Set object and end-effector poses and velocities; clear applied wrenches and forces."""
+        ...
+
+    def get_state(self) -> np.ndarray:
+        """The full integration state, shape (state_size,), float64."""
+        ...
+
+    def set_state(self, state: np.ndarray) -> None:
+        """Restore a state returned by :meth:`get_state`."""
+        ...
+
+    def set_object_wrenches(self, wrenches: np.ndarray) -> None:
+        """Hold wrenches on the objects until changed.
+
+        Args:
+            wrenches: shape (n_objects, 6): force (N) then torque (N m), world frame, applied at each
+                object's centre of mass.
+
+        """
+        ...
+
+    def set_robot_force(self, force: np.ndarray) -> None:
+        """Hold generalized forces on the end-effector joints, shape (n_robot_dofs,), N or N m."""
+        ...
+
+    def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
+        """Advance ``n_steps`` time steps.
+
+        Returns:
+            The work done by friction at contacts that involve an object over these steps, joules
+            (<= 0: friction dissipates), or 0.0 when ``track_friction_work`` is false.
+
+        """
+        ...
+
+    def object_positions(self) -> np.ndarray:
+        """Centre-of-mass positions, shape (n_objects, 3), metres."""
+        ...
+
+    def object_quaternions(self) -> np.ndarray:
+        """Orientations, shape (n_objects, 4), (w, x, y, z)."""
+        ...
+
+    def object_velocities(self) -> np.ndarray:
+        """Linear (m/s) then angular (rad/s) velocities, world frame, shape (n_objects, 6)."""
+        ...
+
+    def robot_positions(self) -> np.ndarray:
+        """End-effector joint positions, shape (n_robot_dofs,)."""
+        ...
+
+    def robot_velocities(self) -> np.ndarray:
+        """End-effector joint velocities, shape (n_robot_dofs,)."""
+        ...
+
+    def mechanical_energy(self) -> float:
+        """Kinetic plus gravitational potential energy of the objects, joules (potential zero at z=0)."""
+        ...
+
+    def frame_state(self) -> FrameState:
+        """The current poses and velocities as a :class:`FrameState`."""
+        ...

@@ -1,0 +1,287 @@
+"""MuJoCo backend: the scene as MJCF generated in code, states as ``mjSTATE_INTEGRATION`` vectors.
+
+Contacts use MuJoCo's defaults (Newton solver, pyramidal friction cone, Euler integrator) with
+``condim = 3`` (sliding friction only) and every geom's sliding friction set to the scene's
+coefficient, so the contact coefficient (MuJoCo takes the larger of the two geoms') equals it.
+"""
+
+from __future__ import annotations
+
+from xml.sax.saxutils import quoteattr
+
+import mujoco
+import numpy as np
+
+from energy_margin.scene import Geom, Link, Scene
+from energy_margin.state import FrameState, yaw_from_quat
+
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+# Joints of an upright object, in qpos order: position x, y, z then yaw.
+_UPRIGHT_JOINTS = (
+    ("_x", "slide", "1 0 0"),
+    ("_y", "slide", "0 1 0"),
+    ("_z", "slide", "0 0 1"),
+    ("_yaw", "hinge", "0 0 1"),
+)
+
+
+def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
+    return " ".join(repr(float(v)) for v in values)
+
+
+def _geom_xml(geom: Geom, name: str) -> str:
+    size = list(geom.size)
+    if geom.shape == "plane":
+        size = [*size, 0.1]
+    return (
+        f"<geom name={quoteattr(name)} type={quoteattr(geom.shape)} size={quoteattr(_fmt(size))} "
+        f'pos="{_fmt(geom.pos)}" quat="{_fmt(geom.quat)}" rgba="{_fmt(geom.rgba)}"/>'
+    )
+
+
+def _link_xml(link: Link) -> str:
+    parts = [f'<body name={quoteattr(link.name)} pos="{_fmt(link.pos)}">']
+    for joint in link.joints:
+        attrs = [
+            f"name={quoteattr(joint.name)}",
+            f'type="{joint.kind}"',
+            f'axis="{_fmt(joint.axis)}"',
+            f'damping="{joint.damping!r}"',
+            f'stiffness="{joint.stiffness!r}"',
+        ]
+        if joint.limits is not None:
+            attrs.append(f'range="{_fmt(joint.limits)}" limited="true"')
+        parts.append(f"<joint {' '.join(attrs)}/>")
+    first = link.geoms[0]
+    inertia = first.principal_inertia(link.mass)
+    parts.append(
+        f'<inertial pos="{_fmt(first.pos)}" quat="{_fmt(first.quat)}" mass="{link.mass!r}" '
+        f'diaginertia="{_fmt(inertia)}"/>'
+    )
+    for index, geom in enumerate(link.geoms):
+        parts.append(_geom_xml(geom, geom.name or f"{link.name}_geom{index}"))
+    parts.extend(_link_xml(child) for child in link.children)
+    parts.append("</body>")
+    return "".join(parts)
+
+
+def build_mjcf(scene: Scene) -> str:
+    """MJCF text of ``scene`` (objects are free bodies named after :attr:`RigidObject.name`)."""
+    worldbody = []
+    for index, geom in enumerate(scene.statics):
+        worldbody.append(_geom_xml(geom, geom.name or f"static{index}"))
+    if scene.robot is not None:
+        worldbody.append(_link_xml(scene.robot))
+    for obj in scene.objects:
+        if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
+            raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
+        if scene.object_motion == "free":
+            joints = f"<freejoint name={quoteattr(obj.name)}/>"
+        else:
+            joints = "".join(
+                f'<joint name={quoteattr(obj.name + suffix)} type="{kind}" axis="{axis}"/>'
+                for suffix, kind, axis in _UPRIGHT_JOINTS
+            )
+        worldbody.append(
+            f"<body name={quoteattr(obj.name)}>{joints}"
+            f'<inertial pos="0 0 0" mass="{obj.mass!r}" diaginertia="{_fmt(obj.inertia)}"/>'
+            f"{_geom_xml(obj.geom, obj.name)}</body>"
+        )
+    return (
+        '<mujoco model="energy_margin"><compiler angle="radian"/>'
+        f'<option timestep="{scene.timestep!r}" gravity="{_fmt(scene.gravity)}"/>'
+        f'<default><geom condim="3" friction="{scene.friction!r} 0 0"/></default>'
+        f"<worldbody>{''.join(worldbody)}</worldbody></mujoco>"
+    )
+
+
+def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """Rotate vectors (n, 3) by quaternions (n, 4) (w, x, y, z)."""
+    w = quat[:, :1]
+    u = quat[:, 1:]
+    t = 2.0 * np.cross(u, vec)
+    return vec + w * t + np.cross(u, t)
+
+
+def _rotate_inverse(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    conj = quat * np.array([1.0, -1.0, -1.0, -1.0])
+    return _rotate(conj, vec)
+
+
+class MujocoSimulator:
+    """A :class:`~energy_margin.sim.base.Simulator` on MuJoCo."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.model = mujoco.MjModel.from_xml_string(build_mjcf(scene))
+        self.data = mujoco.MjData(self.model)
+        model = self.model
+        self._object_bodies = np.array(
+            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, obj.name) for obj in scene.objects]
+        )
+        self._upright = scene.object_motion == "upright"
+        first_joint = "_x" if self._upright else ""
+        joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, obj.name + first_joint) for obj in scene.objects]
+        qpos_adr = model.jnt_qposadr[joints]
+        qvel_adr = model.jnt_dofadr[joints]
+        # Index arrays gather every object's coordinates in one fancy-indexing operation.
+        self._pos_index = qpos_adr[:, None] + np.arange(3)
+        self._linvel_index = qvel_adr[:, None] + np.arange(3)
+        if self._upright:
+            self._yaw_index = qpos_adr + 3
+            self._yaw_rate_index = qvel_adr + 3
+        else:
+            self._quat_index = qpos_adr[:, None] + 3 + np.arange(4)
+            self._angvel_index = qvel_adr[:, None] + 3 + np.arange(3)
+        robot_joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in scene.robot_joint_names]
+        self._robot_qpos = np.array(model.jnt_qposadr[robot_joints], dtype=int)
+        self._robot_qvel = np.array(model.jnt_dofadr[robot_joints], dtype=int)
+        self._masses = model.body_mass[self._object_bodies].copy()
+        self._inertias = model.body_inertia[self._object_bodies].copy()
+        self._gravity = np.asarray(scene.gravity, dtype=float)
+        self._geom_is_object = np.isin(model.geom_bodyid, self._object_bodies)
+        self._state_buffer = np.empty(mujoco.mj_stateSize(model, _STATE_SPEC))
+        self._pyramid = np.arange(4)
+
+    @property
+    def timestep(self) -> float:
+        """Physics time step, seconds."""
+        return float(self.model.opt.timestep)
+
+    @property
+    def state_size(self) -> int:
+        """Length of a state vector."""
+        return int(self._state_buffer.shape[0])
+
+    def reset(self, frame: FrameState) -> None:
+        """Set poses and velocities from ``frame``; clear applied wrenches, forces and warm starts."""
+        frame.validate(n_objects=self.scene.n_objects, n_robot_dofs=self.scene.n_robot_dofs)
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        quat = np.asarray(frame.object_quat, dtype=float)
+        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        data.qpos[self._pos_index] = frame.object_pos
+        data.qvel[self._linvel_index] = frame.object_vel[:, :3]
+        if self._upright:
+            # Upright objects keep only the rotation about z and the z angular velocity.
+            data.qpos[self._yaw_index] = yaw_from_quat(quat)
+            data.qvel[self._yaw_rate_index] = frame.object_vel[:, 5]
+        else:
+            data.qpos[self._quat_index] = quat
+            # Free-joint angular velocity is expressed in the body frame.
+            data.qvel[self._angvel_index] = _rotate_inverse(quat, np.asarray(frame.object_vel[:, 3:], float))
+        data.qpos[self._robot_qpos] = frame.robot_q
+        data.qvel[self._robot_qvel] = frame.robot_v
+        mujoco.mj_forward(model, data)
+
+    def get_state(self) -> np.ndarray:
+        """The ``mjSTATE_INTEGRATION`` vector (time, qpos, qvel, act, warm start, applied forces)."""
+        mujoco.mj_getState(self.model, self.data, self._state_buffer, _STATE_SPEC)
+        return self._state_buffer.copy()
+
+    def set_state(self, state: np.ndarray) -> None:
+        """Restore a vector from :meth:`get_state` (bit-identical replays)."""
+        mujoco.mj_setState(self.model, self.data, state, _STATE_SPEC)
+
+    def set_object_wrenches(self, wrenches: np.ndarray) -> None:
+        """Hold world-frame wrenches (n_objects, 6) [N, N m] at the objects' centres of mass."""
+        self.data.xfrc_applied[self._object_bodies] = wrenches
+
+    def set_robot_force(self, force: np.ndarray) -> None:
+        """Hold generalized forces (n_robot_dofs,) on the end-effector joints."""
+        self.data.qfrc_applied[self._robot_qvel] = force
+
+    def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
+        """Advance ``n_steps`` steps; optionally return the friction work at object contacts (J)."""
+        model, data = self.model, self.data
+        if not track_friction_work:
+            mujoco.mj_step(model, data, n_steps)
+            return 0.0
+        work = 0.0
+        for _ in range(n_steps):
+            qvel_before = data.qvel.copy()
+            mujoco.mj_step(model, data)
+            work += self._friction_power(0.5 * (qvel_before + data.qvel)) * model.opt.timestep
+        return work
+
+    def _friction_power(self, qvel: np.ndarray) -> float:
+        """Power of the friction forces of the last step at object contacts, W (<= 0).
+
+        After ``mj_step`` the contacts, constraint Jacobian and forces describe the start of the
+        step. A pyramidal condim-3 contact has four rows with directions ``n + s mu_j t_j``; with row
+        forces ``f`` and row velocities ``u = J qvel`` the tangential power is
+        ``((f0 - f1)(u0 - u1) + (f2 - f3)(u2 - u3)) / 2``, which drops the normal component.
+        """
+        data = self.data
+        if data.ncon == 0:
+            return 0.0
+        contacts = data.contact
+        involved = self._geom_is_object[contacts.geom1] | self._geom_is_object[contacts.geom2]
+        selected = involved & (contacts.efc_address >= 0) & (contacts.dim == 3)
+        if not np.any(selected):
+            return 0.0
+        row_velocity = np.empty(data.nefc)
+        mujoco.mj_mulJacVec(self.model, data, row_velocity, qvel)
+        rows = contacts.efc_address[selected][:, None] + self._pyramid
+        force = data.efc_force[rows]
+        velocity = row_velocity[rows]
+        power = (force[:, 0] - force[:, 1]) * (velocity[:, 0] - velocity[:, 1]) + (force[:, 2] - force[:, 3]) * (
+            velocity[:, 2] - velocity[:, 3]
+        )
+        return 0.5 * float(power.sum())
+
+    def object_positions(self) -> np.ndarray:
+        """Centre-of-mass positions (n_objects, 3), metres."""
+        return self.data.qpos[self._pos_index]
+
+    def object_quaternions(self) -> np.ndarray:
+        """Orientations (n_objects, 4), (w, x, y, z)."""
+        if self._upright:
+            half_yaw = 0.5 * self.data.qpos[self._yaw_index]
+            zeros = np.zeros_like(half_yaw)
+            return np.column_stack([np.cos(half_yaw), zeros, zeros, np.sin(half_yaw)])
+        return self.data.qpos[self._quat_index]
+
+    def object_velocities(self) -> np.ndarray:
+        """Linear and angular velocities in the world frame (n_objects, 6)."""
+        linear = self.data.qvel[self._linvel_index]
+        if self._upright:
+            angular = np.zeros_like(linear)
+            angular[:, 2] = self.data.qvel[self._yaw_rate_index]
+        else:
+            angular = _rotate(self.object_quaternions(), self.data.qvel[self._angvel_index])
+        return np.concatenate([linear, angular], axis=1)
+
+    def robot_positions(self) -> np.ndarray:
+        """End-effector joint positions (n_robot_dofs,)."""
+        return self.data.qpos[self._robot_qpos].copy()
+
+    def robot_velocities(self) -> np.ndarray:
+        """End-effector joint velocities (n_robot_dofs,)."""
+        return self.data.qvel[self._robot_qvel].copy()
+
+    def mechanical_energy(self) -> float:
+        """Kinetic plus potential energy of the objects, joules."""
+        data = self.data
+        linear = data.qvel[self._linvel_index]
+        kinetic = 0.5 * float(np.sum(self._masses * np.sum(linear * linear, axis=1)))
+        if self._upright:
+            yaw_rate = data.qvel[self._yaw_rate_index]
+            kinetic += 0.5 * float(np.sum(self._inertias[:, 2] * yaw_rate * yaw_rate))
+        else:
+            angular_local = data.qvel[self._angvel_index]
+            kinetic += 0.5 * float(np.sum(self._inertias * angular_local * angular_local))
+        potential = -float(np.sum(self._masses * (data.qpos[self._pos_index] @ self._gravity)))
+        return kinetic + potential
+
+    def frame_state(self) -> FrameState:
+        """Current poses and velocities."""
+        return FrameState(
+            object_pos=self.object_positions().copy(),
+            object_quat=self.object_quaternions().copy(),
+            object_vel=self.object_velocities(),
+            robot_q=self.robot_positions(),
+            robot_v=self.robot_velocities(),
+        )

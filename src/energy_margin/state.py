@@ -1,0 +1,87 @@
+"""The physical state of one recorded frame, independent of any engine."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FrameState:
+    """Poses and velocities of the objects and the end-effector at one instant.
+
+    Attributes:
+        object_pos: centre-of-mass positions, shape (n_objects, 3), metres, world frame.
+        object_quat: orientations, shape (n_objects, 4), ``(w, x, y, z)``.
+        object_vel: linear then angular velocity, shape (n_objects, 6), m/s and rad/s, world frame.
+        robot_q: end-effector joint positions, shape (n_robot_dofs,), metres or radians.
+        robot_v: end-effector joint velocities, shape (n_robot_dofs,), m/s or rad/s.
+
+    """
+
+    object_pos: np.ndarray
+    object_quat: np.ndarray
+    object_vel: np.ndarray
+    robot_q: np.ndarray
+    robot_v: np.ndarray
+
+    @property
+    def n_objects(self) -> int:
+        """Number of objects."""
+        return int(self.object_pos.shape[0])
+
+    def validate(self, *, n_objects: int, n_robot_dofs: int) -> None:
+        """Raise ``ValueError`` naming the first array with a wrong shape or a non-finite value."""
+        expected = {
+            "object_pos": (n_objects, 3),
+            "object_quat": (n_objects, 4),
+            "object_vel": (n_objects, 6),
+            "robot_q": (n_robot_dofs,),
+            "robot_v": (n_robot_dofs,),
+        }
+        for name, shape in expected.items():
+            value = np.asarray(getattr(self, name))
+            if value.shape != shape:
+                raise ValueError(f"{name} must have shape {shape}, got {value.shape}")
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"{name} contains NaN or infinite values")
+        norms = np.linalg.norm(self.object_quat, axis=1)
+        if np.any(np.abs(norms - 1.0) > 1e-3):
+            raise ValueError("object_quat must hold unit quaternions")
+
+
+def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
+    """Rotation about world z of quaternions ``(..., 4)`` ``(w, x, y, z)``, radians, shape ``(...)``."""
+    w, x, y, z = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+# Hamilton product as a bilinear form: (a * b)_i = sum_jk _HAMILTON[i, j, k] a_j b_k.
+_HAMILTON = np.zeros((4, 4, 4))
+for _i, _j, _k, _sign in (
+    (0, 0, 0, 1), (0, 1, 1, -1), (0, 2, 2, -1), (0, 3, 3, -1),
+    (1, 0, 1, 1), (1, 1, 0, 1), (1, 2, 3, 1), (1, 3, 2, -1),
+    (2, 0, 2, 1), (2, 2, 0, 1), (2, 3, 1, 1), (2, 1, 3, -1),
+    (3, 0, 3, 1), (3, 3, 0, 1), (3, 1, 2, 1), (3, 2, 1, -1),
+):  # fmt: skip
+    _HAMILTON[_i, _j, _k] = _sign
+_CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def relative_rotation_vector(quat_from: np.ndarray, quat_to: np.ndarray) -> np.ndarray:
+    """Rotation vector of ``R_to R_from^T`` (world frame), shape (n, 3), radians.
+
+    Args:
+        quat_from: start orientations, shape (n, 4), ``(w, x, y, z)``.
+        quat_to: end orientations, shape (n, 4).
+
+    """
+    relative = np.einsum("ijk,nj,nk->ni", _HAMILTON, quat_to, quat_from * _CONJUGATE)
+    # The shortest rotation has w >= 0.
+    relative *= np.where(relative[:, :1] < 0.0, -1.0, 1.0)
+    sin_half = np.sqrt(np.einsum("ni,ni->n", relative[:, 1:], relative[:, 1:]))
+    angle = 2.0 * np.arctan2(sin_half, relative[:, 0])
+    # angle / sin(angle / 2) -> 2 as the angle -> 0.
+    scale = np.divide(angle, sin_half, out=np.full_like(angle, 2.0), where=sin_half > 1e-12)
+    return relative[:, 1:] * scale[:, None]

@@ -1,0 +1,186 @@
+"""What a task is: its world, its scripted manipulation, and the meaning of capture and success.
+
+A task never runs physics itself and never grows trees: the data generator drives a
+:class:`~energy_margin.sim.base.Simulator` with the task's scripted forces, and the analyzer asks
+the task which reached states are captured or successful. Tasks are registered by name in
+:mod:`energy_margin.tasks` so a user can add one without editing the core.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+from energy_margin.scene import Scene
+from energy_margin.state import FrameState
+
+
+class Region(Protocol):
+    """A region of object centre-of-mass positions."""
+
+    def contains(self, positions: np.ndarray) -> np.ndarray:
+        """Whether each position lies inside.
+
+        Args:
+            positions: shape (..., 3), metres, world frame.
+
+        Returns:
+            Boolean array of shape (...).
+
+        """
+        ...
+
+
+def all_inside(region: Region, object_positions: np.ndarray) -> np.ndarray:
+    """True where every object of a state lies in ``region``.
+
+    Args:
+        region: the region.
+        object_positions: shape (..., n_objects, 3), metres.
+
+    Returns:
+        Boolean array of shape (...).
+
+    """
+    return np.all(region.contains(object_positions), axis=-1)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """The randomised start of one scripted roll-out.
+
+    Attributes:
+        initial: the initial frame state.
+        friction: Coulomb coefficient of every contact in this trajectory.
+        drive: task-defined parameters of the scripted end-effector motion, shape (n_drive,).
+
+    """
+
+    initial: FrameState
+    friction: float
+    drive: np.ndarray
+
+
+@dataclass(frozen=True)
+class WrenchLimits:
+    """Uniform perturbation ranges of one analysis.
+
+    Attributes:
+        max_wrench: per-object bound on |force| (N) and |torque| (N m) per world axis, shape
+            (n_objects, 6); a zero entry is never perturbed.
+        max_duration: longest propagation, seconds.
+
+    """
+
+    max_wrench: np.ndarray
+    max_duration: float
+
+    @property
+    def control_dimension(self) -> int:
+        """Number of perturbed wrench components (sets the duration bias)."""
+        return int(np.count_nonzero(self.max_wrench))
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """Settings shared by every task.
+
+    Attributes:
+        duration: length of a scripted roll-out, seconds.
+        timestep: physics time step, seconds.
+        likelihood_lambda: softmax inverse temperature lambda of Algorithm 1, 1/J.
+        max_duration: longest perturbation propagation of the analyzer, seconds.
+
+    """
+
+    duration: float = 2.0
+    timestep: float = 1.0 / 240.0
+    likelihood_lambda: float = 5.0
+    max_duration: float = 0.1
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible dictionary of every field."""
+        return dataclasses.asdict(self)
+
+
+class Task(ABC):
+    """Base class of a manipulation task."""
+
+    name: ClassVar[str]
+    config_class: ClassVar[type[TaskConfig]] = TaskConfig
+
+    def __init__(self, config: TaskConfig | None = None) -> None:
+        self.config = config if config is not None else self.config_class()
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any] | None) -> Task:
+        """Build the task from a configuration dictionary (unknown keys raise ``ValueError``)."""
+        values = dict(values or {})
+        fields = {f.name: f for f in dataclasses.fields(cls.config_class)}
+        unknown = sorted(set(values) - set(fields))
+        if unknown:
+            raise ValueError(f"unknown {cls.name} configuration keys: {', '.join(unknown)}")
+        converted: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(cls.config_class(**converted))
+
+    @abstractmethod
+    def build_scene(self, n_objects: int, friction: float) -> Scene:
+        """The world with ``n_objects`` objects and contact friction ``friction``."""
+
+    @abstractmethod
+    def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
+        """Randomised initial state, friction and drive parameters of one scripted roll-out."""
+
+    @abstractmethod
+    def robot_force(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray:
+        """Generalized end-effector forces at ``time`` (s) of a roll-out with parameters ``drive``.
+
+        With ``rng`` the scripted roll-out's random variation is drawn; with ``None`` the nominal
+        (expected) force is returned, which the analyzer applies while it perturbs the objects.
+        """
+
+    @abstractmethod
+    def capture_region(self, root: FrameState) -> Region:
+        """The capture region R_cap(z_init) built from the frame being analysed."""
+
+    @abstractmethod
+    def success_region(self) -> Region:
+        """The task success region R_suc."""
+
+    @abstractmethod
+    def wrench_limits(self, scene: Scene) -> WrenchLimits:
+        """Perturbation ranges for ``scene`` (scaled by each object's mass and inertia)."""
+
+    @abstractmethod
+    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+        """Whether a reached state lies in the state box (states outside are rejected)."""
+
+    def is_captured(self, frame: FrameState) -> bool:
+        """Whether every object of ``frame`` lies in the capture region built from ``frame``."""
+        return bool(all_inside(self.capture_region(frame), frame.object_pos))
+
+    def is_successful(self, frame: FrameState) -> bool:
+        """Whether every object of ``frame`` lies in the success region."""
+        return bool(all_inside(self.success_region(), frame.object_pos))
+
+    @property
+    def n_steps(self) -> int:
+        """Physics steps of a scripted roll-out."""
+        return round(self.config.duration / self.config.timestep)
+
+    def frame_steps(self, n_frames: int) -> np.ndarray:
+        """Steps at which frames are recorded: evenly spaced from the start to the end, shape (K,)."""
+        if n_frames == 1:
+            return np.array([self.n_steps])
+        return np.round(np.linspace(0, self.n_steps, n_frames)).astype(int)

@@ -1,0 +1,303 @@
+"""Planar pushing of many cylinders towards a wall (paper Section III.A.1).
+
+Geometry follows the authors' setup: upright cylinders (radius 0.05 m, height 0.03 m, 0.2 kg) on
+the ground, a 0.8 m x 0.2 m pusher of 4 kg, and a wall whose face is at y = 1.6 m. The pusher is
+a dynamic body with joints x, y, z (slide) and yaw (hinge), so ``robot_q = (x, y, z, yaw)``. It is
+driven by a force at its centre of mass: during a scripted roll-out a fresh random force is drawn
+every step around the trajectory's mean; during analysis the mean force keeps pushing, so the
+end-effector follows the manipulation while the objects are perturbed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
+from energy_margin.state import FrameState
+from energy_margin.tasks.base import Task, TaskConfig, Trajectory, WrenchLimits
+
+_OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
+_PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)
+
+
+@dataclass(frozen=True)
+class PushingConfig(TaskConfig):
+    """Planar pushing settings (SI units).
+
+    Attributes:
+        timestep: physics time step, s. 1/120 s keeps MuJoCo's default contact time constant
+            (0.02 s) above two steps, which its documentation requires for stable soft contacts, and
+            halves the analysis time against 1/240 s (see docs/performance.md).
+        object_radius: cylinder radius, m.
+        object_half_height: cylinder half height, m.
+        object_mass: cylinder mass, kg.
+        pusher_half_extents: pusher box half extents, m.
+        pusher_mass: pusher mass, kg.
+        wall_y: y of the wall's face, m.
+        ground_z: height of the ground surface, m (objects rest with their centre at
+            ``ground_z + object_half_height``).
+        friction_range: per-trajectory Coulomb coefficient range of every contact.
+        spawn_x: x range of initial object centres, m.
+        spawn_y_top: largest initial object y, m; the spawn band extends downwards by
+            ``spawn_depth_per_object * max(n_objects, 10)`` so the density does not grow with n_o.
+        spawn_depth_per_object: depth of the spawn band per object, m.
+        min_separation: smallest distance between initial object centres, m.
+        object_speed: initial object speeds are uniform in +-this per axis, m/s.
+        pusher_gap: range of the gap between the pusher centre and the lowest object, m.
+        pusher_heading: range of the initial pusher yaw, rad.
+        pusher_speed_x: range of the initial pusher x velocity, m/s.
+        pusher_speed_y: range of the initial pusher y velocity, m/s.
+        drive_factor: range of the mean forward force as a multiple of the friction of the pusher
+            plus all objects, mu g (m_pusher + n_o m_object), drawn once per trajectory.
+        drive_jitter: the forward force drawn each step varies by this fraction around its mean.
+        lateral_force: the sideways force drawn each step is uniform in +-this, N.
+        capture_speed_threshold: below this pusher speed the capture region is a disc, m/s.
+        capture_disc_radius: radius of that disc around the pusher centre, m.
+        capture_half_width: half width of the swept band (radial margin of the annulus), m.
+        capture_behind: arc length the region extends behind the pusher centre, m.
+        capture_horizon: the region covers the sweep of the next this many seconds, s.
+        max_turn_radius: largest rotation radius; straight motion uses it, m.
+        success_half_width: half width of the success band around the touching line, m.
+        workspace: (low, high) bounds of object x and y; states outside are rejected, m.
+        max_linear_acceleration: perturbation force bound per axis divided by mass, m/s^2.
+        max_angular_acceleration: perturbation torque bound divided by inertia, rad/s^2.
+        max_speed: reached states with a faster object are rejected, m/s.
+
+    """
+
+    timestep: float = 1.0 / 120.0
+    object_radius: float = 0.05
+    object_half_height: float = 0.015
+    object_mass: float = 0.2
+    pusher_half_extents: tuple[float, float, float] = (0.4, 0.1, 0.015)
+    pusher_mass: float = 4.0
+    wall_y: float = 1.6
+    ground_z: float = -0.015
+    friction_range: tuple[float, float] = (0.1, 0.3)
+    spawn_x: tuple[float, float] = (0.7, 1.3)
+    spawn_y_top: float = 1.0
+    spawn_depth_per_object: float = 0.04
+    min_separation: float = 0.1
+    object_speed: float = 0.05
+    pusher_gap: tuple[float, float] = (0.2, 0.3)
+    pusher_heading: tuple[float, float] = (-0.05, 0.05)
+    pusher_speed_x: tuple[float, float] = (-0.1, 0.1)
+    pusher_speed_y: tuple[float, float] = (0.02, 0.06)
+    drive_factor: tuple[float, float] = (1.1, 1.6)
+    drive_jitter: float = 0.2
+    lateral_force: float = 0.4
+    capture_speed_threshold: float = 0.3
+    capture_disc_radius: float = 0.6
+    capture_half_width: float = 0.4
+    capture_behind: float = 0.06
+    capture_horizon: float = 1.0
+    max_turn_radius: float = 1000.0
+    success_half_width: float = 0.1
+    workspace: tuple[float, float] = (-0.1, 2.1)
+    max_linear_acceleration: float = 2.0
+    max_angular_acceleration: float = 0.667
+    max_speed: float = 100.0
+
+
+class SweptRegion:
+    """Annular sector swept by the pusher about its instantaneous centre of rotation, or a disc."""
+
+    def __init__(self, config: PushingConfig, pusher_xy: np.ndarray, pusher_velocity: np.ndarray) -> None:
+        """Build the region.
+
+        Args:
+            config: task settings.
+            pusher_xy: pusher centre (2,), m.
+            pusher_velocity: (vx, vy, yaw rate), m/s and rad/s.
+
+        """
+        self.config = config
+        self.pusher_xy = np.asarray(pusher_xy, dtype=float)
+        vx, vy, yaw_rate = (float(v) for v in pusher_velocity)
+        speed = float(np.hypot(vx, vy))
+        self.is_disc = speed < config.capture_speed_threshold
+        if self.is_disc:
+            return
+        radius = min(speed / abs(yaw_rate), config.max_turn_radius) if yaw_rate != 0 else config.max_turn_radius
+        turn = 1.0 if yaw_rate >= 0 else -1.0
+        normal = np.array([-vy, vx]) / speed  # left of the motion
+        self.centre = self.pusher_xy + turn * radius * normal
+        self.radius = radius
+        self.turn = turn
+        offset = self.pusher_xy - self.centre
+        self.start_angle = float(np.arctan2(offset[1], offset[0]))
+        # The swept arc plus the margin behind: the arc the pusher covers in the horizon, capped at
+        # the full circle.
+        self.arc_margin = config.capture_behind / radius
+        self.arc_length = min(speed * config.capture_horizon / radius, 2.0 * np.pi)
+
+    def contains(self, positions: np.ndarray) -> np.ndarray:
+        """Whether each position (..., 3) lies in the region; shape (...)."""
+        xy = np.asarray(positions)[..., :2]
+        config = self.config
+        if self.is_disc:
+            return np.linalg.norm(xy - self.pusher_xy, axis=-1) <= config.capture_disc_radius
+        relative = xy - self.centre
+        distance = np.linalg.norm(relative, axis=-1)
+        angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)
+        shifted = np.mod(angle + self.arc_margin, 2.0 * np.pi)
+        in_arc = shifted <= self.arc_length + self.arc_margin
+        in_band = np.abs(distance - self.radius) <= config.capture_half_width
+        return in_arc & in_band & _inside_workspace(xy, config)
+
+
+class WallBand:
+    """The band along the wall where the objects must end (success region)."""
+
+    def __init__(self, config: PushingConfig) -> None:
+        touching = config.wall_y - config.object_radius
+        self.low = touching - config.success_half_width
+        self.high = touching + config.success_half_width
+        self.config = config
+
+    def contains(self, positions: np.ndarray) -> np.ndarray:
+        """Whether each position (..., 3) lies in the band; shape (...)."""
+        xy = np.asarray(positions)[..., :2]
+        y = xy[..., 1]
+        return (y >= self.low) & (y <= self.high) & _inside_workspace(xy, self.config)
+
+
+def _inside_workspace(xy: np.ndarray, config: PushingConfig) -> np.ndarray:
+    low, high = config.workspace
+    return np.all((xy >= low) & (xy <= high), axis=-1)
+
+
+class PushingTask(Task):
+    """Push n_o cylinders into the band along a wall."""
+
+    name = "pushing"
+    config_class = PushingConfig
+    config: PushingConfig
+
+    def __init__(self, config: PushingConfig | None = None) -> None:
+        super().__init__(config if config is not None else PushingConfig(likelihood_lambda=5.0))
+
+    def build_scene(self, n_objects: int, friction: float) -> Scene:
+        """Ground, wall, pusher and ``n_objects`` cylinders."""
+        cfg = self.config
+        objects = tuple(
+            RigidObject(
+                name=f"object{i}",
+                geom=Geom("cylinder", (cfg.object_radius, cfg.object_half_height), rgba=_OBJECT_RGBA),
+                mass=cfg.object_mass,
+            )
+            for i in range(n_objects)
+        )
+        half_thickness = 0.5
+        wall = Geom(
+            "box",
+            (7.0, half_thickness, 0.1),
+            pos=(1.0, cfg.wall_y + half_thickness, cfg.ground_z + 0.1),
+            name="wall",
+        )
+        ground = Geom("plane", (5.0, 5.0), pos=(1.0, 1.0, cfg.ground_z), name="ground")
+        pusher = Link(
+            name="pusher",
+            geoms=(Geom("box", cfg.pusher_half_extents, name="pusher", rgba=_PUSHER_RGBA),),
+            mass=cfg.pusher_mass,
+            pos=(0.0, 0.0, cfg.ground_z + cfg.pusher_half_extents[2]),
+            joints=(
+                Joint("pusher_x", "slide", (1.0, 0.0, 0.0)),
+                Joint("pusher_y", "slide", (0.0, 1.0, 0.0)),
+                Joint("pusher_z", "slide", (0.0, 0.0, 1.0)),
+                Joint("pusher_yaw", "hinge", (0.0, 0.0, 1.0)),
+            ),
+        )
+        return Scene(
+            objects=objects,
+            robot=pusher,
+            statics=(ground, wall),
+            friction=friction,
+            timestep=cfg.timestep,
+            object_motion="upright",
+        )
+
+    def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
+        """Random object layout (no overlaps), pusher start, friction and drive force."""
+        cfg = self.config
+        depth = cfg.spawn_depth_per_object * max(n_objects, 10)
+        low = np.array([cfg.spawn_x[0], cfg.spawn_y_top - depth])
+        high = np.array([cfg.spawn_x[1], cfg.spawn_y_top])
+        centres = _sample_separated(rng, n_objects, low, high, cfg.min_separation)
+        z = cfg.ground_z + cfg.object_half_height
+        object_pos = np.column_stack([centres, np.full(n_objects, z)])
+        object_quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_objects, 1))
+        object_vel = np.zeros((n_objects, 6))
+        object_vel[:, :2] = rng.uniform(-cfg.object_speed, cfg.object_speed, (n_objects, 2))
+        pusher_x = float(np.mean(centres[:, 0]))
+        pusher_y = float(np.min(centres[:, 1]) - rng.uniform(*cfg.pusher_gap))
+        heading = float(rng.uniform(*cfg.pusher_heading))
+        robot_q = np.array([pusher_x, pusher_y, 0.0, heading])
+        robot_v = np.array([rng.uniform(*cfg.pusher_speed_x), rng.uniform(*cfg.pusher_speed_y), 0.0, 0.0])
+        friction = float(rng.uniform(*cfg.friction_range))
+        total_mass = cfg.pusher_mass + n_objects * cfg.object_mass
+        forward = float(rng.uniform(*cfg.drive_factor)) * friction * 9.81 * total_mass
+        initial = FrameState(object_pos, object_quat, object_vel, robot_q, robot_v)
+        return Trajectory(initial=initial, friction=friction, drive=np.array([0.0, forward]))
+
+    def robot_force(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray:
+        """World-frame force (x, y) at the pusher centre; no vertical force or torque."""
+        force = np.zeros(4)
+        force[:2] = drive[:2]
+        if rng is not None:
+            cfg = self.config
+            force[0] += rng.uniform(-cfg.lateral_force, cfg.lateral_force)
+            force[1] *= 1.0 + rng.uniform(-cfg.drive_jitter, cfg.drive_jitter)
+        return force
+
+    def capture_region(self, root: FrameState) -> SweptRegion:
+        """Swept annular sector (disc at low speed) from the pusher's pose and velocity."""
+        return SweptRegion(self.config, root.robot_q[:2], root.robot_v[[0, 1, 3]])
+
+    def success_region(self) -> WallBand:
+        """Band of half width ``success_half_width`` around the line where cylinders touch the wall."""
+        return WallBand(self.config)
+
+    def wrench_limits(self, scene: Scene) -> WrenchLimits:
+        """Planar forces m a_max and yaw torques I_zz alpha_max on every object."""
+        cfg = self.config
+        limits = np.zeros((scene.n_objects, 6))
+        limits[:, 0] = limits[:, 1] = scene.object_masses * cfg.max_linear_acceleration
+        limits[:, 5] = scene.object_inertias[:, 2] * cfg.max_angular_acceleration
+        return WrenchLimits(max_wrench=limits, max_duration=cfg.max_duration)
+
+    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+        """Objects inside the workspace, slower than ``max_speed``."""
+        cfg = self.config
+        low, high = cfg.workspace
+        xy = object_pos[:, :2]
+        if xy.min() < low or xy.max() > high:
+            return False
+        return bool(np.abs(object_vel[:, :3]).max() <= cfg.max_speed)
+
+
+def _sample_separated(
+    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
+) -> np.ndarray:
+    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``."""
+    points = np.empty((count, 2))
+    placed = 0
+    attempts = 0
+    while placed < count:
+        attempts += 1
+        if attempts > 100_000:
+            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
+        candidate = rng.uniform(low, high)
+        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
+            points[placed] = candidate
+            placed += 1
+    return points
