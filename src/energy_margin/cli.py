@@ -141,7 +141,7 @@ def _run(args: argparse.Namespace) -> int:
             bar.close()
         labels = dataset.arrays
         print(
-            f"wrote {args.out}: {dataset.n_trajectories} trajectories x {dataset.n_frames} frames, "
+            f"dataset {args.out}: {dataset.n_trajectories} trajectories x {dataset.n_frames} frames, "
             f"{dataset.n_objects} objects; captured frames {labels['captured'].mean():.2f}, "
             f"successful trajectories {dataset.success_labels().mean():.2f}"
         )

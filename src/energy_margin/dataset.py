@@ -20,6 +20,7 @@ the end of the trajectory).
 
 from __future__ import annotations
 
+import json
 import shutil
 import tempfile
 import zipfile
@@ -189,6 +190,10 @@ def generate_dataset(
         raise EnergyMarginError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
     task = get_task(task_name, task_config)
     out = Path(out)
+    if not overwrite:
+        existing = _same_dataset(out, task, engine, seed, n_objects, n_trajectories, n_frames)
+        if existing is not None:
+            return existing
     _check_target(out, overwrite=overwrite)
     seeds = np.random.SeedSequence(seed).spawn(n_trajectories)
     records = []
@@ -218,6 +223,29 @@ def generate_dataset(
     validate(dataset)
     _write_directory(out, metadata, arrays, overwrite=overwrite)
     return dataset
+
+
+def _same_dataset(
+    out: Path, task: Task, engine: str, seed: int, n_objects: int, n_trajectories: int, n_frames: int
+) -> Dataset | None:
+    """The dataset already at ``out`` if it was generated with exactly these settings."""
+    if not (out / METADATA_FILE).is_file():
+        return None
+    try:
+        existing = load_dataset(out)
+    except EnergyMarginError:
+        return None
+    meta = existing.metadata
+    wanted = {
+        "task": task.name,
+        "task_config": json.loads(json.dumps(task.config.to_dict())),
+        "engine": engine,
+        "seed": int(seed),
+        "n_objects": n_objects,
+        "n_trajectories": n_trajectories,
+        "n_frames": n_frames,
+    }
+    return existing if all(meta.get(key) == value for key, value in wanted.items()) else None
 
 
 def _check_target(out: Path, *, overwrite: bool) -> None:

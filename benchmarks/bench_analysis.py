@@ -1,0 +1,110 @@
+"""Per-frame analysis time against the number of objects, split into physics and planner overhead.
+
+Usage::
+
+    python benchmarks/bench_analysis.py [--objects 1 3 5 10 20] [--iterations 300]
+        [--trajectories 2] [--frames 5] [--cost wrench] [--set timestep=0.0041667]
+
+Everything runs in this one process, one frame after another. For every n_o a small pushing
+dataset is generated in memory and each of its frames is analysed; the table reports the mean and
+standard deviation of the per-frame wall time, the part spent inside the simulator (restore, step,
+read, save), and the rest (node selection, sampling, cost, density bookkeeping, scoring).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+
+import mujoco
+import numpy as np
+
+from energy_margin.analysis import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.dataset import record_trajectory
+from energy_margin.sim import make_simulator
+from energy_margin.state import FrameState
+from energy_margin.tasks import get_task
+
+
+def machine() -> str:
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as stream:
+            for line in stream:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return (
+        f"{cpu}, {os.cpu_count()} logical CPUs, Python {platform.python_version()}, "
+        f"MuJoCo {mujoco.__version__}, NumPy {np.__version__}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", type=int, nargs="+", default=[1, 3, 5, 10, 20])
+    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--trajectories", type=int, default=2)
+    parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument("--cost", choices=("wrench", "energy"), default="wrench")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON")
+    args = parser.parse_args()
+    overrides = {key: json.loads(value) for key, value in (pair.split("=", 1) for pair in args.set)}
+    task = get_task("pushing", overrides)
+    config = AnalyzerConfig(iterations=args.iterations, cost=args.cost)
+
+    print(f"machine: {machine()}")
+    print(
+        f"pushing, {args.iterations} iterations, cost={args.cost}, timestep={task.config.timestep:.6f} s, "
+        f"{args.trajectories} trajectories x {args.frames} frames per n_o, one process"
+    )
+    print()
+    print("| n_o | frames | per frame [s] | physics [s] | overhead [s] | overhead / physics | nodes |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    for n_objects in args.objects:
+        seeds = np.random.SeedSequence([args.seed, n_objects]).spawn(args.trajectories)
+        runtimes, physics, nodes = [], [], []
+        for trajectory, child in enumerate(seeds):
+            record = record_trajectory(task, n_objects, args.frames, np.random.default_rng(child))
+            friction = float(record["friction"])
+            simulator = make_simulator(task.build_scene(n_objects, friction))
+            per_frame = frame_seeds(args.seed * 1000 + trajectory, args.frames)
+            for k in range(args.frames):
+                frame = FrameState(
+                    record["object_pos"][k],
+                    record["object_quat"][k],
+                    record["object_vel"][k],
+                    record["robot_q"][k],
+                    record["robot_v"][k],
+                )
+                scores, _ = analyze_frame(
+                    task,
+                    frame,
+                    friction=friction,
+                    drive=record["drive"],
+                    seed=per_frame[k],
+                    config=config,
+                    start_time=float(record["frame_time"][k]),
+                    simulator=simulator,
+                )
+                runtimes.append(scores.runtime_s)
+                physics.append(scores.physics_s)
+                nodes.append(scores.nodes)
+        mean_runtime = statistics.fmean(runtimes)
+        mean_physics = statistics.fmean(physics)
+        overhead = mean_runtime - mean_physics
+        print(
+            f"| {n_objects} | {len(runtimes)} | {mean_runtime:.3f} ± {statistics.pstdev(runtimes):.3f} "
+            f"| {mean_physics:.3f} | {overhead:.4f} | {100 * overhead / mean_physics:.1f} % "
+            f"| {statistics.fmean(nodes):.0f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
