@@ -442,4 +442,5 @@ def load_scores(path: Path | str) -> dict[str, np.ndarray]:
         if row is None:
             raise EnergyMarginError(f"{scores_path}: line {number} is malformed")
         rows.append(row)
-    return {name: np.array([row[name] for row in rows]) for name in COLUMNS}
+    dtypes = {"seed": np.uint64, "trajectory": np.int64, "frame": np.int64, "nodes": np.int64, "iterations": np.int64}
+    return {name: np.array([row[name] for row in rows], dtype=dtypes.get(name, np.float64)) for name in COLUMNS}

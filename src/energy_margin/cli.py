@@ -205,13 +205,18 @@ def _bar(total: int, desc: str) -> _Bar:
     return _Bar(total if isinstance(total, int) and total > 0 else 0, desc)
 
 
+def _one_line(message: str) -> str:
+    """Collapse whitespace so an error is always reported on a single line."""
+    return " ".join(message.split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args = build_parser().parse_args(argv)
     try:
         return _run(args)
     except EnergyMarginError as error:
-        print(f"{PROG}: error: {error}", file=sys.stderr)
+        print(f"{PROG}: error: {_one_line(str(error))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted; run the same command again to resume", file=sys.stderr)

@@ -24,6 +24,7 @@ import json
 import shutil
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -289,14 +290,31 @@ def load_dataset(path: Path | str) -> Dataset:
     frames_path = path / FRAMES_FILE
     if not frames_path.is_file():
         raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is missing")
-    try:
-        with np.load(frames_path, allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as error:
-        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is corrupt ({error})") from None
+    arrays = _read_frames(path, frames_path)
     dataset = Dataset(path=path, metadata=metadata, arrays=arrays)
     validate(dataset)
     return dataset
+
+
+def _read_frames(path: Path, frames_path: Path) -> dict[str, np.ndarray]:
+    """The arrays of ``frames.npz``; anything but a readable archive of arrays is an error."""
+    try:
+        loaded = np.load(frames_path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
+        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is corrupt ({error})") from None
+    if not isinstance(loaded, np.lib.npyio.NpzFile):
+        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is not an .npz archive")
+    arrays: dict[str, np.ndarray] = {}
+    with loaded as archive:
+        for name in archive.files:
+            try:
+                value = archive[name]
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as error:
+                raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} member {name!r} is corrupt ({error})") from None
+            if not isinstance(value, np.ndarray):
+                raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} member {name!r} is not an array")
+            arrays[name] = value
+    return arrays
 
 
 def validate(dataset: Dataset) -> None:
@@ -338,6 +356,8 @@ def validate(dataset: Dataset) -> None:
         if name not in arrays:
             raise EnergyMarginError(f"{where}: {FRAMES_FILE} lacks array {name!r}")
         array = arrays[name]
+        if not isinstance(array, np.ndarray):
+            raise EnergyMarginError(f"{where}: {name!r} is not an array")
         if array.shape != shape:
             raise EnergyMarginError(f"{where}: array {name!r} has shape {array.shape}, expected {shape}")
         if name in _BOOL_ARRAYS:

@@ -43,7 +43,8 @@ def region_score(costs: np.ndarray, inside: np.ndarray, lam: float) -> float:
     inside = np.asarray(inside, dtype=bool)
     if inside.shape != np.shape(costs):
         raise ValueError(f"inside must have shape {np.shape(costs)}, got {inside.shape}")
-    return float(np.sum(likelihood(costs, lam)[inside]))
+    # Rounding can push a sum of likelihoods that should be exactly 1 just above it.
+    return min(1.0, float(np.sum(likelihood(costs, lam)[inside])))
 
 
 def trajectory_weights(n_frames: int, *, last: int, scheme: str = "linear") -> np.ndarray:

@@ -57,16 +57,8 @@ def yaw_from_quat(quat: np.ndarray) -> np.ndarray:
     return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-# Hamilton product as a bilinear form: (a * b)_i = sum_jk _HAMILTON[i, j, k] a_j b_k.
-_HAMILTON = np.zeros((4, 4, 4))
-for _i, _j, _k, _sign in (
-    (0, 0, 0, 1), (0, 1, 1, -1), (0, 2, 2, -1), (0, 3, 3, -1),
-    (1, 0, 1, 1), (1, 1, 0, 1), (1, 2, 3, 1), (1, 3, 2, -1),
-    (2, 0, 2, 1), (2, 2, 0, 1), (2, 3, 1, 1), (2, 1, 3, -1),
-    (3, 0, 3, 1), (3, 3, 0, 1), (3, 1, 2, 1), (3, 2, 1, -1),
-):  # fmt: skip
-    _HAMILTON[_i, _j, _k] = _sign
-_CONJUGATE = np.array([1.0, -1.0, -1.0, -1.0])
+_NEXT = np.array([1, 2, 0])
+_PREVIOUS = np.array([2, 0, 1])
 
 
 def relative_rotation_vector(quat_from: np.ndarray, quat_to: np.ndarray) -> np.ndarray:
@@ -75,13 +67,17 @@ def relative_rotation_vector(quat_from: np.ndarray, quat_to: np.ndarray) -> np.n
     Args:
         quat_from: start orientations, shape (n, 4), ``(w, x, y, z)``.
         quat_to: end orientations, shape (n, 4).
-
     """
-    relative = np.einsum("ijk,nj,nk->ni", _HAMILTON, quat_to, quat_from * _CONJUGATE)
+    # q_rel = q_to * conj(q_from), written out on columns (this runs once per tree expansion).
+    w_from, v_from = quat_from[:, :1], quat_from[:, 1:]
+    w_to, v_to = quat_to[:, :1], quat_to[:, 1:]
+    w_rel = np.sum(quat_to * quat_from, axis=1)
+    cross = v_to[:, _NEXT] * v_from[:, _PREVIOUS] - v_to[:, _PREVIOUS] * v_from[:, _NEXT]
+    v_rel = w_from * v_to - w_to * v_from - cross
     # The shortest rotation has w >= 0.
-    relative *= np.where(relative[:, :1] < 0.0, -1.0, 1.0)
-    sin_half = np.sqrt(np.einsum("ni,ni->n", relative[:, 1:], relative[:, 1:]))
-    angle = 2.0 * np.arctan2(sin_half, relative[:, 0])
+    sign = np.where(w_rel < 0.0, -1.0, 1.0)
+    sin_half = np.sqrt(np.sum(v_rel * v_rel, axis=1))
+    angle = 2.0 * np.arctan2(sin_half, sign * w_rel)
     # angle / sin(angle / 2) -> 2 as the angle -> 0.
-    scale = np.divide(angle, sin_half, out=np.full_like(angle, 2.0), where=sin_half > 1e-12)
-    return relative[:, 1:] * scale[:, None]
+    scale = np.divide(angle, sin_half, out=np.full_like(angle, 2.0), where=sin_half > 1e-12) * sign
+    return v_rel * scale[:, None]

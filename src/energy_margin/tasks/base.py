@@ -102,9 +102,63 @@ class TaskConfig:
     likelihood_lambda: float = 5.0
     max_duration: float = 0.1
 
+    def __post_init__(self) -> None:
+        # Every setting must have the type and length of its default: a number stays a finite
+        # number, a range stays a pair of finite numbers.
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            default = field.default
+            if isinstance(default, tuple):
+                if not isinstance(value, tuple | list) or len(value) != len(default):
+                    raise ValueError(f"{field.name} must be a list of {len(default)} numbers, got {value!r}")
+                numbers = tuple(_finite(field.name, item) for item in value)
+                object.__setattr__(self, field.name, numbers)
+            elif isinstance(default, int | float) and not isinstance(default, bool):
+                object.__setattr__(self, field.name, _finite(field.name, value))
+        self.check()
+
+    def check(self) -> None:
+        """Raise ``ValueError`` naming the first setting outside its valid range."""
+        require_positive(self, "duration", "timestep", "max_duration")
+        require_non_negative(self, "likelihood_lambda")
+        if self.timestep > self.duration:
+            raise ValueError(f"timestep ({self.timestep}) must not exceed duration ({self.duration})")
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible dictionary of every field."""
         return dataclasses.asdict(self)
+
+
+def _finite(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if not np.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return float(value)
+
+
+def require_positive(config: TaskConfig, *names: str) -> None:
+    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is > 0."""
+    for name in names:
+        values = np.atleast_1d(getattr(config, name))
+        if np.any(values <= 0):
+            raise ValueError(f"{name} must be > 0, got {getattr(config, name)!r}")
+
+
+def require_non_negative(config: TaskConfig, *names: str) -> None:
+    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is >= 0."""
+    for name in names:
+        values = np.atleast_1d(getattr(config, name))
+        if np.any(values < 0):
+            raise ValueError(f"{name} must be >= 0, got {getattr(config, name)!r}")
+
+
+def require_ranges(config: TaskConfig, *names: str) -> None:
+    """Raise ``ValueError`` unless every named ``(low, high)`` setting has low <= high."""
+    for name in names:
+        low, high = getattr(config, name)
+        if low > high:
+            raise ValueError(f"{name} must be (low, high) with low <= high, got {getattr(config, name)!r}")
 
 
 class Task(ABC):

@@ -16,7 +16,15 @@ import numpy as np
 
 from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.state import FrameState
-from energy_margin.tasks.base import Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks.base import (
+    Task,
+    TaskConfig,
+    Trajectory,
+    WrenchLimits,
+    require_non_negative,
+    require_positive,
+    require_ranges,
+)
 
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
 _PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)
@@ -100,6 +108,49 @@ class PushingConfig(TaskConfig):
     max_angular_acceleration: float = 0.667
     max_speed: float = 100.0
 
+    def check(self) -> None:
+        """Raise ``ValueError`` naming the first setting outside its valid range."""
+        super().check()
+        require_positive(
+            self,
+            "object_radius",
+            "object_half_height",
+            "object_mass",
+            "pusher_half_extents",
+            "pusher_mass",
+            "min_separation",
+            "capture_speed_threshold",
+            "capture_disc_radius",
+            "capture_half_width",
+            "capture_horizon",
+            "max_turn_radius",
+            "success_half_width",
+            "max_speed",
+            "spawn_depth_per_object",
+        )
+        require_non_negative(
+            self,
+            "friction_range",
+            "object_speed",
+            "drive_jitter",
+            "lateral_force",
+            "capture_behind",
+            "max_linear_acceleration",
+            "max_angular_acceleration",
+            "drive_factor",
+        )
+        require_ranges(
+            self,
+            "friction_range",
+            "spawn_x",
+            "pusher_gap",
+            "pusher_heading",
+            "pusher_speed_x",
+            "pusher_speed_y",
+            "drive_factor",
+            "workspace",
+        )
+
 
 class SweptRegion:
     """Annular sector swept by the pusher about its instantaneous centre of rotation, or a disc."""
@@ -138,7 +189,8 @@ class SweptRegion:
         xy = np.asarray(positions)[..., :2]
         config = self.config
         if self.is_disc:
-            return np.linalg.norm(xy - self.pusher_xy, axis=-1) <= config.capture_disc_radius
+            in_disc = np.linalg.norm(xy - self.pusher_xy, axis=-1) <= config.capture_disc_radius
+            return in_disc & _inside_workspace(xy, config)
         relative = xy - self.centre
         distance = np.linalg.norm(relative, axis=-1)
         angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)

@@ -1,0 +1,109 @@
+"""Shared fixtures: tiny scenes and datasets built in code."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.dataset import FRAMES_FILE, generate_dataset
+from energy_margin.scene import Geom, RigidObject, Scene
+from energy_margin.state import FrameState
+
+# The smallest dataset the pipeline tests need: 2 objects, 2 trajectories, 3 frames.
+TINY = {"n_objects": 2, "n_trajectories": 2, "n_frames": 3, "seed": 0}
+
+
+@pytest.fixture(autouse=True)
+def _no_progress_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The CLI shows a generate progress bar on stderr only on a TTY or with this variable.
+    monkeypatch.delenv("ENERGY_MARGIN_PROGRESS", raising=False)
+    monkeypatch.delenv("ENERGY_MARGIN_DEBUG", raising=False)
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset_source(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One generated tiny dataset, never modified: copy it with ``tiny_dataset``."""
+    out = tmp_path_factory.mktemp("source") / "tiny"
+    generate_dataset("pushing", out=out, **TINY)
+    return out
+
+
+@pytest.fixture
+def tiny_dataset(tiny_dataset_source: Path, tmp_path: Path) -> Path:
+    """A private copy of the tiny dataset."""
+    target = tmp_path / "tiny"
+    shutil.copytree(tiny_dataset_source, target)
+    return target
+
+
+@pytest.fixture
+def copy_dataset(tiny_dataset_source: Path, tmp_path: Path) -> Callable[[str], Path]:
+    """Factory of further private copies of the tiny dataset, by directory name."""
+
+    def _copy(name: str) -> Path:
+        target = tmp_path / name
+        shutil.copytree(tiny_dataset_source, target)
+        return target
+
+    return _copy
+
+
+@pytest.fixture
+def rewrite_frames() -> Callable[..., None]:
+    """Rewrite ``frames.npz`` of a dataset with some arrays replaced (``np.savez``, uncompressed)."""
+
+    def _rewrite(directory: Path, **replacements: np.ndarray) -> None:
+        path = directory / FRAMES_FILE
+        with np.load(path) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+        arrays.update(replacements)
+        with path.open("wb") as stream:
+            np.savez(stream, **arrays)
+
+    return _rewrite
+
+
+def block_scene(
+    n_objects: int = 1,
+    *,
+    shape: str = "cylinder",
+    motion: str = "free",
+    friction: float = 0.3,
+    timestep: float = 1.0 / 120.0,
+    mass: float = 0.2,
+) -> Scene:
+    """Objects on a ground plane at z = 0, no robot."""
+    geom = Geom("box", (0.05, 0.04, 0.02)) if shape == "box" else Geom("cylinder", (0.05, 0.015))
+    objects = tuple(RigidObject(f"object{i}", geom, mass) for i in range(n_objects))
+    return Scene(
+        objects=objects,
+        robot=None,
+        statics=(Geom("plane", (5.0, 5.0), name="ground"),),
+        friction=friction,
+        timestep=timestep,
+        object_motion=motion,
+    )
+
+
+def resting_frame(scene: Scene, spacing: float = 0.5) -> FrameState:
+    """Every object resting on the ground at x = 0, spacing, 2 spacing, ... and at rest."""
+    n = scene.n_objects
+    half_height = scene.objects[0].geom.size[-1]
+    pos = np.zeros((n, 3))
+    pos[:, 0] = spacing * np.arange(n)
+    pos[:, 2] = half_height
+    return FrameState(pos, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 6)), np.zeros(0), np.zeros(0))
+
+
+@pytest.fixture
+def make_block_scene() -> Callable[..., Scene]:
+    return block_scene
+
+
+@pytest.fixture
+def make_resting_frame() -> Callable[..., FrameState]:
+    return resting_frame
