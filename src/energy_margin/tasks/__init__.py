@@ -5,7 +5,15 @@ from __future__ import annotations
 from typing import Any
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
+from energy_margin.tasks.base import (
+    Region,
+    Task,
+    TaskConfig,
+    Trajectory,
+    WrenchLimits,
+    all_inside,
+    command_robot,
+)
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
 
 _REGISTRY: dict[str, type[Task]] = {}
@@ -46,6 +54,7 @@ __all__ = [
     "WrenchLimits",
     "all_inside",
     "available_tasks",
+    "command_robot",
     "get_task",
     "register_task",
 ]

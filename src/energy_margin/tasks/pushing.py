@@ -133,8 +133,9 @@ class SweptRegion:
         self.arc_margin = config.capture_behind / radius
         self.arc_length = min(speed * config.capture_horizon / radius, 2.0 * np.pi)
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position (..., 3) lies in the region; shape (...)."""
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each position (..., 3) lies in the region (velocities unused); shape (...)."""
+        del velocities
         xy = np.asarray(positions)[..., :2]
         config = self.config
         if self.is_disc:
@@ -157,8 +158,9 @@ class WallBand:
         self.high = touching + config.success_half_width
         self.config = config
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position (..., 3) lies in the band; shape (...)."""
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each position (..., 3) lies in the band (velocities unused); shape (...)."""
+        del velocities
         xy = np.asarray(positions)[..., :2]
         y = xy[..., 1]
         return (y >= self.low) & (y <= self.high) & _inside_workspace(xy, self.config)
@@ -179,8 +181,9 @@ class PushingTask(Task):
     def __init__(self, config: PushingConfig | None = None) -> None:
         super().__init__(config if config is not None else PushingConfig(likelihood_lambda=5.0))
 
-    def build_scene(self, n_objects: int, friction: float) -> Scene:
-        """Ground, wall, pusher and ``n_objects`` cylinders."""
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
+        """Ground, wall, pusher and ``n_objects`` cylinders (the drive does not change the model)."""
+        del drive
         cfg = self.config
         objects = tuple(
             RigidObject(
