@@ -15,6 +15,7 @@ from energy_margin.tasks.base import (
     command_robot,
 )
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
+from energy_margin.tasks.scooping import ScoopingConfig, ScoopingTask
 
 _REGISTRY: dict[str, type[Task]] = {}
 
@@ -43,11 +44,14 @@ def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
 
 
 register_task(PushingTask)
+register_task(ScoopingTask)
 
 __all__ = [
     "PushingConfig",
     "PushingTask",
     "Region",
+    "ScoopingConfig",
+    "ScoopingTask",
     "Task",
     "TaskConfig",
     "Trajectory",

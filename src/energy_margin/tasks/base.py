@@ -233,3 +233,38 @@ def command_robot(
     targets = task.robot_targets(drive, time, robot_q, robot_v, rng)
     if targets is not None:
         simulator.set_robot_targets(targets)
+
+
+def sample_separated(
+    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
+) -> np.ndarray:
+    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``.
+
+    Rejection sampling, one candidate (``rng.uniform(low, high)``) at a time.
+
+    Args:
+        rng: random generator.
+        count: number of points.
+        low: lower corner, shape (d,).
+        high: upper corner, shape (d,).
+        separation: smallest distance between two points (same unit as the box).
+
+    Returns:
+        Points, shape (count, d).
+
+    Raises:
+        ValueError: when 100 000 candidates do not suffice.
+
+    """
+    points = np.empty((count, len(low)))
+    placed = 0
+    attempts = 0
+    while placed < count:
+        attempts += 1
+        if attempts > 100_000:
+            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
+        candidate = rng.uniform(low, high)
+        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
+            points[placed] = candidate
+            placed += 1
+    return points

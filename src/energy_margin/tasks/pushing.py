@@ -16,7 +16,7 @@ import numpy as np
 
 from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.state import FrameState
-from energy_margin.tasks.base import Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks.base import Task, TaskConfig, Trajectory, WrenchLimits, sample_separated
 
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
 _PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)
@@ -228,7 +228,7 @@ class PushingTask(Task):
         depth = cfg.spawn_depth_per_object * max(n_objects, 10)
         low = np.array([cfg.spawn_x[0], cfg.spawn_y_top - depth])
         high = np.array([cfg.spawn_x[1], cfg.spawn_y_top])
-        centres = _sample_separated(rng, n_objects, low, high, cfg.min_separation)
+        centres = sample_separated(rng, n_objects, low, high, cfg.min_separation)
         z = cfg.ground_z + cfg.object_half_height
         object_pos = np.column_stack([centres, np.full(n_objects, z)])
         object_quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_objects, 1))
@@ -286,21 +286,3 @@ class PushingTask(Task):
         if xy.min() < low or xy.max() > high:
             return False
         return bool(np.abs(object_vel[:, :3]).max() <= cfg.max_speed)
-
-
-def _sample_separated(
-    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
-) -> np.ndarray:
-    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``."""
-    points = np.empty((count, 2))
-    placed = 0
-    attempts = 0
-    while placed < count:
-        attempts += 1
-        if attempts > 100_000:
-            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
-        candidate = rng.uniform(low, high)
-        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
-            points[placed] = candidate
-            placed += 1
-    return points
