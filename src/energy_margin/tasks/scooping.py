@@ -128,8 +128,8 @@ class ScoopingConfig(TaskConfig):
     lift_end: float = 2.0
     record_start: float = 0.5
     base_stiffness: float = 3000.0
-    tip_stiffness: float = 0.3
-    tip_damping: float = 0.002
+    tip_stiffness: float = 1.0
+    tip_damping: float = 0.01
     finger_return_stiffness: float = 20.0
     finger_force_limit: float = 10.0
     stiffness_range: tuple[float, float] = (100.0, 2000.0)
