@@ -101,7 +101,7 @@ class ScoopingConfig(TaskConfig):
 
     duration: float = 2.3
     timestep: float = 0.002
-    likelihood_lambda: float = 3.0
+    likelihood_lambda: float = 10000.0
     contact_time_constant: float = 0.01
     table_top: float = 0.0
     table_half_extents: tuple[float, float, float] = (0.15, 0.15, 0.02)
