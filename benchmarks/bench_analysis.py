@@ -73,7 +73,7 @@ def main() -> None:
         for trajectory, child in enumerate(seeds):
             record = record_trajectory(task, n_objects, args.frames, np.random.default_rng(child))
             friction = float(record["friction"])
-            simulator = make_simulator(task.build_scene(n_objects, friction))
+            simulator = make_simulator(task.build_scene(n_objects, friction, record["drive"]))
             per_frame = frame_seeds(args.seed * 1000 + trajectory, args.frames)
             for k in range(args.frames):
                 frame = FrameState(

@@ -131,8 +131,8 @@ def frame_seeds(seed: int, count: int) -> list[int]:
 
 def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
     """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
-    captured = all_inside(task.capture_region(root), field.object_pos)
-    successful = all_inside(task.success_region(), field.object_pos)
+    captured = all_inside(task.capture_region(root), field.object_pos, field.object_vel)
+    successful = all_inside(task.success_region(), field.object_pos, field.object_vel)
     return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
 
 
@@ -165,7 +165,7 @@ def analyze_frame(
     """
     config = config if config is not None else AnalyzerConfig()
     if simulator is None:
-        simulator = make_simulator(task.build_scene(frame.n_objects, friction), config.engine)
+        simulator = make_simulator(task.build_scene(frame.n_objects, friction, drive), config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     field = grow_tree(
@@ -187,7 +187,7 @@ def analyze_frame(
 
 
 class FrameAnalyzer:
-    """Scores frames of one dataset, reusing one simulator per distinct friction value."""
+    """Scores frames of one dataset, reusing one simulator per distinct (friction, drive) pair."""
 
     def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int) -> None:
         self.dataset = dataset
@@ -195,16 +195,18 @@ class FrameAnalyzer:
         self.config = config
         total = dataset.n_trajectories * dataset.n_frames
         self.seeds = frame_seeds(seed, total)
-        self._simulators: dict[float, Simulator] = {}
+        self._simulators: dict[tuple[float, bytes], Simulator] = {}
 
-    def _simulator(self, friction: float) -> Simulator:
-        simulator = self._simulators.get(friction)
+    def _simulator(self, friction: float, drive: np.ndarray) -> Simulator:
+        # The drive may change the model (e.g. a servo stiffness), so it is part of the key.
+        key = (friction, np.asarray(drive, dtype=float).tobytes())
+        simulator = self._simulators.get(key)
         if simulator is None:
             if len(self._simulators) > 64:
                 self._simulators.clear()
-            scene = self.task.build_scene(self.dataset.n_objects, friction)
+            scene = self.task.build_scene(self.dataset.n_objects, friction, drive)
             simulator = make_simulator(scene, self.config.engine)
-            self._simulators[friction] = simulator
+            self._simulators[key] = simulator
         return simulator
 
     def __call__(self, index: int) -> dict[str, Any]:
@@ -212,15 +214,16 @@ class FrameAnalyzer:
         dataset = self.dataset
         trajectory, frame_index = divmod(index, dataset.n_frames)
         friction = float(dataset.arrays["friction"][trajectory])
+        drive = dataset.arrays["drive"][trajectory]
         scores, _ = analyze_frame(
             self.task,
             dataset.frame(trajectory, frame_index),
             friction=friction,
-            drive=dataset.arrays["drive"][trajectory],
+            drive=drive,
             seed=self.seeds[index],
             config=self.config,
             start_time=float(dataset.arrays["frame_time"][trajectory, frame_index]),
-            simulator=self._simulator(friction),
+            simulator=self._simulator(friction, drive),
         )
         return {
             "trajectory": trajectory,

@@ -37,7 +37,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.io import read_json, write_json
 from energy_margin.sim import ENGINES, make_simulator
 from energy_margin.state import FrameState
-from energy_margin.tasks import Task, get_task
+from energy_margin.tasks import Task, command_robot, get_task
 
 FORMAT = "energy-margin-dataset"
 SCHEMA_VERSION = 1
@@ -124,7 +124,7 @@ def record_trajectory(
 ) -> dict[str, Any]:
     """Run one scripted roll-out and record ``n_frames`` evenly spaced frames with their labels."""
     trajectory = task.sample_trajectory(rng, n_objects)
-    simulator = make_simulator(task.build_scene(n_objects, trajectory.friction), engine)
+    simulator = make_simulator(task.build_scene(n_objects, trajectory.friction, trajectory.drive), engine)
     simulator.reset(trajectory.initial)
     record_at = task.frame_steps(n_frames)
     dt = simulator.timestep
@@ -133,10 +133,7 @@ def record_trajectory(
     step = 0
     for target in record_at:
         while step < target:
-            force = task.robot_force(
-                trajectory.drive, step * dt, simulator.robot_positions(), simulator.robot_velocities(), rng
-            )
-            simulator.set_robot_force(force)
+            command_robot(task, simulator, trajectory.drive, step * dt, rng)
             simulator.step(1)
             step += 1
         frames.append(simulator.frame_state())

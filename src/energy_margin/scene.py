@@ -19,6 +19,7 @@ import numpy as np
 ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
 JointKind = Literal["slide", "hinge"]
 ObjectMotion = Literal["free", "upright"]
+Integrator = Literal["Euler", "implicitfast"]
 
 _SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "plane": 2}
 
@@ -93,7 +94,12 @@ class Joint:
         axis: joint axis in the link frame.
         limits: ``(lower, upper)`` position limits, or ``None`` for unlimited.
         damping: viscous damping, N s/m or N m s/rad.
-        stiffness: spring stiffness towards position 0, N/m or N m/rad.
+        stiffness: passive spring stiffness towards position 0, N/m or N m/rad.
+        servo_stiffness: stiffness kp of a position servo driving the joint towards a target set
+            with :meth:`~energy_margin.sim.base.Simulator.set_robot_targets`, N/m or N m/rad;
+            ``None`` for an unservoed joint (driven by generalized forces only).
+        servo_damping: damping kv of that servo (towards zero joint velocity), N s/m or N m s/rad.
+        force_limit: largest servo force or torque magnitude, N or N m; ``None`` for unlimited.
 
     """
 
@@ -103,6 +109,22 @@ class Joint:
     limits: tuple[float, float] | None = None
     damping: float = 0.0
     stiffness: float = 0.0
+    servo_stiffness: float | None = None
+    servo_damping: float = 0.0
+    force_limit: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.servo_stiffness is not None and not (np.isfinite(self.servo_stiffness) and self.servo_stiffness > 0):
+            raise ValueError(f"joint {self.name!r}: servo_stiffness must be > 0, got {self.servo_stiffness}")
+        if not (np.isfinite(self.servo_damping) and self.servo_damping >= 0):
+            raise ValueError(f"joint {self.name!r}: servo_damping must be >= 0, got {self.servo_damping}")
+        if self.force_limit is not None and not (np.isfinite(self.force_limit) and self.force_limit > 0):
+            raise ValueError(f"joint {self.name!r}: force_limit must be > 0, got {self.force_limit}")
+
+    @property
+    def servoed(self) -> bool:
+        """Whether a position servo drives this joint."""
+        return self.servo_stiffness is not None
 
 
 @dataclass(frozen=True)
@@ -116,6 +138,10 @@ class Link:
         pos: link origin in the parent frame, metres.
         joints: joints between the parent and this link, in order (may be empty: welded).
         children: child links.
+        gravity_compensation: whether the link's own weight is cancelled (an arm or a mechanism
+            carries it; loads from contacts are not compensated).
+        collides_with_statics: whether the link's geoms collide with the static geoms; ``False``
+            models a part that glides along a surface without being resolved as a rigid contact.
 
     """
 
@@ -125,6 +151,8 @@ class Link:
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     joints: tuple[Joint, ...] = ()
     children: tuple[Link, ...] = ()
+    gravity_compensation: bool = False
+    collides_with_statics: bool = True
 
     def iter_links(self) -> list[Link]:
         """This link and its descendants, depth first (the order of the generalized coordinates)."""
@@ -170,6 +198,10 @@ class Scene:
         object_motion: ``"free"`` (six degrees of freedom) or ``"upright"`` (objects translate in
             x, y, z and rotate only about the world z axis: the planar state of a pushing task, with
             the vertical kept so the ground carries the weight and friction acts as usual).
+        integrator: ``"Euler"`` (semi-implicit) or ``"implicitfast"`` (servo damping and joint
+            damping integrated implicitly: stable with stiff, well-damped servos on light links).
+        contact_time_constant: time constant of the soft contacts, s (at least two time steps);
+            ``None`` keeps the engine's default.
 
     """
 
@@ -180,6 +212,8 @@ class Scene:
     timestep: float = 1.0 / 240.0
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     object_motion: ObjectMotion = "free"
+    integrator: Integrator = "Euler"
+    contact_time_constant: float | None = None
     robot_joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -191,6 +225,15 @@ class Scene:
             raise ValueError(f"timestep must be positive, got {self.timestep}")
         if self.object_motion not in ("free", "upright"):
             raise ValueError(f"object_motion must be 'free' or 'upright', got {self.object_motion!r}")
+        if self.integrator not in ("Euler", "implicitfast"):
+            raise ValueError(f"integrator must be 'Euler' or 'implicitfast', got {self.integrator!r}")
+        if self.contact_time_constant is not None and not (
+            np.isfinite(self.contact_time_constant) and self.contact_time_constant >= 2.0 * self.timestep
+        ):
+            raise ValueError(
+                f"contact_time_constant must be at least two time steps ({2.0 * self.timestep} s), "
+                f"got {self.contact_time_constant}"
+            )
         names = [joint.name for link in self.robot_links for joint in link.joints]
         object.__setattr__(self, "robot_joint_names", tuple(names))
 
@@ -203,6 +246,11 @@ class Scene:
     def robot_links(self) -> list[Link]:
         """End-effector links, depth first."""
         return self.robot.iter_links() if self.robot is not None else []
+
+    @property
+    def robot_joints(self) -> list[Joint]:
+        """End-effector joints in the order of the generalized coordinates."""
+        return [joint for link in self.robot_links for joint in link.joints]
 
     @property
     def n_robot_dofs(self) -> int:

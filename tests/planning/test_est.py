@@ -72,6 +72,9 @@ class PointMassSimulator:
     def set_robot_force(self, force: np.ndarray) -> None:
         assert force.shape == (0,)
 
+    def set_robot_targets(self, targets: np.ndarray) -> None:
+        del targets
+
     def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
         before = self.pos.copy()
         for _ in range(n_steps):
@@ -109,7 +112,7 @@ class HalfSpace:
     def __init__(self, axis: int, threshold: float, below: bool) -> None:
         self.axis, self.threshold, self.below = axis, threshold, below
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
         values = np.asarray(positions)[..., self.axis]
         return values <= self.threshold if self.below else values >= self.threshold
 
@@ -124,7 +127,7 @@ class PlaneTask(Task):
         self.accept = accept or (lambda pos, vel: True)
         self.bounds_checks = 0
 
-    def build_scene(self, n_objects: int, friction: float) -> Scene:
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
         objects = tuple(RigidObject(f"p{i}", Geom("sphere", (0.01,)), 0.5) for i in range(n_objects))
         return Scene(objects=objects, robot=None, statics=(), friction=friction, timestep=0.01)
 

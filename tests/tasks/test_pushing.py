@@ -7,7 +7,8 @@ import pytest
 
 from energy_margin.state import FrameState
 from energy_margin.tasks import all_inside
-from energy_margin.tasks.pushing import PushingConfig, PushingTask, SweptRegion, WallBand, _sample_separated
+from energy_margin.tasks.base import sample_separated as _sample_separated
+from energy_margin.tasks.pushing import PushingConfig, PushingTask, SweptRegion, WallBand
 
 CONFIG = PushingConfig()
 

@@ -18,7 +18,7 @@ from energy_margin.energy import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions, ProjectedGridDensity
 from energy_margin.sim.base import Simulator
 from energy_margin.state import FrameState
-from energy_margin.tasks.base import Task
+from energy_margin.tasks.base import Task, command_robot
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,8 @@ class CostField:
     Attributes:
         costs: cost-to-come of every node, root first, shape (M,), J.
         object_pos: object centres of every node, shape (M, n_objects, 3), m.
+        object_vel: object linear then angular velocities of every node, shape (M, n_objects, 6),
+            m/s and rad/s, world frame.
         parents: parent index of every node (-1 for the root), shape (M,).
         times: simulated time of every node, shape (M,), s.
         iterations: expansions performed (accepted and rejected).
@@ -73,6 +75,7 @@ class CostField:
 
     costs: np.ndarray
     object_pos: np.ndarray
+    object_vel: np.ndarray
     parents: np.ndarray
     times: np.ndarray
     iterations: int
@@ -114,6 +117,9 @@ def grow_tree(
         cell_size: density grid cell, feature units (m).
         start_time: time of the frame within its roll-out, s (the end-effector's script clock).
 
+    The end-effector keeps following its script: its command (:func:`command_robot`, without
+    random variation) is evaluated at ``start_time`` plus the node's time when a propagation
+    starts, and again every :attr:`Task.control_period` seconds within it when the task sets one.
     """
     started = time.perf_counter()
     features = features if features is not None else ObjectPositions()
@@ -131,11 +137,13 @@ def grow_tree(
     parents = np.empty(capacity, dtype=np.int64)
     times = np.empty(capacity)
     positions = np.empty((capacity, n_objects, 3))
+    velocities = np.empty((capacity, n_objects, 6))
     quaternions = np.empty((capacity, n_objects, 4))
     energies = np.zeros(capacity)
     states[0] = simulator.get_state()
     costs[0], parents[0], times[0] = 0.0, -1, 0.0
     positions[0] = simulator.object_positions()
+    velocities[0] = simulator.object_velocities()
     quaternions[0] = simulator.object_quaternions()
     if needs_friction:
         energies[0] = simulator.mechanical_energy()
@@ -150,6 +158,7 @@ def grow_tree(
     iterations = 0
     physics_s = 0.0
     iteration_limit = budget.iteration_limit
+    control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
     # Random numbers are drawn in blocks (fewer generator calls); the stream stays a fixed function
     # of the seed.
     block = 256
@@ -170,11 +179,13 @@ def grow_tree(
         tick = time.perf_counter()
         simulator.set_state(states[parent])
         simulator.set_object_wrenches(wrenches)
-        robot_force = task.robot_force(
-            drive, start_time + times[parent], simulator.robot_positions(), simulator.robot_velocities(), None
-        )
-        simulator.set_robot_force(robot_force)
-        friction_work = simulator.step(n_steps, track_friction_work=needs_friction)
+        friction_work = 0.0
+        done = 0
+        while done < n_steps:
+            chunk = n_steps - done if control_steps is None else min(control_steps, n_steps - done)
+            command_robot(task, simulator, drive, start_time + times[parent] + done * dt, None)
+            friction_work += simulator.step(chunk, track_friction_work=needs_friction)
+            done += chunk
         pos_after = simulator.object_positions()
         vel_after = simulator.object_velocities()
         physics_s += time.perf_counter() - tick
@@ -204,6 +215,7 @@ def grow_tree(
         parents[count] = parent
         times[count] = times[parent] + n_steps * dt
         positions[count] = pos_after
+        velocities[count] = vel_after
         quaternions[count] = quat_after
         energies[count] = energy_after
         density.add(count, features(pos_after, root_pos))
@@ -212,6 +224,7 @@ def grow_tree(
     return CostField(
         costs=costs[:count].copy(),
         object_pos=positions[:count].copy(),
+        object_vel=velocities[:count].copy(),
         parents=parents[:count].copy(),
         times=times[:count].copy(),
         iterations=iterations,

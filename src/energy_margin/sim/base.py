@@ -32,7 +32,10 @@ class Simulator(Protocol):
         ...
 
     def reset(self, frame: FrameState) -> None:
-        """Set object and end-effector poses and velocities; clear applied wrenches and forces."""
+        """Set object and end-effector poses and velocities; clear wrenches and forces.
+
+        Servo targets are set to the frame's joint positions (the servos hold the pose).
+        """
         ...
 
     def get_state(self) -> np.ndarray:
@@ -55,6 +58,14 @@ class Simulator(Protocol):
 
     def set_robot_force(self, force: np.ndarray) -> None:
         """Hold generalized forces on the end-effector joints, shape (n_robot_dofs,), N or N m."""
+        ...
+
+    def set_robot_targets(self, targets: np.ndarray) -> None:
+        """Hold position-servo targets, shape (n_robot_dofs,), m or rad.
+
+        Entries of joints without a servo (:attr:`~energy_margin.scene.Joint.servo_stiffness` is
+        ``None``) are ignored. Targets are part of the state saved by :meth:`get_state`.
+        """
         ...
 
     def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:

@@ -3,6 +3,11 @@
 Contacts use MuJoCo's defaults (Newton solver, pyramidal friction cone, Euler integrator) with
 ``condim = 3`` (sliding friction only) and every geom's sliding friction set to the scene's
 coefficient, so the contact coefficient (MuJoCo takes the larger of the two geoms') equals it.
+A scene may choose the ``implicitfast`` integrator and the contact time constant. Servoed joints
+get one ``<general>`` position actuator each (force ``kp (target - q) - kv qdot``, clamped to the
+joint's force limit), in the order of the end-effector joints; links with gravity compensation get
+``gravcomp="1"``, and links that do not collide with the statics get an ``<exclude>`` against the
+world body.
 """
 
 from __future__ import annotations
@@ -42,7 +47,8 @@ def _geom_xml(geom: Geom, name: str) -> str:
 
 
 def _link_xml(link: Link) -> str:
-    parts = [f'<body name={quoteattr(link.name)} pos="{_fmt(link.pos)}">']
+    gravcomp = ' gravcomp="1"' if link.gravity_compensation else ""
+    parts = [f'<body name={quoteattr(link.name)} pos="{_fmt(link.pos)}"{gravcomp}>']
     for joint in link.joints:
         attrs = [
             f"name={quoteattr(joint.name)}",
@@ -67,6 +73,37 @@ def _link_xml(link: Link) -> str:
     return "".join(parts)
 
 
+def _actuators_xml(scene: Scene) -> str:
+    """One position servo per servoed end-effector joint (``<general>``, affine bias)."""
+    parts = []
+    for joint in scene.robot_joints:
+        if joint.servo_stiffness is None:
+            continue
+        kp, kv = joint.servo_stiffness, joint.servo_damping
+        attrs = [
+            f"name={quoteattr(joint.name + '_servo')}",
+            f"joint={quoteattr(joint.name)}",
+            'gaintype="fixed"',
+            'biastype="affine"',
+            f'gainprm="{kp!r}"',
+            f'biasprm="0 {-kp!r} {-kv!r}"',
+        ]
+        if joint.force_limit is not None:
+            attrs.append(f'forcelimited="true" forcerange="{-joint.force_limit!r} {joint.force_limit!r}"')
+        parts.append(f"<general {' '.join(attrs)}/>")
+    return f"<actuator>{''.join(parts)}</actuator>" if parts else ""
+
+
+def _excludes_xml(scene: Scene) -> str:
+    """Contact exclusions between the world (statics) and links that glide along them."""
+    parts = [
+        f'<exclude body1="world" body2={quoteattr(link.name)}/>'
+        for link in scene.robot_links
+        if not link.collides_with_statics
+    ]
+    return f"<contact>{''.join(parts)}</contact>" if parts else ""
+
+
 def build_mjcf(scene: Scene) -> str:
     """MJCF text of ``scene`` (objects are free bodies named after :attr:`RigidObject.name`)."""
     worldbody = []
@@ -89,11 +126,13 @@ def build_mjcf(scene: Scene) -> str:
             f'<inertial pos="0 0 0" mass="{obj.mass!r}" diaginertia="{_fmt(obj.inertia)}"/>'
             f"{_geom_xml(obj.geom, obj.name)}</body>"
         )
+    integrator = f' integrator="{scene.integrator}"' if scene.integrator != "Euler" else ""
+    solref = f' solref="{scene.contact_time_constant!r} 1"' if scene.contact_time_constant is not None else ""
     return (
         '<mujoco model="energy_margin"><compiler angle="radian"/>'
-        f'<option timestep="{scene.timestep!r}" gravity="{_fmt(scene.gravity)}"/>'
-        f'<default><geom condim="3" friction="{scene.friction!r} 0 0"/></default>'
-        f"<worldbody>{''.join(worldbody)}</worldbody></mujoco>"
+        f'<option timestep="{scene.timestep!r}" gravity="{_fmt(scene.gravity)}"{integrator}/>'
+        f'<default><geom condim="3" friction="{scene.friction!r} 0 0"{solref}/></default>'
+        f"<worldbody>{''.join(worldbody)}</worldbody>{_excludes_xml(scene)}{_actuators_xml(scene)}</mujoco>"
     )
 
 
@@ -138,6 +177,16 @@ class MujocoSimulator:
         robot_joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in scene.robot_joint_names]
         self._robot_qpos = np.array(model.jnt_qposadr[robot_joints], dtype=int)
         self._robot_qvel = np.array(model.jnt_dofadr[robot_joints], dtype=int)
+        # Robot coordinates driven by a servo, and the actuator of each (same order).
+        self._servoed = np.array([joint.servoed for joint in scene.robot_joints], dtype=bool)
+        self._servo_actuators = np.array(
+            [
+                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, joint.name + "_servo")
+                for joint in scene.robot_joints
+                if joint.servoed
+            ],
+            dtype=int,
+        )
         self._masses = model.body_mass[self._object_bodies].copy()
         self._inertias = model.body_inertia[self._object_bodies].copy()
         self._gravity = np.asarray(scene.gravity, dtype=float)
@@ -156,7 +205,10 @@ class MujocoSimulator:
         return int(self._state_buffer.shape[0])
 
     def reset(self, frame: FrameState) -> None:
-        """Set poses and velocities from ``frame``; clear applied wrenches, forces and warm starts."""
+        """Set poses and velocities from ``frame``; clear wrenches, forces and warm starts.
+
+        Servo targets are set to the frame's joint positions (the servos hold the pose).
+        """
         frame.validate(n_objects=self.scene.n_objects, n_robot_dofs=self.scene.n_robot_dofs)
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
@@ -174,6 +226,8 @@ class MujocoSimulator:
             data.qvel[self._angvel_index] = _rotate_inverse(quat, np.asarray(frame.object_vel[:, 3:], float))
         data.qpos[self._robot_qpos] = frame.robot_q
         data.qvel[self._robot_qvel] = frame.robot_v
+        # Servos hold the frame's joint positions until new targets are set.
+        self.set_robot_targets(frame.robot_q)
         mujoco.mj_forward(model, data)
 
     def get_state(self) -> np.ndarray:
@@ -192,6 +246,11 @@ class MujocoSimulator:
     def set_robot_force(self, force: np.ndarray) -> None:
         """Hold generalized forces (n_robot_dofs,) on the end-effector joints."""
         self.data.qfrc_applied[self._robot_qvel] = force
+
+    def set_robot_targets(self, targets: np.ndarray) -> None:
+        """Hold servo targets (n_robot_dofs,) [m or rad]; entries of unservoed joints are ignored."""
+        if self._servo_actuators.size:
+            self.data.ctrl[self._servo_actuators] = np.asarray(targets, dtype=float)[self._servoed]
 
     def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
         """Advance ``n_steps`` steps; optionally return the friction work at object contacts (J)."""

@@ -5,8 +5,17 @@ from __future__ import annotations
 from typing import Any
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
+from energy_margin.tasks.base import (
+    Region,
+    Task,
+    TaskConfig,
+    Trajectory,
+    WrenchLimits,
+    all_inside,
+    command_robot,
+)
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
+from energy_margin.tasks.scooping import ScoopingConfig, ScoopingTask
 
 _REGISTRY: dict[str, type[Task]] = {}
 
@@ -35,17 +44,21 @@ def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
 
 
 register_task(PushingTask)
+register_task(ScoopingTask)
 
 __all__ = [
     "PushingConfig",
     "PushingTask",
     "Region",
+    "ScoopingConfig",
+    "ScoopingTask",
     "Task",
     "TaskConfig",
     "Trajectory",
     "WrenchLimits",
     "all_inside",
     "available_tasks",
+    "command_robot",
     "get_task",
     "register_task",
 ]

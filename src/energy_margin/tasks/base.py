@@ -16,17 +16,21 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from energy_margin.scene import Scene
+from energy_margin.sim.base import Simulator
 from energy_margin.state import FrameState
 
 
 class Region(Protocol):
-    """A region of object centre-of-mass positions."""
+    """A region of object states: centre-of-mass positions and, where it matters, velocities."""
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position lies inside.
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each object state lies inside.
 
         Args:
             positions: shape (..., 3), metres, world frame.
+            velocities: linear then angular velocities, shape (..., 6), m/s and rad/s, world
+                frame; ``None`` when unknown (a region that needs them then treats the objects
+                as at rest).
 
         Returns:
             Boolean array of shape (...).
@@ -35,18 +39,19 @@ class Region(Protocol):
         ...
 
 
-def all_inside(region: Region, object_positions: np.ndarray) -> np.ndarray:
+def all_inside(region: Region, object_positions: np.ndarray, object_velocities: np.ndarray | None = None) -> np.ndarray:
     """True where every object of a state lies in ``region``.
 
     Args:
         region: the region.
         object_positions: shape (..., n_objects, 3), metres.
+        object_velocities: shape (..., n_objects, 6), m/s and rad/s, or ``None``.
 
     Returns:
         Boolean array of shape (...).
 
     """
-    return np.all(region.contains(object_positions), axis=-1)
+    return np.all(region.contains(object_positions, object_velocities), axis=-1)
 
 
 @dataclass(frozen=True)
@@ -182,8 +187,16 @@ class Task(ABC):
         return cls(cls.config_class(**converted))
 
     @abstractmethod
-    def build_scene(self, n_objects: int, friction: float) -> Scene:
-        """The world with ``n_objects`` objects and contact friction ``friction``."""
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
+        """The world with ``n_objects`` objects and contact friction ``friction``.
+
+        Args:
+            n_objects: number of objects.
+            friction: Coulomb coefficient of every contact.
+            drive: the trajectory's drive parameters, shape (n_drive,), for tasks whose model
+                depends on them (e.g. a servo stiffness); ``None`` for the task's nominal drive.
+
+        """
 
     @abstractmethod
     def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
@@ -204,6 +217,25 @@ class Task(ABC):
         (expected) force is returned, which the analyzer applies while it perturbs the objects.
         """
 
+    def robot_targets(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray | None:
+        """Servo targets (n_robot_dofs,) at ``time`` (s), or ``None`` for a task without servos.
+
+        Called after :meth:`robot_force` with the same arguments (and the same ``rng``).
+        """
+        del drive, time, robot_q, robot_v, rng
+        return None
+
+    #: During analysis the scripted command is re-evaluated every this many seconds of a
+    #: propagation; ``None`` evaluates it once at the start of each propagation.
+    control_period: ClassVar[float | None] = None
+
     @abstractmethod
     def capture_region(self, root: FrameState) -> Region:
         """The capture region R_cap(z_init) built from the frame being analysed."""
@@ -222,11 +254,11 @@ class Task(ABC):
 
     def is_captured(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the capture region built from ``frame``."""
-        return bool(all_inside(self.capture_region(frame), frame.object_pos))
+        return bool(all_inside(self.capture_region(frame), frame.object_pos, frame.object_vel))
 
     def is_successful(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the success region."""
-        return bool(all_inside(self.success_region(), frame.object_pos))
+        return bool(all_inside(self.success_region(), frame.object_pos, frame.object_vel))
 
     @property
     def n_steps(self) -> int:
@@ -238,3 +270,55 @@ class Task(ABC):
         if n_frames == 1:
             return np.array([self.n_steps])
         return np.round(np.linspace(0, self.n_steps, n_frames)).astype(int)
+
+
+def command_robot(
+    task: Task, simulator: Simulator, drive: np.ndarray, time: float, rng: np.random.Generator | None
+) -> None:
+    """Hold the task's scripted command at ``time`` (s) on the simulator's end-effector.
+
+    Sets the generalized forces of :meth:`Task.robot_force`, then, for a task with servos, the
+    targets of :meth:`Task.robot_targets`; both see the current joint positions and velocities.
+    Used identically by the data generator (every step, with ``rng``) and the analyzer (with
+    ``None``).
+    """
+    robot_q, robot_v = simulator.robot_positions(), simulator.robot_velocities()
+    simulator.set_robot_force(task.robot_force(drive, time, robot_q, robot_v, rng))
+    targets = task.robot_targets(drive, time, robot_q, robot_v, rng)
+    if targets is not None:
+        simulator.set_robot_targets(targets)
+
+
+def sample_separated(
+    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
+) -> np.ndarray:
+    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``.
+
+    Rejection sampling, one candidate (``rng.uniform(low, high)``) at a time.
+
+    Args:
+        rng: random generator.
+        count: number of points.
+        low: lower corner, shape (d,).
+        high: upper corner, shape (d,).
+        separation: smallest distance between two points (same unit as the box).
+
+    Returns:
+        Points, shape (count, d).
+
+    Raises:
+        ValueError: when 100 000 candidates do not suffice.
+
+    """
+    points = np.empty((count, len(low)))
+    placed = 0
+    attempts = 0
+    while placed < count:
+        attempts += 1
+        if attempts > 100_000:
+            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
+        candidate = rng.uniform(low, high)
+        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
+            points[placed] = candidate
+            placed += 1
+    return points

@@ -24,6 +24,7 @@ from energy_margin.tasks.base import (
     require_non_negative,
     require_positive,
     require_ranges,
+    sample_separated,
 )
 
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
@@ -184,8 +185,9 @@ class SweptRegion:
         self.arc_margin = config.capture_behind / radius
         self.arc_length = min(speed * config.capture_horizon / radius, 2.0 * np.pi)
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position (..., 3) lies in the region; shape (...)."""
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each position (..., 3) lies in the region (velocities unused); shape (...)."""
+        del velocities
         xy = np.asarray(positions)[..., :2]
         config = self.config
         if self.is_disc:
@@ -209,8 +211,9 @@ class WallBand:
         self.high = touching + config.success_half_width
         self.config = config
 
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position (..., 3) lies in the band; shape (...)."""
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each position (..., 3) lies in the band (velocities unused); shape (...)."""
+        del velocities
         xy = np.asarray(positions)[..., :2]
         y = xy[..., 1]
         return (y >= self.low) & (y <= self.high) & _inside_workspace(xy, self.config)
@@ -231,8 +234,9 @@ class PushingTask(Task):
     def __init__(self, config: PushingConfig | None = None) -> None:
         super().__init__(config if config is not None else PushingConfig(likelihood_lambda=5.0))
 
-    def build_scene(self, n_objects: int, friction: float) -> Scene:
-        """Ground, wall, pusher and ``n_objects`` cylinders."""
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
+        """Ground, wall, pusher and ``n_objects`` cylinders (the drive does not change the model)."""
+        del drive
         cfg = self.config
         objects = tuple(
             RigidObject(
@@ -277,7 +281,7 @@ class PushingTask(Task):
         depth = cfg.spawn_depth_per_object * max(n_objects, 10)
         low = np.array([cfg.spawn_x[0], cfg.spawn_y_top - depth])
         high = np.array([cfg.spawn_x[1], cfg.spawn_y_top])
-        centres = _sample_separated(rng, n_objects, low, high, cfg.min_separation)
+        centres = sample_separated(rng, n_objects, low, high, cfg.min_separation)
         z = cfg.ground_z + cfg.object_half_height
         object_pos = np.column_stack([centres, np.full(n_objects, z)])
         object_quat = np.tile([1.0, 0.0, 0.0, 0.0], (n_objects, 1))
@@ -335,21 +339,3 @@ class PushingTask(Task):
         if xy.min() < low or xy.max() > high:
             return False
         return bool(np.abs(object_vel[:, :3]).max() <= cfg.max_speed)
-
-
-def _sample_separated(
-    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
-) -> np.ndarray:
-    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``."""
-    points = np.empty((count, 2))
-    placed = 0
-    attempts = 0
-    while placed < count:
-        attempts += 1
-        if attempts > 100_000:
-            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
-        candidate = rng.uniform(low, high)
-        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
-            points[placed] = candidate
-            placed += 1
-    return points

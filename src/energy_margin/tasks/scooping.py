@@ -1,0 +1,492 @@
+"""Scooping small boxes from a table with a scoop gripper (paper Section III.A.2).
+
+The gripper is modelled in code from boxes (SI units; dimensions in :class:`ScoopingConfig`):
+
+* a **base** that moves vertically (a slide joint along z, held by a stiff position servo: the
+  robot arm);
+* two **fingers** hanging from the base that close in parallel along x (slide joints; a double
+  parallelogram on the real device), each driven towards its target by the variable-stiffness
+  drive: a position servo whose stiffness kp is drawn per trajectory, against a return spring
+  that opens the finger. A compliant drive therefore closes less than commanded;
+* a flat **tip** (1 mm blade) hinged at the lower end of each finger (revolute about y; small
+  servos on the real device) whose angle sets the scoop position: 0 points straight down,
+  pi/2 is horizontal and pointing inwards.
+
+``robot_q = (base z, right finger, right tip, left finger, left tip)``: the base centre height
+(m), each finger's closing travel from fully open (m) and each tip's angle from straight down
+(rad). All gripper links are gravity compensated (the arm and the servos carry their own
+weight); the boxes' weight is not.
+
+The blades glide along the table without a rigid table contact (``collides_with_statics`` is
+off for the tips): a rigid 1 mm blade in a rigid-contact engine presents a 1 mm step to a 1 cm
+box and pushes it instead of sliding under it, whereas the real thin blade is pressed flat onto
+the table. The base servo holds the blade's lower leading edge at the table surface.
+
+Script (times in :class:`ScoopingConfig`): approach (the base lowers the blades onto the table),
+close (the fingers close, the blades slide under the boxes), settle, lift (the base rises), hold.
+The command is a smooth function of time only; during analysis the gripper keeps following it
+(re-evaluated every 5 ms of a propagation) while the boxes are perturbed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
+from energy_margin.state import FrameState
+from energy_margin.tasks.base import (
+    Task,
+    TaskConfig,
+    Trajectory,
+    WrenchLimits,
+    require_non_negative,
+    require_positive,
+    require_ranges,
+    sample_separated,
+)
+
+_BOX_RGBA = (0.95, 0.55, 0.15, 1.0)
+_GRIPPER_RGBA = (0.2, 0.7, 0.3, 1.0)
+_SIDES = (("right", 1.0), ("left", -1.0))
+
+
+@dataclass(frozen=True)
+class ScoopingConfig(TaskConfig):
+    """Scooping settings (SI units).
+
+    Attributes:
+        duration: length of a scripted roll-out, s.
+        timestep: physics time step, s (see docs/method.md, "Scooping task", for the choice).
+        likelihood_lambda: softmax inverse temperature, 1/J (chosen by a sweep, docs/scooping.md).
+        contact_time_constant: soft-contact time constant, s (>= 2 time steps).
+        table_top: height of the table surface, m.
+        table_half_extents: half extents of the table box, m.
+        box_half_edge: half the edge of a box, m (1 cm boxes).
+        box_mass: mass of a box, kg.
+        base_half_extents: half extents of the gripper base, m.
+        base_mass: mass of the base, kg.
+        finger_half_extents: half extents of a finger plate (thickness, width, length), m.
+        finger_mass: mass of a finger, kg.
+        finger_stroke: closing travel limit of a finger, m.
+        tip_length: length of a blade from its hinge to its leading edge, m.
+        tip_half_width: half width of a blade (along y), m.
+        tip_half_thickness: half thickness of a blade, m.
+        tip_mass: mass of a blade, kg.
+        tip_limits: joint limits of a blade, rad (0 straight down, pi/2 horizontal).
+        scoop_angle: commanded blade angle, rad.
+        open_gap: distance between the two leading edges with the fingers open, m.
+        closed_gap: commanded distance between the leading edges when closed, m.
+        approach_height: height of the leading edges above the table at the start, m.
+        lift_height: how far the base rises during the lift, m.
+        approach_end: end of the approach (base lowered), s.
+        close_end: end of the closing motion, s.
+        lift_start: start of the lift, s.
+        lift_end: end of the lift, s.
+        record_start: first recorded frame, s (frames are evenly spaced from it to the end).
+        base_stiffness: stiffness of the base servo, N/m.
+        tip_stiffness: stiffness of the blade servos, N m/rad.
+        tip_damping: damping of the blade servos, N m s/rad.
+        finger_return_stiffness: return spring opening each finger, N/m.
+        finger_force_limit: largest closing force of a finger drive, N.
+        stiffness_range: per-trajectory finger drive stiffness, log-uniform, N/m.
+        friction_range: per-trajectory Coulomb coefficient of every contact.
+        spawn_x: x range of the initial box centres, m.
+        spawn_y: y range of the initial box centres, m.
+        max_yaw: initial box yaw is uniform in +-this, rad.
+        min_separation: smallest distance between initial box centres, m.
+        capture_margin: a captured box is at least this high above resting on the table, m.
+        fall_speed: a box sinking faster than this is falling (capture and success), m/s.
+        success_height: a successful box is at least this high above resting on the table, m.
+        workspace_xy: states with a box centre outside +-this in x or y are rejected, m.
+        workspace_z: (low, high) box centre heights; states outside are rejected, m.
+        max_linear_acceleration: perturbation force bound per axis divided by the box mass, m/s^2.
+        max_angular_acceleration: perturbation torque bound per axis divided by the box inertia,
+            rad/s^2.
+        max_speed: reached states with a faster box are rejected, m/s.
+
+    """
+
+    duration: float = 2.3
+    timestep: float = 0.002
+    likelihood_lambda: float = 10000.0
+    contact_time_constant: float = 0.01
+    table_top: float = 0.0
+    table_half_extents: tuple[float, float, float] = (0.15, 0.15, 0.02)
+    box_half_edge: float = 0.005
+    box_mass: float = 0.002
+    base_half_extents: tuple[float, float, float] = (0.095, 0.025, 0.01)
+    base_mass: float = 0.4
+    finger_half_extents: tuple[float, float, float] = (0.003, 0.02, 0.03)
+    finger_mass: float = 0.03
+    finger_stroke: float = 0.0575
+    tip_length: float = 0.035
+    tip_half_width: float = 0.02
+    tip_half_thickness: float = 0.0005
+    tip_mass: float = 0.005
+    tip_limits: tuple[float, float] = (0.0, 1.75)
+    scoop_angle: float = 1.31
+    open_gap: float = 0.09
+    closed_gap: float = 0.002
+    approach_height: float = 0.02
+    lift_height: float = 0.08
+    approach_end: float = 0.3
+    close_end: float = 1.1
+    lift_start: float = 1.3
+    lift_end: float = 2.0
+    record_start: float = 0.5
+    base_stiffness: float = 3000.0
+    tip_stiffness: float = 1.0
+    tip_damping: float = 0.01
+    finger_return_stiffness: float = 20.0
+    finger_force_limit: float = 10.0
+    stiffness_range: tuple[float, float] = (100.0, 2000.0)
+    friction_range: tuple[float, float] = (0.1, 0.8)
+    spawn_x: tuple[float, float] = (-0.03, 0.03)
+    spawn_y: tuple[float, float] = (-0.01, 0.01)
+    max_yaw: float = np.pi / 4
+    min_separation: float = 0.0145
+    capture_margin: float = 0.0005
+    fall_speed: float = 0.05
+    success_height: float = 0.05
+    workspace_xy: float = 0.15
+    workspace_z: tuple[float, float] = (-0.005, 0.5)
+    max_linear_acceleration: float = 2.0
+    max_angular_acceleration: float = 3.0
+    max_speed: float = 5.0
+
+    def check(self) -> None:
+        """Raise ``ValueError`` naming the first setting outside its valid range."""
+        super().check()
+        require_positive(
+            self,
+            "contact_time_constant",
+            "table_half_extents",
+            "box_half_edge",
+            "box_mass",
+            "base_half_extents",
+            "base_mass",
+            "finger_half_extents",
+            "finger_mass",
+            "finger_stroke",
+            "tip_length",
+            "tip_half_width",
+            "tip_half_thickness",
+            "tip_mass",
+            "base_stiffness",
+            "tip_stiffness",
+            "finger_force_limit",
+            "stiffness_range",
+            "min_separation",
+            "fall_speed",
+            "workspace_xy",
+            "max_speed",
+        )
+        require_non_negative(
+            self,
+            "friction_range",
+            "tip_damping",
+            "finger_return_stiffness",
+            "max_yaw",
+            "capture_margin",
+            "success_height",
+            "max_linear_acceleration",
+            "max_angular_acceleration",
+            "approach_end",
+            "record_start",
+        )
+        require_ranges(self, "tip_limits", "stiffness_range", "friction_range", "spawn_x", "spawn_y", "workspace_z")
+        if not self.approach_end <= self.close_end <= self.lift_start <= self.lift_end <= self.duration:
+            raise ValueError(
+                "script times must satisfy approach_end <= close_end <= lift_start <= lift_end <= duration"
+            )
+        if self.contact_time_constant < 2.0 * self.timestep:
+            raise ValueError("contact_time_constant must be at least two time steps")
+
+
+def _smoothstep(time: float, start: float, end: float) -> float:
+    """0 before ``start``, 1 after ``end``, a C1 cubic in between."""
+    if time <= start:
+        return 0.0
+    if time >= end:
+        return 1.0
+    u = (time - start) / (end - start)
+    return u * u * (3.0 - 2.0 * u)
+
+
+class BoxesAboveTable:
+    """Boxes lifted above the table inside the gripper's footprint and not falling.
+
+    A box is inside when its centre is at least ``height`` above its resting height on the table,
+    within the gripper's lateral footprint (the gripper moves only vertically, so the footprint
+    does not depend on the frame), and it does not sink faster than ``fall_speed``. Above the
+    table nothing but the blades can carry a box, so for the capture margin this means "resting
+    on the blades, not on the table, not falling".
+    """
+
+    def __init__(self, config: ScoopingConfig, height: float) -> None:
+        """Build the region.
+
+        Args:
+            config: task settings.
+            height: least height of a box centre above its resting height on the table, m.
+
+        """
+        self.min_z = config.table_top + config.box_half_edge + height
+        self.half_x = config.open_gap / 2.0 + config.tip_length
+        self.half_y = config.tip_half_width + config.box_half_edge
+        self.fall_speed = config.fall_speed
+
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether each box state lies in the region; positions (..., 3), velocities (..., 6)."""
+        positions = np.asarray(positions)
+        inside = (
+            (positions[..., 2] >= self.min_z)
+            & (np.abs(positions[..., 0]) <= self.half_x)
+            & (np.abs(positions[..., 1]) <= self.half_y)
+        )
+        if velocities is not None:
+            inside &= np.asarray(velocities)[..., 2] >= -self.fall_speed
+        return inside
+
+
+class ScoopingTask(Task):
+    """Scoop n_o boxes (default 5) from a table and lift them."""
+
+    name = "scooping"
+    config_class = ScoopingConfig
+    config: ScoopingConfig
+    control_period = 0.005
+
+    def __init__(self, config: ScoopingConfig | None = None) -> None:
+        super().__init__(config if config is not None else ScoopingConfig())
+
+    # Geometry -------------------------------------------------------------------------------
+
+    @property
+    def hinge_open_x(self) -> float:
+        """|x| of a blade hinge with the fingers open, m."""
+        cfg = self.config
+        angle = cfg.scoop_angle
+        return cfg.open_gap / 2.0 + cfg.tip_length * np.sin(angle) + cfg.tip_half_thickness * np.cos(angle)
+
+    @property
+    def closed_travel(self) -> float:
+        """Finger travel that brings the leading edges ``closed_gap`` apart, m."""
+        cfg = self.config
+        return (cfg.open_gap - cfg.closed_gap) / 2.0
+
+    @property
+    def contact_height(self) -> float:
+        """Base height at which the blades' lower leading edges touch the table, m."""
+        cfg = self.config
+        angle = cfg.scoop_angle
+        return (
+            cfg.table_top
+            + cfg.tip_length * np.cos(angle)
+            + cfg.tip_half_thickness * np.sin(angle)
+            + cfg.base_half_extents[2]
+            + 2.0 * cfg.finger_half_extents[2]
+        )
+
+    @property
+    def rest_height(self) -> float:
+        """Centre height of a box resting on the table, m."""
+        return self.config.table_top + self.config.box_half_edge
+
+    def finger_stiffness(self, drive: np.ndarray | None) -> float:
+        """Finger drive stiffness of a trajectory (geometric mean of the range without one), N/m."""
+        if drive is None:
+            return float(np.sqrt(np.prod(self.config.stiffness_range)))
+        return float(drive[0])
+
+    # Task interface -------------------------------------------------------------------------
+
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
+        """Table, gripper (finger stiffness from ``drive[0]``) and ``n_objects`` boxes."""
+        cfg = self.config
+        half = cfg.box_half_edge
+        boxes = tuple(
+            RigidObject(f"box{i}", Geom("box", (half, half, half), rgba=_BOX_RGBA), cfg.box_mass)
+            for i in range(n_objects)
+        )
+        table = Geom(
+            "box",
+            cfg.table_half_extents,
+            pos=(0.0, 0.0, cfg.table_top - cfg.table_half_extents[2]),
+            name="table",
+        )
+        stiffness = self.finger_stiffness(drive)
+        moving_mass = cfg.finger_mass + cfg.tip_mass
+        fingers = []
+        for side, sign in _SIDES:
+            tip = Link(
+                name=f"{side}_tip",
+                geoms=(
+                    Geom(
+                        "box",
+                        (cfg.tip_half_thickness, cfg.tip_half_width, cfg.tip_length / 2.0),
+                        pos=(0.0, 0.0, -cfg.tip_length / 2.0),
+                        name=f"{side}_tip",
+                        rgba=_GRIPPER_RGBA,
+                    ),
+                ),
+                mass=cfg.tip_mass,
+                pos=(0.0, 0.0, -2.0 * cfg.finger_half_extents[2]),
+                joints=(
+                    Joint(
+                        f"{side}_tip",
+                        "hinge",
+                        (0.0, sign, 0.0),
+                        limits=cfg.tip_limits,
+                        servo_stiffness=cfg.tip_stiffness,
+                        servo_damping=cfg.tip_damping,
+                    ),
+                ),
+                gravity_compensation=True,
+                collides_with_statics=False,
+            )
+            finger = Link(
+                name=f"{side}_finger",
+                geoms=(
+                    Geom(
+                        "box",
+                        cfg.finger_half_extents,
+                        pos=(0.0, 0.0, -cfg.finger_half_extents[2]),
+                        name=f"{side}_finger",
+                        rgba=_GRIPPER_RGBA,
+                    ),
+                ),
+                mass=cfg.finger_mass,
+                pos=(sign * self.hinge_open_x, 0.0, -cfg.base_half_extents[2]),
+                joints=(
+                    Joint(
+                        f"{side}_finger",
+                        "slide",
+                        (-sign, 0.0, 0.0),
+                        limits=(0.0, cfg.finger_stroke),
+                        stiffness=cfg.finger_return_stiffness,
+                        servo_stiffness=stiffness,
+                        # Critically damped drive on the finger and blade.
+                        servo_damping=2.0 * float(np.sqrt(stiffness * moving_mass)),
+                        force_limit=cfg.finger_force_limit,
+                    ),
+                ),
+                children=(tip,),
+                gravity_compensation=True,
+            )
+            fingers.append(finger)
+        total_mass = cfg.base_mass + 2.0 * moving_mass
+        base = Link(
+            name="base",
+            geoms=(Geom("box", cfg.base_half_extents, name="base", rgba=_GRIPPER_RGBA),),
+            mass=cfg.base_mass,
+            joints=(
+                Joint(
+                    "base_z",
+                    "slide",
+                    (0.0, 0.0, 1.0),
+                    servo_stiffness=cfg.base_stiffness,
+                    servo_damping=2.0 * float(np.sqrt(cfg.base_stiffness * total_mass)),
+                ),
+            ),
+            children=tuple(fingers),
+            gravity_compensation=True,
+        )
+        return Scene(
+            objects=boxes,
+            robot=base,
+            statics=(table,),
+            friction=friction,
+            timestep=cfg.timestep,
+            object_motion="free",
+            integrator="implicitfast",
+            contact_time_constant=cfg.contact_time_constant,
+        )
+
+    def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
+        """Boxes at rest on the table (random centres and yaw), friction and drive stiffness."""
+        cfg = self.config
+        low = np.array([cfg.spawn_x[0], cfg.spawn_y[0]])
+        high = np.array([cfg.spawn_x[1], cfg.spawn_y[1]])
+        centres = sample_separated(rng, n_objects, low, high, cfg.min_separation)
+        yaw = rng.uniform(-cfg.max_yaw, cfg.max_yaw, n_objects)
+        object_pos = np.column_stack([centres, np.full(n_objects, self.rest_height)])
+        object_quat = np.column_stack([np.cos(yaw / 2.0), np.zeros(n_objects), np.zeros(n_objects), np.sin(yaw / 2.0)])
+        friction = float(rng.uniform(*cfg.friction_range))
+        log_low, log_high = np.log(cfg.stiffness_range)
+        stiffness = float(np.exp(rng.uniform(log_low, log_high)))
+        robot_q = self._targets(0.0)
+        initial = FrameState(object_pos, object_quat, np.zeros((n_objects, 6)), robot_q, np.zeros(5))
+        return Trajectory(initial=initial, friction=friction, drive=np.array([stiffness]))
+
+    def _targets(self, time: float) -> np.ndarray:
+        """Scripted joint targets at ``time`` (s), shape (5,)."""
+        cfg = self.config
+        start = self.contact_height + cfg.approach_height
+        base = (
+            start
+            - cfg.approach_height * _smoothstep(time, 0.0, cfg.approach_end)
+            + cfg.lift_height * _smoothstep(time, cfg.lift_start, cfg.lift_end)
+        )
+        finger = self.closed_travel * _smoothstep(time, cfg.approach_end, cfg.close_end)
+        return np.array([base, finger, cfg.scoop_angle, finger, cfg.scoop_angle])
+
+    def robot_force(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray:
+        """No generalized force: the servos move the gripper (its weight is compensated)."""
+        del drive, time, robot_q, robot_v, rng
+        return np.zeros(5)
+
+    def robot_targets(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray:
+        """Scripted servo targets: a smooth function of time alone, the same in roll-out and analysis."""
+        del drive, robot_q, robot_v, rng
+        return self._targets(time)
+
+    def capture_region(self, root: FrameState) -> BoxesAboveTable:
+        """Boxes on the blades: ``capture_margin`` above the table, in the footprint, not falling."""
+        del root
+        return BoxesAboveTable(self.config, self.config.capture_margin)
+
+    def success_region(self) -> BoxesAboveTable:
+        """Boxes ``success_height`` (5 cm) above resting on the table and not falling."""
+        return BoxesAboveTable(self.config, self.config.success_height)
+
+    def wrench_limits(self, scene: Scene) -> WrenchLimits:
+        """Forces m a_max and torques I alpha_max on every axis of every box."""
+        cfg = self.config
+        limits = np.zeros((scene.n_objects, 6))
+        limits[:, :3] = scene.object_masses[:, None] * cfg.max_linear_acceleration
+        limits[:, 3:] = scene.object_inertias * cfg.max_angular_acceleration
+        return WrenchLimits(max_wrench=limits, max_duration=cfg.max_duration)
+
+    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+        """Boxes above the table top (not sunk through it), over the table, slower than ``max_speed``."""
+        cfg = self.config
+        if np.abs(object_pos[:, :2]).max() > cfg.workspace_xy:
+            return False
+        z = object_pos[:, 2] - cfg.table_top
+        if z.min() < cfg.workspace_z[0] or z.max() > cfg.workspace_z[1]:
+            return False
+        return bool(np.abs(object_vel[:, :3]).max() <= cfg.max_speed)
+
+    def frame_steps(self, n_frames: int) -> np.ndarray:
+        """Frames evenly spaced from ``record_start`` (during the closing) to the end, shape (K,)."""
+        first = round(self.config.record_start / self.config.timestep)
+        if n_frames == 1:
+            return np.array([self.n_steps])
+        return np.round(np.linspace(first, self.n_steps, n_frames)).astype(int)
