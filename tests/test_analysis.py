@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-import energy_margin.analysis as analysis
 from energy_margin.analysis import (
     COLUMNS,
     CONFIG_FILE,
@@ -378,7 +377,7 @@ def test_nan_frame_is_refused_before_writing(tiny_dataset: Path, rewrite_frames:
     pos[0, 1, 1, 2] = np.nan
     rewrite_frames(tiny_dataset, object_pos=pos)
     with pytest.raises(
-        EnergyMarginError, match="array 'object_pos' has a NaN or infinite value at trajectory 0, frame 1"
+        EnergyMarginError, match=r"object_pos \[trajectory 0, frame 1, object 1\]: NaN or infinite value"
     ):
         analyze(tiny_dataset, SMALL, progress=False)
     assert sorted(p.name for p in tiny_dataset.iterdir()) == ["dataset.json", "frames.npz"]
@@ -408,11 +407,17 @@ def test_progress_bar_goes_to_stderr(tiny_dataset: Path, capsys: pytest.CaptureF
 
 
 def test_worker_entry_points(tiny_dataset: Path) -> None:
-    analysis._init_worker(str(tiny_dataset), SMALL.to_dict(), 0)
+    import signal
+
+    from energy_margin import executors
+
+    previous = signal.getsignal(signal.SIGINT)
+    executors._init_local_worker(load_dataset(tiny_dataset), SMALL.to_dict(), 0)
     try:
-        row = analysis._run_in_worker(4)
+        (row,) = executors._run_local_chunk([4])
     finally:
-        analysis._WORKER = None
+        executors._WORKER = None
+        signal.signal(signal.SIGINT, previous)
     assert (row["trajectory"], row["frame"]) == (1, 1)
     assert row["seed"] == frame_seeds(0, 6)[4]
     assert row["iterations"] == 30

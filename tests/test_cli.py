@@ -160,7 +160,7 @@ def _nan_frame(directory: Path) -> None:
         (["evaluate", "{tmp}/missing"], None, "does not exist"),
         (["analyze", "{data}", "--iterations", "5", "--no-progress"], _garbage_frames, "is corrupt"),
         (["evaluate", "{data}"], _garbage_frames, "is corrupt"),
-        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _nan_frame, "array 'object_pos' has a NaN"),
+        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _nan_frame, "object_pos [trajectory 1, frame 0"),
         (["evaluate", "{data}"], None, "run `energy-margin analyze` first"),
         (["analyze", "{data}", "--iterations", "-5"], None, "--iterations: expected an integer >= 0, got -5"),
         (["analyze", "{data}", "--nodes", "many"], None, "--nodes: expected an integer"),

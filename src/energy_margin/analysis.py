@@ -13,8 +13,6 @@ import dataclasses
 import json
 import os
 import time
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +23,7 @@ from energy_margin import __version__
 from energy_margin.dataset import Dataset, load_dataset
 from energy_margin.energy import COST_MODELS, make_cost_model
 from energy_margin.errors import EnergyMarginError
+from energy_margin.executors import make_executor
 from energy_margin.io import atomic_write_text, read_json, write_json
 from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.scores import region_score
@@ -238,19 +237,6 @@ class FrameAnalyzer:
         }
 
 
-_WORKER: FrameAnalyzer | None = None
-
-
-def _init_worker(path: str, config: dict[str, Any], seed: int) -> None:
-    global _WORKER
-    _WORKER = FrameAnalyzer(load_dataset(path), AnalyzerConfig(**config), seed)
-
-
-def _run_in_worker(index: int) -> dict[str, Any]:
-    assert _WORKER is not None
-    return _WORKER(index)
-
-
 def _format_row(row: dict[str, Any]) -> str:
     return ",".join(repr(float(row[c])) if isinstance(row[c], float) else str(row[c]) for c in COLUMNS)
 
@@ -318,6 +304,8 @@ def analyze(
     *,
     seed: int = 0,
     workers: int = 1,
+    executor: str = "local",
+    address: str | None = None,
     overwrite: bool = False,
     progress: bool = True,
 ) -> Path:
@@ -331,7 +319,9 @@ def analyze(
         path: dataset directory.
         config: analysis settings.
         seed: non-negative integer seed of the analysis.
-        workers: local worker processes, >= 1.
+        workers: parallel workers, >= 1 (local processes or Ray actors).
+        executor: ``"local"`` (default) or ``"ray"``.
+        address: Ray cluster address for ``executor="ray"``; ``None`` starts a local instance.
         overwrite: discard scores of a different configuration instead of refusing.
         progress: show a progress bar on standard error.
 
@@ -342,8 +332,7 @@ def analyze(
     config = config if config is not None else AnalyzerConfig()
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise EnergyMarginError(f"seed must be a non-negative integer, got {seed!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise EnergyMarginError(f"workers must be an integer >= 1, got {workers!r}")
+    runner = make_executor(executor, workers=workers, address=address)
     dataset = load_dataset(path)
     directory = Path(path)
     description = _run_description(dataset, config, seed)
@@ -374,7 +363,7 @@ def analyze(
     bar = _progress_bar(total, len(done), enabled=progress)
     try:
         with journal_path.open("a", encoding="utf-8") as journal:
-            for row in _execute(dataset, config, seed, pending, workers):
+            for row in runner.run(dataset, config, seed, pending):
                 journal.write(_format_row(row) + "\n")
                 journal.flush()
                 os.fsync(journal.fileno())
@@ -389,26 +378,6 @@ def analyze(
 
 def _valid_key(key: tuple[int, int], dataset: Dataset) -> bool:
     return 0 <= key[0] < dataset.n_trajectories and 0 <= key[1] < dataset.n_frames
-
-
-def _execute(
-    dataset: Dataset, config: AnalyzerConfig, seed: int, pending: list[int], workers: int
-) -> Iterator[dict[str, Any]]:
-    if not pending:
-        return
-    if workers == 1:
-        analyzer = FrameAnalyzer(dataset, config, seed)
-        for index in pending:
-            yield analyzer(index)
-        return
-    assert dataset.path is not None
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        initializer=_init_worker,
-        initargs=(str(dataset.path), config.to_dict(), seed),
-    ) as pool:
-        # Chunks keep the per-task overhead negligible while results still stream back in order.
-        yield from pool.map(_run_in_worker, pending, chunksize=max(1, min(8, len(pending) // (4 * workers))))
 
 
 class _NoBar:

@@ -89,7 +89,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="softmax inverse temperature, 1/J (default: the task's)",
     )
-    analyze.add_argument("--workers", type=_positive_int, default=1, help="local worker processes")
+    analyze.add_argument("--workers", type=_positive_int, default=1, help="parallel workers (default 1)")
+    analyze.add_argument(
+        "--executor", choices=("local", "ray"), default="local", help="local process pool (default) or Ray"
+    )
+    analyze.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     analyze.add_argument("--seed", type=_non_negative_int, default=0, help="seed (default 0)")
     analyze.add_argument("--engine", default="mujoco", help="physics engine (default mujoco)")
     analyze.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
@@ -165,6 +169,8 @@ def _run(args: argparse.Namespace) -> int:
             config,
             seed=args.seed,
             workers=args.workers,
+            executor=args.executor,
+            address=args.address,
             overwrite=args.overwrite,
             progress=not args.no_progress,
         )

@@ -271,72 +271,127 @@ def _write_directory(out: Path, metadata: dict[str, Any], arrays: dict[str, np.n
         raise
 
 
+@dataclass(frozen=True)
+class Problem:
+    """One problem found in a dataset or scores file.
+
+    Attributes:
+        file: the file, e.g. ``"frames.npz"``.
+        field: the key, array or column, e.g. ``"object_pos"`` or ``"task_config.friction_range"``.
+        row: where in it, e.g. ``"trajectory 1, frame 0"`` or ``"line 5"``; empty when global.
+        message: what is wrong.
+    """
+
+    file: str
+    field: str
+    row: str
+    message: str
+
+    def __str__(self) -> str:
+        where = f" [{self.row}]" if self.row else ""
+        return f"{self.file}: {self.field}{where}: {self.message}"
+
+
+#: Largest accepted dataset dimensions: guards allocations against corrupt or hostile headers.
+_LIMITS = {
+    "n_trajectories": 1_000_000,
+    "n_frames": 100_000,
+    "n_objects": 10_000,
+    "n_robot_dofs": 1_000,
+    "n_drive": 1_000,
+}
+_MAX_MEMBER_BYTES = 1 << 31
+_MAX_PER_FIELD = 5
+
+
+def raise_first(path: Path | str | None, problems: list[Problem]) -> None:
+    """Raise :class:`EnergyMarginError` with the first problem (and how many more there are)."""
+    if not problems:
+        return
+    more = f" (and {len(problems) - 1} more; run `energy-margin check` to list them)" if len(problems) > 1 else ""
+    prefix = f"dataset {path}: " if path is not None else ""
+    raise EnergyMarginError(f"{prefix}{problems[0]}{more}")
+
+
 def load_dataset(path: Path | str) -> Dataset:
     """Read and validate a dataset directory; every problem raises :class:`EnergyMarginError`."""
-    path = Path(path)
-    if not path.is_dir():
-        raise EnergyMarginError(f"dataset {path} does not exist or is not a directory")
-    metadata = read_json(path / METADATA_FILE, what=f"dataset {path}")
-    if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
-        raise EnergyMarginError(f"dataset {path}: {METADATA_FILE} is not an energy-margin dataset")
-    if metadata.get("schema_version") != SCHEMA_VERSION:
-        raise EnergyMarginError(
-            f"dataset {path}: schema_version {metadata.get('schema_version')!r} is not supported "
-            f"(this version reads {SCHEMA_VERSION})"
-        )
-    frames_path = path / FRAMES_FILE
-    if not frames_path.is_file():
-        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is missing")
-    arrays = _read_frames(path, frames_path)
-    dataset = Dataset(path=path, metadata=metadata, arrays=arrays)
-    validate(dataset)
+    dataset, problems = read_dataset(path)
+    raise_first(path, problems)
+    assert dataset is not None
     return dataset
 
 
-def _read_frames(path: Path, frames_path: Path) -> dict[str, np.ndarray]:
-    """The arrays of ``frames.npz``; anything but a readable archive of arrays is an error."""
-    try:
-        loaded = np.load(frames_path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
-        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is corrupt ({error})") from None
-    if not isinstance(loaded, np.lib.npyio.NpzFile):
-        raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} is not an .npz archive")
-    arrays: dict[str, np.ndarray] = {}
-    with loaded as archive:
-        for name in archive.files:
-            try:
-                value = archive[name]
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError) as error:
-                raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} member {name!r} is corrupt ({error})") from None
-            if not isinstance(value, np.ndarray):
-                raise EnergyMarginError(f"dataset {path}: {FRAMES_FILE} member {name!r} is not an array")
-            arrays[name] = value
-    return arrays
+def read_dataset(path: Path | str) -> tuple[Dataset | None, list[Problem]]:
+    """Read a dataset directory and list every problem of its files (no exception for bad input).
 
-
-def validate(dataset: Dataset) -> None:
-    """Check metadata, array shapes, finiteness and labels; raise :class:`EnergyMarginError`."""
-    where = f"dataset {dataset.path}" if dataset.path is not None else "dataset"
-    meta = dataset.metadata
-    for key in ("task", "n_trajectories", "n_frames", "n_objects", "n_robot_dofs", "n_drive"):
-        if key not in meta:
-            raise EnergyMarginError(f"{where}: {METADATA_FILE} lacks {key!r}")
-    for key in ("n_trajectories", "n_frames", "n_objects", "n_robot_dofs", "n_drive"):
-        value = meta[key]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int)
-            or value < (0 if key in ("n_robot_dofs", "n_drive") else 1)
-        ):
-            raise EnergyMarginError(f"{where}: {METADATA_FILE} field {key!r} is invalid ({value!r})")
+    Returns:
+        The dataset (``None`` when it cannot be read at all) and the problems found.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return None, [Problem(str(path), "directory", "", "does not exist or is not a directory")]
+    metadata_path = path / METADATA_FILE
+    if not metadata_path.is_file():
+        return None, [Problem(METADATA_FILE, "file", "", f"{METADATA_FILE} does not exist")]
     try:
-        task = dataset.task
+        metadata = read_json(metadata_path, what=METADATA_FILE)
     except EnergyMarginError as error:
-        raise EnergyMarginError(f"{where}: {error}") from None
-    del task
-    t, k, n = meta["n_trajectories"], meta["n_frames"], meta["n_objects"]
-    r, p = meta["n_robot_dofs"], meta["n_drive"]
-    shapes = {
+        return None, [Problem(METADATA_FILE, "file", "", f"is not valid JSON ({str(error).split('(', 1)[-1]}")]
+    problems = metadata_problems(metadata)
+    if problems:
+        return None, problems
+    frames_path = path / FRAMES_FILE
+    if not frames_path.is_file():
+        return None, [Problem(FRAMES_FILE, "file", "", f"{FRAMES_FILE} is missing")]
+    shapes = expected_shapes(metadata)
+    arrays, problems = _read_frames(frames_path, shapes)
+    if problems:
+        return None, problems
+    dataset = Dataset(path=path, metadata=metadata, arrays=arrays)
+    return dataset, array_problems(dataset)
+
+
+def metadata_problems(metadata: Any) -> list[Problem]:
+    """Problems of the parsed ``dataset.json``: format, version, sizes and task configuration."""
+    if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
+        return [Problem(METADATA_FILE, "format", "", "is not an energy-margin dataset")]
+    if metadata.get("schema_version") != SCHEMA_VERSION:
+        return [
+            Problem(
+                METADATA_FILE,
+                "schema_version",
+                "",
+                f"{metadata.get('schema_version')!r} is not supported (this version reads {SCHEMA_VERSION})",
+            )
+        ]
+    problems = []
+    for key in ("task", *_LIMITS):
+        if key not in metadata:
+            problems.append(Problem(METADATA_FILE, key, "", "is missing"))
+    for key, limit in _LIMITS.items():
+        value = metadata.get(key)
+        minimum = 0 if key in ("n_robot_dofs", "n_drive") else 1
+        if key in metadata and (isinstance(value, bool) or not isinstance(value, int) or not minimum <= value <= limit):
+            problems.append(
+                Problem(METADATA_FILE, key, "", f"must be an integer in [{minimum}, {limit}], got {value!r}")
+            )
+    if "task" in metadata:
+        config = metadata.get("task_config")
+        if config is not None and not isinstance(config, dict):
+            problems.append(Problem(METADATA_FILE, "task_config", "", "must be an object"))
+        else:
+            try:
+                get_task(str(metadata["task"]), config)
+            except EnergyMarginError as error:
+                problems.append(Problem(METADATA_FILE, "task_config", "", str(error)))
+    return problems
+
+
+def expected_shapes(metadata: dict[str, Any]) -> dict[str, tuple[int, ...]]:
+    """Shape of every array of ``frames.npz`` given validated metadata."""
+    t, k, n = metadata["n_trajectories"], metadata["n_frames"], metadata["n_objects"]
+    r, p = metadata["n_robot_dofs"], metadata["n_drive"]
+    return {
         "object_pos": (t, k, n, 3),
         "object_quat": (t, k, n, 4),
         "object_vel": (t, k, n, 6),
@@ -348,33 +403,102 @@ def validate(dataset: Dataset) -> None:
         "captured": (t, k),
         "in_success": (t, k),
     }
+
+
+def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple[dict[str, np.ndarray], list[Problem]]:
+    """Read the expected arrays of ``frames.npz``, checking every header before allocating."""
+    arrays: dict[str, np.ndarray] = {}
+    problems: list[Problem] = []
+    try:
+        archive = zipfile.ZipFile(frames_path)
+    except (OSError, zipfile.BadZipFile, ValueError) as error:
+        return arrays, [Problem(FRAMES_FILE, "archive", "", f"is corrupt or not an .npz archive ({error})")]
+    with archive:
+        members: dict[str, zipfile.ZipInfo] = {}
+        for info in archive.infolist():
+            name = info.filename.removesuffix(".npy")
+            if name in shapes:
+                members[name] = info
+        for name, shape in shapes.items():
+            if name not in members:
+                problems.append(Problem(FRAMES_FILE, name, "", "array is missing"))
+                continue
+            info = members[name]
+            if info.file_size > _MAX_MEMBER_BYTES:
+                problems.append(Problem(FRAMES_FILE, name, "", f"is too large ({info.file_size} bytes)"))
+                continue
+            try:
+                with archive.open(info) as stream:
+                    version = np.lib.format.read_magic(stream)
+                    header = (
+                        np.lib.format.read_array_header_1_0(stream)
+                        if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0(stream)
+                    )
+                    declared_shape, _, dtype = header
+                    if dtype.hasobject:
+                        problems.append(Problem(FRAMES_FILE, name, "", "holds Python objects, not numbers"))
+                        continue
+                    if tuple(declared_shape) != shape:
+                        problems.append(
+                            Problem(FRAMES_FILE, name, "", f"has shape {tuple(declared_shape)}, expected {shape}")
+                        )
+                        continue
+                with archive.open(info) as stream:
+                    value = np.lib.format.read_array(stream, allow_pickle=False)
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, RuntimeError) as error:
+                problems.append(Problem(FRAMES_FILE, name, "", f"is corrupt ({error})"))
+                continue
+            arrays[name] = value
+    return arrays, problems
+
+
+def _location(name: str, index: tuple[int, ...]) -> str:
+    labels = ("trajectory", "frame", "object") if name not in ("friction", "drive") else ("trajectory",)
+    return ", ".join(f"{label} {i}" for label, i in zip(labels, index, strict=False))
+
+
+def array_problems(dataset: Dataset) -> list[Problem]:
+    """Problems of the arrays of a dataset whose shapes match its metadata."""
+    problems: list[Problem] = []
     arrays = dataset.arrays
-    for name, shape in shapes.items():
-        if name not in arrays:
-            raise EnergyMarginError(f"{where}: {FRAMES_FILE} lacks array {name!r}")
+    for name in expected_shapes(dataset.metadata):
         array = arrays[name]
-        if not isinstance(array, np.ndarray):
-            raise EnergyMarginError(f"{where}: {name!r} is not an array")
-        if array.shape != shape:
-            raise EnergyMarginError(f"{where}: array {name!r} has shape {array.shape}, expected {shape}")
         if name in _BOOL_ARRAYS:
             if array.dtype != np.bool_:
-                raise EnergyMarginError(f"{where}: labels {name!r} must be booleans (0/1), got {array.dtype}")
+                problems.append(Problem(FRAMES_FILE, name, "", f"labels must be booleans (0/1), got {array.dtype}"))
             continue
         if not np.issubdtype(array.dtype, np.floating):
-            raise EnergyMarginError(f"{where}: array {name!r} must hold floats, got {array.dtype}")
-        bad = ~np.isfinite(array)
-        if np.any(bad):
-            index = tuple(int(i) for i in np.argwhere(bad)[0])
-            location = f"trajectory {index[0]}" + (
-                f", frame {index[1]}" if len(index) > 1 and name not in ("drive",) else ""
+            problems.append(Problem(FRAMES_FILE, name, "", f"must hold floats, got {array.dtype}"))
+            continue
+        for index in np.argwhere(~np.isfinite(array))[:_MAX_PER_FIELD]:
+            problems.append(
+                Problem(FRAMES_FILE, name, _location(name, tuple(int(i) for i in index)), "NaN or infinite value")
             )
-            raise EnergyMarginError(f"{where}: array {name!r} has a NaN or infinite value at {location}")
-    if np.any(arrays["friction"] < 0):
-        raise EnergyMarginError(f"{where}: array 'friction' has a negative coefficient")
-    norms = np.linalg.norm(arrays["object_quat"], axis=-1)
-    if np.any(np.abs(norms - 1.0) > 1e-3):
-        index = tuple(int(i) for i in np.argwhere(np.abs(norms - 1.0) > 1e-3)[0])
-        raise EnergyMarginError(
-            f"{where}: array 'object_quat' is not a unit quaternion at trajectory {index[0]}, frame {index[1]}"
+    if problems:
+        return problems
+    for index in np.argwhere(arrays["friction"] < 0)[:_MAX_PER_FIELD]:
+        problems.append(
+            Problem(FRAMES_FILE, "friction", _location("friction", (int(index[0]),)), "negative coefficient")
         )
+    norms = np.linalg.norm(arrays["object_quat"], axis=-1)
+    for index in np.argwhere(np.abs(norms - 1.0) > 1e-3)[:_MAX_PER_FIELD]:
+        location = _location("object_quat", tuple(int(i) for i in index))
+        problems.append(Problem(FRAMES_FILE, "object_quat", location, "not a unit quaternion"))
+    return problems
+
+
+def validate(dataset: Dataset) -> None:
+    """Check an in-memory dataset's metadata and arrays; raise :class:`EnergyMarginError`."""
+    problems = metadata_problems(dataset.metadata)
+    if not problems:
+        shapes = expected_shapes(dataset.metadata)
+        for name, shape in shapes.items():
+            array = dataset.arrays.get(name)
+            if not isinstance(array, np.ndarray):
+                problems.append(Problem(FRAMES_FILE, name, "", "array is missing"))
+            elif array.shape != shape:
+                problems.append(Problem(FRAMES_FILE, name, "", f"has shape {array.shape}, expected {shape}"))
+        if not problems:
+            problems = array_problems(dataset)
+    raise_first(dataset.path, problems)
