@@ -121,7 +121,7 @@ def test_evaluate_refuses_a_duplicated_row(labelled: Path) -> None:
     _write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
     text = (labelled / SCORES_FILE).read_text().splitlines(keepends=True)
     (labelled / SCORES_FILE).write_text("".join([*text[:-1], text[2]]))  # frame (0, 1) twice, (1, 2) missing
-    with pytest.raises(EnergyMarginError, match="2 rows for trajectory 0, frame 1"):
+    with pytest.raises(EnergyMarginError, match=r"duplicates line 3 \(trajectory 0, frame 1\)"):
         evaluate(labelled)
 
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin import __version__
-from energy_margin.dataset import Dataset, load_dataset
+from energy_margin.dataset import Dataset
 from energy_margin.energy import COST_MODELS, make_cost_model
 from energy_margin.errors import EnergyMarginError
 from energy_margin.executors import make_executor
@@ -30,6 +30,7 @@ from energy_margin.scores import region_score
 from energy_margin.sim import ENGINES, Simulator, make_simulator
 from energy_margin.state import FrameState
 from energy_margin.tasks import Task, all_inside
+from energy_margin.validation import require_valid
 
 SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
@@ -333,7 +334,7 @@ def analyze(
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise EnergyMarginError(f"seed must be a non-negative integer, got {seed!r}")
     runner = make_executor(executor, workers=workers, address=address)
-    dataset = load_dataset(path)
+    dataset = require_valid(path, overlaps=True, scores=False)
     directory = Path(path)
     description = _run_description(dataset, config, seed)
     config_path, journal_path, scores_path = (directory / name for name in (CONFIG_FILE, JOURNAL_FILE, SCORES_FILE))

@@ -99,6 +99,10 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
     analyze.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
+    check = commands.add_parser("check", help="list every problem of a dataset (and its scores)")
+    check.add_argument("dataset", help="dataset directory")
+    check.add_argument("--no-overlaps", action="store_true", help="skip the (simulated) overlap check")
+
     evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
     evaluate.add_argument("dataset", help="dataset directory with scores.csv")
     evaluate.add_argument("--json", action="store_true", help="print one JSON object")
@@ -175,6 +179,16 @@ def _run(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
         )
         print(f"wrote {path}")
+        return 0
+    if args.command == "check":
+        from energy_margin.validation import check_dataset
+
+        problems = check_dataset(args.dataset, overlaps=not args.no_overlaps, scores=None)
+        for problem in problems:
+            print(problem)
+        if problems:
+            raise EnergyMarginError(f"{len(problems)} problem(s) in {args.dataset}")
+        print(f"{args.dataset}: ok")
         return 0
     if args.command == "evaluate":
         from energy_margin.evaluate import evaluate, format_table

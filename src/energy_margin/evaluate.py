@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis import load_scores
-from energy_margin.dataset import Dataset, load_dataset
+from energy_margin.dataset import Dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.scores import trajectory_success_score
+from energy_margin.validation import require_valid
 
 
 def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
@@ -105,7 +106,7 @@ def evaluate(
         raise EnergyMarginError(f"success frames must be an integer >= 1, got {success_frames!r}")
     if weights not in ("linear", "uniform"):
         raise EnergyMarginError(f"weights must be 'linear' or 'uniform', got {weights!r}")
-    dataset = load_dataset(path)
+    dataset = require_valid(path, overlaps=True, scores=None)
     scores = load_scores(path)
     capture = score_grid(dataset, scores, "capture_score")
     success = score_grid(dataset, scores, "success_score")

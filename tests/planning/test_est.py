@@ -75,6 +75,9 @@ class PointMassSimulator:
     def set_robot_targets(self, targets: np.ndarray) -> None:
         del targets
 
+    def object_penetrations(self) -> list[tuple[int, int, float]]:
+        return []
+
     def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
         before = self.pos.copy()
         for _ in range(n_steps):

@@ -98,6 +98,15 @@ class Simulator(Protocol):
         """End-effector joint velocities, shape (n_robot_dofs,)."""
         ...
 
+    def object_penetrations(self) -> list[tuple[int, int, float]]:
+        """Interpenetrations of the objects in the current state.
+
+        Returns:
+            ``(object, other, depth)`` per penetrating contact: ``other`` is another object's index,
+            or -1 for the end-effector or a static obstacle; ``depth`` > 0 in metres.
+        """
+        ...
+
     def mechanical_energy(self) -> float:
         """Kinetic plus gravitational potential energy of the objects, joules (potential zero at z=0)."""
         ...

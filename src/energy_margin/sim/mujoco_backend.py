@@ -191,6 +191,9 @@ class MujocoSimulator:
         self._inertias = model.body_inertia[self._object_bodies].copy()
         self._gravity = np.asarray(scene.gravity, dtype=float)
         self._geom_is_object = np.isin(model.geom_bodyid, self._object_bodies)
+        body_object = np.full(model.nbody, -1)
+        body_object[self._object_bodies] = np.arange(len(self._object_bodies))
+        self._geom_object = body_object[model.geom_bodyid]
         self._state_buffer = np.empty(mujoco.mj_stateSize(model, _STATE_SPEC))
         self._pyramid = np.arange(4)
 
@@ -290,6 +293,21 @@ class MujocoSimulator:
             velocity[:, 2] - velocity[:, 3]
         )
         return 0.5 * float(power.sum())
+
+    def object_penetrations(self) -> list[tuple[int, int, float]]:
+        """Penetrating contacts that involve an object: ``(object, other or -1, depth in m)``."""
+        data = self.data
+        if data.ncon == 0:
+            return []
+        contacts = data.contact
+        first = self._geom_object[contacts.geom1]
+        second = self._geom_object[contacts.geom2]
+        penetrating = (contacts.dist < 0) & ((first >= 0) | (second >= 0))
+        result = []
+        for a, b, distance in zip(first[penetrating], second[penetrating], contacts.dist[penetrating], strict=True):
+            obj, other = (int(a), int(b)) if a >= 0 else (int(b), int(a))
+            result.append((obj, other, -float(distance)))
+        return result
 
     def object_positions(self) -> np.ndarray:
         """Centre-of-mass positions (n_objects, 3), metres."""
