@@ -1,0 +1,111 @@
+"""Throughput of the executors and resident memory over a long run.
+
+Usage::
+
+    python benchmarks/bench_executors.py [--objects 5] [--trajectories 4] [--frames 10]
+        [--iterations 100] [--ray] [--memory-frames 1000]
+
+Part 1 analyses the same dataset with ``analyze`` and the local executor with 1 and 2 workers (and
+Ray with 2 workers when ``--ray`` is given), each into a fresh copy, and prints frames per second
+and the per-frame overhead of the executor: ``wall time x workers / frames - mean frame runtime``
+(start-up, dataset loading, validation, process or actor start, result transport, journal writes).
+
+Part 2 analyses ``--memory-frames`` frames one after another in this process with one
+``FrameAnalyzer`` and prints the resident set size along the way and its peak.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from energy_margin.analysis import AnalyzerConfig, FrameAnalyzer, analyze, load_scores
+from energy_margin.dataset import generate_dataset, load_dataset
+
+
+def resident_mb() -> float:
+    with open("/proc/self/statm", encoding="ascii") as stream:
+        pages = int(stream.read().split()[1])
+    return pages * resource.getpagesize() / 2**20
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--objects", type=int, default=5)
+    parser.add_argument("--trajectories", type=int, default=4)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--iterations", type=int, default=100)
+    parser.add_argument("--ray", action="store_true", help="also measure the Ray executor")
+    parser.add_argument("--memory-frames", type=int, default=1000)
+    parser.add_argument("--memory-objects", type=int, default=10)
+    parser.add_argument("--memory-iterations", type=int, default=50)
+    args = parser.parse_args()
+
+    work = Path(tempfile.mkdtemp(prefix="bench-executors-"))
+    try:
+        source = work / "source"
+        generate_dataset(
+            "pushing",
+            n_objects=args.objects,
+            n_trajectories=args.trajectories,
+            n_frames=args.frames,
+            seed=0,
+            out=source,
+        )
+        config = AnalyzerConfig(iterations=args.iterations)
+        runs = [("local", 1), ("local", 2)] + ([("ray", 2)] if args.ray else [])
+        frames = args.trajectories * args.frames
+        print(
+            f"pushing, n_o = {args.objects}, {frames} frames, {args.iterations} iterations per frame\n\n"
+            "| executor | workers | wall [s] | frames/s | mean frame runtime [s] | executor overhead per frame [ms] |\n"
+            "|---|---:|---:|---:|---:|---:|"
+        )
+        reference = None
+        for kind, workers in runs:
+            target = work / f"{kind}-{workers}"
+            shutil.copytree(source, target)
+            started = time.perf_counter()
+            analyze(target, config, seed=0, workers=workers, executor=kind, progress=False)
+            wall = time.perf_counter() - started
+            scores = load_scores(target)
+            runtime = statistics.fmean(scores["runtime_s"])
+            overhead = wall * workers / frames - runtime
+            identical = (
+                ""
+                if reference is None
+                else (" (same scores)" if (scores["capture_score"] == reference).all() else " (DIFFERENT)")
+            )
+            reference = scores["capture_score"] if reference is None else reference
+            cells = [f"{kind}{identical}", str(workers), f"{wall:.2f}", f"{frames / wall:.1f}", f"{runtime:.4f}"]
+            print("| " + " | ".join([*cells, f"{1000 * overhead:.1f}"]) + " |")
+
+        print(
+            f"\nresident memory over {args.memory_frames} frames (n_o = {args.memory_objects}, "
+            f"{args.memory_iterations} iterations, one process)\n"
+        )
+        memory_set = work / "memory"
+        generate_dataset(
+            "pushing", n_objects=args.memory_objects, n_trajectories=10, n_frames=10, seed=1, out=memory_set
+        )
+        dataset = load_dataset(memory_set)
+        analyzer = FrameAnalyzer(dataset, AnalyzerConfig(iterations=args.memory_iterations), seed=0)
+        total = dataset.n_trajectories * dataset.n_frames
+        print("| frames analysed | resident [MiB] |\n|---:|---:|")
+        print(f"| 0 | {resident_mb():.1f} |")
+        for count in range(1, args.memory_frames + 1):
+            analyzer(count % total)
+            if count in (10, 100, 250, 500, 750, 1000) or count == args.memory_frames:
+                print(f"| {count} | {resident_mb():.1f} |")
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(f"\npeak resident memory of this process: {peak:.1f} MiB")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
