@@ -2,10 +2,10 @@
 
 Usage::
 
-    python benchmarks/bench_analysis.py [--objects 1 3 5 10 20] [--iterations 300]
+    python benchmarks/bench_analysis.py [--task pushing] [--objects 1 3 5 10 20] [--iterations 300]
         [--trajectories 2] [--frames 5] [--cost wrench] [--set timestep=0.0041667]
 
-Everything runs in this one process, one frame after another. For every n_o a small pushing
+Everything runs in this one process, one frame after another. For every n_o a small
 dataset is generated in memory and each of its frames is analysed; the table reports the mean and
 standard deviation of the per-frame wall time, the part spent inside the simulator (restore, step,
 read, save), and the rest (node selection, sampling, cost, density bookkeeping, scoring).
@@ -47,6 +47,7 @@ def machine() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="pushing", help="registered task (pushing, scooping)")
     parser.add_argument("--objects", type=int, nargs="+", default=[1, 3, 5, 10, 20])
     parser.add_argument("--iterations", type=int, default=300)
     parser.add_argument("--trajectories", type=int, default=2)
@@ -56,12 +57,12 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON")
     args = parser.parse_args()
     overrides = {key: json.loads(value) for key, value in (pair.split("=", 1) for pair in args.set)}
-    task = get_task("pushing", overrides)
+    task = get_task(args.task, overrides)
     config = AnalyzerConfig(iterations=args.iterations, cost=args.cost)
 
     print(f"machine: {machine()}")
     print(
-        f"pushing, {args.iterations} iterations, cost={args.cost}, timestep={task.config.timestep:.6f} s, "
+        f"{args.task}, {args.iterations} iterations, cost={args.cost}, timestep={task.config.timestep:.6f} s, "
         f"{args.trajectories} trajectories x {args.frames} frames per n_o, one process"
     )
     print()
