@@ -99,6 +99,15 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
     analyze.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
+    reproduce = commands.add_parser("reproduce", help="Table I, the Fig. 2 ablation and an HTML report")
+    reproduce.add_argument("--quick", action="store_true", help="small sets: a few minutes on 2 cores")
+    reproduce.add_argument(
+        "--out", default=None, help="output directory (default runs/reproduce or runs/reproduce-quick)"
+    )
+    reproduce.add_argument("--workers", type=_positive_int, default=2, help="parallel workers (default 2)")
+    reproduce.add_argument("--engine", default="mujoco", help="physics engine (default mujoco)")
+    reproduce.add_argument("--seed", type=_non_negative_int, default=0, help="seed (default 0)")
+
     check = commands.add_parser("check", help="list every problem of a dataset (and its scores)")
     check.add_argument("dataset", help="dataset directory")
     check.add_argument("--no-overlaps", action="store_true", help="skip the (simulated) overlap check")
@@ -180,6 +189,19 @@ def _run(args: argparse.Namespace) -> int:
         )
         print(f"wrote {path}")
         return 0
+    if args.command == "reproduce":
+        from energy_margin.reproduce import ReproduceConfig, reproduce
+        from energy_margin.sim import ENGINES
+
+        if args.engine not in ENGINES:
+            raise EnergyMarginError(f"unknown engine {args.engine!r}; choose one of {', '.join(ENGINES)}")
+        _require_matplotlib()
+        plan = ReproduceConfig.create(quick=args.quick, workers=args.workers, engine=args.engine, seed=args.seed)
+        out = args.out or ("runs/reproduce-quick" if args.quick else "runs/reproduce")
+        index = reproduce(out, plan)
+        print(f"report: {index}")
+        print(f"tables: {index.parent.parent / 'table1.md'}, {index.parent.parent / 'ablation.md'}")
+        return 0
     if args.command == "check":
         from energy_margin.validation import check_dataset
 
@@ -223,6 +245,13 @@ class _Bar:
 
 def _bar(total: int, desc: str) -> _Bar:
     return _Bar(total if isinstance(total, int) and total > 0 else 0, desc)
+
+
+def _require_matplotlib() -> None:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise EnergyMarginError("the report needs matplotlib: pip install 'energy-margin[plot]'") from None
 
 
 def _one_line(message: str) -> str:
