@@ -59,7 +59,8 @@ def _geom_outline(
     elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
         angles = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
         ring = np.column_stack([size[0] * np.cos(angles), size[0] * np.sin(angles), np.zeros_like(angles)])
-        local = np.vstack([[*ring, 0, 0, size[1]], ring - [0, 0, size[1]]])
+        lid = np.array([0.0, 0.0, size[1]])
+        local = np.vstack([ring + lid, ring - lid])
         corners = position + local @ rotation.T
     elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
         angles = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
