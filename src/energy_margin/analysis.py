@@ -186,6 +186,9 @@ def analyze_frame(
     return scores, field
 
 
+_SIMULATOR_CACHE = 4
+
+
 class FrameAnalyzer:
     """Scores frames of one dataset, reusing one simulator per distinct (friction, drive) pair."""
 
@@ -200,13 +203,15 @@ class FrameAnalyzer:
     def _simulator(self, friction: float, drive: np.ndarray) -> Simulator:
         # The drive may change the model (e.g. a servo stiffness), so it is part of the key.
         key = (friction, np.asarray(drive, dtype=float).tobytes())
-        simulator = self._simulators.get(key)
+        simulator = self._simulators.pop(key, None)
         if simulator is None:
-            if len(self._simulators) > 64:
-                self._simulators.clear()
+            # Frames arrive trajectory by trajectory: a few recent simulators suffice, and keeping
+            # more would let memory grow with the number of distinct trajectories.
+            while len(self._simulators) >= _SIMULATOR_CACHE:
+                self._simulators.pop(next(iter(self._simulators)))
             scene = self.task.build_scene(self.dataset.n_objects, friction, drive)
             simulator = make_simulator(scene, self.config.engine)
-            self._simulators[key] = simulator
+        self._simulators[key] = simulator
         return simulator
 
     def __call__(self, index: int) -> dict[str, Any]:
@@ -416,4 +421,7 @@ def load_scores(path: Path | str) -> dict[str, np.ndarray]:
             raise EnergyMarginError(f"{scores_path}: line {number} is malformed")
         rows.append(row)
     dtypes = {"seed": np.uint64, "trajectory": np.int64, "frame": np.int64, "nodes": np.int64, "iterations": np.int64}
-    return {name: np.array([row[name] for row in rows], dtype=dtypes.get(name, np.float64)) for name in COLUMNS}
+    try:
+        return {name: np.array([row[name] for row in rows], dtype=dtypes.get(name, np.float64)) for name in COLUMNS}
+    except OverflowError:
+        raise EnergyMarginError(f"{scores_path}: a count or seed is out of range") from None

@@ -21,6 +21,7 @@ the end of the trajectory).
 from __future__ import annotations
 
 import json
+import lzma
 import shutil
 import tempfile
 import zipfile
@@ -381,9 +382,28 @@ def metadata_problems(metadata: Any) -> list[Problem]:
             problems.append(Problem(METADATA_FILE, "task_config", "", "must be an object"))
         else:
             try:
-                get_task(str(metadata["task"]), config)
+                task = get_task(str(metadata["task"]), config)
             except EnergyMarginError as error:
                 problems.append(Problem(METADATA_FILE, "task_config", "", str(error)))
+            else:
+                if not any(problem.field in ("n_robot_dofs", "n_drive") for problem in problems):
+                    problems.extend(_task_size_problems(task, metadata))
+    return problems
+
+
+def _task_size_problems(task: Task, metadata: dict[str, Any]) -> list[Problem]:
+    """The end-effector and drive sizes of the metadata must be the task's."""
+    try:
+        dofs = task.build_scene(1, 0.5).n_robot_dofs
+        drive = int(np.asarray(task.sample_trajectory(np.random.default_rng(0), 1).drive).size)
+    except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
+        return [Problem(METADATA_FILE, "task_config", "", f"cannot build the task's scene ({error})")]
+    problems = []
+    for key, expected in (("n_robot_dofs", dofs), ("n_drive", drive)):
+        if metadata.get(key) != expected:
+            problems.append(
+                Problem(METADATA_FILE, key, "", f"is {metadata.get(key)!r} but task {task.name!r} has {expected}")
+            )
     return problems
 
 
@@ -411,7 +431,7 @@ def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple
     problems: list[Problem] = []
     try:
         archive = zipfile.ZipFile(frames_path)
-    except (OSError, zipfile.BadZipFile, ValueError) as error:
+    except (OSError, zipfile.BadZipFile, ValueError, NotImplementedError, EOFError) as error:
         return arrays, [Problem(FRAMES_FILE, "archive", "", f"is corrupt or not an .npz archive ({error})")]
     with archive:
         members: dict[str, zipfile.ZipInfo] = {}
@@ -436,6 +456,7 @@ def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple
                         else np.lib.format.read_array_header_2_0(stream)
                     )
                     declared_shape, _, dtype = header
+                    header_length = stream.tell()
                     if dtype.hasobject:
                         problems.append(Problem(FRAMES_FILE, name, "", "holds Python objects, not numbers"))
                         continue
@@ -444,9 +465,26 @@ def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple
                             Problem(FRAMES_FILE, name, "", f"has shape {tuple(declared_shape)}, expected {shape}")
                         )
                         continue
+                    # The data must actually be there before anything is allocated for it.
+                    declared_bytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+                    if declared_bytes > info.file_size - header_length:
+                        problems.append(
+                            Problem(FRAMES_FILE, name, "", "is truncated (less data than its header declares)")
+                        )
+                        continue
                 with archive.open(info) as stream:
                     value = np.lib.format.read_array(stream, allow_pickle=False)
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, RuntimeError) as error:
+            except (
+                OSError,
+                ValueError,
+                EOFError,
+                zipfile.BadZipFile,
+                zlib.error,
+                lzma.LZMAError,
+                RuntimeError,
+                MemoryError,
+                NotImplementedError,
+            ) as error:
                 problems.append(Problem(FRAMES_FILE, name, "", f"is corrupt ({error})"))
                 continue
             arrays[name] = value
@@ -454,7 +492,12 @@ def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple
 
 
 def _location(name: str, index: tuple[int, ...]) -> str:
-    labels = ("trajectory", "frame", "object") if name not in ("friction", "drive") else ("trajectory",)
+    if name in ("friction", "drive"):
+        labels: tuple[str, ...] = ("trajectory",)
+    elif name in ("robot_q", "robot_v"):
+        labels = ("trajectory", "frame", "joint")
+    else:
+        labels = ("trajectory", "frame", "object")
     return ", ".join(f"{label} {i}" for label, i in zip(labels, index, strict=False))
 
 
@@ -475,12 +518,13 @@ def array_problems(dataset: Dataset) -> list[Problem]:
             problems.append(
                 Problem(FRAMES_FILE, name, _location(name, tuple(int(i) for i in index)), "NaN or infinite value")
             )
-    if problems:
+    # NaN compares false, so these checks add nothing spurious next to the NaN problems above.
+    if np.issubdtype(arrays["friction"].dtype, np.floating):
+        for index in np.argwhere(arrays["friction"] < 0)[:_MAX_PER_FIELD]:
+            location = _location("friction", (int(index[0]),))
+            problems.append(Problem(FRAMES_FILE, "friction", location, "negative coefficient"))
+    if not np.issubdtype(arrays["object_quat"].dtype, np.floating):
         return problems
-    for index in np.argwhere(arrays["friction"] < 0)[:_MAX_PER_FIELD]:
-        problems.append(
-            Problem(FRAMES_FILE, "friction", _location("friction", (int(index[0]),)), "negative coefficient")
-        )
     norms = np.linalg.norm(arrays["object_quat"], axis=-1)
     for index in np.argwhere(np.abs(norms - 1.0) > 1e-3)[:_MAX_PER_FIELD]:
         location = _location("object_quat", tuple(int(i) for i in index))

@@ -8,8 +8,10 @@ gives identical scores.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
+import sys
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import TYPE_CHECKING, Any, Protocol
@@ -68,11 +70,29 @@ def _chunks(indices: Sequence[int], workers: int) -> list[list[int]]:
 _WORKER: Any = None
 
 
+def _die_with_parent() -> None:
+    """Ask Linux to kill this worker when its parent dies (e.g. by SIGKILL), so none is orphaned."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    # The parent may have died between the fork and the prctl call.
+    if os.getppid() == 1:
+        os._exit(1)
+
+
+_PR_SET_PDEATHSIG = 1
+
+
 def _init_local_worker(dataset: Dataset, config: dict[str, Any], seed: int) -> None:
     from energy_margin.analysis import AnalyzerConfig, FrameAnalyzer
 
     # Ctrl-C goes to the parent, which stops the pool; workers must not die half-way on their own.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
     global _WORKER
     _WORKER = FrameAnalyzer(dataset, AnalyzerConfig(**config), seed)
 

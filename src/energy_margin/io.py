@@ -38,5 +38,5 @@ def read_json(path: Path, *, what: str) -> Any:
         raise EnergyMarginError(f"{what}: {path} does not exist")
     try:
         return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
         raise EnergyMarginError(f"{what}: {path} is not valid JSON ({error})") from None

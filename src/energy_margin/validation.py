@@ -35,12 +35,26 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
     problems: list[Problem] = []
     arrays = dataset.arrays
     for trajectory in range(dataset.n_trajectories):
-        scene = task.build_scene(dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory])
+        try:
+            scene = task.build_scene(
+                dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory]
+            )
+            simulator = make_simulator(scene, engine)
+        except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
+            return [
+                Problem("dataset.json", "task_config", "", f"cannot build the scene ({' '.join(str(error).split())})")
+            ]
         limits = [OVERLAP_FRACTION * max(obj.geom.size) for obj in scene.objects]
-        simulator = make_simulator(scene, engine)
         for frame in range(dataset.n_frames):
             simulator.reset(dataset.frame(trajectory, frame))
+            # One problem per overlapping pair: the deepest of its contact points.
+            deepest: dict[tuple[int, int], float] = {}
             for obj, other, depth in simulator.object_penetrations():
+                pair = (min(obj, other), max(obj, other)) if other >= 0 else (obj, other)
+                deepest[pair] = max(depth, deepest.get(pair, 0.0))
+            for (obj, other), depth in sorted(deepest.items()):
+                if other < 0:
+                    obj, other = max(obj, other), -1
                 limit = limits[obj] if other < 0 else min(limits[obj], limits[other])
                 if depth <= limit:
                     continue
@@ -123,7 +137,7 @@ def _row_problems(
     for name in ("runtime_s", "physics_s"):
         if not (math.isfinite(row[name]) and row[name] >= 0):
             problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a non-negative time"))
-    if row["nodes"] < 1 or row["iterations"] < 0 or not 0 <= row["seed"] < 2**64:
+    if not (1 <= row["nodes"] < 2**63 and 0 <= row["iterations"] < 2**63 and 0 <= row["seed"] < 2**64):
         problems.append(Problem(SCORES_FILE, "nodes", where, "nodes, iterations or seed out of range"))
     return problems
 
