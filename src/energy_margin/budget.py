@@ -155,8 +155,13 @@ def plot(rows: list[dict[str, Any]], path: Path, *, title: str = "") -> Path | N
                 if None not in low and None not in high:
                     axis.fill_between(budgets, low, high, color=line.get_color(), alpha=0.15)
             else:
-                axis.axhline(mine[0][question], linestyle="--", linewidth=1, label=method, color="grey" if
-                             method == "current_state" else "black")
+                axis.axhline(
+                    mine[0][question],
+                    linestyle="--",
+                    linewidth=1,
+                    label=method,
+                    color="grey" if method == "current_state" else "black",
+                )
         axis.set_xscale("log")
         axis.set_xlabel("expansions per frame")
         axis.set_title(labels[question])

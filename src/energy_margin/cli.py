@@ -207,7 +207,8 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     if args.command == "budget":
         from energy_margin.analysis import AnalyzerConfig
-        from energy_margin.budget import budget_sweep, format_table
+        from energy_margin.budget import budget_sweep
+        from energy_margin.budget import format_table as budget_table
 
         try:
             base = AnalyzerConfig(batch=args.batch, threads=args.threads)
@@ -223,7 +224,7 @@ def _run(args: argparse.Namespace) -> int:
             out=args.out,
             base=base,
         )
-        print(format_table(rows))
+        print(budget_table(rows))
         return 0
     raise AssertionError(args.command)
 

@@ -174,9 +174,7 @@ def expansion_factory(
         del root_pos
         dimension = features.dimension(n_objects)
         if method == "est":
-            return EstExpansion(
-                ProjectedGridDensity(dimension, rng, n_projections=n_projections, cell_size=cell_size)
-            )
+            return EstExpansion(ProjectedGridDensity(dimension, rng, n_projections=n_projections, cell_size=cell_size))
         if method == "montecarlo":
             return MonteCarloExpansion(total, rollout_length)
         return RrtExpansion(dimension, capacity, rrt_extent)

@@ -5,8 +5,8 @@ Carlo roll-outs, RRT). Every method shares:
 
 * the random controls: iteration ``i`` draws its wrenches (uniform within the task's bounds) and
   its duration (``max_duration * u**(1/d)``, d the number of perturbed wrench components) from
-  blocks of 256 iterations, so the controls are a fixed function of the seed and the iteration
-  number whatever the method or the batch size;
+  blocks of 256 iterations, so the controls are a fixed function of the seed, the method (which
+  draws its own uniforms in the same blocks) and the iteration number, whatever the batch size;
 * the propagation (:func:`_propagate_one`, or :class:`~energy_margin.sim.mujoco_backend.RolloutPropagator`
   for a batch) and the acceptance test: a reached state outside the task's state box, or not
   finite, is rejected but still consumes the iteration;
@@ -230,7 +230,13 @@ class _Controls:
     block = 256
 
     def __init__(
-        self, rng: np.random.Generator, uniforms: int, max_wrench: np.ndarray, max_duration: float, dt: float, limit: int
+        self,
+        rng: np.random.Generator,
+        uniforms: int,
+        max_wrench: np.ndarray,
+        max_duration: float,
+        dt: float,
+        limit: int,
     ) -> None:
         self.rng = rng
         self.n_uniforms = uniforms
@@ -326,7 +332,9 @@ def grow(
     propagator = None
     if batch > 1:
         if needs_friction:
-            raise ValueError(f"batched expansion does not integrate friction work: use cost 'wrench', not {cost_model.name!r}")
+            raise ValueError(
+                f"batched expansion does not integrate friction work: use cost 'wrench', not {cost_model.name!r}"
+            )
         factory = getattr(simulator, "rollout_propagator", None)
         if factory is None:
             raise ValueError("batched expansion needs a simulator with mujoco.rollout (engine 'mujoco')")

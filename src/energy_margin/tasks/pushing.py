@@ -201,7 +201,6 @@ class SweptRegion:
         in_band = np.abs(distance - self.radius) <= config.capture_half_width
         return in_arc & in_band & _inside_workspace(xy, config)
 
-
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of each position (..., 3) to the region's boundary in the plane.
 
@@ -224,7 +223,9 @@ class SweptRegion:
             return np.minimum(band, workspace)
         angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)
         shifted = np.mod(angle + self.arc_margin, 2.0 * np.pi)
-        angular = np.where(shifted <= span, np.minimum(shifted, span - shifted), -np.minimum(shifted - span, 2.0 * np.pi - shifted))
+        angular = np.where(
+            shifted <= span, np.minimum(shifted, span - shifted), -np.minimum(shifted - span, 2.0 * np.pi - shifted)
+        )
         return np.minimum(np.minimum(band, angular * distance), workspace)
 
 
@@ -243,7 +244,6 @@ class WallBand:
         xy = np.asarray(positions)[..., :2]
         y = xy[..., 1]
         return (y >= self.low) & (y <= self.high) & _inside_workspace(xy, self.config)
-
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of each position (..., 3) to the band's boundary: > 0 inside, < 0 outside."""

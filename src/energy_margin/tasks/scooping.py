@@ -250,7 +250,6 @@ class BoxesAboveTable:
             inside &= np.asarray(velocities)[..., 2] >= -self.fall_speed
         return inside
 
-
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of each box centre (..., 3) to the region's boundary: > 0 inside.
 
