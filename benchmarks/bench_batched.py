@@ -10,8 +10,9 @@ with every setting in turn (settings interleaved frame by frame, so a change of 
 them alike). B = 1 is the reference path (one ``mj_setState`` + ``mj_step`` per expansion);
 B > 1 propagates B expansions per round through ``mujoco.rollout`` on 1 or more threads. The table
 gives the mean per-frame wall time, the part inside the simulator, the speed-up against B = 1 and
-the mean capture and success scores; the load average before and after is printed because other
-processes on the machine change the multithreaded numbers most.
+the mean capture and success scores (the Monte Carlo and RRT baselines are timed at B = 1 too);
+the load average before and after is printed because other processes on the machine change the
+multithreaded numbers most.
 """
 
 from __future__ import annotations
@@ -44,14 +45,19 @@ def main() -> None:
     parser.add_argument("--trajectories", type=int, default=2)
     parser.add_argument("--frames", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--methods", nargs="*", default=["montecarlo", "rrt"], help="further methods timed at B = 1 (EST always)"
+    )
     args = parser.parse_args()
     task = get_task(args.task)
-    settings = [(1, 1)] + [(batch, threads) for batch in args.batches for threads in args.threads]
-    configs = {s: AnalyzerConfig(iterations=args.iterations, batch=s[0], threads=s[1]) for s in settings}
-    times: dict[tuple[int, int], list[float]] = {s: [] for s in settings}
-    physics: dict[tuple[int, int], list[float]] = {s: [] for s in settings}
-    capture: dict[tuple[int, int], list[float]] = {s: [] for s in settings}
-    success: dict[tuple[int, int], list[float]] = {s: [] for s in settings}
+    settings: list[tuple[int, int, str]] = [(1, 1, "est")]
+    settings += [(batch, threads, "est") for batch in args.batches for threads in args.threads]
+    settings += [(1, 1, method) for method in args.methods]
+    configs = {s: AnalyzerConfig(iterations=args.iterations, batch=s[0], threads=s[1], method=s[2]) for s in settings}
+    times: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    physics: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    capture: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    success: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
 
     print(f"machine: {machine()}")
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
@@ -90,13 +96,13 @@ def main() -> None:
                 success[setting].append(scores.success_score)
     print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print()
-    reference = statistics.fmean(times[(1, 1)])
-    print("| B | threads | per frame [s] | physics [s] | speed-up vs B=1 | mean capture | mean success |")
-    print("|---:|---:|---:|---:|---:|---:|---:|")
+    reference = statistics.fmean(times[(1, 1, "est")])
+    print("| method | B | threads | per frame [s] | physics [s] | speed-up vs EST B=1 | mean capture | mean success |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for setting in settings:
         mean = statistics.fmean(times[setting])
         print(
-            f"| {setting[0]} | {setting[1]} | {mean:.3f} ± {statistics.pstdev(times[setting]):.3f} "
+            f"| {setting[2]} | {setting[0]} | {setting[1]} | {mean:.3f} ± {statistics.pstdev(times[setting]):.3f} "
             f"| {statistics.fmean(physics[setting]):.3f} | {reference / mean:.2f}x "
             f"| {statistics.fmean(capture[setting]):.3f} | {statistics.fmean(success[setting]):.3f} |"
         )
