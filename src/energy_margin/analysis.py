@@ -336,7 +336,14 @@ def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dic
     }
 
 
+# Analyzer settings added after the first release: an analysis.json without them used their defaults.
+_LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent")
+
+
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
+    if isinstance(previous.get("analyzer"), dict):
+        defaults = AnalyzerConfig().to_dict()
+        previous = {**previous, "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **previous["analyzer"]}}
     keys = ("analyzer", "seed", "dataset", "task_config")
     return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
 
