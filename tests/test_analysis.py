@@ -421,3 +421,16 @@ def test_worker_entry_points(tiny_dataset: Path) -> None:
     assert (row["trajectory"], row["frame"]) == (1, 1)
     assert row["seed"] == frame_seeds(0, 6)[4]
     assert row["iterations"] == 30
+
+
+def test_an_analysis_json_without_the_method_fields_is_the_same_run(tiny_dataset: Path) -> None:
+
+    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)
+    path = tiny_dataset / CONFIG_FILE
+    description = json.loads(path.read_text())
+    for key in ("method", "batch", "threads", "rollout_length", "rrt_extent"):
+        del description["analyzer"][key]
+    path.write_text(json.dumps(description))
+    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)  # no "different analysis" error
+    with pytest.raises(EnergyMarginError, match="different analysis"):
+        analyze(tiny_dataset, AnalyzerConfig(iterations=5, method="rrt"), progress=False)

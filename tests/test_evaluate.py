@@ -133,8 +133,8 @@ def test_evaluate_an_analyzed_dataset(tiny_dataset: Path) -> None:
     result = evaluate(tiny_dataset)
     assert set(result) >= REQUIRED
     assert set(result) >= QUESTIONS
-    assert set(result["baselines"]) == {"current_state", "chance"}
-    for name in ("current_state", "chance"):
+    assert set(result["baselines"]) == {"current_state", "chance", "distance"}
+    for name in ("current_state", "chance", "distance"):
         assert set(result["baselines"][name]) == QUESTIONS
     dataset = load_dataset(tiny_dataset)
     assert result["n_frames"] == 6

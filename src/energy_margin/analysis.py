@@ -26,6 +26,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.executors import make_executor
 from energy_margin.io import atomic_write_text, read_json, write_json
 from energy_margin.planning import CostField, TreeBudget, grow_tree
+from energy_margin.planning.methods import METHODS
 from energy_margin.scores import region_score
 from energy_margin.sim import ENGINES, Simulator, make_simulator
 from energy_margin.state import FrameState
@@ -60,6 +61,14 @@ class AnalyzerConfig:
         n_projections: random projections of the EST density estimate.
         cell_size: density grid cell width, m.
         engine: physics engine.
+        method: tree method, ``"est"`` (the paper), ``"montecarlo"`` (independent roll-outs) or
+            ``"rrt"`` (nearest node to a random target, one random control); see
+            :mod:`energy_margin.planning.methods`.
+        batch: iterations propagated together per round through ``mujoco.rollout`` (1: one at a
+            time, the reference behaviour; > 1 needs the ``"wrench"`` cost).
+        threads: ``mujoco.rollout`` threads when ``batch`` > 1.
+        rollout_length: propagations per Monte Carlo roll-out.
+        rrt_extent: half width of the RRT target box, m.
 
     """
 
@@ -70,6 +79,11 @@ class AnalyzerConfig:
     n_projections: int = 8
     cell_size: float = 0.01
     engine: str = "mujoco"
+    method: str = "est"
+    batch: int = 1
+    threads: int = 1
+    rollout_length: int = 10
+    rrt_extent: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -90,6 +104,16 @@ class AnalyzerConfig:
             raise ValueError(f"cell_size must be > 0, got {self.cell_size!r}")
         if self.engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        for name in ("batch", "threads", "rollout_length"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
+            raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
+        if not (np.isfinite(self.rrt_extent) and self.rrt_extent > 0):
+            raise ValueError(f"rrt_extent must be > 0, got {self.rrt_extent!r}")
 
     @property
     def budget(self) -> TreeBudget:
@@ -147,7 +171,7 @@ def analyze_frame(
     start_time: float = 0.0,
     simulator: Simulator | None = None,
 ) -> tuple[FrameScores, CostField]:
-    """Grow an EST from ``frame`` and score it.
+    """Grow a tree (``config.method``, EST by default) from ``frame`` and score it.
 
     Args:
         task: the task.
@@ -179,6 +203,11 @@ def analyze_frame(
         n_projections=config.n_projections,
         cell_size=config.cell_size,
         start_time=start_time,
+        method=config.method,
+        batch=config.batch,
+        threads=config.threads,
+        rollout_length=config.rollout_length,
+        rrt_extent=config.rrt_extent,
     )
     capture, success = score_field(task, frame, field, lam)
     runtime = time.perf_counter() - started
@@ -299,7 +328,14 @@ def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dic
     }
 
 
+# Analyzer settings added after the first release: an analysis.json without them used their defaults.
+_LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent")
+
+
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
+    if isinstance(previous.get("analyzer"), dict):
+        defaults = AnalyzerConfig().to_dict()
+        previous = {**previous, "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **previous["analyzer"]}}
     keys = ("analyzer", "seed", "dataset", "task_config")
     return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
 

@@ -1,4 +1,4 @@
-"""The ``energy-margin`` command line: generate, analyze, evaluate."""
+"""The ``energy-margin`` command line: generate, analyze, evaluate, budget."""
 
 from __future__ import annotations
 
@@ -98,6 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--engine", default="mujoco", help="physics engine (default mujoco)")
     analyze.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
     analyze.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    analyze.add_argument(
+        "--method", choices=("est", "montecarlo", "rrt"), default="est", help="tree method (default est)"
+    )
+    analyze.add_argument(
+        "--batch", type=_positive_int, default=1, help="expansions per mujoco.rollout round (default 1)"
+    )
+    analyze.add_argument("--threads", type=_positive_int, default=1, help="mujoco.rollout threads (default 1)")
 
     reproduce = commands.add_parser("reproduce", help="Table I, the Fig. 2 ablation and an HTML report")
     reproduce.add_argument("--quick", action="store_true", help="small sets: a few minutes on 2 cores")
@@ -120,6 +127,20 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--weights", choices=("linear", "uniform"), default="linear", help="trajectory success weights (default linear)"
     )
+    budget = commands.add_parser("budget", help="AP and runtime against the expansion budget per method")
+    budget.add_argument("dataset", help="dataset directory")
+    budget.add_argument(
+        "--budgets", type=_positive_int, nargs="+", default=[10, 30, 100, 300, 1000], help="iterations per frame"
+    )
+    budget.add_argument(
+        "--methods", nargs="+", choices=("est", "montecarlo", "rrt"), default=["est", "montecarlo", "rrt"]
+    )
+    budget.add_argument("--workers", type=_positive_int, default=1, help="local worker processes")
+    budget.add_argument("--seed", type=_non_negative_int, default=0, help="seed (default 0)")
+    budget.add_argument("--bootstrap", type=_non_negative_int, default=1000, help="trajectory resamples (default 1000)")
+    budget.add_argument("--out", default=None, help="summary CSV (default DIR/budget/budget.csv; JSON, PNG beside)")
+    budget.add_argument("--batch", type=_positive_int, default=1, help="expansions per mujoco.rollout round")
+    budget.add_argument("--threads", type=_positive_int, default=1, help="mujoco.rollout threads")
     return parser
 
 
@@ -174,6 +195,9 @@ def _run(args: argparse.Namespace) -> int:
                 cost=args.cost,
                 likelihood_lambda=args.likelihood_lambda,
                 engine=args.engine,
+                method=args.method,
+                batch=args.batch,
+                threads=args.threads,
             )
         except ValueError as error:
             raise EnergyMarginError(str(error)) from None
@@ -222,6 +246,27 @@ def _run(args: argparse.Namespace) -> int:
             weights=args.weights,
         )
         print(json.dumps(result, sort_keys=True) if args.json else format_table(result))
+        return 0
+    if args.command == "budget":
+        from energy_margin.analysis import AnalyzerConfig
+        from energy_margin.budget import budget_sweep
+        from energy_margin.budget import format_table as budget_table
+
+        try:
+            base = AnalyzerConfig(batch=args.batch, threads=args.threads)
+        except ValueError as error:
+            raise EnergyMarginError(str(error)) from None
+        rows = budget_sweep(
+            args.dataset,
+            budgets=args.budgets,
+            methods=args.methods,
+            workers=args.workers,
+            seed=args.seed,
+            bootstrap=args.bootstrap,
+            out=args.out,
+            base=base,
+        )
+        print(budget_table(rows))
         return 0
     raise AssertionError(args.command)
 

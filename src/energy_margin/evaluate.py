@@ -8,7 +8,8 @@ Questions answered (each with the energy-margin score and every baseline):
   only (an early prediction).
 
 Baselines: ``current_state`` (the indicator that the frame itself is inside the set, scored the
-same way) and ``chance`` (a constant score, whose AP equals the positive rate).
+same way), ``chance`` (a constant score, whose AP equals the positive rate) and ``distance`` (the
+smallest signed distance of an object to the capture or success region, :mod:`energy_margin.baselines`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis import load_scores
+from energy_margin.baselines import distance_scores
 from energy_margin.dataset import Dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.scores import trajectory_success_score
@@ -121,6 +123,9 @@ def evaluate(
         "current_state": _questions(dataset, current_capture, current_success, **options),
         "chance": _questions(dataset, constant, constant, **options),
     }
+    heuristic = distance_scores(dataset)
+    if heuristic is not None:
+        result["baselines"]["distance"] = _questions(dataset, *heuristic, **options)
     capture_labels = dataset.capture_labels(capture_window)
     result.update(
         {

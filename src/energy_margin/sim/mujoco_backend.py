@@ -12,6 +12,7 @@ world body.
 
 from __future__ import annotations
 
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import mujoco
@@ -353,6 +354,29 @@ class MujocoSimulator:
         potential = -float(np.sum(self._masses * (data.qpos[self._pos_index] @ self._gravity)))
         return kinetic + potential
 
+    def objects_of(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Object positions (k, n, 3), quaternions (k, n, 4), velocities (k, n, 6) of qpos (k, nq), qvel (k, nv)."""
+        pos = qpos[:, self._pos_index]
+        linear = qvel[:, self._linvel_index]
+        if self._upright:
+            half_yaw = 0.5 * qpos[:, self._yaw_index]
+            zeros = np.zeros_like(half_yaw)
+            quat = np.stack([np.cos(half_yaw), zeros, zeros, np.sin(half_yaw)], axis=-1)
+            angular = np.zeros_like(linear)
+            angular[..., 2] = qvel[:, self._yaw_rate_index]
+        else:
+            quat = qpos[:, self._quat_index]
+            local = qvel[:, self._angvel_index]
+            angular = _rotate(quat.reshape(-1, 4), local.reshape(-1, 3)).reshape(local.shape)
+        return pos, quat, np.concatenate([linear, angular], axis=-1)
+
+    def rollout_propagator(self, threads: int = 1) -> RolloutPropagator:
+        """A batched propagator on ``threads`` threads, cached per thread count."""
+        cache: dict[int, RolloutPropagator] = self.__dict__.setdefault("_propagators", {})
+        if threads not in cache:
+            cache[threads] = RolloutPropagator(self, threads)
+        return cache[threads]
+
     def frame_state(self) -> FrameState:
         """Current poses and velocities."""
         return FrameState(
@@ -362,3 +386,130 @@ class MujocoSimulator:
             robot_q=self.robot_positions(),
             robot_v=self.robot_velocities(),
         )
+
+
+_FULL_PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_CONTROL_SPEC = (
+    mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+)
+
+
+class RolloutPropagator:
+    """Batched propagations of one :class:`MujocoSimulator` through ``mujoco.rollout``.
+
+    States are ``mjSTATE_FULLPHYSICS`` vectors (time, qpos, qvel, act, ...): ``mujoco.rollout``
+    starts from and returns these. Every propagation starts with a zero warm start of the
+    constraint solver (``mjSTATE_INTEGRATION`` states of the one-at-a-time path carry the previous
+    step's), so its result depends on nothing but its own inputs: the same on 1 or 2 threads and
+    in any batch. The object wrenches, the end-effector's generalized forces and servo targets go
+    in as per-step controls (``mjSTATE_XFRC_APPLIED | QFRC_APPLIED | CTRL``); the scripted command
+    is evaluated from the propagation's start state (robot joint positions and velocities) at the
+    times the one-at-a-time path evaluates it.
+
+    Args:
+        simulator: the simulator whose model is rolled out.
+        threads: worker threads (1 runs on the calling thread).
+
+    """
+
+    def __init__(self, simulator: MujocoSimulator, threads: int) -> None:
+        from mujoco import rollout
+
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.simulator = simulator
+        self.threads = threads
+        model = simulator.model
+        self._rollout = rollout.Rollout(nthread=threads if threads > 1 else 0)
+        self._datas = [mujoco.MjData(model) for _ in range(threads)]
+        self._scratch = mujoco.MjData(model)
+        self.state_size = int(mujoco.mj_stateSize(model, _FULL_PHYSICS))
+        self.control_size = int(mujoco.mj_stateSize(model, _CONTROL_SPEC))
+        self._nq, self._nv = int(model.nq), int(model.nv)
+        self._warmstart = np.zeros((0, self._nv))
+
+    def close(self) -> None:
+        """Stop the thread pool."""
+        self._rollout.close()
+
+    def current_state(self) -> np.ndarray:
+        """The simulator's current state as a ``mjSTATE_FULLPHYSICS`` vector."""
+        state = np.empty(self.state_size)
+        mujoco.mj_getState(self.simulator.model, self.simulator.data, state, _FULL_PHYSICS)
+        return state
+
+    def qpos_qvel(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions and velocities of states (..., state_size)."""
+        nq, nv = self._nq, self._nv
+        return states[..., 1 : 1 + nq], states[..., 1 + nq : 1 + nq + nv]
+
+    def _control(self, wrenches: np.ndarray, force: np.ndarray, targets: np.ndarray | None) -> np.ndarray:
+        sim, scratch = self.simulator, self._scratch
+        scratch.xfrc_applied[sim._object_bodies] = wrenches
+        scratch.qfrc_applied[sim._robot_qvel] = force
+        if targets is not None and sim._servo_actuators.size:
+            scratch.ctrl[sim._servo_actuators] = np.asarray(targets, dtype=float)[sim._servoed]
+        row = np.empty(self.control_size)
+        mujoco.mj_getState(sim.model, scratch, row, _CONTROL_SPEC)
+        return row
+
+    def propagate(
+        self,
+        task: Any,
+        drive: np.ndarray,
+        states: np.ndarray,
+        start_times: np.ndarray,
+        wrenches: np.ndarray,
+        n_steps: np.ndarray,
+        control_steps: int | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Propagate every state with its wrenches for its number of steps.
+
+        Args:
+            task: the task (its scripted ``robot_force`` and ``robot_targets``, without variation).
+            drive: the trajectory's drive parameters.
+            states: start states, shape (k, state_size).
+            start_times: script time at each start, shape (k,), s.
+            wrenches: object wrenches, shape (k, n_objects, 6).
+            n_steps: steps of each propagation, shape (k,), >= 1; shorter ones are padded to the
+                longest and read at their own last step.
+            control_steps: the command is re-evaluated every this many steps (``None``: once).
+
+        Returns:
+            Object positions (k, n_objects, 3), velocities (k, n_objects, 6), quaternions
+            (k, n_objects, 4) and end states (k, state_size).
+
+        """
+        sim = self.simulator
+        k = states.shape[0]
+        longest = int(n_steps.max())
+        dt = sim.timestep
+        qpos, qvel = self.qpos_qvel(states)
+        controls = np.empty((k, longest, self.control_size))
+        for j in range(k):
+            robot_q, robot_v = qpos[j, sim._robot_qpos], qvel[j, sim._robot_qvel]
+            done, steps = 0, int(n_steps[j])
+            row = controls[j, 0]
+            while done < steps:
+                chunk = steps - done if control_steps is None else min(control_steps, steps - done)
+                time = float(start_times[j]) + done * dt
+                force = task.robot_force(drive, time, robot_q, robot_v, None)
+                targets = task.robot_targets(drive, time, robot_q, robot_v, None)
+                row = self._control(wrenches[j], force, targets)
+                controls[j, done : done + chunk] = row
+                done += chunk
+            controls[j, steps:] = row
+        if self._warmstart.shape[0] != k:
+            self._warmstart = np.zeros((k, self._nv))
+        out, _ = self._rollout.rollout(
+            sim.model,
+            self._datas,
+            states,
+            controls,
+            control_spec=int(_CONTROL_SPEC),
+            nstep=longest,
+            initial_warmstart=self._warmstart,
+        )
+        final = out[np.arange(k), n_steps - 1]
+        pos, quat, vel = sim.objects_of(*self.qpos_qvel(final))
+        return pos, vel, quat, final

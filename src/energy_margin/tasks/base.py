@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -36,6 +36,15 @@ class Region(Protocol):
             Boolean array of shape (...).
 
         """
+        ...
+
+
+@runtime_checkable
+class MeasurableRegion(Region, Protocol):
+    """A region that also tells how far object positions are from its boundary."""
+
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of each position (..., 3) to the boundary: > 0 inside, < 0 outside, 0 on it."""
         ...
 
 

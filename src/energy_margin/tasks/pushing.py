@@ -201,6 +201,33 @@ class SweptRegion:
         in_band = np.abs(distance - self.radius) <= config.capture_half_width
         return in_arc & in_band & _inside_workspace(xy, config)
 
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of each position (..., 3) to the region's boundary in the plane.
+
+        Positive inside, negative outside, zero on the boundary: the smallest of the signed
+        distances to each constraint (disc or annulus band, arc, workspace), measured along the
+        arc at the point's radius for the angular constraint. Exact where one constraint is
+        active; otherwise a bound with the right sign.
+        """
+        xy = np.asarray(positions, dtype=float)[..., :2]
+        config = self.config
+        workspace = _workspace_distance(xy, config)
+        if self.is_disc:
+            disc = config.capture_disc_radius - np.linalg.norm(xy - self.pusher_xy, axis=-1)
+            return np.minimum(disc, workspace)
+        relative = xy - self.centre
+        distance = np.linalg.norm(relative, axis=-1)
+        band = config.capture_half_width - np.abs(distance - self.radius)
+        span = self.arc_length + self.arc_margin
+        if span >= 2.0 * np.pi:
+            return np.minimum(band, workspace)
+        angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)
+        shifted = np.mod(angle + self.arc_margin, 2.0 * np.pi)
+        angular = np.where(
+            shifted <= span, np.minimum(shifted, span - shifted), -np.minimum(shifted - span, 2.0 * np.pi - shifted)
+        )
+        return np.minimum(np.minimum(band, angular * distance), workspace)
+
 
 class WallBand:
     """The band along the wall where the objects must end (success region)."""
@@ -217,6 +244,18 @@ class WallBand:
         xy = np.asarray(positions)[..., :2]
         y = xy[..., 1]
         return (y >= self.low) & (y <= self.high) & _inside_workspace(xy, self.config)
+
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of each position (..., 3) to the band's boundary: > 0 inside, < 0 outside."""
+        xy = np.asarray(positions, dtype=float)[..., :2]
+        y = xy[..., 1]
+        return np.minimum(np.minimum(y - self.low, self.high - y), _workspace_distance(xy, self.config))
+
+
+def _workspace_distance(xy: np.ndarray, config: PushingConfig) -> np.ndarray:
+    """Signed distance to the workspace square's nearest edge (> 0 inside), m."""
+    low, high = config.workspace
+    return np.min(np.minimum(xy - low, high - xy), axis=-1)
 
 
 def _inside_workspace(xy: np.ndarray, config: PushingConfig) -> np.ndarray:

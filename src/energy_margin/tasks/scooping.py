@@ -250,6 +250,18 @@ class BoxesAboveTable:
             inside &= np.asarray(velocities)[..., 2] >= -self.fall_speed
         return inside
 
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of each box centre (..., 3) to the region's boundary: > 0 inside.
+
+        The smallest of the distances to the height floor and the footprint's sides; velocities
+        (the falling test) are not distances and are left out.
+        """
+        positions = np.asarray(positions, dtype=float)
+        return np.minimum(
+            positions[..., 2] - self.min_z,
+            np.minimum(self.half_x - np.abs(positions[..., 0]), self.half_y - np.abs(positions[..., 1])),
+        )
+
 
 class ScoopingTask(Task):
     """Scoop n_o boxes (default 5) from a table and lift them."""

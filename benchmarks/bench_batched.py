@@ -1,0 +1,112 @@
+"""Per-frame time of one-at-a-time against batched (``mujoco.rollout``) expansion, measured in one run.
+
+Usage::
+
+    python benchmarks/bench_batched.py [--objects 10] [--iterations 300] [--batches 8 16 32]
+        [--threads 1 2] [--trajectories 2] [--frames 5] [--task pushing]
+
+Everything runs in this one process. A small dataset is generated in memory; every frame is analysed
+with every setting in turn (settings interleaved frame by frame, so a change of machine load hits
+them alike). B = 1 is the reference path (one ``mj_setState`` + ``mj_step`` per expansion);
+B > 1 propagates B expansions per round through ``mujoco.rollout`` on 1 or more threads. The table
+gives the mean per-frame wall time, the part inside the simulator, the speed-up against B = 1 and
+the mean capture and success scores (the Monte Carlo and RRT baselines are timed at B = 1 too);
+the load average before and after is printed because other processes on the machine change the
+multithreaded numbers most.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from energy_margin.analysis import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.dataset import record_trajectory
+from energy_margin.sim import make_simulator
+from energy_margin.state import FrameState
+from energy_margin.tasks import get_task
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="pushing")
+    parser.add_argument("--objects", type=int, default=10)
+    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--batches", type=int, nargs="+", default=[8, 16, 32])
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--trajectories", type=int, default=2)
+    parser.add_argument("--frames", type=int, default=5)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--methods", nargs="*", default=["montecarlo", "rrt"], help="further methods timed at B = 1 (EST always)"
+    )
+    args = parser.parse_args()
+    task = get_task(args.task)
+    settings: list[tuple[int, int, str]] = [(1, 1, "est")]
+    settings += [(batch, threads, "est") for batch in args.batches for threads in args.threads]
+    settings += [(1, 1, method) for method in args.methods]
+    configs = {s: AnalyzerConfig(iterations=args.iterations, batch=s[0], threads=s[1], method=s[2]) for s in settings}
+    times: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    physics: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    capture: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    success: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+
+    print(f"machine: {machine()}")
+    print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print(
+        f"{args.task}, n_o = {args.objects}, {args.iterations} expansions, "
+        f"{args.trajectories} trajectories x {args.frames} frames, one process, settings interleaved"
+    )
+    seeds = np.random.SeedSequence([args.seed, args.objects]).spawn(args.trajectories)
+    for trajectory, child in enumerate(seeds):
+        record = record_trajectory(task, args.objects, args.frames, np.random.default_rng(child))
+        friction = float(record["friction"])
+        simulator = make_simulator(task.build_scene(args.objects, friction, record["drive"]))
+        per_frame = frame_seeds(args.seed * 1000 + trajectory, args.frames)
+        for k in range(args.frames):
+            frame = FrameState(
+                record["object_pos"][k],
+                record["object_quat"][k],
+                record["object_vel"][k],
+                record["robot_q"][k],
+                record["robot_v"][k],
+            )
+            for setting in settings:
+                scores, _ = analyze_frame(
+                    task,
+                    frame,
+                    friction=friction,
+                    drive=record["drive"],
+                    seed=per_frame[k],
+                    config=configs[setting],
+                    start_time=float(record["frame_time"][k]),
+                    simulator=simulator,
+                )
+                times[setting].append(scores.runtime_s)
+                physics[setting].append(scores.physics_s)
+                capture[setting].append(scores.capture_score)
+                success[setting].append(scores.success_score)
+    print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print()
+    reference = statistics.fmean(times[(1, 1, "est")])
+    print("| method | B | threads | per frame [s] | physics [s] | speed-up vs EST B=1 | mean capture | mean success |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for setting in settings:
+        mean = statistics.fmean(times[setting])
+        print(
+            f"| {setting[2]} | {setting[0]} | {setting[1]} | {mean:.3f} ± {statistics.pstdev(times[setting]):.3f} "
+            f"| {statistics.fmean(physics[setting]):.3f} | {reference / mean:.2f}x "
+            f"| {statistics.fmean(capture[setting]):.3f} | {statistics.fmean(success[setting]):.3f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
