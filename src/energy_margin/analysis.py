@@ -27,6 +27,7 @@ from energy_margin.energy import COST_MODELS, make_cost_model
 from energy_margin.errors import EnergyMarginError
 from energy_margin.io import atomic_write_text, read_json, write_json
 from energy_margin.planning import CostField, TreeBudget, grow_tree
+from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.scores import region_score
 from energy_margin.sim import ENGINES, Simulator, make_simulator
 from energy_margin.state import FrameState
@@ -60,6 +61,8 @@ class AnalyzerConfig:
         n_projections: random projections of the EST density estimate.
         cell_size: density grid cell width, m.
         engine: physics engine.
+        projection: EST density features, ``"objects"`` (every object's centre relative to the
+            root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
 
     """
 
@@ -70,6 +73,7 @@ class AnalyzerConfig:
     n_projections: int = 8
     cell_size: float = 0.01
     engine: str = "mujoco"
+    projection: str = "objects"
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -90,6 +94,8 @@ class AnalyzerConfig:
             raise ValueError(f"cell_size must be > 0, got {self.cell_size!r}")
         if self.engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.projection not in PROJECTIONS:
+            raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
 
     @property
     def budget(self) -> TreeBudget:
@@ -176,6 +182,7 @@ def analyze_frame(
         np.random.default_rng(seed),
         budget=config.budget,
         cost_model=make_cost_model(config.cost),
+        features=make_features(config.projection, simulator.scene),
         n_projections=config.n_projections,
         cell_size=config.cell_size,
         start_time=start_time,
@@ -309,6 +316,10 @@ def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dic
 
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
     keys = ("analyzer", "seed", "dataset", "task_config")
+    previous = dict(previous)
+    if isinstance(previous.get("analyzer"), dict):
+        # Settings added later (e.g. ``projection``) take their defaults in older files.
+        previous["analyzer"] = {**AnalyzerConfig().to_dict(), **previous["analyzer"]}
     return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
 
 
