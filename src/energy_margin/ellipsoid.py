@@ -198,36 +198,44 @@ def min_volume_ellipsoid(
     mean = array.mean(axis=0)
     centred = array - mean
     scale = float(np.abs(centred).max())
-    if n == 1 or scale == 0.0:
+    # Spreads at the level of rounding noise of the coordinates count as flat.
+    noise = 64.0 * np.finfo(float).eps * max(float(np.abs(array).max()), np.finfo(float).tiny) * np.sqrt(n)
+    if n == 1 or scale <= noise:
         return Ellipsoid(mean, np.full(d, float(min_thickness)), np.eye(d))
     # Affine hull from the singular values of the (scaled) centred points.
     _, singular, vt = np.linalg.svd(centred / scale, full_matrices=True)
-    rank = int(np.count_nonzero(singular > RANK_TOLERANCE * singular[0]))
-    if rank < d:
+    threshold = max(RANK_TOLERANCE * singular[0], noise / scale)
+    rank = int(np.count_nonzero(singular > threshold))
+    while True:
         basis = vt[:rank].T  # (d, rank): orthonormal directions of the hull
-        complement = vt[rank:].T  # (d, d - rank)
-        inner = _fit_full_rank(centred @ basis, tol, max_iterations, start)
-        center = mean + basis @ inner.center
-        axes = np.concatenate([basis @ inner.rotation, complement], axis=1)
-        radii = np.concatenate([inner.radii, np.zeros(d - rank)])
-        iterations, converged, weights = inner.iterations, inner.converged, inner.weights
-    else:
-        full = _fit_full_rank(centred, tol, max_iterations, start)
-        center, axes, radii = mean + full.center, full.rotation, full.radii
-        iterations, converged, weights = full.iterations, full.converged, full.weights
-    return _finish(center, axes, radii, float(min_thickness), iterations, converged, weights)
+        try:
+            inner = _fit_full_rank(centred @ basis, tol, max_iterations, start)
+            break
+        except np.linalg.LinAlgError:
+            # Too ill-conditioned for a Cholesky factor: treat the thinnest direction as flat.
+            rank -= 1
+    center = mean + basis @ inner.center
+    complement = vt[rank:].T
+    axes = np.concatenate([basis @ inner.rotation, complement], axis=1)
+    # Points lie off a numerically flat hull by at most `offsets`; the flat axes get 1000 times
+    # that (or min_thickness), so the final rescaling below stays within a factor 1 + 5e-7.
+    offsets = np.abs((array - center) @ complement).max(axis=0) if rank < d else np.zeros(0)
+    radii = np.concatenate([inner.radii, 1e3 * offsets])
+    radii = np.maximum(radii, float(min_thickness))
+    reach = float(np.max(np.linalg.norm(((array - center) @ axes) / radii, axis=1)))
+    if reach > 1.0:
+        radii = radii * reach
+    return _finish(center, axes, radii, inner.iterations, inner.converged, inner.weights)
 
 
 def _finish(
     center: np.ndarray,
     axes: np.ndarray,
     radii: np.ndarray,
-    min_thickness: float,
     iterations: int,
     converged: bool,
     weights: np.ndarray | None,
 ) -> Ellipsoid:
-    radii = np.maximum(radii, min_thickness)
     order = np.argsort(-radii, kind="stable")
     radii, axes = radii[order], axes[:, order]
     if np.linalg.det(axes) < 0:
