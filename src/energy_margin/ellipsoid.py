@@ -207,7 +207,8 @@ def min_volume_ellipsoid(
     threshold = max(RANK_TOLERANCE * singular[0], noise / scale)
     rank = int(np.count_nonzero(singular > threshold))
     while True:
-        basis = vt[:rank].T  # (d, rank): orthonormal directions of the hull
+        # (d, rank): orthonormal directions of the hull; full-rank sets keep their own axes.
+        basis = np.eye(d) if rank == d else vt[:rank].T
         try:
             inner = _fit_full_rank(centred @ basis, tol, max_iterations, start)
             break
@@ -223,7 +224,7 @@ def min_volume_ellipsoid(
     radii = np.concatenate([inner.radii, 1e3 * offsets])
     radii = np.maximum(radii, float(min_thickness))
     reach = float(np.max(np.linalg.norm(((array - center) @ axes) / radii, axis=1)))
-    if reach > 1.0:
+    if reach > 1.0 + 1e-12:  # only off-hull offsets, not rounding, need it
         radii = radii * reach
     return _finish(center, axes, radii, inner.iterations, inner.converged, inner.weights)
 
@@ -341,7 +342,12 @@ def _khachiyan(
         else:
             # Away step: move weight off the interior-most supported point (possibly all of it).
             j, m_j = j_min, m_min
-            step = max((m_j - dim) / (dim * (m_j - 1.0)), -weights[j] / (1.0 - weights[j]))
+            drop = -weights[j] / max(1.0 - weights[j], 1e-300)
+            step = max((m_j - dim) / (dim * (m_j - 1.0)), drop) if m_j > 1.0 + 1e-12 else drop
+            if 1.0 - step + step * m_j <= 1e-9:
+                # Removing this point would make X singular: take the ordinary step instead.
+                j, m_j = j_max, m_max
+                step = (m_j - dim) / (dim * (m_j - 1.0))
         q = lifted[:, j]
         weights *= 1.0 - step
         weights[j] += step
