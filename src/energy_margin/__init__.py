@@ -9,7 +9,10 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from energy_margin.analysis import AnalyzerConfig, analyze, analyze_frame
     from energy_margin.dataset import Dataset, generate_dataset, load_dataset
+    from energy_margin.ellipsoid import Ellipsoid, min_volume_ellipsoid
     from energy_margin.evaluate import evaluate
+    from energy_margin.perturb import perturb_dataset
+    from energy_margin.robustness import compare_perturbed
 
 _LAZY = {
     "AnalyzerConfig": "energy_margin.analysis",
@@ -20,6 +23,10 @@ _LAZY = {
     "generate_dataset": "energy_margin.dataset",
     "load_dataset": "energy_margin.dataset",
     "evaluate": "energy_margin.evaluate",
+    "Ellipsoid": "energy_margin.ellipsoid",
+    "min_volume_ellipsoid": "energy_margin.ellipsoid",
+    "perturb_dataset": "energy_margin.perturb",
+    "compare_perturbed": "energy_margin.robustness",
 }
 
 
@@ -36,11 +43,15 @@ def __getattr__(name: str) -> Any:
 __all__ = [
     "AnalyzerConfig",
     "Dataset",
+    "Ellipsoid",
     "__version__",
     "analyze",
     "analyze_frame",
+    "compare_perturbed",
     "evaluate",
     "generate",
     "generate_dataset",
     "load_dataset",
+    "min_volume_ellipsoid",
+    "perturb_dataset",
 ]

@@ -26,6 +26,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.executors import make_executor
 from energy_margin.io import atomic_write_text, read_json, write_json
 from energy_margin.planning import CostField, TreeBudget, grow_tree
+from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
 from energy_margin.scores import region_score
 from energy_margin.sim import ENGINES, Simulator, make_simulator
@@ -69,6 +70,8 @@ class AnalyzerConfig:
         threads: ``mujoco.rollout`` threads when ``batch`` > 1.
         rollout_length: propagations per Monte Carlo roll-out.
         rrt_extent: half width of the RRT target box, m.
+        projection: EST density features, ``"objects"`` (every object's centre relative to the
+            root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
 
     """
 
@@ -84,6 +87,7 @@ class AnalyzerConfig:
     threads: int = 1
     rollout_length: int = 10
     rrt_extent: float = 0.1
+    projection: str = "objects"
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -114,6 +118,8 @@ class AnalyzerConfig:
             raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
         if not (np.isfinite(self.rrt_extent) and self.rrt_extent > 0):
             raise ValueError(f"rrt_extent must be > 0, got {self.rrt_extent!r}")
+        if self.projection not in PROJECTIONS:
+            raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
 
     @property
     def budget(self) -> TreeBudget:
@@ -200,6 +206,7 @@ def analyze_frame(
         np.random.default_rng(seed),
         budget=config.budget,
         cost_model=make_cost_model(config.cost),
+        features=make_features(config.projection, simulator.scene),
         n_projections=config.n_projections,
         cell_size=config.cell_size,
         start_time=start_time,
@@ -337,6 +344,10 @@ def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
         defaults = AnalyzerConfig().to_dict()
         previous = {**previous, "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **previous["analyzer"]}}
     keys = ("analyzer", "seed", "dataset", "task_config")
+    previous = dict(previous)
+    if isinstance(previous.get("analyzer"), dict):
+        # Settings added later (e.g. ``projection``) take their defaults in older files.
+        previous["analyzer"] = {**AnalyzerConfig().to_dict(), **previous["analyzer"]}
     return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
 
 

@@ -1,4 +1,4 @@
-"""The ``energy-margin`` command line: generate, analyze, evaluate, budget."""
+"""The ``energy-margin`` command line: generate, analyze, evaluate, perturb, budget, reproduce, check."""
 
 from __future__ import annotations
 
@@ -118,6 +118,12 @@ def build_parser() -> argparse.ArgumentParser:
     check = commands.add_parser("check", help="list every problem of a dataset (and its scores)")
     check.add_argument("dataset", help="dataset directory")
     check.add_argument("--no-overlaps", action="store_true", help="skip the (simulated) overlap check")
+    analyze.add_argument(
+        "--projection",
+        choices=("objects", "ellipsoid"),
+        default="objects",
+        help="EST density features: every object's centre, or the ellipsoid of the centres (default objects)",
+    )
 
     evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
     evaluate.add_argument("dataset", help="dataset directory with scores.csv")
@@ -141,6 +147,26 @@ def build_parser() -> argparse.ArgumentParser:
     budget.add_argument("--out", default=None, help="summary CSV (default DIR/budget/budget.csv; JSON, PNG beside)")
     budget.add_argument("--batch", type=_positive_int, default=1, help="expansions per mujoco.rollout round")
     budget.add_argument("--threads", type=_positive_int, default=1, help="mujoco.rollout threads")
+    evaluate.add_argument(
+        "--compare",
+        nargs="+",
+        default=None,
+        metavar="DIR",
+        help="scored perturbed copies of the dataset (or their parent directory): print Table I",
+    )
+
+    perturb = commands.add_parser("perturb", help="perturbed copies: objects resampled inside their ellipsoid")
+    perturb.add_argument("dataset", help="true-state dataset directory")
+    perturb.add_argument("--repeats", type=_positive_int, default=5, help="perturbed copies (default 5)")
+    perturb.add_argument("--seed", type=_non_negative_int, default=0, help="seed (default 0)")
+    perturb.add_argument("--out", required=True, help="parent directory of the copies OUT/1 ... OUT/R")
+    perturb.add_argument(
+        "--tolerance", type=_non_negative_float, default=5e-4, help="largest accepted penetration, m (default 5e-4)"
+    )
+    perturb.add_argument(
+        "--keep-orientation", action="store_true", help="keep recorded orientations (default: identity, as the paper)"
+    )
+    perturb.add_argument("--overwrite", action="store_true", help="replace existing copies")
     return parser
 
 
@@ -198,6 +224,7 @@ def _run(args: argparse.Namespace) -> int:
                 method=args.method,
                 batch=args.batch,
                 threads=args.threads,
+                projection=args.projection,
             )
         except ValueError as error:
             raise EnergyMarginError(str(error)) from None
@@ -235,6 +262,34 @@ def _run(args: argparse.Namespace) -> int:
         if problems:
             raise EnergyMarginError(f"{len(problems)} problem(s) in {args.dataset}")
         print(f"{args.dataset}: ok")
+        return 0
+    if args.command == "evaluate" and args.compare:
+        from energy_margin.evaluate import format_table
+        from energy_margin.robustness import compare_perturbed, format_robustness_table
+
+        result = compare_perturbed(
+            args.dataset,
+            args.compare,
+            capture_window=args.capture_window,
+            success_frames=args.success_frames,
+            weights=args.weights,
+        )
+        text = format_table(result) + "\n\n" + format_robustness_table(result)
+        print(json.dumps(result, sort_keys=True) if args.json else text)
+        return 0
+    if args.command == "perturb":
+        from energy_margin.perturb import perturb_dataset
+
+        paths = perturb_dataset(
+            args.dataset,
+            repeats=args.repeats,
+            seed=args.seed,
+            out=args.out,
+            tolerance=args.tolerance,
+            keep_orientation=args.keep_orientation,
+            overwrite=args.overwrite,
+        )
+        print(f"wrote {len(paths)} perturbed copies: {', '.join(str(p) for p in paths)}")
         return 0
     if args.command == "evaluate":
         from energy_margin.evaluate import evaluate, format_table

@@ -29,6 +29,12 @@ def _pyplot() -> Any:
     return plt
 
 
+def _turn(origin: np.ndarray, first: np.ndarray, second: np.ndarray) -> float:
+    """Z component of (first - origin) x (second - origin): > 0 for a left turn."""
+    a, b = first - origin, second - origin
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
 def _hull(points: np.ndarray) -> np.ndarray:
     """Convex hull of 2-D points (monotone chain), counter-clockwise, shape (h, 2)."""
     unique = np.unique(np.round(points, 12), axis=0)
@@ -39,7 +45,7 @@ def _hull(points: np.ndarray) -> np.ndarray:
     def half(sequence: np.ndarray) -> list[np.ndarray]:
         chain: list[np.ndarray] = []
         for point in sequence:
-            while len(chain) >= 2 and np.cross(chain[-1] - chain[-2], point - chain[-2]) <= 0:
+            while len(chain) >= 2 and _turn(chain[-2], chain[-1], point) <= 0:
                 chain.pop()
             chain.append(point)
         return chain

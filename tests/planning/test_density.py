@@ -86,3 +86,28 @@ def test_object_position_features() -> None:
     root = np.array([[1.0, 2.0, 3.0], [0.0, 0.0, 0.0]])
     pos = np.array([[1.5, 2.0, 3.0], [0.0, -0.1, 0.2]])
     np.testing.assert_allclose(features(pos, root), [0.5, 0.0, 0.0, 0.0, -0.1, 0.2])
+
+
+def test_ellipsoid_features_see_centre_and_shape() -> None:
+    from energy_margin.ellipsoid import min_volume_ellipsoid
+    from energy_margin.planning.density import EllipsoidFeatures
+
+    rng = np.random.default_rng(0)
+    root = np.column_stack([rng.uniform(0, 1, 10), rng.uniform(0, 0.3, 10), np.zeros(10)])
+    planar = EllipsoidFeatures(planar=True, tol=1e-9)
+    assert planar.dimension(10) == 5
+    assert np.allclose(planar(root, root), 0.0)
+    # A translation moves only the centre features.
+    moved = planar(root + np.array([0.2, -0.1, 0.0]), root)
+    assert moved[:2] == pytest.approx([0.2, -0.1], abs=1e-6)
+    assert np.allclose(moved[2:], 0.0, atol=1e-6)
+    # Doubling the spread about the centre doubles the shape matrix (S = R diag(radii) R^T).
+    centre = min_volume_ellipsoid(root[:, :2]).center
+    spread = root.copy()
+    spread[:, :2] = centre + 2.0 * (root[:, :2] - centre)
+    shape = min_volume_ellipsoid(root[:, :2]).shape_matrix
+    expected = shape[np.triu_indices(2)] * np.array([1.0, np.sqrt(2.0), 1.0])
+    assert planar(spread, root)[2:] == pytest.approx(expected, abs=1e-6)
+    free = EllipsoidFeatures(planar=False)
+    assert free.dimension(3) == 9
+    assert free(root, root).shape == (9,)

@@ -8,9 +8,15 @@ uniformly: a node's chance is inversely proportional to how crowded its cell is.
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from energy_margin.scene import Scene
+
+#: Names of the density projections (``AnalyzerConfig.projection``).
+PROJECTIONS = ("objects", "ellipsoid")
 
 
 class Features(Protocol):
@@ -35,6 +41,71 @@ class ObjectPositions:
     def __call__(self, object_pos: np.ndarray, root_pos: np.ndarray) -> np.ndarray:
         """Displacements from the root, m."""
         return (object_pos - root_pos).ravel()
+
+
+class EllipsoidFeatures:
+    """The minimum-volume ellipsoid of the object centres, relative to the root's (paper II.D).
+
+    Features: the centre's displacement (d numbers) and the change of the shape matrix
+    ``S = R diag(radii) Rᵀ`` (upper triangle, off-diagonal entries times sqrt 2 so that the
+    Euclidean norm is the Frobenius norm; d (d + 1) / 2 numbers), all in metres. S holds the radii
+    and the orientation without the sign and order ambiguities of the axes. Planar tasks use the
+    2-D ellipse of (x, y) (5 features), others the 3-D ellipsoid (9 features), whatever n_o.
+
+    Args:
+        planar: fit (x, y) only.
+        tol: Khachiyan tolerance; coarse (radii within about 1 %) since the features only need
+            cell-size accuracy and the fit runs once per node.
+        min_thickness: radius of flat axes, m.
+
+    """
+
+    def __init__(self, *, planar: bool, tol: float = 1e-2, min_thickness: float = 1e-3) -> None:
+        from energy_margin.ellipsoid import min_volume_ellipsoid
+
+        self._fit = min_volume_ellipsoid
+        self.planar = planar
+        self.tol = tol
+        self.min_thickness = min_thickness
+        d = 2 if planar else 3
+        rows, cols = np.triu_indices(d)
+        self._rows, self._cols = rows, cols
+        self._weights = np.where(rows == cols, 1.0, np.sqrt(2.0))
+        self._root: tuple[bytes, np.ndarray, np.ndarray | None] | None = None
+
+    def dimension(self, n_objects: int) -> int:
+        """``d + d (d + 1) / 2``: 5 (planar) or 9."""
+        del n_objects
+        d = 2 if self.planar else 3
+        return d + d * (d + 1) // 2
+
+    def _raw(self, object_pos: np.ndarray, start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        coords = object_pos[:, :2] if self.planar else object_pos
+        ellipsoid = self._fit(coords, tol=self.tol, min_thickness=self.min_thickness, initial_weights=start)
+        shape = ellipsoid.shape_matrix[self._rows, self._cols] * self._weights
+        return np.concatenate([ellipsoid.center, shape]), ellipsoid.weights
+
+    def __call__(self, object_pos: np.ndarray, root_pos: np.ndarray) -> np.ndarray:
+        """Centre and shape-matrix change from the root's ellipsoid, m.
+
+        Every fit is warm-started from the root's Khachiyan weights (nodes stay near the root, so
+        the boundary points mostly stay the same).
+        """
+        key = root_pos.tobytes()
+        if self._root is None or self._root[0] != key:
+            features, weights = self._raw(root_pos, None)
+            self._root = (key, features, weights)
+        return self._raw(object_pos, self._root[2])[0] - self._root[1]
+
+
+def make_features(projection: str, scene: Scene) -> Features:
+    """The density features named ``projection`` (one of :data:`PROJECTIONS`) for ``scene``."""
+    if projection == "objects":
+        return ObjectPositions()
+    if projection == "ellipsoid":
+        size = min(obj.geom.size[0] for obj in scene.objects)
+        return EllipsoidFeatures(planar=scene.object_motion == "upright", min_thickness=min(size, 0.01))
+    raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
 
 
 class ProjectedGridDensity:

@@ -377,6 +377,27 @@ class MujocoSimulator:
             cache[threads] = RolloutPropagator(self, threads)
         return cache[threads]
 
+    def max_penetration(self, objects: np.ndarray | None = None) -> float:
+        """Deepest interpenetration of the current contacts that involve the given objects, m.
+
+        Contacts are those of the last ``mj_forward`` or step (:meth:`reset` runs one); 0.0 when
+        no such contact penetrates.
+
+        Args:
+            objects: object indices to consider; ``None`` for every object.
+
+        """
+        data = self.data
+        if data.ncon == 0:
+            return 0.0
+        bodies = self._object_bodies if objects is None else self._object_bodies[np.asarray(objects, dtype=int)]
+        selected = np.isin(self.model.geom_bodyid, bodies)
+        contacts = data.contact
+        involved = selected[contacts.geom1] | selected[contacts.geom2]
+        if not np.any(involved):
+            return 0.0
+        return max(0.0, -float(np.min(contacts.dist[involved])))
+
     def frame_state(self) -> FrameState:
         """Current poses and velocities."""
         return FrameState(
