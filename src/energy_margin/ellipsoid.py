@@ -213,6 +213,9 @@ def min_volume_ellipsoid(
             inner = _fit_full_rank(centred @ basis, tol, max_iterations, start)
             break
         except np.linalg.LinAlgError:
+            if start is not None:
+                start = None  # a failed warm start: start again from uniform weights
+                continue
             # Too ill-conditioned for a Cholesky factor: treat the thinnest direction as flat.
             rank -= 1
     center = mean + basis @ inner.center
@@ -364,6 +367,8 @@ def _khachiyan(
             m = (m - shrink * g * g) / (1.0 - step)
         iterations += 1
         since_refresh += 1
+        if not np.isfinite(m_j) or not np.isfinite(step):
+            raise np.linalg.LinAlgError("Khachiyan step is not finite")
         if since_refresh >= _REFRESH:
             moment = (lifted * weights) @ lifted.T
             m, gram = _exact_m(lifted, weights, keep_gram)

@@ -95,7 +95,10 @@ class EllipsoidFeatures:
         if self._root is None or self._root[0] != key:
             features, weights = self._raw(root_pos, None)
             self._root = (key, features, weights)
-        return self._raw(object_pos, self._root[2])[0] - self._root[1]
+        features = self._raw(object_pos, self._root[2])[0]
+        if not (np.all(np.isfinite(features)) and np.abs(features).max() < 1e3):
+            features = self._raw(object_pos, None)[0]  # a degenerate warm start: fit from scratch
+        return features - self._root[1]
 
 
 def make_features(projection: str, scene: Scene) -> Features:
