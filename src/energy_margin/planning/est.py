@@ -16,7 +16,7 @@ import numpy as np
 
 from energy_margin.energy import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions, ProjectedGridDensity
-from energy_margin.sim.base import Simulator
+from energy_margin.sim.base import Simulator, release_states
 from energy_margin.state import FrameState
 from energy_margin.tasks.base import Task, command_robot
 
@@ -122,6 +122,40 @@ def grow_tree(
     starts, and again every :attr:`Task.control_period` seconds within it when the task sets one.
     """
     started = time.perf_counter()
+    try:
+        return _grow(
+            simulator,
+            task,
+            root,
+            drive,
+            rng,
+            budget,
+            cost_model,
+            features,
+            n_projections,
+            cell_size,
+            start_time,
+            started,
+        )
+    finally:
+        # Engines that keep saved states outside the node array (PyBullet) free them now.
+        release_states(simulator)
+
+
+def _grow(
+    simulator: Simulator,
+    task: Task,
+    root: FrameState,
+    drive: np.ndarray,
+    rng: np.random.Generator,
+    budget: TreeBudget,
+    cost_model: CostModel,
+    features: Features | None,
+    n_projections: int,
+    cell_size: float,
+    start_time: float,
+    started: float,
+) -> CostField:
     features = features if features is not None else ObjectPositions()
     limits = task.wrench_limits(simulator.scene)
     max_wrench = limits.max_wrench

@@ -242,6 +242,9 @@ class MujocoSimulator:
         """Restore a vector from :meth:`get_state` (bit-identical replays)."""
         mujoco.mj_setState(self.model, self.data, state, _STATE_SPEC)
 
+    def release_states(self) -> None:
+        """Nothing to free: a MuJoCo state is a self-contained vector."""
+
     def set_object_wrenches(self, wrenches: np.ndarray) -> None:
         """Hold world-frame wrenches (n_objects, 6) [N, N m] at the objects' centres of mass."""
         self.data.xfrc_applied[self._object_bodies] = wrenches
