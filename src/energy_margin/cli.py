@@ -103,6 +103,20 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("dataset", help="dataset directory")
     check.add_argument("--no-overlaps", action="store_true", help="skip the (simulated) overlap check")
 
+    reference = commands.add_parser(
+        "import-reference", help="convert the authors' published frames, labels and scores into a dataset"
+    )
+    reference.add_argument("path", help="a task folder of the authors' data, e.g. .../planepush-10objects")
+    reference.add_argument("--out", required=True, help="dataset directory to create")
+    reference.add_argument(
+        "--scores",
+        default=None,
+        metavar="SUBDIR",
+        help="sub-folder of the ao_est.csv to import ('.' = the folder itself; default original/original-data)",
+    )
+    reference.add_argument("--no-scores", action="store_true", help="import frames and labels only")
+    reference.add_argument("--overwrite", action="store_true", help="replace an existing directory")
+
     evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
     evaluate.add_argument("dataset", help="dataset directory with scores.csv")
     evaluate.add_argument("--json", action="store_true", help="print one JSON object")
@@ -183,12 +197,27 @@ def _run(args: argparse.Namespace) -> int:
     if args.command == "check":
         from energy_margin.validation import check_dataset
 
-        problems = check_dataset(args.dataset, overlaps=not args.no_overlaps, scores=None)
+        warnings: list = []
+        problems = check_dataset(args.dataset, overlaps=not args.no_overlaps, scores=None, warnings=warnings)
+        for warning in warnings:
+            print(f"warning: {warning}")
         for problem in problems:
             print(problem)
         if problems:
             raise EnergyMarginError(f"{len(problems)} problem(s) in {args.dataset}")
         print(f"{args.dataset}: ok")
+        return 0
+    if args.command == "import-reference":
+        from energy_margin.reference import import_reference
+
+        dataset = import_reference(
+            args.path, args.out, scores=args.scores, with_scores=not args.no_scores, overwrite=args.overwrite
+        )
+        scored = " with their scores" if (dataset.path is not None and (dataset.path / "scores.csv").exists()) else ""
+        print(
+            f"dataset {args.out}: {dataset.metadata['task']}, {dataset.n_trajectories} trajectories x "
+            f"{dataset.n_frames} frames, {dataset.n_objects} objects{scored}"
+        )
         return 0
     if args.command == "evaluate":
         from energy_margin.evaluate import evaluate, format_table
