@@ -48,7 +48,7 @@ from energy_margin.analysis import COLUMNS, CONFIG_FILE, SCORES_FILE
 from energy_margin.dataset import FORMAT, SCHEMA_VERSION, Dataset, _check_target, _write_directory, validate
 from energy_margin.errors import EnergyMarginError
 from energy_margin.io import atomic_write_text, write_json
-from energy_margin.tasks import ScoopingTask, get_task
+from energy_margin.tasks import PushingTask, ScoopingTask, get_task
 
 #: Their task names (file suffixes) and this project's.
 TASKS = {"PlanePushMulti": "pushing", "GripperMulti": "scooping"}
@@ -247,6 +247,7 @@ def _euler_xyz_quat(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.
 
 def _pushing_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     task = get_task("pushing")
+    assert isinstance(task, PushingTask)
     cfg = task.config
     states = ref.states
     n_traj, n_frames = states.shape[:2]
@@ -305,7 +306,13 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
         axis=-1,
     )
     robot_v = np.stack(
-        [base_rate / scale, joint_rates[..., 0] / scale, joint_rates[..., 1], joint_rates[..., 2] / scale, joint_rates[..., 3]],
+        [
+            base_rate / scale,
+            joint_rates[..., 0] / scale,
+            joint_rates[..., 1],
+            joint_rates[..., 2] / scale,
+            joint_rates[..., 3],
+        ],
         axis=-1,
     )
     friction = ref.friction_per_body**2

@@ -31,7 +31,11 @@ Design (see docs/engines.md for the reasoning and the measured differences to Mu
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import math
+import os
+import sys
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -41,10 +45,30 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.scene import Geom, Joint, Link, Scene
 from energy_margin.state import FrameState, yaw_from_quat
 
-try:
-    import pybullet as _pb
-except ImportError:  # pragma: no cover - exercised only without the optional extra
-    _pb = None
+
+def _import_pybullet() -> Any:
+    """Import pybullet with its build-time banner (printed by the C library) silenced."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = (os.dup(1), os.dup(2))
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    try:
+        import pybullet
+
+        ctypes.CDLL(None).fflush(None)
+        return pybullet
+    except ImportError:  # pragma: no cover - exercised only without the optional extra
+        return None
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
+            os.close(fd)
+
+
+_pb = _import_pybullet()
 
 _IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
 _PLANAR = (
@@ -418,10 +442,8 @@ class PybulletSimulator:
     def close(self) -> None:
         """Disconnect the client (also done when the simulator is garbage collected)."""
         if self._client >= 0 and self._pb is not None:
-            try:
+            with contextlib.suppress(Exception):
                 self._pb.disconnect(physicsClientId=self._client)
-            except Exception:  # pragma: no cover - interpreter shutdown
-                pass
             self._client = -1
 
     def __del__(self) -> None:
