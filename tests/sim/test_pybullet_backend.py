@@ -19,14 +19,14 @@ import pytest
 
 pytest.importorskip("pybullet", reason="the pybullet extra is not installed")
 
-from energy_margin.energy import make_cost_model  # noqa: E402
-from energy_margin.planning import TreeBudget, grow_tree  # noqa: E402
-from energy_margin.scene import Scene  # noqa: E402
-from energy_margin.sim import ENGINES, make_simulator  # noqa: E402
-from energy_margin.sim.base import Simulator  # noqa: E402
-from energy_margin.sim.pybullet_backend import PybulletSimulator  # noqa: E402
-from energy_margin.state import FrameState  # noqa: E402
-from energy_margin.tasks import PushingTask, ScoopingTask, command_robot  # noqa: E402
+from energy_margin.energy import make_cost_model
+from energy_margin.planning import TreeBudget, grow_tree
+from energy_margin.scene import Scene
+from energy_margin.sim import ENGINES, make_simulator
+from energy_margin.sim.base import Simulator
+from energy_margin.sim.pybullet_backend import PybulletSimulator
+from energy_margin.state import FrameState
+from energy_margin.tasks import PushingTask, ScoopingTask, command_robot
 
 G = 9.81
 
