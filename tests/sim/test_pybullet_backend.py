@@ -13,6 +13,7 @@ Tolerances (measured with pybullet 3.2.7 and mujoco 4.0.0, stated here and in do
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -228,3 +229,16 @@ def test_scooping_gripper_holds_its_pose() -> None:
     targets = task.robot_targets(trajectory.drive, 50 * simulator.timestep, q, q, None)
     np.testing.assert_allclose(q, targets, atol=5e-3)
     assert np.all(np.isfinite(simulator.object_positions()))
+
+
+def test_generate_and_analyze_with_pybullet(tmp_path: Path) -> None:
+    from energy_margin.analysis import AnalyzerConfig, analyze, load_scores
+    from energy_margin.dataset import generate_dataset
+
+    out = tmp_path / "pb"
+    dataset = generate_dataset("pushing", n_objects=2, n_trajectories=1, n_frames=2, seed=0, out=out, engine="pybullet")
+    assert dataset.metadata["engine"] == "pybullet"
+    analyze(out, AnalyzerConfig(iterations=15, engine="pybullet"), progress=False)
+    scores = load_scores(out)
+    assert scores["nodes"].min() > 1
+    assert np.all((scores["capture_score"] >= 0) & (scores["capture_score"] <= 1))
