@@ -19,6 +19,7 @@ import argparse
 import statistics
 import sys
 import tempfile
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -51,7 +52,6 @@ def main() -> None:
     parser.add_argument("--engines", nargs="+", default=["mujoco", "pybullet"])
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    import pybullet
 
     with tempfile.TemporaryDirectory() as scratch:
         dataset, source = frames_to_use(args.reference, Path(scratch))
@@ -65,7 +65,7 @@ def main() -> None:
         for index in picks:
             for engine, analyzer in analyzers.items():
                 rows[engine].append(analyzer(int(index)))
-    print(f"machine: {machine()}, pybullet {pybullet.getAPIVersion()} (3.2.7 wheel)")
+    print(f"machine: {machine()}, pybullet {version('pybullet')}")
     print(
         f"{source}: n_o = {dataset.n_objects}, {len(picks)} frames, {args.iterations} iterations, "
         f"timestep {dataset.task.config.timestep:.6f} s, one process, engines interleaved per frame"
