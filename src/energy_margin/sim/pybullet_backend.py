@@ -21,7 +21,8 @@ Design (see docs/engines.md for the reasoning and the measured differences to Mu
 * Servos: a joint with a servo stiffness uses Bullet's implicit ``POSITION_CONTROL`` motor, whose
   gains are the scene's stiffness and damping scaled by the joint's effective mass (see
   :func:`_motor_gains`); a passive spring and joint damping of that joint are folded into it.
-  Other joints get their generalized force plus passive spring and damping as ``TORQUE_CONTROL``.
+  Other joints get their generalized force plus passive spring and damping as ``TORQUE_CONTROL``
+  (a generalized force on a servoed joint is not applied: Bullet drives a joint in one mode).
 * States: :meth:`PybulletSimulator.get_state` calls ``saveState`` and returns
   ``[state id, time, servo targets, end-effector forces, object wrenches]`` (the parts MuJoCo's
   integration state also holds); :meth:`~PybulletSimulator.set_state` restores them. Saved states
@@ -550,7 +551,7 @@ class PybulletSimulator:
                 targetVelocity=0.0,
                 positionGain=servo.position_gain,
                 velocityGain=servo.velocity_gain,
-                force=servo.force_limit + abs(float(self._robot_force[servo.index])),
+                force=servo.force_limit,
                 physicsClientId=cid,
             )
         if self._compensated:
