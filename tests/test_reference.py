@@ -42,7 +42,6 @@ def scooping(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-@pytest.mark.slow
 def test_pushing_set_reproduces_table_one(pushing: Path) -> None:
     dataset = load_dataset(pushing)
     assert (dataset.n_trajectories, dataset.n_frames, dataset.n_objects) == (20, 10, 10)
