@@ -198,3 +198,14 @@ def test_cli_reports_bad_input_on_one_line(tmp_path: Path, capsys: pytest.Captur
     err = capsys.readouterr().err
     assert err.startswith("energy-margin: error:") and err.count("\n") == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_coast_drive_zeroes_the_pusher_force(tmp_path: Path) -> None:
+    _tiny_pushing(tmp_path / "ref")
+    nominal = import_reference(tmp_path / "ref", tmp_path / "nominal")
+    coast = import_reference(tmp_path / "ref", tmp_path / "coast", drive="coast")
+    assert np.all(nominal.arrays["drive"][:, 1] > 0)
+    np.testing.assert_array_equal(coast.arrays["drive"], 0.0)
+    assert coast.metadata["imported_drive"] == "coast"
+    with pytest.raises(EnergyMarginError, match="drive must be one of"):
+        import_reference(tmp_path / "ref", tmp_path / "bad", drive="push")

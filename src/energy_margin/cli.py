@@ -115,6 +115,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="sub-folder of the ao_est.csv to import ('.' = the folder itself; default original/original-data)",
     )
     reference.add_argument("--no-scores", action="store_true", help="import frames and labels only")
+    reference.add_argument(
+        "--drive",
+        choices=("nominal", "coast"),
+        default="nominal",
+        help="pusher during analysis: this project's nominal drive (default) or coasting as in the authors' planner",
+    )
     reference.add_argument("--overwrite", action="store_true", help="replace an existing directory")
 
     evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
@@ -211,7 +217,12 @@ def _run(args: argparse.Namespace) -> int:
         from energy_margin.reference import import_reference
 
         dataset = import_reference(
-            args.path, args.out, scores=args.scores, with_scores=not args.no_scores, overwrite=args.overwrite
+            args.path,
+            args.out,
+            scores=args.scores,
+            with_scores=not args.no_scores,
+            overwrite=args.overwrite,
+            drive=args.drive,
         )
         scored = " with their scores" if (dataset.path is not None and (dataset.path / "scores.csv").exists()) else ""
         print(

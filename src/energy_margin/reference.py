@@ -55,6 +55,8 @@ TASKS = {"PlanePushMulti": "pushing", "GripperMulti": "scooping"}
 #: Sub-folders holding the true-state scores, in order of preference.
 DEFAULT_SCORES = ("original", "original-data", ".")
 SCORES_NAME = "ao_est.csv"
+#: How the end-effector is driven when imported frames are analysed.
+DRIVES = ("nominal", "coast")
 AO_EST_COLUMNS = (
     "data_id",
     "trial",
@@ -345,6 +347,7 @@ def import_reference(
     scores: str | None = None,
     with_scores: bool = True,
     overwrite: bool = False,
+    drive: str = "nominal",
 ) -> Dataset:
     """Convert a reference folder into a dataset directory (plus ``scores.csv`` from their scores).
 
@@ -355,18 +358,28 @@ def import_reference(
             default: ``original``, ``original-data`` or the folder itself, whichever exists.
         with_scores: import their scores as ``scores.csv`` (when a file is found).
         overwrite: replace an existing ``out``.
+        drive: ``"nominal"``: this project's nominal drive for the trajectory's friction (the
+            end-effector keeps following the manipulation during analysis); ``"coast"`` (pushing
+            only): no drive force, the pusher coasts from its recorded velocity, as in the
+            authors' planner.
 
     Returns:
         The written dataset.
     """
     folder, out = Path(folder), Path(out)
+    if drive not in DRIVES:
+        raise EnergyMarginError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
     ref = read_reference(folder, scores=scores, with_scores=with_scores)
+    if drive == "coast" and ref.task != "pushing":
+        raise EnergyMarginError("--drive coast applies to pushing only (the scooping gripper follows its servos)")
     per_object, robot = (6, 6) if ref.task == "pushing" else (12, 10)
     n_objects = (ref.states.shape[-1] - robot) // per_object
     if ref.task == "pushing":
         arrays, overrides = _pushing_arrays(ref, n_objects)
     else:
         arrays, overrides = _scooping_arrays(ref, n_objects)
+    if drive == "coast":
+        arrays["drive"] = np.zeros_like(arrays["drive"])
     arrays["in_success"][:, -1] = ref.success_label
     arrays["captured"] = ref.capture_label.copy()
     arrays["in_success"] = arrays["in_success"].astype(bool)
@@ -386,6 +399,7 @@ def import_reference(
         "n_drive": int(arrays["drive"].shape[-1]),
         "package_version": __version__,
         "imported_from": str(folder),
+        "imported_drive": drive,
     }
     arrays = {key: np.ascontiguousarray(value) for key, value in arrays.items()}
     dataset = Dataset(path=out, metadata=metadata, arrays=arrays)
