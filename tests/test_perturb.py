@@ -23,7 +23,7 @@ def _max_penetration(dataset_path: Path) -> float:
         simulator = make_simulator(scene)
         for k in range(dataset.n_frames):
             simulator.reset(dataset.frame(t, k))
-            deepest = max(deepest, simulator.max_penetration())
+            deepest = max([deepest, *(depth for _, _, depth in simulator.object_penetrations())])
     return deepest
 
 

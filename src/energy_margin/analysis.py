@@ -317,7 +317,7 @@ def _header() -> str:
 def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
     import mujoco
 
-    return {
+    description: dict[str, Any] = {
         "analyzer": config.to_dict(),
         "seed": int(seed),
         "dataset": {
@@ -333,6 +333,11 @@ def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dic
         else dataset.task.config.likelihood_lambda,
         "versions": {"energy_margin": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__},
     }
+    if config.engine == "pybullet":
+        from importlib.metadata import version
+
+        description["versions"]["pybullet"] = version("pybullet")
+    return description
 
 
 # Analyzer settings added after the first release: an analysis.json without them used their defaults.

@@ -125,6 +125,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="EST density features: every object's centre, or the ellipsoid of the centres (default objects)",
     )
 
+    reference = commands.add_parser(
+        "import-reference", help="convert the authors' published frames, labels and scores into a dataset"
+    )
+    reference.add_argument("path", help="a task folder of the authors' data, e.g. .../planepush-10objects")
+    reference.add_argument("--out", required=True, help="dataset directory to create")
+    reference.add_argument(
+        "--scores",
+        default=None,
+        metavar="SUBDIR",
+        help="sub-folder of the ao_est.csv to import ('.' = the folder itself; default original/original-data)",
+    )
+    reference.add_argument("--no-scores", action="store_true", help="import frames and labels only")
+    reference.add_argument(
+        "--drive",
+        choices=("nominal", "coast"),
+        default="nominal",
+        help="pusher during analysis: this project's nominal drive (default) or coasting as in the authors' planner",
+    )
+    reference.add_argument("--overwrite", action="store_true", help="replace an existing directory")
+
     evaluate = commands.add_parser("evaluate", help="Average Precision against the labels")
     evaluate.add_argument("dataset", help="dataset directory with scores.csv")
     evaluate.add_argument("--json", action="store_true", help="print one JSON object")
@@ -256,7 +276,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.command == "check":
         from energy_margin.validation import check_dataset
 
-        problems = check_dataset(args.dataset, overlaps=not args.no_overlaps, scores=None)
+        warnings: list = []
+        problems = check_dataset(args.dataset, overlaps=not args.no_overlaps, scores=None, warnings=warnings)
+        for warning in warnings:
+            print(f"warning: {warning}")
         for problem in problems:
             print(problem)
         if problems:
@@ -290,6 +313,23 @@ def _run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
         )
         print(f"wrote {len(paths)} perturbed copies: {', '.join(str(p) for p in paths)}")
+        return 0
+    if args.command == "import-reference":
+        from energy_margin.reference import import_reference
+
+        dataset = import_reference(
+            args.path,
+            args.out,
+            scores=args.scores,
+            with_scores=not args.no_scores,
+            overwrite=args.overwrite,
+            drive=args.drive,
+        )
+        scored = " with their scores" if (dataset.path is not None and (dataset.path / "scores.csv").exists()) else ""
+        print(
+            f"dataset {args.out}: {dataset.metadata['task']}, {dataset.n_trajectories} trajectories x "
+            f"{dataset.n_frames} frames, {dataset.n_objects} objects{scored}"
+        )
         return 0
     if args.command == "evaluate":
         from energy_margin.evaluate import evaluate, format_table

@@ -290,7 +290,8 @@ class Problem:
 
     def __str__(self) -> str:
         where = f" [{self.row}]" if self.row else ""
-        return f"{self.file}: {self.field}{where}: {self.message}"
+        # One problem, one line, whatever a hostile file puts in a key or value.
+        return " ".join(f"{self.file}: {self.field}{where}: {self.message}".split())
 
 
 #: Largest accepted dataset dimensions: guards allocations against corrupt or hostile headers.

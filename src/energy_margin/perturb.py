@@ -92,7 +92,7 @@ def perturb_frame(
 
     Args:
         frame: the true state.
-        simulator: a simulator of the frame's scene with ``reset`` and ``max_penetration``.
+        simulator: a simulator of the frame's scene.
         rng: the frame's generator.
         planar: fit the 2-D ellipse of (x, y) and keep heights (upright objects), else 3-D.
         min_thickness: radius of the ellipsoid's flat axes (e.g. the object radius), m.
@@ -133,7 +133,7 @@ def perturb_frame(
             else:
                 trial[placed] = point
             simulator.reset(_with_objects(frame, trial, quat))
-            if simulator.max_penetration([placed]) <= tolerance:
+            if _max_penetration(simulator, [placed]) <= tolerance:
                 positions = trial
                 placed += 1
                 attempts = 0
@@ -143,6 +143,12 @@ def perturb_frame(
         f"cannot place {n} objects without overlaps inside the ellipsoid of their centres "
         f"(radii {np.round(ellipsoid.radii, 4).tolist()} m) after {candidates} candidates"
     )
+
+
+def _max_penetration(simulator: Any, objects: list[int]) -> float:
+    """Deepest current interpenetration involving any of ``objects``, m (0.0 when none)."""
+    depths = [depth for obj, other, depth in simulator.object_penetrations() if obj in objects or other in objects]
+    return max(depths, default=0.0)
 
 
 def _resting_height(frame: FrameState, simulator: Any, parked: np.ndarray, quat: np.ndarray) -> float:
@@ -156,7 +162,7 @@ def _resting_height(frame: FrameState, simulator: Any, parked: np.ndarray, quat:
     probe = parked.copy()
     probe[0] = (-_PARK_DISTANCE, -_PARK_DISTANCE, z)
     simulator.reset(_with_objects(frame, probe, quat))
-    return z + float(simulator.max_penetration([0]))
+    return z + _max_penetration(simulator, [0])
 
 
 def _with_objects(frame: FrameState, positions: np.ndarray, quat: np.ndarray) -> FrameState:

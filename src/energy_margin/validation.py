@@ -142,7 +142,9 @@ def _row_problems(
     return problems
 
 
-def check_dataset(path: Path | str, *, overlaps: bool = True, scores: bool | None = None) -> list[Problem]:
+def check_dataset(
+    path: Path | str, *, overlaps: bool = True, scores: bool | None = None, warnings: list[Problem] | None = None
+) -> list[Problem]:
     """Every problem of a dataset directory.
 
     Args:
@@ -150,16 +152,26 @@ def check_dataset(path: Path | str, *, overlaps: bool = True, scores: bool | Non
         overlaps: also look for overlapping objects (builds the scenes; a fraction of a second).
         scores: check ``scores.csv``: ``True`` requires it, ``None`` checks it when present,
             ``False`` skips it.
+        warnings: receives the overlaps of an imported dataset (``imported_from`` in its
+            metadata), which are warnings, not problems: the authors' frames were recorded with
+            their own robot model, which this project's scene only approximates.
     """
-    return _check(path, overlaps=overlaps, scores=scores)[1]
+    return _check(path, overlaps=overlaps, scores=scores, warnings=warnings)[1]
 
 
-def _check(path: Path | str, *, overlaps: bool, scores: bool | None) -> tuple[Dataset | None, list[Problem]]:
+def _check(
+    path: Path | str, *, overlaps: bool, scores: bool | None, warnings: list[Problem] | None = None
+) -> tuple[Dataset | None, list[Problem]]:
     dataset, problems = read_dataset(path)
     if dataset is None or problems:
         return dataset, problems
     if overlaps:
-        problems.extend(overlap_problems(dataset))
+        found = overlap_problems(dataset)
+        if dataset.metadata.get("imported_from"):
+            if warnings is not None:
+                warnings.extend(found)
+        else:
+            problems.extend(found)
     scores_path = Path(path) / SCORES_FILE
     if scores is True and not scores_path.is_file():
         problems.append(Problem(SCORES_FILE, "file", "", "does not exist; run `energy-margin analyze` first"))

@@ -18,7 +18,7 @@ from energy_margin.energy import CostModel
 from energy_margin.planning.density import Features
 from energy_margin.planning.methods import expansion_factory
 from energy_margin.planning.tree import CostField, TreeBudget, grow
-from energy_margin.sim.base import Simulator
+from energy_margin.sim.base import Simulator, release_states
 from energy_margin.state import FrameState
 from energy_margin.tasks.base import Task
 
@@ -79,17 +79,21 @@ def grow_tree(
         rollout_length=rollout_length,
         rrt_extent=rrt_extent,
     )
-    return grow(
-        simulator,
-        task,
-        root,
-        drive,
-        rng,
-        make,
-        budget=budget,
-        cost_model=cost_model,
-        features=features,
-        start_time=start_time,
-        batch=batch,
-        threads=threads,
-    )
+    try:
+        return grow(
+            simulator,
+            task,
+            root,
+            drive,
+            rng,
+            make,
+            budget=budget,
+            cost_model=cost_model,
+            features=features,
+            start_time=start_time,
+            batch=batch,
+            threads=threads,
+        )
+    finally:
+        # Engines that keep saved states outside the node array (PyBullet) free them now.
+        release_states(simulator)

@@ -6,7 +6,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.scene import Scene
 from energy_margin.sim.base import Simulator
 
-ENGINES = ("mujoco",)
+ENGINES = ("mujoco", "pybullet")
 
 
 def make_simulator(scene: Scene, engine: str = "mujoco") -> Simulator:
@@ -15,6 +15,10 @@ def make_simulator(scene: Scene, engine: str = "mujoco") -> Simulator:
         from energy_margin.sim.mujoco_backend import MujocoSimulator
 
         return MujocoSimulator(scene)
+    if engine == "pybullet":
+        from energy_margin.sim.pybullet_backend import PybulletSimulator
+
+        return PybulletSimulator(scene)
     raise EnergyMarginError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
 
 

@@ -114,3 +114,16 @@ class Simulator(Protocol):
     def frame_state(self) -> FrameState:
         """The current poses and velocities as a :class:`FrameState`."""
         ...
+
+
+def release_states(simulator: object) -> None:
+    """Free the engine memory behind the states a simulator has returned, when it keeps any.
+
+    An optional hook of the protocol: a backend whose :meth:`Simulator.get_state` vectors refer to
+    engine-side snapshots (PyBullet's ``saveState``) defines ``release_states()``; the states it
+    returned before are invalid afterwards. The EST calls this when a tree is done. Backends whose
+    states are self-contained vectors (MuJoCo) need not define it.
+    """
+    release = getattr(simulator, "release_states", None)
+    if callable(release):
+        release()

@@ -243,6 +243,9 @@ class MujocoSimulator:
         """Restore a vector from :meth:`get_state` (bit-identical replays)."""
         mujoco.mj_setState(self.model, self.data, state, _STATE_SPEC)
 
+    def release_states(self) -> None:
+        """Nothing to free: a MuJoCo state is a self-contained vector."""
+
     def set_object_wrenches(self, wrenches: np.ndarray) -> None:
         """Hold world-frame wrenches (n_objects, 6) [N, N m] at the objects' centres of mass."""
         self.data.xfrc_applied[self._object_bodies] = wrenches
@@ -376,27 +379,6 @@ class MujocoSimulator:
         if threads not in cache:
             cache[threads] = RolloutPropagator(self, threads)
         return cache[threads]
-
-    def max_penetration(self, objects: np.ndarray | None = None) -> float:
-        """Deepest interpenetration of the current contacts that involve the given objects, m.
-
-        Contacts are those of the last ``mj_forward`` or step (:meth:`reset` runs one); 0.0 when
-        no such contact penetrates.
-
-        Args:
-            objects: object indices to consider; ``None`` for every object.
-
-        """
-        data = self.data
-        if data.ncon == 0:
-            return 0.0
-        bodies = self._object_bodies if objects is None else self._object_bodies[np.asarray(objects, dtype=int)]
-        selected = np.isin(self.model.geom_bodyid, bodies)
-        contacts = data.contact
-        involved = selected[contacts.geom1] | selected[contacts.geom2]
-        if not np.any(involved):
-            return 0.0
-        return max(0.0, -float(np.min(contacts.dist[involved])))
 
     def frame_state(self) -> FrameState:
         """Current poses and velocities."""
