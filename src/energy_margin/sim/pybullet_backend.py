@@ -180,7 +180,6 @@ class PybulletSimulator:
         # The end-effector.
         self._robot = -1
         self._robot_joints: list[int] = []
-        self._robot_link_of_joint: list[int] = []
         self._specs: list[_LinkSpec] = []
         if scene.robot is not None:
             self._robot, self._specs = self._chain_body(scene.robot)
