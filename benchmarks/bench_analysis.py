@@ -23,9 +23,8 @@ import mujoco
 import numpy as np
 
 from energy_margin.analysis import AnalyzerConfig, analyze_frame, frame_seeds
-from energy_margin.dataset import record_trajectory
+from energy_margin.dataset import frame_from_arrays, record_trajectory
 from energy_margin.sim import make_simulator
-from energy_margin.state import FrameState
 from energy_margin.tasks import get_task
 
 
@@ -77,13 +76,7 @@ def main() -> None:
             simulator = make_simulator(task.build_scene(n_objects, friction, record["drive"]))
             per_frame = frame_seeds(args.seed * 1000 + trajectory, args.frames)
             for k in range(args.frames):
-                frame = FrameState(
-                    record["object_pos"][k],
-                    record["object_quat"][k],
-                    record["object_vel"][k],
-                    record["robot_q"][k],
-                    record["robot_v"][k],
-                )
+                frame = frame_from_arrays(record, k)
                 scores, _ = analyze_frame(
                     task,
                     frame,

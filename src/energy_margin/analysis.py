@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin import __version__
-from energy_margin.dataset import Dataset
+from energy_margin.dataset import SCORES_FILE, Dataset
 from energy_margin.energy import COST_MODELS, make_cost_model
 from energy_margin.errors import EnergyMarginError
 from energy_margin.executors import make_executor
@@ -34,9 +34,10 @@ from energy_margin.state import FrameState
 from energy_margin.tasks import Task, all_inside
 from energy_margin.validation import require_valid
 
-SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
 CONFIG_FILE = "analysis.json"
+#: Columns of scores.csv written as integers.
+INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "iterations", "seed")
 COLUMNS = (
     "trajectory",
     "frame",
@@ -291,7 +292,7 @@ def _parse_row(line: str) -> dict[str, Any] | None:
     try:
         row: dict[str, Any] = {}
         for name, text in zip(COLUMNS, fields, strict=True):
-            row[name] = int(text) if name in ("trajectory", "frame", "nodes", "iterations", "seed") else float(text)
+            row[name] = int(text) if name in INTEGER_COLUMNS else float(text)
     except ValueError:
         return None
     return row

@@ -44,9 +44,27 @@ FORMAT = "energy-margin-dataset"
 SCHEMA_VERSION = 1
 METADATA_FILE = "dataset.json"
 FRAMES_FILE = "frames.npz"
+SCORES_FILE = "scores.csv"
 
 _FLOAT_ARRAYS = ("object_pos", "object_quat", "object_vel", "robot_q", "robot_v", "frame_time", "friction", "drive")
 _BOOL_ARRAYS = ("captured", "in_success")
+
+
+def frame_from_arrays(arrays: dict[str, Any], *index: int) -> FrameState:
+    """The frame state at ``index`` of arrays laid out as ``frames.npz`` (or one trajectory's record).
+
+    Args:
+        arrays: ``object_pos``, ``object_quat``, ``object_vel``, ``robot_q``, ``robot_v`` with leading
+            axes (trajectory, frame) for a dataset or (frame,) for :func:`record_trajectory`'s record.
+        index: the leading indices, e.g. ``(trajectory, frame)`` or ``(frame,)``.
+    """
+    return FrameState(
+        object_pos=arrays["object_pos"][index],
+        object_quat=arrays["object_quat"][index],
+        object_vel=arrays["object_vel"][index],
+        robot_q=arrays["robot_q"][index],
+        robot_v=arrays["robot_v"][index],
+    )
 
 
 @dataclass(frozen=True)
@@ -79,14 +97,7 @@ class Dataset:
 
     def frame(self, trajectory: int, index: int) -> FrameState:
         """The recorded state of frame ``index`` of ``trajectory``."""
-        a = self.arrays
-        return FrameState(
-            object_pos=a["object_pos"][trajectory, index],
-            object_quat=a["object_quat"][trajectory, index],
-            object_vel=a["object_vel"][trajectory, index],
-            robot_q=a["robot_q"][trajectory, index],
-            robot_v=a["robot_v"][trajectory, index],
-        )
+        return frame_from_arrays(self.arrays, trajectory, index)
 
     def capture_labels(self, window: int = 0) -> np.ndarray:
         """Capture label of every frame, shape (T, K), bool.

@@ -15,10 +15,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from energy_margin.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
+from energy_margin.dataset import FRAMES_FILE, SCORES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.sim import make_simulator
-
-SCORES_FILE = "scores.csv"
 
 #: Interpenetration deeper than this fraction of an object's largest half-extent is an overlap.
 #: Soft contacts leave some penetration in valid frames: up to about 10 mm between the 5 cm-radius
@@ -72,12 +70,9 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
     return problems
 
 
-_INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "iterations", "seed")
-
-
 def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
     """Problems of ``scores.csv`` in the dataset directory ``path`` (which must exist)."""
-    from energy_margin.analysis import COLUMNS
+    from energy_margin.analysis import COLUMNS, INTEGER_COLUMNS
 
     scores_path = Path(path) / SCORES_FILE
     try:
@@ -100,7 +95,7 @@ def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
         row: dict[str, float] = {}
         for name, value in zip(COLUMNS, fields, strict=True):
             try:
-                row[name] = int(value) if name in _INTEGER_COLUMNS else float(value)
+                row[name] = int(value) if name in INTEGER_COLUMNS else float(value)
             except ValueError:
                 problems.append(Problem(SCORES_FILE, name, f"line {number}", f"{value[:40]!r} is not a number"))
                 break
