@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from energy_margin.analysis import AnalyzerConfig, analyze_frame, frame_seeds
-from energy_margin.dataset import frame_from_arrays, record_trajectory
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.data.dataset import frame_from_arrays
+from energy_margin.data.generate import record_trajectory
 from energy_margin.sim import make_simulator
 from energy_margin.tasks import get_task
 

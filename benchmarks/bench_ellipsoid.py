@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from energy_margin.ellipsoid import min_volume_ellipsoid
+from energy_margin.world.ellipsoid import min_volume_ellipsoid
 
 
 def main() -> None:

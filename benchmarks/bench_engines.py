@@ -27,9 +27,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_analysis import machine
-from energy_margin.analysis import AnalyzerConfig, FrameAnalyzer
-from energy_margin.dataset import Dataset, generate_dataset, load_dataset
-from energy_margin.reference import import_reference
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
+from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.data.reference import import_reference
 
 DEFAULT_REFERENCE = (
     Path(__file__).resolve().parents[1].parent / "shared/reference/energy_margin_workshop/planepush-10objects"

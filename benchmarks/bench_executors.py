@@ -24,8 +24,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from energy_margin.analysis import AnalyzerConfig, FrameAnalyzer, analyze, load_scores
-from energy_margin.dataset import generate_dataset, load_dataset
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
+from energy_margin.analysis.run import analyze
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.data.scores_file import load_scores
 
 
 def resident_mb() -> float:

@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from energy_margin.dataset import FRAMES_FILE, generate_dataset
-from energy_margin.scene import Geom, RigidObject, Scene
-from energy_margin.state import FrameState
+from energy_margin.data.dataset import FRAMES_FILE
+from energy_margin.data.generate import generate_dataset
+from energy_margin.world.scene import Geom, RigidObject, Scene
+from energy_margin.world.state import FrameState
 
 # The smallest dataset the pipeline tests need: 2 objects, 2 trajectories, 3 frames.
 TINY = {"n_objects": 2, "n_trajectories": 2, "n_frames": 3, "seed": 0}

@@ -6,27 +6,33 @@ __version__ = "0.1.0"
 
 from typing import TYPE_CHECKING, Any
 
+from energy_margin import _moved
+
+_moved.install()
+
 if TYPE_CHECKING:
-    from energy_margin.analysis import AnalyzerConfig, analyze, analyze_frame
-    from energy_margin.dataset import Dataset, generate_dataset, load_dataset
-    from energy_margin.ellipsoid import Ellipsoid, min_volume_ellipsoid
-    from energy_margin.evaluate import evaluate
-    from energy_margin.perturb import perturb_dataset
-    from energy_margin.robustness import compare_perturbed
+    from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.dataset import Dataset, load_dataset
+    from energy_margin.data.generate import generate_dataset
+    from energy_margin.evaluation.metrics import evaluate
+    from energy_margin.robustness.compare import compare_perturbed
+    from energy_margin.robustness.perturb import perturb_dataset
+    from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 
 _LAZY = {
-    "AnalyzerConfig": "energy_margin.analysis",
-    "analyze": "energy_margin.analysis",
-    "analyze_frame": "energy_margin.analysis",
-    "Dataset": "energy_margin.dataset",
-    "generate": "energy_margin.dataset",
-    "generate_dataset": "energy_margin.dataset",
-    "load_dataset": "energy_margin.dataset",
-    "evaluate": "energy_margin.evaluate",
-    "Ellipsoid": "energy_margin.ellipsoid",
-    "min_volume_ellipsoid": "energy_margin.ellipsoid",
-    "perturb_dataset": "energy_margin.perturb",
-    "compare_perturbed": "energy_margin.robustness",
+    "AnalyzerConfig": "energy_margin.analysis.frame",
+    "analyze": "energy_margin.analysis.run",
+    "analyze_frame": "energy_margin.analysis.frame",
+    "Dataset": "energy_margin.data.dataset",
+    "generate": "energy_margin.data.generate",
+    "generate_dataset": "energy_margin.data.generate",
+    "load_dataset": "energy_margin.data.dataset",
+    "evaluate": "energy_margin.evaluation.metrics",
+    "Ellipsoid": "energy_margin.world.ellipsoid",
+    "min_volume_ellipsoid": "energy_margin.world.ellipsoid",
+    "perturb_dataset": "energy_margin.robustness.perturb",
+    "compare_perturbed": "energy_margin.robustness.compare",
 }
 
 

@@ -89,8 +89,8 @@ def test_object_position_features() -> None:
 
 
 def test_ellipsoid_features_see_centre_and_shape() -> None:
-    from energy_margin.ellipsoid import min_volume_ellipsoid
     from energy_margin.planning.density import EllipsoidFeatures
+    from energy_margin.world.ellipsoid import min_volume_ellipsoid
 
     rng = np.random.default_rng(0)
     root = np.column_stack([rng.uniform(0, 1, 10), rng.uniform(0, 0.3, 10), np.zeros(10)])

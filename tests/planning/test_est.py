@@ -6,15 +6,15 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from energy_margin.analysis import AnalyzerConfig, analyze_frame, score_field
-from energy_margin.energy import MIN_COST, CostModel, EnergyBalanceCost, WrenchWorkCost
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, score_field
+from energy_margin.analysis.scores import region_score
 from energy_margin.planning import CostField, TreeBudget, grow_tree
-from energy_margin.scene import Geom, RigidObject, Scene
-from energy_margin.scores import region_score
+from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost, WrenchWorkCost
 from energy_margin.sim import Simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
-from energy_margin.state import FrameState
 from energy_margin.tasks import PushingTask, Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.world.scene import Geom, RigidObject, Scene
+from energy_margin.world.state import FrameState
 
 # ---------------------------------------------------------------- a faked world
 

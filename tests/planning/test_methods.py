@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from tests.planning.test_est import PlaneTask, PointMassSimulator, _check_tree_invariants, _point_frame
 
-from energy_margin.analysis import AnalyzerConfig, analyze_frame
-from energy_margin.energy import EnergyBalanceCost, WrenchWorkCost
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.planning import TreeBudget, grow_tree
+from energy_margin.planning.costs import EnergyBalanceCost, WrenchWorkCost
 from energy_margin.planning.methods import MonteCarloExpansion, RrtExpansion, expansion_factory
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, ScoopingTask

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.sim import Simulator, make_simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator, build_mjcf
-from energy_margin.state import FrameState
 from energy_margin.tasks import PushingTask
+from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
+from energy_margin.world.state import FrameState
 
 G = 9.81
 

@@ -20,14 +20,14 @@ import pytest
 
 pytest.importorskip("pybullet", reason="the pybullet extra is not installed")
 
-from energy_margin.energy import make_cost_model
 from energy_margin.planning import TreeBudget, grow_tree
-from energy_margin.scene import Scene
+from energy_margin.planning.costs import make_cost_model
 from energy_margin.sim import ENGINES, make_simulator
 from energy_margin.sim.base import Simulator
 from energy_margin.sim.pybullet_backend import PybulletSimulator
-from energy_margin.state import FrameState
 from energy_margin.tasks import PushingTask, ScoopingTask, command_robot
+from energy_margin.world.scene import Scene
+from energy_margin.world.state import FrameState
 
 G = 9.81
 
@@ -232,8 +232,10 @@ def test_scooping_gripper_holds_its_pose() -> None:
 
 
 def test_generate_and_analyze_with_pybullet(tmp_path: Path) -> None:
-    from energy_margin.analysis import AnalyzerConfig, analyze, load_scores
-    from energy_margin.dataset import generate_dataset
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.generate import generate_dataset
+    from energy_margin.data.scores_file import load_scores
 
     out = tmp_path / "pb"
     dataset = generate_dataset("pushing", n_objects=2, n_trajectories=1, n_frames=2, seed=0, out=out, engine="pybullet")

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from energy_margin.state import FrameState
 from energy_margin.tasks import all_inside
 from energy_margin.tasks.base import sample_separated as _sample_separated
 from energy_margin.tasks.pushing import PushingConfig, PushingTask, SweptRegion, WallBand
+from energy_margin.world.state import FrameState
 
 CONFIG = PushingConfig()
 

@@ -5,11 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from energy_margin.analysis import AnalyzerConfig, analyze, load_scores
-from energy_margin.dataset import generate_dataset, load_dataset
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.run import analyze
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.data.scores_file import load_scores
 from energy_margin.sim import make_simulator
-from energy_margin.state import FrameState
 from energy_margin.tasks import ScoopingTask, command_robot, get_task
+from energy_margin.world.state import FrameState
 
 # robot_q = (base z, right finger, right tip, left finger, left tip)
 BASE, RIGHT_FINGER, RIGHT_TIP, LEFT_FINGER, LEFT_TIP = range(5)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from energy_margin.scene import Scene
+    from energy_margin.world.scene import Scene
 
 #: Names of the density projections (``AnalyzerConfig.projection``).
 PROJECTIONS = ("objects", "ellipsoid")
@@ -61,7 +61,7 @@ class EllipsoidFeatures:
     """
 
     def __init__(self, *, planar: bool, tol: float = 1e-2, min_thickness: float = 1e-3) -> None:
-        from energy_margin.ellipsoid import min_volume_ellipsoid
+        from energy_margin.world.ellipsoid import min_volume_ellipsoid
 
         self._fit = min_volume_ellipsoid
         self.planar = planar

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from energy_margin.energy import CostModel
+from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features
 from energy_margin.planning.methods import expansion_factory
 from energy_margin.planning.tree import CostField, TreeBudget, grow
 from energy_margin.sim.base import Simulator, release_states
-from energy_margin.state import FrameState
 from energy_margin.tasks.base import Task
+from energy_margin.world.state import FrameState
 
 __all__ = ["CostField", "TreeBudget", "grow_tree"]
 

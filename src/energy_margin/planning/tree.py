@@ -31,11 +31,11 @@ from typing import Protocol
 
 import numpy as np
 
-from energy_margin.energy import CostModel, Propagation
+from energy_margin.planning.costs import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.sim.base import Simulator
-from energy_margin.state import FrameState
 from energy_margin.tasks.base import Task, command_robot
+from energy_margin.world.state import FrameState
 
 
 @dataclass(frozen=True)

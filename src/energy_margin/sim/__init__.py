@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.scene import Scene
 from energy_margin.sim.base import Simulator
+from energy_margin.world.scene import Scene
 
 ENGINES = ("mujoco", "pybullet")
 

@@ -6,13 +6,13 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.scene import Scene
-from energy_margin.state import FrameState
+from energy_margin.world.scene import Scene
+from energy_margin.world.state import FrameState
 
 
 @runtime_checkable
 class Simulator(Protocol):
-    """A physics engine instance built from a :class:`~energy_margin.scene.Scene`.
+    """A physics engine instance built from a :class:`~energy_margin.world.scene.Scene`.
 
     The scene (model) is immutable; the simulator holds the changing state. ``get_state`` returns an
     opaque float64 vector that ``set_state`` restores exactly: replaying the same wrenches from a
@@ -63,7 +63,7 @@ class Simulator(Protocol):
     def set_robot_targets(self, targets: np.ndarray) -> None:
         """Hold position-servo targets, shape (n_robot_dofs,), m or rad.
 
-        Entries of joints without a servo (:attr:`~energy_margin.scene.Joint.servo_stiffness` is
+        Entries of joints without a servo (:attr:`~energy_margin.world.scene.Joint.servo_stiffness` is
         ``None``) are ignored. Targets are part of the state saved by :meth:`get_state`.
         """
         ...

@@ -18,8 +18,8 @@ from xml.sax.saxutils import quoteattr
 import mujoco
 import numpy as np
 
-from energy_margin.scene import Geom, Link, Scene
-from energy_margin.state import FrameState, yaw_from_quat
+from energy_margin.world.scene import Geom, Link, Scene
+from energy_margin.world.state import FrameState, yaw_from_quat
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 

@@ -8,7 +8,7 @@ Design (see docs/engines.md for the reasoning and the measured differences to Mu
 * Statics are fixed single-base bodies. Free objects are single-base bodies. An upright object is a
   fixed-base chain of four links (prismatic x, y, z then revolute z), the last one carrying the
   shape, mass and inertia, so its coordinates are exactly the MuJoCo joints ``x, y, z, yaw``. The
-  robot is one fixed-base multibody: every :class:`~energy_margin.scene.Joint` becomes one link
+  robot is one fixed-base multibody: every :class:`~energy_margin.world.scene.Joint` becomes one link
   (massless helper links where a scene link has several joints; the last carries the geoms).
   Inertias are set to the scene's (uniform solid of the first geom) with ``localInertiaDiagonal``.
 * Friction: Bullet multiplies the two bodies' coefficients, so every body gets ``sqrt(mu)``
@@ -43,8 +43,8 @@ from typing import Any
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.scene import Geom, Joint, Link, Scene
-from energy_margin.state import FrameState, yaw_from_quat
+from energy_margin.world.scene import Geom, Joint, Link, Scene
+from energy_margin.world.state import FrameState, yaw_from_quat
 
 
 def _import_pybullet() -> Any:
@@ -441,9 +441,11 @@ class PybulletSimulator:
 
     def close(self) -> None:
         """Disconnect the client (also done when the simulator is garbage collected)."""
-        if self._client >= 0 and self._pb is not None:
+        # __init__ may have failed before connecting (e.g. pybullet not installed): nothing to close.
+        client, pb = getattr(self, "_client", -1), getattr(self, "_pb", None)
+        if client >= 0 and pb is not None:
             with contextlib.suppress(Exception):
-                self._pb.disconnect(physicsClientId=self._client)
+                pb.disconnect(physicsClientId=client)
             self._client = -1
 
     def __del__(self) -> None:

@@ -15,9 +15,9 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.scene import Scene
 from energy_margin.sim.base import Simulator
-from energy_margin.state import FrameState
+from energy_margin.world.scene import Scene
+from energy_margin.world.state import FrameState
 
 
 class Region(Protocol):

@@ -14,8 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from energy_margin.scene import Geom, Joint, Link, RigidObject, Scene
-from energy_margin.state import FrameState
 from energy_margin.tasks.base import (
     Task,
     TaskConfig,
@@ -26,6 +24,8 @@ from energy_margin.tasks.base import (
     require_ranges,
     sample_separated,
 )
+from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
+from energy_margin.world.state import FrameState
 
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
 _PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)

@@ -1,0 +1,6 @@
+"""Energy margins of frames: Algorithm 1 scores, frame and dataset analysis, executors."""
+
+from energy_margin._moved import stage_getattr
+
+# `energy_margin.analysis` was a module in 0.1.0: its names still resolve, with a warning.
+__getattr__ = stage_getattr(__name__)

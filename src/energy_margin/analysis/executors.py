@@ -1,0 +1,251 @@
+"""Where frames are analysed: this process, a local process pool (the default) or a Ray cluster.
+
+Every executor runs the same :class:`~energy_margin.analysis.frame.FrameAnalyzer` on frame indices and
+streams back one scores row per frame, in completion order. A frame's result depends only on its
+index, the dataset, the configuration and the seed, so every executor and every number of workers
+gives identical scores.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import Any, Protocol
+
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
+from energy_margin.data.dataset import Dataset
+from energy_margin.errors import EnergyMarginError
+
+EXECUTORS = ("local", "ray")
+
+
+class Executor(Protocol):
+    """Runs frame analyses and streams their rows back."""
+
+    name: str
+    workers: int
+
+    def run(
+        self, dataset: Dataset, config: AnalyzerConfig, seed: int, indices: Sequence[int]
+    ) -> Iterator[dict[str, Any]]:
+        """Analyse the frames ``indices`` (trajectory-major) and yield their rows as they finish."""
+        ...
+
+
+def make_executor(kind: str = "local", *, workers: int = 1, address: str | None = None) -> Executor:
+    """The executor ``kind`` (``"local"`` or ``"ray"``) with ``workers`` workers.
+
+    Args:
+        kind: ``"local"`` (this process when ``workers`` is 1, else a process pool) or ``"ray"``.
+        workers: parallel workers, >= 1 (Ray: actors).
+        address: Ray cluster address (``"auto"`` or ``"host:port"``); ``None`` starts a local
+            Ray instance. Only for ``"ray"``.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise EnergyMarginError(f"workers must be an integer >= 1, got {workers!r}")
+    if kind == "local":
+        if address is not None:
+            raise EnergyMarginError("--address is only for --executor ray")
+        return LocalExecutor(workers)
+    if kind == "ray":
+        return RayExecutor(workers, address)
+    raise EnergyMarginError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
+
+
+def _chunks(indices: Sequence[int], workers: int) -> list[list[int]]:
+    # Small chunks keep the load balanced and the journal fresh; a few frames per task amortise the
+    # per-task cost (about 0.1 ms locally, 0.7 ms with Ray).
+    size = max(1, min(8, len(indices) // (4 * workers)))
+    return [list(indices[i : i + size]) for i in range(0, len(indices), size)]
+
+
+# --- local -------------------------------------------------------------------------------------
+
+_WORKER: Any = None
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to kill this worker when its parent dies (e.g. by SIGKILL), so none is orphaned."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    # The parent may have died between the fork and the prctl call.
+    if os.getppid() == 1:
+        os._exit(1)
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _init_local_worker(dataset: Dataset, config: dict[str, Any], seed: int) -> None:
+
+    # Ctrl-C goes to the parent, which stops the pool; workers must not die half-way on their own.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    global _WORKER
+    _WORKER = FrameAnalyzer(dataset, AnalyzerConfig(**config), seed)
+
+
+def _run_local_chunk(indices: list[int]) -> list[dict[str, Any]]:
+    assert _WORKER is not None
+    return [_WORKER(index) for index in indices]
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT inside the block (main thread only; elsewhere a no-op)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+class LocalExecutor:
+    """This process (one worker) or a ``ProcessPoolExecutor`` (several)."""
+
+    name = "local"
+
+    def __init__(self, workers: int = 1) -> None:
+        self.workers = workers
+
+    def run(
+        self, dataset: Dataset, config: AnalyzerConfig, seed: int, indices: Sequence[int]
+    ) -> Iterator[dict[str, Any]]:
+        """Analyse ``indices`` and yield rows in completion order."""
+        if not indices:
+            return
+        if self.workers == 1:
+            analyzer = FrameAnalyzer(dataset, config, seed)
+            for index in indices:
+                yield analyzer(index)
+            return
+        pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            initializer=_init_local_worker,
+            initargs=(dataset, config.to_dict(), seed),
+        )
+        pending: set[Future[list[dict[str, Any]]]] = set()
+        chunks = iter(_chunks(indices, self.workers))
+        finished = False
+        try:
+            # Keep two chunks in flight per worker so none idles while results are written.
+            for first in chunks:
+                pending.add(pool.submit(_run_local_chunk, first))
+                if len(pending) >= 2 * self.workers:
+                    break
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield from future.result()
+                    following = next(chunks, None)
+                    if following is not None:
+                        pending.add(pool.submit(_run_local_chunk, following))
+            finished = True
+        finally:
+            if finished:
+                pool.shutdown(wait=True)
+            else:
+                # Interrupted (Ctrl-C, an error, or the consumer stopped): stop now, do not drain.
+                # A second SIGINT (`timeout -s INT` signals the process and then its group) must
+                # not cut this short, or the workers outlive the pool and exit waits for them.
+                with _sigint_ignored():
+                    for process in list(getattr(pool, "_processes", {}).values()):
+                        process.terminate()
+                    pool.shutdown(wait=False, cancel_futures=True)
+
+
+# --- Ray ---------------------------------------------------------------------------------------
+
+
+class _RayFrameAnalyzer:
+    """Ray actor body: one FrameAnalyzer per worker, fed chunks of frame indices."""
+
+    def __init__(self, dataset: Dataset, config: dict[str, Any], seed: int) -> None:
+
+        self._analyzer = FrameAnalyzer(dataset, AnalyzerConfig(**config), seed)
+
+    def run(self, indices: list[int]) -> list[dict[str, Any]]:
+        return [self._analyzer(index) for index in indices]
+
+
+def _import_ray() -> Any:
+    # Ray would otherwise try to report usage statistics over the network.
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    try:
+        import ray
+    except ImportError:
+        raise EnergyMarginError("the Ray executor needs Ray: pip install 'energy-margin[ray]'") from None
+    return ray
+
+
+class RayExecutor:
+    """Ray actors, on a local Ray instance or an existing cluster (``address``)."""
+
+    name = "ray"
+
+    def __init__(self, workers: int = 2, address: str | None = None) -> None:
+        self.workers = workers
+        self.address = address
+
+    def run(
+        self, dataset: Dataset, config: AnalyzerConfig, seed: int, indices: Sequence[int]
+    ) -> Iterator[dict[str, Any]]:
+        """Analyse ``indices`` on Ray actors and yield rows in completion order."""
+        if not indices:
+            return
+        ray = _import_ray()
+        started_here = not ray.is_initialized()
+        if started_here:
+            options: dict[str, Any] = {
+                "include_dashboard": False,
+                "log_to_driver": False,
+                "configure_logging": False,
+            }
+            if self.address is None:
+                options["num_cpus"] = self.workers
+            else:
+                options["address"] = self.address
+            try:
+                ray.init(**options)
+            except (ConnectionError, RuntimeError, ValueError) as error:
+                raise EnergyMarginError(f"cannot start or reach Ray ({error})") from None
+        actor_class = ray.remote(num_cpus=1)(_RayFrameAnalyzer)
+        actors: list[Any] = []
+        try:
+            # The dataset travels through the object store, so cluster nodes need no shared disk.
+            dataset_ref = ray.put(dataset)
+            actors = [actor_class.remote(dataset_ref, config.to_dict(), seed) for _ in range(self.workers)]
+            chunks = iter(_chunks(indices, self.workers))
+            in_flight: dict[Any, Any] = {}
+            for actor in actors:
+                for _ in range(2):
+                    chunk = next(chunks, None)
+                    if chunk is not None:
+                        in_flight[actor.run.remote(chunk)] = actor
+            while in_flight:
+                ready, _ = ray.wait(list(in_flight), num_returns=1)
+                for reference in ready:
+                    actor = in_flight.pop(reference)
+                    yield from ray.get(reference)
+                    chunk = next(chunks, None)
+                    if chunk is not None:
+                        in_flight[actor.run.remote(chunk)] = actor
+        finally:
+            for actor in actors:
+                ray.kill(actor)
+            if started_here:
+                ray.shutdown()

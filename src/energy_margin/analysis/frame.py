@@ -1,0 +1,254 @@
+"""Energy margins of one frame (Algorithm 1): grow a tree from the state and score it.
+
+``analyze_frame`` scores one state; :class:`FrameAnalyzer` scores the frames of one dataset by
+index, reusing simulators, with per-frame seeds from :func:`frame_seeds` so that the scores do not
+depend on the number of workers or on the order in which frames finish.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from energy_margin.analysis.scores import region_score
+from energy_margin.data.dataset import Dataset
+from energy_margin.planning import CostField, TreeBudget, grow_tree
+from energy_margin.planning.costs import COST_MODELS, make_cost_model
+from energy_margin.planning.density import PROJECTIONS, make_features
+from energy_margin.planning.methods import METHODS
+from energy_margin.sim import ENGINES, Simulator, make_simulator
+from energy_margin.tasks import Task, all_inside
+from energy_margin.world.state import FrameState
+
+
+@dataclass(frozen=True)
+class AnalyzerConfig:
+    """Settings of an energy-margin analysis.
+
+    Attributes:
+        iterations: EST expansions per frame (accepted or rejected); ``None`` for a node budget only.
+        nodes: accepted tree nodes (children of the root) per frame; ``None`` for no node budget.
+        cost: incremental cost model, ``"wrench"`` (perturbation work) or ``"energy"`` (|dE - W_fri|).
+        likelihood_lambda: softmax inverse temperature lambda, 1/J; ``None`` uses the task's value.
+        n_projections: random projections of the EST density estimate.
+        cell_size: density grid cell width, m.
+        engine: physics engine.
+        method: tree method, ``"est"`` (the paper), ``"montecarlo"`` (independent roll-outs) or
+            ``"rrt"`` (nearest node to a random target, one random control); see
+            :mod:`energy_margin.planning.methods`.
+        batch: iterations propagated together per round through ``mujoco.rollout`` (1: one at a
+            time, the reference behaviour; > 1 needs the ``"wrench"`` cost).
+        threads: ``mujoco.rollout`` threads when ``batch`` > 1.
+        rollout_length: propagations per Monte Carlo roll-out.
+        rrt_extent: half width of the RRT target box, m.
+        projection: EST density features, ``"objects"`` (every object's centre relative to the
+            root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
+
+    """
+
+    iterations: int | None = 300
+    nodes: int | None = None
+    cost: str = "wrench"
+    likelihood_lambda: float | None = None
+    n_projections: int = 8
+    cell_size: float = 0.01
+    engine: str = "mujoco"
+    method: str = "est"
+    batch: int = 1
+    threads: int = 1
+    rollout_length: int = 10
+    rrt_extent: float = 0.1
+    projection: str = "objects"
+
+    def __post_init__(self) -> None:
+        for name in ("iterations", "nodes"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0):
+                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+        if self.iterations is None and self.nodes is None:
+            raise ValueError("iterations and nodes cannot both be None")
+        if self.cost not in COST_MODELS:
+            raise ValueError(f"cost must be one of {', '.join(COST_MODELS)}, got {self.cost!r}")
+        if self.likelihood_lambda is not None and not (
+            np.isfinite(self.likelihood_lambda) and self.likelihood_lambda >= 0
+        ):
+            raise ValueError(f"likelihood_lambda must be finite and >= 0, got {self.likelihood_lambda!r}")
+        if isinstance(self.n_projections, bool) or not isinstance(self.n_projections, int) or self.n_projections < 1:
+            raise ValueError(f"n_projections must be an integer >= 1, got {self.n_projections!r}")
+        if not (np.isfinite(self.cell_size) and self.cell_size > 0):
+            raise ValueError(f"cell_size must be > 0, got {self.cell_size!r}")
+        if self.engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        for name in ("batch", "threads", "rollout_length"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
+            raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
+        if not (np.isfinite(self.rrt_extent) and self.rrt_extent > 0):
+            raise ValueError(f"rrt_extent must be > 0, got {self.rrt_extent!r}")
+        if self.projection not in PROJECTIONS:
+            raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
+
+    @property
+    def budget(self) -> TreeBudget:
+        """The tree budget."""
+        return TreeBudget(iterations=self.iterations, nodes=self.nodes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible dictionary of every field."""
+        return dataclasses.asdict(self)
+
+
+@dataclass(frozen=True)
+class FrameScores:
+    """Scores of one frame.
+
+    Attributes:
+        capture_score: likelihood mass of captured states, in [0, 1].
+        success_score: likelihood mass of successful states, in [0, 1].
+        nodes: tree nodes including the root.
+        iterations: expansions performed.
+        runtime_s: wall time of tree growth and scoring, s.
+        physics_s: part of it spent in the simulator, s.
+
+    """
+
+    capture_score: float
+    success_score: float
+    nodes: int
+    iterations: int
+    runtime_s: float
+    physics_s: float
+
+
+def frame_seeds(seed: int, count: int) -> list[int]:
+    """Per-frame seeds spawned from ``seed``: one 64-bit integer per frame."""
+    children = np.random.SeedSequence(seed).spawn(count)
+    return [int(child.generate_state(1, np.uint64)[0]) for child in children]
+
+
+def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
+    """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
+    captured = all_inside(task.capture_region(root), field.object_pos, field.object_vel)
+    successful = all_inside(task.success_region(), field.object_pos, field.object_vel)
+    return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
+
+
+def analyze_frame(
+    task: Task,
+    frame: FrameState,
+    *,
+    friction: float,
+    drive: np.ndarray,
+    seed: int,
+    config: AnalyzerConfig | None = None,
+    start_time: float = 0.0,
+    simulator: Simulator | None = None,
+) -> tuple[FrameScores, CostField]:
+    """Grow a tree (``config.method``, EST by default) from ``frame`` and score it.
+
+    Args:
+        task: the task.
+        frame: the state z_init.
+        friction: Coulomb coefficient of the frame's trajectory.
+        drive: drive parameters of the trajectory, shape (n_drive,).
+        seed: the frame's seed.
+        config: analysis settings (defaults when ``None``).
+        start_time: time of the frame within its roll-out, s.
+        simulator: a simulator of the frame's scene, to reuse one across frames.
+
+    Returns:
+        The scores and the energy-cost field.
+
+    """
+    config = config if config is not None else AnalyzerConfig()
+    if simulator is None:
+        simulator = make_simulator(task.build_scene(frame.n_objects, friction, drive), config.engine)
+    lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
+    started = time.perf_counter()
+    field = grow_tree(
+        simulator,
+        task,
+        frame,
+        np.asarray(drive, dtype=float),
+        np.random.default_rng(seed),
+        budget=config.budget,
+        cost_model=make_cost_model(config.cost),
+        features=make_features(config.projection, simulator.scene),
+        n_projections=config.n_projections,
+        cell_size=config.cell_size,
+        start_time=start_time,
+        method=config.method,
+        batch=config.batch,
+        threads=config.threads,
+        rollout_length=config.rollout_length,
+        rrt_extent=config.rrt_extent,
+    )
+    capture, success = score_field(task, frame, field, lam)
+    runtime = time.perf_counter() - started
+    scores = FrameScores(capture, success, field.nodes, field.iterations, runtime, field.physics_s)
+    return scores, field
+
+
+_SIMULATOR_CACHE = 4
+
+
+class FrameAnalyzer:
+    """Scores frames of one dataset, reusing one simulator per distinct (friction, drive) pair."""
+
+    def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int) -> None:
+        self.dataset = dataset
+        self.task = dataset.task
+        self.config = config
+        total = dataset.n_trajectories * dataset.n_frames
+        self.seeds = frame_seeds(seed, total)
+        self._simulators: dict[tuple[float, bytes], Simulator] = {}
+
+    def _simulator(self, friction: float, drive: np.ndarray) -> Simulator:
+        # The drive may change the model (e.g. a servo stiffness), so it is part of the key.
+        key = (friction, np.asarray(drive, dtype=float).tobytes())
+        simulator = self._simulators.pop(key, None)
+        if simulator is None:
+            # Frames arrive trajectory by trajectory: a few recent simulators suffice, and keeping
+            # more would let memory grow with the number of distinct trajectories.
+            while len(self._simulators) >= _SIMULATOR_CACHE:
+                self._simulators.pop(next(iter(self._simulators)))
+            scene = self.task.build_scene(self.dataset.n_objects, friction, drive)
+            simulator = make_simulator(scene, self.config.engine)
+        self._simulators[key] = simulator
+        return simulator
+
+    def __call__(self, index: int) -> dict[str, Any]:
+        """The scores row of frame ``index`` (trajectory-major)."""
+        dataset = self.dataset
+        trajectory, frame_index = divmod(index, dataset.n_frames)
+        friction = float(dataset.arrays["friction"][trajectory])
+        drive = dataset.arrays["drive"][trajectory]
+        scores, _ = analyze_frame(
+            self.task,
+            dataset.frame(trajectory, frame_index),
+            friction=friction,
+            drive=drive,
+            seed=self.seeds[index],
+            config=self.config,
+            start_time=float(dataset.arrays["frame_time"][trajectory, frame_index]),
+            simulator=self._simulator(friction, drive),
+        )
+        return {
+            "trajectory": trajectory,
+            "frame": frame_index,
+            "capture_score": scores.capture_score,
+            "success_score": scores.success_score,
+            "nodes": scores.nodes,
+            "iterations": scores.iterations,
+            "runtime_s": scores.runtime_s,
+            "physics_s": scores.physics_s,
+            "seed": self.seeds[index],
+        }

@@ -1,0 +1,108 @@
+"""``energy-margin analyze``: score every frame of a dataset with energy margins."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from energy_margin.cli.common import add_engine, add_seed, non_negative_float, non_negative_int, positive_int
+from energy_margin.errors import EnergyMarginError
+
+if TYPE_CHECKING:
+    from energy_margin.analysis.frame import AnalyzerConfig
+
+NAME = "analyze"
+SUMMARY = "score every frame of a dataset: capture and success scores into scores.csv"
+EXAMPLES = (
+    "energy-margin analyze runs/push10 --iterations 300 --workers 2 --seed 0",
+    "energy-margin analyze runs/push10 --nodes 200 --cost energy --overwrite",
+)
+COSTS = ("wrench", "energy")
+METHODS = ("est", "montecarlo", "rrt")
+PROJECTIONS = ("objects", "ellipsoid")
+EXECUTORS = ("local", "ray")
+DEFAULT_ITERATIONS = 300
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``analyze``."""
+    parser.add_argument("dataset", help="dataset directory")
+    parser.add_argument(
+        "--iterations",
+        type=non_negative_int,
+        default=None,
+        help=f"expansions per frame (default {DEFAULT_ITERATIONS} when --nodes is absent)",
+    )
+    parser.add_argument("--nodes", type=non_negative_int, default=None, help="tree nodes per frame")
+    parser.add_argument(
+        "--cost",
+        choices=COSTS,
+        default="wrench",
+        help="incremental cost: wrench (perturbation work) or energy (|dE - W_fri|) (default wrench)",
+    )
+    parser.add_argument(
+        "--lambda",
+        dest="likelihood_lambda",
+        type=non_negative_float,
+        default=None,
+        help="softmax inverse temperature, 1/J (default: the task's)",
+    )
+    parser.add_argument("--workers", type=positive_int, default=1, help="parallel workers (default 1)")
+    parser.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool (default) or Ray")
+    parser.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
+    add_seed(parser)
+    add_engine(parser)
+    parser.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)} (default est)"
+    )
+    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round (default 1)")
+    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads (default 1)")
+    parser.add_argument(
+        "--projection",
+        choices=PROJECTIONS,
+        default="objects",
+        help="EST density features: every object's centre, or the ellipsoid of the centres (default objects)",
+    )
+
+
+def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
+    """The :class:`~energy_margin.analysis.frame.AnalyzerConfig` the arguments ask for."""
+    from energy_margin.analysis.frame import AnalyzerConfig
+
+    if args.iterations == 0 and args.nodes is None:
+        raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
+    iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS
+    try:
+        return AnalyzerConfig(
+            iterations=iterations,
+            nodes=args.nodes,
+            cost=args.cost,
+            likelihood_lambda=args.likelihood_lambda,
+            engine=args.engine,
+            method=args.method,
+            batch=args.batch,
+            threads=args.threads,
+            projection=args.projection,
+        )
+    except ValueError as error:
+        raise EnergyMarginError(str(error)) from None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse the dataset and print where the scores went."""
+    from energy_margin.analysis.run import analyze
+
+    path = analyze(
+        args.dataset,
+        analyzer_config(args),
+        seed=args.seed,
+        workers=args.workers,
+        executor=args.executor,
+        address=args.address,
+        overwrite=args.overwrite,
+        progress=not args.no_progress,
+    )
+    print(f"wrote {path}")
+    return 0

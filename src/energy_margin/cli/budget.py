@@ -1,0 +1,53 @@
+"""``energy-margin budget``: AP and runtime against the expansion budget, per tree method."""
+
+from __future__ import annotations
+
+import argparse
+
+from energy_margin.cli.common import add_seed, non_negative_int, positive_int
+from energy_margin.errors import EnergyMarginError
+
+NAME = "budget"
+SUMMARY = "AP (with bootstrap intervals) and runtime against the expansion budget, per tree method"
+EXAMPLES = ("energy-margin budget runs/push10 --budgets 10 30 100 300 --methods est montecarlo --workers 2",)
+METHODS = ("est", "montecarlo", "rrt")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``budget``."""
+    parser.add_argument("dataset", help="dataset directory")
+    parser.add_argument(
+        "--budgets", type=positive_int, nargs="+", default=[10, 30, 100, 300, 1000], help="iterations per frame"
+    )
+    parser.add_argument(
+        "--methods", nargs="+", choices=METHODS, default=list(METHODS), help=f"tree methods: {', '.join(METHODS)}"
+    )
+    parser.add_argument("--workers", type=positive_int, default=1, help="local worker processes")
+    add_seed(parser)
+    parser.add_argument("--bootstrap", type=non_negative_int, default=1000, help="trajectory resamples (default 1000)")
+    parser.add_argument("--out", default=None, help="summary CSV (default DIR/budget/budget.csv; JSON, PNG beside)")
+    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round")
+    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep and print its table."""
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.evaluation.budget import budget_sweep, format_table
+
+    try:
+        base = AnalyzerConfig(batch=args.batch, threads=args.threads)
+    except ValueError as error:
+        raise EnergyMarginError(str(error)) from None
+    rows = budget_sweep(
+        args.dataset,
+        budgets=args.budgets,
+        methods=args.methods,
+        workers=args.workers,
+        seed=args.seed,
+        bootstrap=args.bootstrap,
+        out=args.out,
+        base=base,
+    )
+    print(format_table(rows))
+    return 0

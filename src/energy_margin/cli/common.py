@@ -1,0 +1,122 @@
+"""What every command shares: one-line argument errors, argument types and a progress bar."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from typing import Any, NoReturn
+
+from energy_margin.errors import EnergyMarginError
+
+PROG = "energy-margin"
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line."""
+
+    def error(self, message: str) -> NoReturn:
+        """Exit with status 2 and one line on standard error."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the example lines of a command's epilog as written; shows defaults where given."""
+
+
+def non_negative_int(text: str) -> int:
+    """An integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """An integer >= 1."""
+    value = non_negative_int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
+    return value
+
+
+def add_engine(parser: argparse.ArgumentParser) -> None:
+    """The ``--engine`` option, with the engines as its choices."""
+    from energy_margin.sim import ENGINES
+
+    parser.add_argument(
+        "--engine", choices=ENGINES, default="mujoco", help=f"physics engine: {', '.join(ENGINES)} (default mujoco)"
+    )
+
+
+def add_seed(parser: argparse.ArgumentParser) -> None:
+    """The ``--seed`` option."""
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
+
+
+def task_overrides(pairs: list[str]) -> dict[str, object]:
+    """``--set KEY=JSON`` pairs as a dictionary."""
+    overrides: dict[str, object] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not key:
+            raise EnergyMarginError(f"--set expects KEY=JSON, got {pair!r}")
+        try:
+            overrides[key] = json.loads(text)
+        except json.JSONDecodeError:
+            raise EnergyMarginError(f"--set {key}: {text!r} is not valid JSON") from None
+    return overrides
+
+
+def print_json(value: Any) -> None:
+    """Print ``value`` as one JSON object with sorted keys."""
+    print(json.dumps(value, sort_keys=True))
+
+
+class ProgressBar:
+    """A tqdm bar on a terminal (or with ``ENERGY_MARGIN_PROGRESS=1``); silent otherwise."""
+
+    def __init__(self, total: int, desc: str, unit: str = "traj") -> None:
+        self._bar = None
+        if sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1":
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total if isinstance(total, int) and total > 0 else 0, desc=desc, unit=unit)
+
+    def update(self, count: int) -> None:
+        """Advance by ``count``."""
+        if self._bar is not None:
+            self._bar.update(count)
+
+    def close(self) -> None:
+        """Close the bar."""
+        if self._bar is not None:
+            self._bar.close()
+
+
+def require_matplotlib() -> None:
+    """Raise a one-line hint when the ``plot`` extra is missing."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise EnergyMarginError("the report needs matplotlib: pip install 'energy-margin[plot]'") from None
+
+
+def one_line(message: str) -> str:
+    """Collapse whitespace so an error is always reported on a single line."""
+    return " ".join(message.split())

@@ -1,0 +1,53 @@
+"""``energy-margin evaluate``: Average Precision of the scores against the labels (and Table I)."""
+
+from __future__ import annotations
+
+import argparse
+
+from energy_margin.cli.common import non_negative_int, positive_int, print_json
+
+NAME = "evaluate"
+SUMMARY = "Average Precision of a scored dataset against its labels; with --compare, Table I"
+EXAMPLES = (
+    "energy-margin evaluate runs/push10",
+    "energy-margin evaluate runs/push10 --capture-window 2 --json",
+    "energy-margin evaluate runs/push10 --compare runs/push10-perturbed",
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``evaluate``."""
+    parser.add_argument("dataset", help="dataset directory with scores.csv")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--capture-window", type=non_negative_int, default=0, help="k-hat (default 0)")
+    parser.add_argument("--success-frames", type=positive_int, default=3, help="k-bar (default 3)")
+    parser.add_argument(
+        "--weights", choices=("linear", "uniform"), default="linear", help="trajectory success weights (default linear)"
+    )
+    parser.add_argument(
+        "--compare",
+        nargs="+",
+        default=None,
+        metavar="DIR",
+        help="scored perturbed copies of the dataset (or their parent directory): print Table I",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the AP table (or JSON)."""
+    from energy_margin.evaluation.metrics import evaluate, format_table
+
+    options = {"capture_window": args.capture_window, "success_frames": args.success_frames, "weights": args.weights}
+    if args.compare:
+        from energy_margin.robustness.compare import compare_perturbed, format_robustness_table
+
+        result = compare_perturbed(args.dataset, args.compare, **options)
+        text = format_table(result) + "\n\n" + format_robustness_table(result)
+    else:
+        result = evaluate(args.dataset, **options)
+        text = format_table(result)
+    if args.json:
+        print_json(result)
+    else:
+        print(text)
+    return 0

@@ -1,0 +1,1 @@
+"""Datasets on disk: the versioned format, generation, the scores file, validation, imports."""

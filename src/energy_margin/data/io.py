@@ -1,0 +1,83 @@
+"""Small file helpers: atomic writes, folders made with the user's umask, JSON with clear errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from energy_margin.errors import EnergyMarginError
+
+
+def current_umask() -> int:
+    """The process's file-mode creation mask."""
+    # /proc reads it without changing it (safe with threads); elsewhere set it and put it back.
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """Mode of a new regular file under the current umask (0o644 under the usual 022)."""
+    return 0o666 & ~current_umask()
+
+
+def directory_mode() -> int:
+    """Mode of a new directory under the current umask (0o755 under the usual 022)."""
+    return 0o777 & ~current_umask()
+
+
+def staging_directory(parent: Path, name: str) -> Path:
+    """A new, empty hidden directory in ``parent`` to build ``name`` in, with the umask's mode.
+
+    ``tempfile.mkdtemp`` makes it 0o700 whatever the umask; the result is renamed onto the
+    final path, so it gets the mode a plain ``mkdir`` would have given.
+    """
+    staging = Path(tempfile.mkdtemp(dir=parent, prefix=f".{name}."))
+    staging.chmod(directory_mode())
+    return staging
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` so a reader sees either the old file or the whole new one.
+
+    The file gets the mode a plain ``open(path, "w")`` would give it under the current umask.
+    """
+    path = Path(path)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        # mkstemp creates 0o600 whatever the umask: a shared results folder could not read it.
+        os.fchmod(handle, file_mode())
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def write_json(path: Path, value: Any) -> None:
+    """Atomically write ``value`` as indented JSON."""
+    atomic_write_text(path, json.dumps(value, indent=2, sort_keys=True) + "\n")
+
+
+def read_json(path: Path, *, what: str) -> Any:
+    """Read a JSON file, raising :class:`EnergyMarginError` naming ``what`` on any problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise EnergyMarginError(f"{what}: {path} does not exist")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
+        raise EnergyMarginError(f"{what}: {path} is not valid JSON ({error})") from None

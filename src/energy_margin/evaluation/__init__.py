@@ -1,0 +1,1 @@
+"""Evaluation against ground truth: Average Precision, distance baselines, budget sweeps."""

@@ -1,0 +1,202 @@
+"""Average Precision of the scores against the ground-truth labels, with baselines beside them.
+
+Questions answered (each with the energy-margin score and every baseline):
+
+* capture at k-hat = ``capture_window`` (default 0: the frame alone) and at k-hat = 2 (the objects
+  stay captured for two more frames);
+* trajectory success from the weighted last k-bar frames, and from the first half of the frames
+  only (an early prediction).
+
+Baselines: ``current_state`` (the indicator that the frame itself is inside the set, scored the
+same way), ``chance`` (a constant score, whose AP equals the positive rate) and ``distance`` (the
+smallest signed distance of an object to the capture or success region, :mod:`energy_margin.evaluation.baselines`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.analysis.scores import trajectory_success_score
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.scores_file import load_scores
+from energy_margin.data.validation import require_valid
+from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.baselines import distance_scores
+
+
+def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
+    """scikit-learn's Average Precision, or ``None`` when the labels hold a single class."""
+    from sklearn.metrics import average_precision_score
+
+    labels = np.asarray(labels, dtype=bool).ravel()
+    scores = np.asarray(scores, dtype=float).ravel()
+    if labels.all() or not labels.any():
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return float(average_precision_score(labels, scores))
+
+
+def score_grid(dataset: Dataset, scores: dict[str, np.ndarray], column: str) -> np.ndarray:
+    """Arrange a scores column as (n_trajectories, n_frames); every frame must be present once."""
+    grid = np.full((dataset.n_trajectories, dataset.n_frames), np.nan)
+    seen = np.zeros(grid.shape, dtype=int)
+    for trajectory, frame, value in zip(scores["trajectory"], scores["frame"], scores[column], strict=True):
+        if not (0 <= trajectory < grid.shape[0] and 0 <= frame < grid.shape[1]):
+            raise EnergyMarginError(f"scores row for trajectory {trajectory}, frame {frame} is outside the dataset")
+        grid[trajectory, frame] = value
+        seen[trajectory, frame] += 1
+    if np.any(seen != 1):
+        trajectory, frame = (int(i) for i in np.argwhere(seen != 1)[0])
+        raise EnergyMarginError(
+            f"scores.csv has {seen[trajectory, frame]} rows for trajectory {trajectory}, frame {frame} (expected 1)"
+        )
+    if not np.all(np.isfinite(grid)):
+        raise EnergyMarginError(f"scores.csv has a NaN or infinite {column}")
+    return grid
+
+
+def _questions(
+    dataset: Dataset,
+    capture: np.ndarray,
+    success: np.ndarray,
+    *,
+    capture_window: int,
+    success_frames: int,
+    weights: str,
+) -> dict[str, float | None]:
+    half = max(1, dataset.n_frames // 2)
+    success_labels = dataset.success_labels()
+    return {
+        "capture_ap": average_precision(dataset.capture_labels(capture_window), capture),
+        "capture_ap_window2": average_precision(dataset.capture_labels(2), capture),
+        "success_ap": average_precision(
+            success_labels, trajectory_success_score(success, last=success_frames, scheme=weights)
+        ),
+        "success_ap_first_half": average_precision(
+            success_labels, trajectory_success_score(success[:, :half], last=success_frames, scheme=weights)
+        ),
+    }
+
+
+def check_options(dataset: Dataset, *, capture_window: int, success_frames: int) -> None:
+    """Refuse a k-hat or k-bar that does not fit the dataset's frames.
+
+    Raises:
+        EnergyMarginError: when ``capture_window`` >= the frames per trajectory (the window would
+            reach past every trajectory's end) or ``success_frames`` exceeds them.
+    """
+    frames = dataset.n_frames
+    if capture_window >= frames:
+        raise EnergyMarginError(
+            f"--capture-window {capture_window} needs more than {capture_window} frames per trajectory; "
+            f"{dataset.path} has {frames} (largest window {frames - 1})"
+        )
+    if success_frames > frames:
+        raise EnergyMarginError(
+            f"--success-frames {success_frames} exceeds the {frames} frames per trajectory of {dataset.path}"
+        )
+
+
+def evaluate(
+    path: Path | str,
+    *,
+    capture_window: int = 0,
+    success_frames: int = 3,
+    weights: str = "linear",
+) -> dict[str, Any]:
+    """AP of a scored dataset.
+
+    Args:
+        path: dataset directory holding ``scores.csv``.
+        capture_window: k-hat of the capture label, >= 0.
+        success_frames: k-bar, frames averaged by the trajectory success score, >= 1.
+        weights: ``"linear"`` (increasing towards the end) or ``"uniform"``.
+
+    Returns:
+        A JSON-compatible dictionary (keys documented in ``docs/evaluation.md``).
+
+    """
+    if isinstance(capture_window, bool) or not isinstance(capture_window, int) or capture_window < 0:
+        raise EnergyMarginError(f"capture window must be an integer >= 0, got {capture_window!r}")
+    if isinstance(success_frames, bool) or not isinstance(success_frames, int) or success_frames < 1:
+        raise EnergyMarginError(f"success frames must be an integer >= 1, got {success_frames!r}")
+    if weights not in ("linear", "uniform"):
+        raise EnergyMarginError(f"weights must be 'linear' or 'uniform', got {weights!r}")
+    dataset = require_valid(path, overlaps=True, scores=None)
+    check_options(dataset, capture_window=capture_window, success_frames=success_frames)
+    scores = load_scores(path)
+    capture = score_grid(dataset, scores, "capture_score")
+    success = score_grid(dataset, scores, "success_score")
+    runtime = score_grid(dataset, scores, "runtime_s")
+    physics = score_grid(dataset, scores, "physics_s")
+    options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
+    result: dict[str, Any] = dict(_questions(dataset, capture, success, **options))
+    current_capture = dataset.arrays["captured"].astype(float)
+    current_success = dataset.arrays["in_success"].astype(float)
+    constant = np.zeros_like(capture)
+    result["baselines"] = {
+        "current_state": _questions(dataset, current_capture, current_success, **options),
+        "chance": _questions(dataset, constant, constant, **options),
+    }
+    heuristic = distance_scores(dataset)
+    if heuristic is not None:
+        result["baselines"]["distance"] = _questions(dataset, *heuristic, **options)
+    capture_labels = dataset.capture_labels(capture_window)
+    result.update(
+        {
+            "capture_window": capture_window,
+            "success_frames": success_frames,
+            "weights": weights,
+            "capture_positive_rate": float(capture_labels.mean()),
+            "capture_positive_rate_window2": float(dataset.capture_labels(2).mean()),
+            "success_positive_rate": float(dataset.success_labels().mean()),
+            "n_frames": int(capture.size),
+            "n_trajectories": dataset.n_trajectories,
+            "n_objects": dataset.n_objects,
+            "task": dataset.metadata["task"],
+            "runtime_per_frame_s": float(runtime.mean()),
+            "runtime_per_frame_std_s": float(runtime.std()),
+            "physics_per_frame_s": float(physics.mean()),
+        }
+    )
+    return result
+
+
+def _cell(value: float | None) -> str:
+    return "  n/a" if value is None else f"{value:5.3f}"
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """A human-readable table of :func:`evaluate`'s result."""
+    k_hat, k_bar = result["capture_window"], result["success_frames"]
+    rows = [
+        (f"capture AP, k-hat={k_hat}", "capture_ap"),
+        ("capture AP, k-hat=2", "capture_ap_window2"),
+        (f"success AP, last {k_bar} frames", "success_ap"),
+        ("success AP, first half of frames", "success_ap_first_half"),
+    ]
+    names = list(result["baselines"])
+    header = f"{'question':34s} {'energy-margin':>13s} " + " ".join(f"{n:>13s}" for n in names)
+    lines = [
+        f"{result['task']}: {result['n_trajectories']} trajectories, {result['n_frames']} frames, "
+        f"{result['n_objects']} objects",
+        header,
+        "-" * len(header),
+    ]
+    for label, key in rows:
+        baseline_cells = " ".join(f"{_cell(result['baselines'][n][key]):>13s}" for n in names)
+        lines.append(f"{label:34s} {_cell(result[key]):>13s} {baseline_cells}")
+    lines.append(
+        f"positive rate: capture {result['capture_positive_rate']:.3f} (k-hat={k_hat}), "
+        f"success {result['success_positive_rate']:.3f}"
+    )
+    lines.append(
+        f"runtime per frame: {result['runtime_per_frame_s']:.3f} +- {result['runtime_per_frame_std_s']:.3f} s "
+        f"(physics {result['physics_per_frame_s']:.3f} s)"
+    )
+    return "\n".join(lines)

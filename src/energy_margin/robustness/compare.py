@@ -1,0 +1,161 @@
+"""Table I of the paper: AP on true states beside AP on perturbed states, and the score error.
+
+:func:`compare_perturbed` reads a scored true-state dataset and scored perturbed copies of it
+(:mod:`energy_margin.robustness.perturb`), which must correspond frame by frame (same task, T, K, n and the
+same labels). Perturbed AP is the mean ± standard deviation (population, ddof = 0, as the paper's
+values) over the copies; the score error is perturbed − true per frame, pooled over every frame
+of every copy, mean ± standard deviation, for the capture score and the per-frame success score.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.data.dataset import METADATA_FILE, Dataset, load_dataset
+from energy_margin.data.scores_file import load_scores
+from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.metrics import evaluate, score_grid
+
+
+def expand_compare_paths(paths: list[Path | str]) -> list[Path]:
+    """Datasets named by ``paths``.
+
+    Each path is a dataset directory itself, or a parent of dataset directories (e.g. ``perturb``'s
+    ``out``: its sub-directories, in numeric then name order).
+    """
+    expanded: list[Path] = []
+    for item in paths:
+        path = Path(item)
+        if (path / METADATA_FILE).is_file() or not path.is_dir():
+            expanded.append(path)
+            continue
+        children = [child for child in path.iterdir() if (child / METADATA_FILE).is_file()]
+        if not children:
+            raise EnergyMarginError(f"{path} is neither a dataset nor a directory of datasets")
+        children.sort(key=lambda child: (0, int(child.name), "") if child.name.isdigit() else (1, 0, child.name))
+        expanded.extend(children)
+    return expanded
+
+
+def _check_correspondence(true: Dataset, other: Dataset, where: Path) -> None:
+    for key in ("task", "n_trajectories", "n_frames", "n_objects"):
+        if true.metadata.get(key) != other.metadata.get(key):
+            raise EnergyMarginError(
+                f"{where} does not correspond to the true-state dataset: {key} is "
+                f"{other.metadata.get(key)!r}, expected {true.metadata.get(key)!r}"
+            )
+    for name in ("captured", "in_success"):
+        if not np.array_equal(true.arrays[name], other.arrays[name]):
+            raise EnergyMarginError(
+                f"{where} does not correspond to the true-state dataset: its {name!r} labels differ"
+            )
+
+
+def _mean_std(values: list[float | None] | np.ndarray) -> dict[str, Any]:
+    if any(v is None for v in values):
+        return {"mean": None, "std": None, "values": list(values)}
+    array = np.asarray(values, dtype=float)
+    return {"mean": float(array.mean()), "std": float(array.std()), "values": [float(v) for v in array]}
+
+
+def compare_perturbed(
+    path: Path | str,
+    compare: list[Path | str],
+    *,
+    capture_window: int = 0,
+    success_frames: int = 3,
+    weights: str = "linear",
+) -> dict[str, Any]:
+    """Evaluate the true-state dataset at ``path`` and its perturbed copies ``compare``.
+
+    Returns:
+        :func:`~energy_margin.evaluation.metrics.evaluate`'s result for the true states (``capture_ap``,
+        ``success_ap``, baselines, ...) plus ``capture_ap_perturbed``, ``success_ap_perturbed``,
+        ``capture_score_error`` and ``success_score_error`` (each ``{"mean", "std", "values"}``;
+        the errors' ``values`` hold one mean per copy), ``n_repeats`` and ``compare`` (paths).
+
+    Raises:
+        EnergyMarginError: when a copy is missing, unscored or does not correspond.
+
+    """
+    options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
+    result = evaluate(path, **options)
+    others = expand_compare_paths(list(compare))
+    if not others:
+        raise EnergyMarginError("--compare needs at least one perturbed dataset")
+    for candidate in others:
+        if candidate.resolve() == Path(path).resolve():
+            raise EnergyMarginError(
+                f"--compare {candidate} compares the dataset with itself: name its perturbed copies"
+            )
+    true = load_dataset(path)
+    true_scores = load_scores(path)
+    true_capture = score_grid(true, true_scores, "capture_score")
+    true_success = score_grid(true, true_scores, "success_score")
+    capture_aps: list[float | None] = []
+    success_aps: list[float | None] = []
+    capture_errors: list[np.ndarray] = []
+    success_errors: list[np.ndarray] = []
+    runtimes: list[float] = []
+    for other_path in others:
+        other = load_dataset(other_path)
+        _check_correspondence(true, other, other_path)
+        other_result = evaluate(other_path, **options)
+        scores = load_scores(other_path)
+        capture_errors.append(score_grid(other, scores, "capture_score") - true_capture)
+        success_errors.append(score_grid(other, scores, "success_score") - true_success)
+        capture_aps.append(other_result["capture_ap"])
+        success_aps.append(other_result["success_ap"])
+        runtimes.append(other_result["runtime_per_frame_s"])
+    capture_error = np.stack(capture_errors)
+    success_error = np.stack(success_errors)
+    result.update(
+        {
+            "capture_ap_perturbed": _mean_std(capture_aps),
+            "success_ap_perturbed": _mean_std(success_aps),
+            "capture_score_error": {
+                "mean": float(capture_error.mean()),
+                "std": float(capture_error.std()),
+                "values": [float(e.mean()) for e in capture_error],
+            },
+            "success_score_error": {
+                "mean": float(success_error.mean()),
+                "std": float(success_error.std()),
+                "values": [float(e.mean()) for e in success_error],
+            },
+            "n_repeats": len(others),
+            "compare": [str(p) for p in others],
+            "runtime_per_frame_perturbed_s": float(np.mean(runtimes)),
+        }
+    )
+    return result
+
+
+def _pm(entry: dict[str, Any], signed: bool = False) -> str:
+    if entry["mean"] is None:
+        return "n/a"
+    sign = "+" if signed else ""
+    return f"{entry['mean']:{sign}.2f} ± {entry['std']:.2f}"
+
+
+def format_robustness_table(result: dict[str, Any]) -> str:
+    """Table I row of :func:`compare_perturbed`'s result, human-readable."""
+
+    def cell(value: float | None) -> str:
+        return "n/a" if value is None else f"{value:.2f}"
+
+    header = f"{'score':10s} {'true state':>11s} {'perturbed state':>16s} {'error':>14s}"
+    lines = [
+        f"Table I ({result['task']}, {result['n_objects']} objects, {result['n_repeats']} perturbed repeats; "
+        "perturbed: mean ± std over repeats; error: perturbed - true over every frame)",
+        header,
+        "-" * len(header),
+        f"{'capture':10s} {cell(result['capture_ap']):>11s} {_pm(result['capture_ap_perturbed']):>16s} "
+        f"{_pm(result['capture_score_error'], True):>14s}",
+        f"{'success':10s} {cell(result['success_ap']):>11s} {_pm(result['success_ap_perturbed']):>16s} "
+        f"{_pm(result['success_score_error'], True):>14s}",
+    ]
+    return "\n".join(lines)

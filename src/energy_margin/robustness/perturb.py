@@ -1,0 +1,311 @@
+"""Perturbed states: the perception-noise experiment of the paper's Section III.C (Table I).
+
+For every frame of a dataset, the object centres are replaced by points drawn uniformly inside
+the minimum-volume ellipsoid of the true centres (:func:`~energy_margin.world.ellipsoid.min_volume_ellipsoid`)
+- as if perception only delivered the group's ellipsoid - and the objects are set at rest.
+
+* Coordinates: planar tasks (upright objects, e.g. pushing) fit the 2-D ellipse of the (x, y)
+  centres and put every object at its resting height on the ground (the recorded heights sink
+  into the soft ground by up to ~2 mm); free objects (e.g. scooping) fit the 3-D ellipsoid.
+* Orientation: set to the identity (pushing: yaw 0; scooping: boxes flat and axis-aligned), as
+  the authors do - perception that only sees the ellipsoid does not know the objects' poses.
+  ``keep_orientation=True`` keeps each object's recorded orientation instead.
+* Velocities: zero (linear and angular). The end-effector, friction, drive and labels are not
+  perturbed: the ground truth stays that of the true states; only the perceived state changes.
+* No overlaps (unlike the authors' version): objects are placed one at a time by **rejection**.
+  A candidate is accepted when, in the task's simulator (the frame's scene, with the objects not
+  yet placed parked far away), no contact of the new object - with another object, the
+  end-effector, the table, ground or wall - penetrates deeper than ``tolerance``. Rejection keeps
+  the draw uniform over the admissible part of the ellipsoid. After ``max_attempts`` rejected
+  candidates for one object the frame starts over; after ``max_restarts`` restarts the sampling
+  ellipsoid's radii grow by 10 % per further restart (the fallback; counted in ``dataset.json``).
+  A frame that still cannot be placed is an error.
+* Seeds: repeat r, frame i (trajectory-major) uses
+  ``SeedSequence(seed).spawn(repeats)[r].spawn(T * K)[i]``: deterministic, per-frame independent.
+
+Layout: ``out/1`` ... ``out/R``, each a dataset directory like any other (format 1), whose
+``dataset.json`` gains a ``perturbation`` object (source, repeat, seed, settings, counts).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.data.dataset import Dataset, load_dataset, validate
+from energy_margin.data.dataset import check_target as _check_target
+from energy_margin.data.dataset import write_directory as _write_directory
+from energy_margin.errors import EnergyMarginError
+from energy_margin.sim import make_simulator
+from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
+from energy_margin.world.state import FrameState
+
+#: Where objects not yet placed wait (far from everything, one metre apart).
+_PARK_DISTANCE = 100.0
+
+
+@dataclass(frozen=True)
+class FramePerturbation:
+    """Result of perturbing one frame.
+
+    Attributes:
+        frame: the perturbed state.
+        ellipsoid: the ellipsoid fitted to the true centres (2-D or 3-D).
+        candidates: candidates drawn (accepted and rejected).
+        restarts: times the frame started over.
+        growth: factor applied to the sampling ellipsoid's radii (1.0 unless the fallback ran).
+
+    """
+
+    frame: FrameState
+    ellipsoid: Ellipsoid
+    candidates: int
+    restarts: int
+    growth: float
+
+
+def _planar(dataset: Dataset) -> bool:
+    return dataset.task.build_scene(1, 0.5).object_motion == "upright"
+
+
+def _object_size(dataset: Dataset) -> float:
+    """The smallest object's first size parameter (cylinder radius, box half edge), m."""
+    scene = dataset.task.build_scene(dataset.n_objects, 0.5)
+    return float(min(obj.geom.size[0] for obj in scene.objects))
+
+
+def perturb_frame(
+    frame: FrameState,
+    simulator: Any,
+    rng: np.random.Generator,
+    *,
+    planar: bool,
+    min_thickness: float,
+    tolerance: float = 5e-4,
+    keep_orientation: bool = False,
+    max_attempts: int = 500,
+    max_restarts: int = 3,
+    max_growth_restarts: int = 20,
+) -> FramePerturbation:
+    """Resample the object centres of ``frame`` uniformly inside their ellipsoid, without overlaps.
+
+    Args:
+        frame: the true state.
+        simulator: a simulator of the frame's scene.
+        rng: the frame's generator.
+        planar: fit the 2-D ellipse of (x, y) and keep heights (upright objects), else 3-D.
+        min_thickness: radius of the ellipsoid's flat axes (e.g. the object radius), m.
+        tolerance: largest accepted contact penetration of a placed object, m.
+        keep_orientation: keep the recorded orientations instead of the identity.
+        max_attempts: rejected candidates of one object before the frame starts over.
+        max_restarts: restarts with the fitted ellipsoid before its radii start to grow.
+        max_growth_restarts: further restarts, the n-th with radii 1.1^n times larger.
+
+    Raises:
+        EnergyMarginError: when no admissible placement is found.
+
+    """
+    n = frame.n_objects
+    coords = frame.object_pos[:, :2] if planar else frame.object_pos
+    ellipsoid = min_volume_ellipsoid(coords, min_thickness=min_thickness)
+    quat = frame.object_quat.copy() if keep_orientation else np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    parked = np.column_stack(
+        [np.full(n, _PARK_DISTANCE), _PARK_DISTANCE + np.arange(n, dtype=float), np.full(n, _PARK_DISTANCE)]
+    )
+    heights = frame.object_pos[:, 2].copy()
+    if planar:
+        heights[:] = _resting_height(frame, simulator, parked, quat)
+    candidates = 0
+    for restart in range(max_restarts + max_growth_restarts + 1):
+        growth = 1.1 ** max(0, restart - max_restarts)
+        sampler = Ellipsoid(ellipsoid.center, ellipsoid.radii * growth, ellipsoid.rotation)
+        positions = parked.copy()
+        placed = 0
+        attempts = 0
+        while placed < n and attempts < max_attempts:
+            attempts += 1
+            candidates += 1
+            point = sampler.sample(rng, 1)[0]
+            trial = positions.copy()
+            if planar:
+                trial[placed] = (point[0], point[1], heights[placed])
+            else:
+                trial[placed] = point
+            simulator.reset(_with_objects(frame, trial, quat))
+            if _max_penetration(simulator, [placed]) <= tolerance:
+                positions = trial
+                placed += 1
+                attempts = 0
+        if placed == n:
+            return FramePerturbation(_with_objects(frame, positions, quat), ellipsoid, candidates, restart, growth)
+    raise EnergyMarginError(
+        f"cannot place {n} objects without overlaps inside the ellipsoid of their centres "
+        f"(radii {np.round(ellipsoid.radii, 4).tolist()} m) after {candidates} candidates"
+    )
+
+
+def _max_penetration(simulator: Any, objects: list[int]) -> float:
+    """Deepest current interpenetration involving any of ``objects``, m (0.0 when none)."""
+    depths = [depth for obj, other, depth in simulator.object_penetrations() if obj in objects or other in objects]
+    return max(depths, default=0.0)
+
+
+def _resting_height(frame: FrameState, simulator: Any, parked: np.ndarray, quat: np.ndarray) -> float:
+    """Height at which an object of a planar task rests on the ground without penetrating it.
+
+    The recorded heights sink into the soft ground by up to ~2 mm (pushing); one object is put at
+    the frame's median height far from everything but the (flat, unbounded) ground, and lifted by
+    the penetration measured there.
+    """
+    z = float(np.median(frame.object_pos[:, 2]))
+    probe = parked.copy()
+    probe[0] = (-_PARK_DISTANCE, -_PARK_DISTANCE, z)
+    simulator.reset(_with_objects(frame, probe, quat))
+    return z + _max_penetration(simulator, [0])
+
+
+def _with_objects(frame: FrameState, positions: np.ndarray, quat: np.ndarray) -> FrameState:
+    return FrameState(
+        object_pos=positions,
+        object_quat=quat,
+        object_vel=np.zeros((frame.n_objects, 6)),
+        robot_q=frame.robot_q,
+        robot_v=frame.robot_v,
+    )
+
+
+def perturb_dataset(
+    path: Path | str,
+    *,
+    repeats: int,
+    seed: int,
+    out: Path | str,
+    tolerance: float = 5e-4,
+    keep_orientation: bool = False,
+    min_thickness: float | None = None,
+    overwrite: bool = False,
+) -> list[Path]:
+    """Write ``repeats`` perturbed copies of the dataset at ``path`` as ``out/1`` ... ``out/R``.
+
+    Args:
+        path: the true-state dataset.
+        repeats: number of perturbed copies R, >= 1.
+        seed: non-negative integer seed.
+        out: parent directory of the copies.
+        tolerance: largest accepted contact penetration of a resampled object, m, >= 0.
+        keep_orientation: keep recorded orientations (default: identity, as the authors).
+        min_thickness: radius of flat ellipsoid axes, m; default the object radius (pushing) or
+            half edge (scooping).
+        overwrite: replace existing copies.
+
+    Returns:
+        The paths of the copies. A copy already written with the same settings is kept as is.
+
+    """
+    for name, value, minimum in (("repeats", repeats, 1), ("seed", seed, 0)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+            raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise EnergyMarginError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+    if min_thickness is not None and not (np.isfinite(min_thickness) and min_thickness > 0):
+        raise EnergyMarginError(f"min thickness must be a finite number > 0, got {min_thickness!r}")
+    source = load_dataset(path)
+    out = Path(out)
+    if out.resolve() == Path(path).resolve() or Path(path).resolve() in out.resolve().parents:
+        raise EnergyMarginError(f"--out {out} must not be the dataset {path} or lie inside it")
+    if out.exists() and not out.is_dir():
+        raise EnergyMarginError(f"{out} exists and is not a directory")
+    thickness = float(min_thickness) if min_thickness is not None else _object_size(source)
+    planar = _planar(source)
+    settings = {
+        "method": "uniform in the minimum-volume ellipsoid of the object centres, rejection of overlaps",
+        "coordinates": "xy" if planar else "xyz",
+        "tolerance_m": float(tolerance),
+        "min_thickness_m": thickness,
+        "keep_orientation": bool(keep_orientation),
+        "velocities": "zero",
+        "max_attempts": 500,
+        "max_restarts": 3,
+        "growth_per_restart": 1.1,
+    }
+    targets = [out / str(r + 1) for r in range(repeats)]
+    pending = []
+    for target in targets:
+        existing = _existing(target, source, seed, settings)
+        if existing:
+            continue
+        _check_target(target, overwrite=overwrite)
+        pending.append(target)
+    if not pending:
+        return targets
+    total = source.n_trajectories * source.n_frames
+    repeat_seeds = np.random.SeedSequence(seed).spawn(repeats)
+    task = source.task
+    for r, target in enumerate(targets):
+        if target not in pending:
+            continue
+        frame_seeds = repeat_seeds[r].spawn(total)
+        arrays = {key: value.copy() for key, value in source.arrays.items()}
+        candidates = restarts = grown = 0
+        growths = []
+        for trajectory in range(source.n_trajectories):
+            friction = float(source.arrays["friction"][trajectory])
+            drive = source.arrays["drive"][trajectory]
+            simulator = make_simulator(task.build_scene(source.n_objects, friction, drive), source.metadata["engine"])
+            for index in range(source.n_frames):
+                rng = np.random.default_rng(frame_seeds[trajectory * source.n_frames + index])
+                result = perturb_frame(
+                    source.frame(trajectory, index),
+                    simulator,
+                    rng,
+                    planar=planar,
+                    min_thickness=thickness,
+                    tolerance=tolerance,
+                    keep_orientation=keep_orientation,
+                )
+                arrays["object_pos"][trajectory, index] = result.frame.object_pos
+                arrays["object_quat"][trajectory, index] = result.frame.object_quat
+                arrays["object_vel"][trajectory, index] = 0.0
+                candidates += result.candidates
+                restarts += result.restarts
+                grown += result.growth > 1.0
+                growths.append(result.growth)
+        metadata = dict(source.metadata)
+        metadata["perturbation"] = {
+            **settings,
+            "source": str(Path(path)),
+            "source_seed": source.metadata.get("seed"),
+            "repeat": r + 1,
+            "repeats": repeats,
+            "seed": int(seed),
+            "candidates": int(candidates),
+            "restarts": int(restarts),
+            "frames_with_grown_ellipsoid": int(grown),
+            "largest_growth": float(max(growths)),
+        }
+        dataset = Dataset(path=target, metadata=metadata, arrays=arrays)
+        validate(dataset)
+        _write_directory(target, metadata, arrays, overwrite=overwrite)
+    return targets
+
+
+def _existing(target: Path, source: Dataset, seed: int, settings: dict[str, Any]) -> bool:
+    """Whether ``target`` already holds the copy these settings would write."""
+    if not (target / "dataset.json").is_file():
+        return False
+    try:
+        existing = load_dataset(target)
+    except EnergyMarginError:
+        return False
+    info = existing.metadata.get("perturbation")
+    if not isinstance(info, dict) or info.get("seed") != int(seed):
+        return False
+    if any(info.get(key) != value for key, value in settings.items()):
+        return False
+    same_shape = all(
+        existing.metadata.get(k) == source.metadata.get(k) for k in ("task", "n_trajectories", "n_frames", "n_objects")
+    )
+    return same_shape and bool(np.array_equal(existing.arrays["captured"], source.arrays["captured"]))

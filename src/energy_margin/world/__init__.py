@@ -1,0 +1,1 @@
+"""The world: engine-agnostic scenes, frame states and the geometry of object sets."""

@@ -1,0 +1,299 @@
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin import __version__
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.cli import main
+from energy_margin.data.dataset import FRAMES_FILE
+
+REQUIRED = {
+    "capture_ap",
+    "success_ap",
+    "capture_positive_rate",
+    "success_positive_rate",
+    "n_frames",
+    "n_trajectories",
+    "runtime_per_frame_s",
+    "baselines",
+}
+GENERATE = ["generate", "--task", "pushing", "--objects", "2", "--trajectories", "2", "--frames", "3", "--seed", "0"]
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    """Run ``main`` in this process: (exit status, stdout, stderr)."""
+    try:
+        code = main(args)
+    except SystemExit as exit_:
+        code = exit_.code if isinstance(exit_.code, int) else 1
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def snapshot(root: Path) -> dict[str, bytes]:
+    """Every file and directory under ``root`` (hidden ones included)."""
+    return {str(p.relative_to(root)): (p.read_bytes() if p.is_file() else b"<dir>") for p in sorted(root.rglob("*"))}
+
+
+def assert_one_error_line(code: int, err: str, *, expected_code: int = 2) -> None:
+    assert code == expected_code, err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("energy-margin"), err
+    assert "error:" in lines[0]
+    assert "Traceback" not in err
+
+
+# ---------------------------------------------------------------- help and version
+
+
+def test_help_exits_zero(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli(["--help"], capsys)
+    assert code == 0
+    assert "generate" in out
+    assert "analyze" in out
+    assert "evaluate" in out
+    code, out, _ = run_cli(["analyze", "--help"], capsys)
+    assert code == 0
+    assert "--iterations" in out
+    assert "--workers" in out
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli(["--version"], capsys)
+    assert code == 0
+    assert out.strip() == f"energy-margin {__version__}"
+
+
+# ---------------------------------------------------------------- the whole pipeline
+
+
+def test_generate_analyze_evaluate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = tmp_path / "push"
+    code, out, err = run_cli([*GENERATE, "--out", str(data)], capsys)
+    assert code == 0, err
+    assert err == ""
+    assert "2 trajectories x 3 frames, 2 objects" in out
+    assert sorted(p.name for p in data.iterdir()) == ["dataset.json", "frames.npz"]
+
+    code, out, err = run_cli(["analyze", str(data), "--iterations", "30", "--seed", "1", "--no-progress"], capsys)
+    assert code == 0, err
+    assert err == ""
+    assert out.strip() == f"wrote {data / 'scores.csv'}"
+    lines = (data / "scores.csv").read_text().splitlines()
+    assert len(lines) == 7
+    assert all(line.split(",")[5] == "30" for line in lines[1:])
+
+    code, out, err = run_cli(["evaluate", str(data), "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(out)
+    assert set(result) >= REQUIRED
+    assert "current_state" in result["baselines"]
+    assert result["n_frames"] == 6
+    assert result["n_trajectories"] == 2
+
+    code, out, _ = run_cli(["evaluate", str(data), "--capture-window", "1", "--success-frames", "2"], capsys)
+    assert code == 0
+    assert "capture AP, k-hat=1" in out
+    assert "success AP, last 2 frames" in out
+
+
+def test_analyze_options_reach_the_configuration(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["analyze", str(tiny_dataset), "--nodes", "8", "--cost", "energy", "--lambda", "2.5", "--no-progress"]
+    code, _, err = run_cli(args, capsys)
+    assert code == 0, err
+    description = json.loads((tiny_dataset / "analysis.json").read_text())
+    assert description["analyzer"]["iterations"] is None
+    assert description["analyzer"]["nodes"] == 8
+    assert description["analyzer"]["cost"] == "energy"
+    assert description["likelihood_lambda"] == 2.5
+    # A different configuration is refused, then accepted with --overwrite.
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"], capsys)
+    assert_one_error_line(code, err)
+    assert "--overwrite" in err
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress", "--overwrite"], capsys)
+    assert code == 0, err
+    assert json.loads((tiny_dataset / "analysis.json").read_text())["analyzer"]["iterations"] == 5
+
+
+def test_default_budget_is_300_iterations(
+    tiny_dataset: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    seen: dict[str, AnalyzerConfig] = {}
+
+    def fake_analyze(path: str, config: AnalyzerConfig, **kwargs: object) -> Path:
+        seen["config"] = config
+        return Path(path) / "scores.csv"
+
+    monkeypatch.setattr("energy_margin.analysis.run.analyze", fake_analyze)
+    code, _, err = run_cli(["analyze", str(tiny_dataset)], capsys)
+    assert code == 0, err
+    assert (seen["config"].iterations, seen["config"].nodes) == (300, None)
+
+
+# ---------------------------------------------------------------- bad input: one line, nothing written
+
+
+def _garbage_frames(directory: Path) -> None:
+    (directory / FRAMES_FILE).write_bytes(b"this is not an npz archive")
+
+
+def _nan_frame(directory: Path) -> None:
+    path = directory / FRAMES_FILE
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    arrays["object_pos"][1, 0, 0, 0] = np.nan
+    np.savez(path, **arrays)
+
+
+@pytest.mark.parametrize(
+    ("args", "prepare", "message"),
+    [
+        (["analyze", "{tmp}/missing", "--iterations", "5"], None, "does not exist"),
+        (["evaluate", "{tmp}/missing"], None, "does not exist"),
+        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _garbage_frames, "is corrupt"),
+        (["evaluate", "{data}"], _garbage_frames, "is corrupt"),
+        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _nan_frame, "object_pos [trajectory 1, frame 0"),
+        (["evaluate", "{data}"], None, "run `energy-margin analyze` first"),
+        (["analyze", "{data}", "--iterations", "-5"], None, "--iterations: expected an integer >= 0, got -5"),
+        (["analyze", "{data}", "--nodes", "many"], None, "--nodes: expected an integer"),
+        (["analyze", "{data}", "--workers", "0"], None, "--workers: expected an integer >= 1"),
+        (["analyze", "{data}", "--lambda", "nan"], None, "--lambda: expected a finite number >= 0"),
+        (["analyze", "{data}", "--cost", "heat"], None, "invalid choice"),
+        (["analyze", "{data}", "--engine", "bullet", "--no-progress"], None, "invalid choice: 'bullet'"),
+        (["analyze", "{data}", "--iterations", "0", "--no-progress"], None, "--iterations 0 grows no tree"),
+        (["evaluate", "{scored}", "--capture-window", "3"], None, "--capture-window 3 needs more than 3 frames"),
+        (["evaluate", "{scored}", "--success-frames", "4"], None, "--success-frames 4 exceeds the 3 frames"),
+        (["evaluate", "{scored}", "--compare", "{scored}"], None, "compares the dataset with itself"),
+        (["evaluate", "{data}", "--success-frames", "0"], None, "expected an integer >= 1"),
+        ([*GENERATE[:2], "nope", *GENERATE[3:], "--out", "{tmp}/new"], None, "invalid choice: 'nope'"),
+        (["generate", "--task", "pushing", "--objects", "0", "--out", "{tmp}/new"], None, "objects must be >= 1"),
+        (
+            ["generate", "--task", "pushing", "--objects", "1", "--trajectories", "0", "--out", "{tmp}/new"],
+            None,
+            ">= 1",
+        ),
+        (["generate", "--task", "pushing", "--objects", "1", "--out", "{tmp}/new", "--set", "bogus=1"], None, "bogus"),
+        (
+            ["generate", "--task", "pushing", "--objects", "1", "--out", "{tmp}/new", "--set", "wall_y"],
+            None,
+            "KEY=JSON",
+        ),
+        (["generate", "--task", "pushing", "--objects", "1", "--out", "{tmp}/new", "--set", "wall_y=[1"], None, "JSON"),
+        (["generate", "--task", "pushing", "--objects", "two", "--out", "{tmp}/new"], None, "invalid int value"),
+        (["generate", "--objects", "1", "--out", "{tmp}/new"], None, "--task"),
+        ([*GENERATE, "--out", "{data}", "--seed", "5"], None, "already exists; pass --overwrite"),
+        (["frobnicate"], None, "invalid choice"),
+    ],
+)
+def test_bad_input_is_one_line_and_writes_nothing(
+    tmp_path: Path,
+    tiny_dataset: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: list[str],
+    prepare: Callable[[Path], None] | None,
+    message: str,
+) -> None:
+    if prepare is not None:
+        prepare(tiny_dataset)
+    before = snapshot(tmp_path)
+    if any("{scored}" in a for a in args):
+        assert main(["analyze", str(tiny_dataset), "--iterations", "3", "--no-progress"]) == 0
+        capsys.readouterr()
+        before = snapshot(tmp_path)
+    argv = [
+        a.replace("{tmp}", str(tmp_path)).replace("{data}", str(tiny_dataset)).replace("{scored}", str(tiny_dataset))
+        for a in args
+    ]
+    code, out, err = run_cli(argv, capsys)
+    assert_one_error_line(code, err)
+    assert message in err
+    assert out == ""
+    assert snapshot(tmp_path) == before
+
+
+def test_engine_errors_are_reported_on_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["generate", "--task", "pushing", "--objects", "1", "--out", str(tmp_path / "new"), "--set", "object_mass=0"]
+    code, _, err = run_cli(argv, capsys)
+    assert list(tmp_path.iterdir()) == []
+    assert_one_error_line(code, err)
+
+
+def test_wrongly_typed_setting_is_a_user_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["generate", "--task", "pushing", "--objects", "1", "--out", str(tmp_path / "new"), "--set", 'wall_y="abc"']
+    code, _, err = run_cli(argv, capsys)
+    assert list(tmp_path.iterdir()) == []
+    assert_one_error_line(code, err, expected_code=2)
+
+
+def test_damaged_archive_is_a_user_error(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tiny_dataset / FRAMES_FILE
+    data = bytearray(path.read_bytes())
+    for i in range(200, 260):
+        data[i] ^= 0xFF
+    path.write_bytes(bytes(data))
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"], capsys)
+    assert_one_error_line(code, err, expected_code=2)
+    assert "frames.npz" in err
+    assert "corrupt" in err
+
+
+def test_unexpected_errors_are_one_line_with_exit_1(
+    tiny_dataset: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr("energy_margin.evaluation.metrics.evaluate", broken)
+    code, _, err = run_cli(["evaluate", str(tiny_dataset)], capsys)
+    assert_one_error_line(code, err, expected_code=1)
+    assert "RuntimeError: boom" in err
+    assert "ENERGY_MARGIN_DEBUG=1" in err
+    monkeypatch.setenv("ENERGY_MARGIN_DEBUG", "1")
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["evaluate", str(tiny_dataset)])
+
+
+def test_interrupt_exits_130(
+    tiny_dataset: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("energy_margin.analysis.run.analyze", interrupted)
+    code, _, err = run_cli(["analyze", str(tiny_dataset)], capsys)
+    assert code == 130
+    assert "run the same command again to resume" in err
+
+
+# ---------------------------------------------------------------- as a separate process
+
+
+@pytest.mark.slow
+def test_module_entry_point_in_a_subprocess(tmp_path: Path) -> None:
+    def cli(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "energy_margin", *args], capture_output=True, text=True, timeout=120, check=False
+        )
+
+    data = tmp_path / "push"
+    bad = cli("generate", "--task", "pushing", "--objects", "0", "--out", str(data))
+    assert bad.returncode == 2
+    assert bad.stderr.splitlines() == ["energy-margin: error: objects must be >= 1, got 0"]
+    assert not data.exists()
+
+    assert cli(*GENERATE[:4], "1", *GENERATE[5:], "--out", str(data)).returncode == 0
+    analyzed = cli("analyze", str(data), "--iterations", "20", "--no-progress")
+    assert analyzed.returncode == 0, analyzed.stderr
+    evaluated = cli("evaluate", str(data), "--json")
+    assert evaluated.returncode == 0, evaluated.stderr
+    result = json.loads(evaluated.stdout)
+    assert set(result) >= REQUIRED
+    assert result["n_frames"] == 6

@@ -1,0 +1,139 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.report.config import ReproduceConfig
+from energy_margin.report.html import SECTIONS
+from energy_margin.report.reproduce import ablation_markdown, reproduce, table_one_markdown
+
+pytest.importorskip("matplotlib")
+
+TINY = ReproduceConfig(
+    quick=True,
+    trajectories=3,
+    frames=3,
+    iterations=10,
+    repeats=1,
+    ablation_objects=(2, 3),
+    ablation_trajectories=2,
+    ablation_frames=3,
+    workers=1,
+)
+
+
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("reproduce")
+    reproduce(out, TINY)
+    return out
+
+
+def _png_is_a_picture(path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = mpimg.imread(path)
+    assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
+    rgb = image[..., :3].reshape(-1, 3)
+    # A figure that shows data has many colours and is far from a blank canvas.
+    assert len(np.unique(np.round(rgb, 2), axis=0)) > 20
+    assert float(rgb.std()) > 0.05
+
+
+@pytest.mark.slow
+def test_report_has_every_section_and_real_figures(reproduced: Path) -> None:
+    page = (reproduced / "report" / "index.html").read_text(encoding="utf-8")
+    for key, title in SECTIONS:
+        assert f'<section id="{key}">' in page
+        assert title.split(":")[0] in page
+    assert "<script" not in page
+    sources = [part.split('"', 1)[0] for part in page.split('<img src="')[1:]]
+    assert len(sources) >= 10
+    for source in sources:
+        _png_is_a_picture(reproduced / "report" / source)
+    figures = sorted((reproduced / "report" / "figures").glob("*.png"))
+    assert {f.name for f in figures} == {Path(s).name for s in sources}
+
+
+@pytest.mark.slow
+def test_tables_hold_both_tasks_and_every_ablation_size(reproduced: Path) -> None:
+    table = json.loads((reproduced / "table1.json").read_text(encoding="utf-8"))
+    assert set(table) == {"pushing", "scooping"}
+    for row in table.values():
+        for key in ("capture_ap_perturbed", "success_ap_perturbed", "capture_score_error", "success_score_error"):
+            assert set(row[key]) >= {"mean", "std"}
+    ablation = json.loads((reproduced / "ablation.json").read_text(encoding="utf-8"))
+    assert [row["n_objects"] for row in ablation] == [2, 3]
+    assert all(row["runtime_per_frame_s"] > 0 for row in ablation)
+    markdown = (reproduced / "table1.md").read_text(encoding="utf-8")
+    assert "| paper |" in markdown and "0.79 ± 0.03" in markdown
+    assert "| 2 |" in (reproduced / "ablation.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
+def test_running_again_resumes_without_recomputing(reproduced: Path) -> None:
+    scores = reproduced / "data" / "pushing-10" / "scores.csv"
+    before = scores.read_bytes()
+    reproduce(reproduced, TINY)
+    assert scores.read_bytes() == before
+
+
+@pytest.mark.slow
+def test_other_settings_in_the_same_directory_are_refused(reproduced: Path) -> None:
+    with pytest.raises(EnergyMarginError, match="other settings"):
+        reproduce(reproduced, ReproduceConfig(quick=True, trajectories=4))
+
+
+def test_markdown_tables_put_the_paper_beside_ours() -> None:
+    row = {
+        "n_objects": 10,
+        "capture_ap": 0.99,
+        "success_ap": 1.0,
+        "capture_ap_perturbed": {"mean": 0.95, "std": 0.02},
+        "success_ap_perturbed": {"mean": 0.97, "std": 0.01},
+        "capture_score_error": {"mean": -0.01, "std": 0.2},
+        "success_score_error": {"mean": 0.0, "std": 0.1},
+    }
+    text = table_one_markdown({"pushing": row})
+    assert "| pushing | 10 | this project | 0.99 | 0.95 ± 0.02 |" in text
+    assert "| | 10 | paper | 1.00 | 0.96 ± 0.01 |" in text
+    ablation = ablation_markdown(
+        [
+            {
+                "n_objects": 3,
+                "capture_ap": 0.9,
+                "success_ap": None,
+                "runtime_per_frame_s": 0.1,
+                "runtime_per_frame_std_s": 0.01,
+            }
+        ]
+    )
+    assert "| 3 | 0.90 | n/a | 0.100 ± 0.010 | 0.99 | 1.00 | 0.37 ± 0.13 |" in ablation
+
+
+def test_expected_duration_is_announced_for_both_modes() -> None:
+    quick = ReproduceConfig.create(quick=True, workers=2, engine="mujoco", seed=0)
+    full = ReproduceConfig.create(quick=False, workers=2, engine="mujoco", seed=0)
+    assert 0 < quick.expected_seconds() < 300 < full.expected_seconds()
+
+
+@pytest.mark.slow
+def test_reproduce_quick_runs_end_to_end(tmp_path: Path) -> None:
+    out = tmp_path / "quick"
+    completed = subprocess.run(
+        [sys.executable, "-m", "energy_margin", "reproduce", "--quick", "--out", str(out), "--workers", "2"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
+    )
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    assert "expected about" in completed.stderr
+    assert (out / "report" / "index.html").is_file()
+    table = json.loads((out / "table1.json").read_text(encoding="utf-8"))
+    assert table["pushing"]["capture_ap"] is not None
