@@ -11,6 +11,7 @@ end-effector follows the manipulation while the objects are perturbed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -78,6 +79,9 @@ class PushingConfig(TaskConfig):
             :class:`~energy_margin.world.scene.Scene`.
 
     """
+
+    # Datasets written before ground_contact existed were made with the rim contacts.
+    recorded_defaults: ClassVar[dict[str, Any]] = {"ground_contact": "geometry"}
 
     timestep: float = 1.0 / 120.0
     object_radius: float = 0.05
