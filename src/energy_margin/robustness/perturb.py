@@ -12,6 +12,9 @@ the minimum-volume ellipsoid of the true centres (:func:`~energy_margin.world.el
   ``keep_orientation=True`` keeps each object's recorded orientation instead.
 * Velocities: zero (linear and angular). The end-effector, friction, drive and labels are not
   perturbed: the ground truth stays that of the true states; only the perceived state changes.
+* Stable draws: candidates are drawn from the fitted ellipsoid snapped to a 1e-7 grid
+  (:meth:`~energy_margin.world.ellipsoid.Ellipsoid.snapped`), so fits that differ by rounding give
+  identical copies (tested with the fit's parameters scaled by 1 + 1e-12).
 * No overlaps (unlike the authors' version): objects are placed one at a time by **rejection**.
   A candidate is accepted when, in the task's simulator (the frame's scene, with the objects not
   yet placed parked far away), no contact of the new object - with another object, the
@@ -118,10 +121,13 @@ def perturb_frame(
     heights = frame.object_pos[:, 2].copy()
     if planar:
         heights[:] = _resting_height(frame, simulator, parked, quat)
+    # Draws come from a snapped copy of the fit: a rounding-level change of the fit (another
+    # BLAS, another Khachiyan step order) leaves every candidate, hence every decision, unchanged.
+    snapped = ellipsoid.snapped()
     candidates = 0
     for restart in range(max_restarts + max_growth_restarts + 1):
         growth = 1.1 ** max(0, restart - max_restarts)
-        sampler = Ellipsoid(ellipsoid.center, ellipsoid.radii * growth, ellipsoid.rotation)
+        sampler = Ellipsoid(snapped.center, snapped.radii * growth, snapped.rotation)
         positions = parked.copy()
         placed = 0
         attempts = 0
