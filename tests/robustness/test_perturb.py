@@ -177,3 +177,19 @@ def test_copies_do_not_change_with_a_rounding_level_change_of_the_fit(
     again = perturb_dataset(source, repeats=2, seed=1, out=tmp_path / "nudged")
     for first, second in zip(exact, again, strict=True):
         assert np.array_equal(load_dataset(first).arrays["object_pos"], load_dataset(second).arrays["object_pos"])
+
+
+@pytest.mark.slow
+def test_workers_give_the_same_copies(tiny_dataset: Path, tmp_path: Path) -> None:
+    one = perturb_dataset(tiny_dataset, repeats=2, seed=4, out=tmp_path / "one", workers=1)
+    two = perturb_dataset(tiny_dataset, repeats=2, seed=4, out=tmp_path / "two", workers=2, progress=True)
+    for first, second in zip(one, two, strict=True):
+        a, b = load_dataset(first), load_dataset(second)
+        for name in ("object_pos", "object_quat", "object_vel"):
+            assert np.array_equal(a.arrays[name], b.arrays[name]), name
+        assert a.metadata["perturbation"]["candidates"] == b.metadata["perturbation"]["candidates"]
+
+
+def test_perturb_workers_must_be_positive(tiny_dataset: Path, tmp_path: Path) -> None:
+    with pytest.raises(EnergyMarginError, match="workers"):
+        perturb_dataset(tiny_dataset, repeats=1, seed=0, out=tmp_path / "p", workers=0)
