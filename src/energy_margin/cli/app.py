@@ -23,6 +23,7 @@ from energy_margin.cli import (
     generate,
     import_reference,
     perturb,
+    render,
     reproduce,
     view,
 )
@@ -39,6 +40,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     perturb,
     budget,
     view,
+    render,
     reproduce,
 )
 
