@@ -118,7 +118,9 @@ def scene_view(scene: Scene, points: np.ndarray, *, fovy: float = 45.0) -> View:
     planar = scene.object_motion == "upright"
     if planar:
         return fit_view(points, elevation=-55.0, fovy=fovy)
-    return fit_view(points, elevation=-25.0, azimuth=60.0, fovy=fovy)
+    view = fit_view(points, elevation=-25.0, azimuth=60.0, fovy=fovy)
+    # Further back: the gripper's regions are open upwards and would fill the picture.
+    return View(view.lookat, 1.4 * view.distance, view.azimuth, view.elevation)
 
 
 def _gl_context_class() -> Any:
@@ -262,6 +264,26 @@ def region_shapes(region: Region, extent: np.ndarray, *, height: float) -> tuple
     return tuple(
         RegionShape("box", (float(grid_x[i, j]), float(grid_y[i, j]), height), half) for i, j in np.argwhere(inside)
     )
+
+
+def drawn_inside(region: Region, positions: np.ndarray) -> np.ndarray | None:
+    """Whether each position (n, 3), m, lies in the drawing of ``region`` (its shapes), or ``None`` without shapes.
+
+    Flat solids (footprints of a region that ignores height) are tested in the plane.
+    """
+    from energy_margin.tasks.base import DrawableRegion
+
+    if not isinstance(region, DrawableRegion):
+        return None
+    positions = np.asarray(positions, dtype=float).reshape(-1, 3)
+    inside = np.zeros(len(positions), dtype=bool)
+    for shape in region.shapes():
+        height = shape.half_size[2] if shape.kind == "box" else shape.half_size[1]
+        probe = positions.copy()
+        if height <= _FLAT_HALF_HEIGHT:
+            probe[:, 2] = shape.centre[2]
+        inside |= shape.contains(probe)
+    return inside
 
 
 def tree_markers(field: CostField, likelihoods: np.ndarray, *, radius: float) -> list[tuple[Any, ...]]:

@@ -42,6 +42,7 @@ class VideoResult:
         render_s: wall time of drawing the pictures (MuJoCo or the fallback), s.
         total_s: wall time of the whole video (roll-out, drawing, encoding), s.
         backend: ``"mujoco"`` or ``"matplotlib"`` (the fallback).
+        poster: the middle picture (height, width, 3) uint8, for a page's still image.
 
     """
 
@@ -53,6 +54,7 @@ class VideoResult:
     render_s: float
     total_s: float
     backend: str
+    poster: np.ndarray | None = None
 
     @property
     def seconds(self) -> float:
@@ -249,6 +251,7 @@ def render_video(
     renderer = dataset_renderer(dataset, trajectory, width=width, height=height - strip_height, backend=backend)
     rendered = 0.0
     count = 0
+    poster = None
     try:
         # One camera for the whole roll-out: it holds every recorded frame.
         recorded = [dataset.frame(trajectory, k) for k in range(dataset.n_frames)]
@@ -285,7 +288,10 @@ def render_video(
                         success=success,
                         now=now,
                     )
-                    writer.append(np.concatenate([picture, strip], axis=0))
+                    composed = np.concatenate([picture, strip], axis=0)
+                    writer.append(composed)
+                    if count == len(steps) // 2:
+                        poster = composed
                     count += 1
                     if progress is not None:
                         progress(1)
@@ -294,4 +300,5 @@ def render_video(
     finally:
         backend_used = renderer.backend
         renderer.close()
-    return VideoResult(path, count, width, height, fps, rendered, time.perf_counter() - started, backend_used)
+    total = time.perf_counter() - started
+    return VideoResult(path, count, width, height, fps, rendered, total, backend_used, poster)
