@@ -293,7 +293,7 @@ def precision_recall_figure(curves: dict[str, tuple[np.ndarray, np.ndarray]], pa
     from sklearn.metrics import average_precision_score, precision_recall_curve
 
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(5.6, 4.4))
+    figure, ax = plt.subplots(figsize=(5.0, 4.4))
     for name, (labels, scores) in curves.items():
         labels = np.asarray(labels, dtype=bool).ravel()
         if labels.all() or not labels.any():
@@ -308,9 +308,9 @@ def precision_recall_figure(curves: dict[str, tuple[np.ndarray, np.ndarray]], pa
     ax.set_xlim(0, 1.02)
     ax.set_ylim(0, 1.05)
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=6.5, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    ax.legend(fontsize=8.5, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     figure.tight_layout()
-    figure.savefig(path, dpi=90, bbox_inches="tight")
+    figure.savefig(path, dpi=100, bbox_inches="tight")
     plt.close(figure)
 
 

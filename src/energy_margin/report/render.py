@@ -1,8 +1,8 @@
 """Rendered frames: the scene as MuJoCo draws it, with translucent regions and the tree's reached states.
 
 :class:`FrameRenderer` draws a frame of a task with MuJoCo's own offscreen renderer (``mjr_render``)
-on an OpenGL context chosen by ``MUJOCO_GL`` (``egl``, headless, when unset; ``osmesa`` or
-``glfw`` where set). The capture and success regions are drawn as translucent solids (from a
+on an OpenGL context chosen by ``MUJOCO_GL`` (when unset: ``egl``, headless, on Linux and
+``glfw`` elsewhere; ``osmesa`` where set). The capture and success regions are drawn as translucent solids (from a
 region's :meth:`~energy_margin.tasks.base.DrawableRegion.shapes`, or as a grid of cells where its
 ``contains`` holds for a region without shapes), and the object positions of every node of a
 frame's tree as small spheres coloured by the node's likelihood (viridis, log scale).
@@ -124,8 +124,8 @@ def scene_view(scene: Scene, points: np.ndarray, *, fovy: float = 45.0) -> View:
 
 
 def _gl_context_class() -> Any:
-    """The GL context class ``MUJOCO_GL`` names (EGL, headless, when it is unset)."""
-    backend = os.environ.get("MUJOCO_GL", "").strip().lower() or "egl"
+    """The GL context class ``MUJOCO_GL`` names (unset: EGL, headless, on Linux; GLFW elsewhere)."""
+    backend = os.environ.get("MUJOCO_GL", "").strip().lower() or ("egl" if sys.platform.startswith("linux") else "glfw")
     if backend == "egl":
         from mujoco.egl import GLContext
     elif backend == "osmesa":
