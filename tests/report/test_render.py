@@ -192,3 +192,32 @@ def test_png_is_written_atomically(tmp_path: Path) -> None:
     back = matplotlib.image.imread(tmp_path / "picture.png")
     assert back.shape[:2] == (20, 30) and back[7, 7, 0] == 1.0
     assert [p.name for p in tmp_path.iterdir()] == ["picture.png"]
+
+
+def test_objects_drawn_inside_a_region_are_the_objects_inside_it(tiny_dataset: Path, scooping_dataset: Dataset) -> None:
+    # The report's check: an object whose centre is drawn inside a region lies in it, and back.
+    for dataset in (load_dataset(tiny_dataset), scooping_dataset):
+        task = dataset.task
+        checked = 0
+        for trajectory in range(dataset.n_trajectories):
+            for k in range(dataset.n_frames):
+                frame = dataset.frame(trajectory, k)
+                for region in (task.capture_region(frame), task.success_region()):
+                    drawn = render.drawn_inside(region, frame.object_pos)
+                    clear = np.abs(region.signed_distance(frame.object_pos)) > 0.02
+                    assert np.array_equal(drawn[clear], region.contains(frame.object_pos)[clear])
+                    checked += int(clear.sum())
+        assert checked > 0
+    # A region without shapes has no drawing to check.
+    assert render.drawn_inside(_Everywhere(), np.zeros((2, 3))) is None
+
+
+class _Everywhere:
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        return np.ones(np.shape(positions)[:-1], dtype=bool)
+
+
+def test_a_region_without_shapes_is_drawn_as_grid_cells() -> None:
+    cells = render.region_shapes(_Everywhere(), np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 1.0]]), height=0.1)
+    assert len(cells) == 48 * 48
+    assert all(cell.centre[2] == 0.1 and cell.kind == "box" for cell in cells)

@@ -117,14 +117,25 @@ def test_tables_hold_both_tasks_and_every_ablation_size(reproduced: Path) -> Non
 
 
 @pytest.mark.slow
-def test_running_again_resumes_without_recomputing(reproduced: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_running_again_resumes_without_recomputing(
+    reproduced: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from energy_margin.report import html as report_html
+    from energy_margin.report import render
+
     scores = reproduced / "data" / "pushing-10" / "scores.csv"
     before = scores.read_bytes()
+    # Without the render extra the report is still written, without videos and views.
+    monkeypatch.setattr(report_html, "_missing_render_extra", lambda: "plotly not installed")
+    monkeypatch.setattr(render, "_warned", set())
     reproduce(reproduced, TINY)
     assert scores.read_bytes() == before
     # Nothing left to compute: no duration is announced.
     err = capsys.readouterr().err
     assert "every dataset is generated and analysed" in err and "expected about" not in err
+    assert err.count("warning: the report leaves out videos and interactive views: plotly not installed") == 1
+    page = (reproduced / "report" / "index.html").read_text(encoding="utf-8")
+    assert "no interactive view (plotly not installed)" in page and "<video" not in page
 
 
 @pytest.mark.slow
@@ -166,28 +177,45 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
     quick = ReproduceConfig.create(quick=True, workers=2, engine="mujoco", seed=0)
     plan = planned_analyses(quick, {"pushing": 10, "scooping": 5})
     assert len(plan) == 2 * (1 + quick.repeats) + len(quick.ablation_objects)
-    frames, to_generate = work_left(tmp_path, plan)
+    frames, to_write = work_left(tmp_path, plan)
     assert sum(frames.values()) == sum(e.trajectories * e.frames for e in plan)
-    calibration = Calibration({"pushing": 0.2, "scooping": 0.5}, {"pushing": 0.1, "scooping": 0.3}, 0.02, 1.0)
-    seconds = estimate_seconds(calibration, frames, to_generate, workers=1, report=False)
-    expected = sum(
-        count * (0.2 if e.task == "pushing" else 0.5) * e.n_objects / (10 if e.task == "pushing" else 5)
-        for e, count in frames.items()
-    ) + sum(
-        e.trajectories * (0.1 if e.task == "pushing" else 0.3) * e.n_objects / (10 if e.task == "pushing" else 5)
-        for e in to_generate
+    assert len(to_write) == len(plan)
+    calibration = Calibration(
+        {"pushing": 0.2, "scooping": 0.5},
+        {"pushing": 0.1, "scooping": 0.3},
+        {"pushing": 0.05, "scooping": 0.04},
+        0.02,
+        1,
+    )
+    seconds = estimate_seconds(calibration, frames, to_write, workers=1, report=False)
+
+    def scale(entry):
+        return entry.n_objects / (10 if entry.task == "pushing" else 5)
+
+    expected = sum(count * (0.2 if e.task == "pushing" else 0.5) * scale(e) for e, count in frames.items())
+    expected += sum(
+        e.trajectories * (0.1 if e.task == "pushing" else 0.3) * scale(e)
+        if e.generated
+        else e.trajectories * e.frames * (0.05 if e.task == "pushing" else 0.04) * scale(e)
+        for e in to_write
     )
     assert seconds == pytest.approx(expected)
     # Twice the calibrated frame time: about twice as long.
-    slower = Calibration({"pushing": 0.4, "scooping": 1.0}, {"pushing": 0.1, "scooping": 0.3}, 0.02, 1.0)
-    assert estimate_seconds(slower, frames, to_generate, workers=1, report=False) > 1.8 * seconds - 60
+    slower = Calibration(
+        {"pushing": 0.4, "scooping": 1.0},
+        {"pushing": 0.1, "scooping": 0.3},
+        {"pushing": 0.05, "scooping": 0.04},
+        0.02,
+        1,
+    )
+    assert estimate_seconds(slower, frames, to_write, workers=1, report=False) > 1.8 * seconds - 60
 
 
 def test_calibration_measures_this_machine() -> None:
     from energy_margin.report.estimate import calibrate
 
     calibration = calibrate(ReproduceConfig(iterations=20, workers=1), ["pushing", "scooping"])
-    assert set(calibration.frame_s) == {"pushing", "scooping"}
+    assert set(calibration.frame_s) == set(calibration.perturb_s) == {"pushing", "scooping"}
     assert all(0 < value < 30 for value in calibration.frame_s.values())
     assert 0 < calibration.picture_s < 5 and calibration.measured_s < 60
 

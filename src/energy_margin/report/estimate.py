@@ -1,13 +1,15 @@
 """How long ``reproduce`` will take on this machine: a short calibration and the work left to do.
 
 The calibration records one roll-out of each task, grows one tree of a frame of it with a part of
-the run's iterations, and draws one picture; the estimate multiplies those wall times by the
-frames not yet in a ``scores.csv`` or journal (pushing scaled by the number of objects, which the
-runtime grows with linearly), the roll-outs not yet generated and the pictures of the report.
+the run's iterations, perturbs that frame once and draws one picture; the estimate multiplies
+those wall times by the frames not yet in a ``scores.csv`` or journal (pushing scaled by the number
+of objects, which the runtime grows with linearly), the roll-outs not yet generated, the frames of
+the perturbed copies not yet written and the pictures of the report.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass
@@ -85,6 +87,7 @@ class Calibration:
         frame_s: seconds per analysed frame of each task at the calibration size, at the run's
             iterations.
         rollout_s: seconds per generated roll-out of each task at the calibration size.
+        perturb_s: seconds per perturbed frame of each task at the calibration size.
         picture_s: seconds per drawn picture of the report.
         measured_s: wall time of the calibration itself.
 
@@ -92,6 +95,7 @@ class Calibration:
 
     frame_s: dict[str, float]
     rollout_s: dict[str, float]
+    perturb_s: dict[str, float]
     picture_s: float
     measured_s: float
 
@@ -102,11 +106,12 @@ def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
     from energy_margin.data.dataset import frame_from_arrays
     from energy_margin.data.generate import record_trajectory
     from energy_margin.report.render import FrameRenderer
+    from energy_margin.robustness.perturb import perturb_frame
     from energy_margin.sim import make_simulator
     from energy_margin.tasks import get_task
 
     started = time.perf_counter()
-    frame_s, rollout_s = {}, {}
+    frame_s, rollout_s, perturb_s = {}, {}, {}
     picture_s = 0.05
     iterations = max(1, min(config.iterations, CALIBRATION_ITERATIONS))
     for name in tasks:
@@ -131,6 +136,18 @@ def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
             simulator=simulator,
         )
         frame_s[name] = (time.perf_counter() - tick) * config.iterations / iterations
+        scene = simulator.scene
+        tick = time.perf_counter()
+        # A frame that cannot be perturbed still took its time.
+        with contextlib.suppress(Exception):
+            perturb_frame(
+                frame_from_arrays(record, 1),
+                simulator,
+                np.random.default_rng(config.seed),
+                planar=scene.object_motion == "upright",
+                min_thickness=min(min(obj.geom.size) for obj in scene.objects),
+            )
+        perturb_s[name] = time.perf_counter() - tick
     try:
         from energy_margin.sim.mujoco_backend import MujocoSimulator
 
@@ -144,22 +161,22 @@ def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
             picture_s = time.perf_counter() - tick
     except Exception:  # the report falls back to matplotlib; its cost is in the overhead
         pass
-    return Calibration(frame_s, rollout_s, picture_s, time.perf_counter() - started)
+    return Calibration(frame_s, rollout_s, perturb_s, picture_s, time.perf_counter() - started)
 
 
 def work_left(out: Path, plan: list[PlannedAnalysis]) -> tuple[dict[PlannedAnalysis, int], list[PlannedAnalysis]]:
-    """Frames left to analyse per planned dataset, and the datasets still to generate."""
+    """Frames left to analyse per planned dataset, and the datasets still to write (generate or perturb)."""
     from energy_margin.data.dataset import METADATA_FILE
 
     frames = {entry: frames_left(out / entry.path, entry.trajectories * entry.frames) for entry in plan}
-    to_generate = [entry for entry in plan if entry.generated and not (out / entry.path / METADATA_FILE).is_file()]
-    return frames, to_generate
+    to_write = [entry for entry in plan if not (out / entry.path / METADATA_FILE).is_file()]
+    return frames, to_write
 
 
 def estimate_seconds(
     calibration: Calibration,
     frames: dict[PlannedAnalysis, int],
-    to_generate: list[PlannedAnalysis],
+    to_write: list[PlannedAnalysis],
     *,
     workers: int,
     report: bool,
@@ -173,7 +190,12 @@ def estimate_seconds(
         return table[entry.task] * entry.n_objects / reference
 
     analysis = sum(count * per_object(calibration.frame_s, entry) for entry, count in frames.items())
-    generation = sum(entry.trajectories * per_object(calibration.rollout_s, entry) for entry in to_generate)
+    generation = sum(
+        entry.trajectories * per_object(calibration.rollout_s, entry)
+        if entry.generated
+        else entry.trajectories * entry.frames * per_object(calibration.perturb_s, entry)
+        for entry in to_write
+    )
     pictures = sum(_REPORT_PICTURES.get(task, 80) for task in {entry.task for entry in frames})
     report_s = pictures * calibration.picture_s + _REPORT_OVERHEAD_S if report else 0.0
     return analysis / parallel + generation + report_s

@@ -7,6 +7,7 @@ self-contained interactive views beside it.
 from __future__ import annotations
 
 import html
+import importlib.util
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -132,9 +133,7 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
     from energy_margin.evaluation.metrics import score_grid
     from energy_margin.report import plots
     from energy_margin.report.frame_tree import analysed_tree
-    from energy_margin.report.render import dataset_renderer, drawn_inside, save_png, scene_view
-    from energy_margin.report.video import render_video
-    from energy_margin.report.view import write_view
+    from energy_margin.report.render import dataset_renderer, drawn_inside, save_png, scene_view, warn_once
 
     figures = report / "figures"
     directory = out / row["dataset"]
@@ -185,36 +184,15 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
         + _grid(render_cells)
     )
 
-    videos = report / "videos"
-    videos.mkdir(exist_ok=True)
-    result = render_video(dataset, tree_trajectory, videos / f"{task}.mp4", scores=scores)
-    source = f"videos/{result.path.name}"
-    caption = (
-        f"{task}: trajectory {tree_trajectory} at {result.fps:g} pictures per second of simulated time "
-        f"({result.frames} pictures, {result.width} × {result.height}); the strip plots the frame scores"
-    )
-    if result.path.suffix == ".gif":
-        parts["video"] = _image(source, caption)
-    else:
-        poster = f"{task}-video-poster.png"
-        if result.poster is not None:
-            save_png(result.poster, figures / poster)
-        parts["video"] = (
-            f'<figure class="cell"><video src="{source}" poster="figures/{poster}" controls loop muted '
-            f'preload="metadata" width="{result.width}"></video><figcaption>{html.escape(caption)}</figcaption>'
-            "</figure>"
+    missing = _missing_render_extra()
+    if missing:
+        warn_once(
+            f"the report leaves out videos and interactive views: {missing} (pip install 'energy-margin[render]')"
         )
-
-    views = report / "views"
-    views.mkdir(exist_ok=True)
-    view_name = f"{task}-T{tree_trajectory}-F{tree_frame}.html"
-    write_view(tree, views / view_name)
-    parts["view"] = (
-        f'<li><a href="views/{view_name}">{html.escape(task)}: trajectory {tree_trajectory}, frame {tree_frame}</a> '
-        f"({tree.field.nodes} nodes, capture {tree.stored['capture_score']:.2f}, success "
-        f"{tree.stored['success_score']:.2f}; opens in any browser, no server)</li>"
-    )
-
+        parts["video"] = f"<p>{html.escape(task)}: no video ({html.escape(missing)}).</p>"
+        parts["view"] = f"<li>{html.escape(task)}: no interactive view ({html.escape(missing)}).</li>"
+    else:
+        parts.update(_video_and_view(report, task, dataset, scores, tree, tree_trajectory, tree_frame))
     lam = tree.likelihood_lambda
     name = f"{task}-cost-field.png"
     plots.cost_field_figure(dataset, tree_trajectory, tree_frame, tree.field, tree.likelihoods, figures / name)
@@ -264,6 +242,57 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
     parts["precision_recall"] = _figure(
         name, f"{task}: precision-recall curves; dotted: chance (the positive rate); k̂: capture window in frames"
     )
+    return parts
+
+
+def _missing_render_extra() -> str:
+    """What of the ``render`` extra is not installed ("" when everything is)."""
+    missing = [
+        name for name in ("imageio", "imageio_ffmpeg", "PIL", "plotly") if importlib.util.find_spec(name) is None
+    ]
+    return f"{', '.join(missing)} not installed" if missing else ""
+
+
+def _video_and_view(
+    report: Path, task: str, dataset: Any, scores: Any, tree: Any, tree_trajectory: int, tree_frame: int
+) -> dict[str, str]:
+    """The task's video and interactive view, written beside the page, and their HTML."""
+    from energy_margin.report.render import save_png
+    from energy_margin.report.video import render_video
+    from energy_margin.report.view import write_view
+
+    figures = report / "figures"
+    parts: dict[str, str] = {}
+    videos = report / "videos"
+    videos.mkdir(exist_ok=True)
+    result = render_video(dataset, tree_trajectory, videos / f"{task}.mp4", scores=scores)
+    source = f"videos/{result.path.name}"
+    caption = (
+        f"{task}: trajectory {tree_trajectory} at {result.fps:g} pictures per second of simulated time "
+        f"({result.frames} pictures, {result.width} × {result.height}); the strip plots the frame scores"
+    )
+    if result.path.suffix == ".gif":
+        parts["video"] = _image(source, caption)
+    else:
+        poster = f"{task}-video-poster.png"
+        if result.poster is not None:
+            save_png(result.poster, figures / poster)
+        parts["video"] = (
+            f'<figure class="cell"><video src="{source}" poster="figures/{poster}" controls loop muted '
+            f'preload="metadata" width="{result.width}"></video><figcaption>{html.escape(caption)}</figcaption>'
+            "</figure>"
+        )
+
+    views = report / "views"
+    views.mkdir(exist_ok=True)
+    view_name = f"{task}-T{tree_trajectory}-F{tree_frame}.html"
+    write_view(tree, views / view_name)
+    parts["view"] = (
+        f'<li><a href="views/{view_name}">{html.escape(task)}: trajectory {tree_trajectory}, frame {tree_frame}</a> '
+        f"({tree.field.nodes} nodes, capture {tree.stored['capture_score']:.2f}, success "
+        f"{tree.stored['success_score']:.2f}; opens in any browser, no server)</li>"
+    )
+
     return parts
 
 

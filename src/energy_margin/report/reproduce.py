@@ -165,16 +165,16 @@ def _announce(out: Path, config: ReproduceConfig) -> None:
 
     table_objects = {task: int(PAPER_TABLE_I[task]["n_objects"]) for task in ("pushing", "scooping")}
     plan = planned_analyses(config, table_objects)
-    frames, to_generate = work_left(out, plan)
+    frames, to_write = work_left(out, plan)
     report_done = (out / "report" / "index.html").is_file()
-    if not any(frames.values()) and not to_generate:
+    if not any(frames.values()) and not to_write:
         _say(
             f"reproduce ({'quick' if config.quick else 'full'}): every dataset is generated and analysed; "
             + ("writing the report again" if report_done else "writing the report")
         )
         return
     calibration = calibrate(config, list(table_objects))
-    seconds = estimate_seconds(calibration, frames, to_generate, workers=config.workers, report=True)
+    seconds = estimate_seconds(calibration, frames, to_write, workers=config.workers, report=True)
     left = sum(frames.values())
     rates = ", ".join(
         f"{task} {calibration.frame_s[task]:.2f} s/frame ({n} objects)" for task, n in table_objects.items()
