@@ -188,7 +188,9 @@ def _announce(out: Path, config: ReproduceConfig) -> None:
 
 
 def _duration(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60.0:.0f} min"
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60.0:.1f} min" if seconds < 600 else f"{seconds / 60.0:.0f} min"
 
 
 def _record_stages(out: Path, stages: list[dict[str, Any]]) -> list[dict[str, Any]]:
