@@ -20,7 +20,7 @@ from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
-from energy_margin.sim import ENGINES, Simulator, make_simulator
+from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, all_inside
 from energy_margin.world.state import FrameState
 
@@ -170,7 +170,7 @@ def analyze_frame(
     """
     config = config if config is not None else AnalyzerConfig()
     if simulator is None:
-        simulator = make_simulator(task.build_scene(frame.n_objects, friction, drive), config.engine)
+        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     field = grow_tree(
@@ -220,8 +220,7 @@ class FrameAnalyzer:
             # more would let memory grow with the number of distinct trajectories.
             while len(self._simulators) >= _SIMULATOR_CACHE:
                 self._simulators.pop(next(iter(self._simulators)))
-            scene = self.task.build_scene(self.dataset.n_objects, friction, drive)
-            simulator = make_simulator(scene, self.config.engine)
+            simulator = self.task.make_simulator(self.dataset.n_objects, friction, drive, self.config.engine)
         self._simulators[key] = simulator
         return simulator
 

@@ -21,7 +21,7 @@ from energy_margin.data.dataset import (
     write_directory,
 )
 from energy_margin.errors import EnergyMarginError
-from energy_margin.sim import ENGINES, make_simulator
+from energy_margin.sim import ENGINES
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState
 
@@ -39,12 +39,18 @@ def _check_inputs(n_objects: int, n_trajectories: int, n_frames: int, seed: int)
             raise EnergyMarginError(f"{name} must be >= {minimum}, got {value}")
 
 
+def check_engine(task: Task, engine: str) -> None:
+    """Raise one line when ``engine`` cannot simulate ``task``."""
+    if task.engines is not None and engine not in task.engines:
+        raise EnergyMarginError(f"{task.label} runs on {', '.join(task.engines)} only, not --engine {engine}")
+
+
 def record_trajectory(
     task: Task, n_objects: int, n_frames: int, rng: np.random.Generator, *, engine: str = "mujoco"
 ) -> dict[str, Any]:
     """Run one scripted roll-out and record ``n_frames`` evenly spaced frames with their labels."""
     trajectory = task.sample_trajectory(rng, n_objects)
-    simulator = make_simulator(task.build_scene(n_objects, trajectory.friction, trajectory.drive), engine)
+    simulator = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, engine)
     simulator.reset(trajectory.initial)
     record_at = task.frame_steps(n_frames)
     dt = simulator.timestep
@@ -75,7 +81,7 @@ def record_trajectory(
 def generate_dataset(
     task_name: str,
     *,
-    n_objects: int,
+    n_objects: int | None,
     n_trajectories: int,
     n_frames: int,
     seed: int,
@@ -92,7 +98,7 @@ def generate_dataset(
 
     Args:
         task_name: a registered task.
-        n_objects: objects per scene, >= 1.
+        n_objects: objects per scene, >= 1 (``None`` for a task that fixes them, e.g. a scene file).
         n_trajectories: roll-outs T, >= 1.
         n_frames: frames K per roll-out, >= 1.
         seed: non-negative integer seed.
@@ -103,10 +109,19 @@ def generate_dataset(
         progress: called with 1 after each trajectory.
 
     """
-    _check_inputs(n_objects, n_trajectories, n_frames, seed)
     if engine not in ENGINES:
         raise EnergyMarginError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
     task = get_task(task_name, task_config)
+    check_engine(task, engine)
+    if task.fixed_objects is not None:
+        if n_objects is not None and n_objects != task.fixed_objects:
+            raise EnergyMarginError(
+                f"task {task.name!r} has {task.fixed_objects} objects; --objects {n_objects} differs"
+            )
+        n_objects = task.fixed_objects
+    if n_objects is None:
+        raise EnergyMarginError(f"task {task.name!r} needs the number of objects (--objects)")
+    _check_inputs(n_objects, n_trajectories, n_frames, seed)
     out = Path(out)
     if not overwrite:
         existing = _same_dataset(out, task, engine, seed, n_objects, n_trajectories, n_frames)

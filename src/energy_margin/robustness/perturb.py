@@ -39,7 +39,6 @@ from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.errors import EnergyMarginError
-from energy_margin.sim import make_simulator
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 
@@ -254,7 +253,7 @@ def perturb_dataset(
         for trajectory in range(source.n_trajectories):
             friction = float(source.arrays["friction"][trajectory])
             drive = source.arrays["drive"][trajectory]
-            simulator = make_simulator(task.build_scene(source.n_objects, friction, drive), source.metadata["engine"])
+            simulator = task.make_simulator(source.n_objects, friction, drive, source.metadata["engine"])
             for index in range(source.n_frames):
                 rng = np.random.default_rng(frame_seeds[trajectory * source.n_frames + index])
                 result = perturb_frame(

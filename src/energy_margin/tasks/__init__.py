@@ -15,6 +15,7 @@ from energy_margin.tasks.base import (
     command_robot,
 )
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
+from energy_margin.tasks.scene_task import SceneTask, SceneTaskConfig
 from energy_margin.tasks.scooping import ScoopingConfig, ScoopingTask
 
 _REGISTRY: dict[str, type[Task]] = {}
@@ -45,11 +46,14 @@ def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
 
 register_task(PushingTask)
 register_task(ScoopingTask)
+register_task(SceneTask)
 
 __all__ = [
     "PushingConfig",
     "PushingTask",
     "Region",
+    "SceneTask",
+    "SceneTaskConfig",
     "ScoopingConfig",
     "ScoopingTask",
     "Task",

@@ -15,7 +15,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.sim.base import Simulator
+from energy_margin.sim import make_simulator
+from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
@@ -195,6 +196,11 @@ class Task(ABC):
         converted: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         return cls(cls.config_class(**converted))
 
+    @property
+    def label(self) -> str:
+        """How messages name the task, e.g. ``task 'pushing'``."""
+        return f"task {self.name!r}"
+
     @abstractmethod
     def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
         """The world with ``n_objects`` objects and contact friction ``friction``.
@@ -241,9 +247,43 @@ class Task(ABC):
         del drive, time, robot_q, robot_v, rng
         return None
 
+    def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
+        """Actuator controls and mocap poses of a task built on a user's MuJoCo model at ``time`` (s).
+
+        ``None`` (the default) for a task whose end-effector is driven by :meth:`robot_force` and
+        :meth:`robot_targets` only. Evaluated after them by :func:`command_robot`.
+        """
+        del drive, time
+        return None
+
+    #: Engines that can simulate the task; ``None`` for every engine of :data:`energy_margin.sim.ENGINES`.
+    engines: ClassVar[tuple[str, ...] | None] = None
+
+    #: Objects of every scene of the task, when the task fixes them (a scene file does); ``None``
+    #: lets ``generate --objects`` choose.
+    fixed_objects: int | None = None
+
+    def make_simulator(
+        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+    ) -> Simulator:
+        """A simulator of the task's world: :meth:`build_scene` on ``engine`` by default.
+
+        A task built on a compiled MuJoCo model overrides this to simulate that model itself.
+        """
+        return make_simulator(self.build_scene(n_objects, friction, drive), engine)
+
+    def robot_dofs(self) -> int:
+        """Length of the end-effector coordinates ``robot_q`` and ``robot_v`` of a frame."""
+        return self.build_scene(self.fixed_objects or 1, 0.5).n_robot_dofs
+
+    def drive_size(self) -> int:
+        """Length of a trajectory's drive parameters."""
+        trajectory = self.sample_trajectory(np.random.default_rng(0), self.fixed_objects or 1)
+        return int(np.asarray(trajectory.drive).size)
+
     #: During analysis the scripted command is re-evaluated every this many seconds of a
     #: propagation; ``None`` evaluates it once at the start of each propagation.
-    control_period: ClassVar[float | None] = None
+    control_period: float | None = None
 
     @abstractmethod
     def capture_region(self, root: FrameState) -> Region:
@@ -288,6 +328,7 @@ def command_robot(
 
     Sets the generalized forces of :meth:`Task.robot_force`, then, for a task with servos, the
     targets of :meth:`Task.robot_targets`; both see the current joint positions and velocities.
+    A task on a user's model then sets its :meth:`Task.model_command`.
     Used identically by the data generator (every step, with ``rng``) and the analyzer (with
     ``None``).
     """
@@ -296,6 +337,12 @@ def command_robot(
     targets = task.robot_targets(drive, time, robot_q, robot_v, rng)
     if targets is not None:
         simulator.set_robot_targets(targets)
+    command = task.model_command(drive, time)
+    if command is not None:
+        set_command = getattr(simulator, "set_model_command", None)
+        if set_command is None:
+            raise ValueError(f"task {task.name!r} commands a MuJoCo model: it needs the 'mujoco' engine")
+        set_command(command)
 
 
 def sample_separated(
