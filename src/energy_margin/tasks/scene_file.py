@@ -104,6 +104,8 @@ class MotionSpec:
         initial_keyframe: a ``<key>`` of the model that gives the robot's start, or ``None`` for
             the model's reference configuration.
         control_period: during analysis the command is re-evaluated every this many seconds, s.
+        actuators: the actuators the control columns drive, in order (others get 0), or ``None``
+            for every actuator of the model in its order.
 
     """
 
@@ -113,6 +115,7 @@ class MotionSpec:
     duration: float
     initial_keyframe: str | None
     control_period: float
+    actuators: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -440,7 +443,15 @@ def _read_start(read: _Reader, randomize: Mapping[str, Any]) -> StartSpec:
     return StartSpec("ranges", ranges, None, None, separation)
 
 
-_MOTION_KEYS = {"keyframes", "ctrl_file", "interpolation", "duration", "initial_keyframe", "control_period"}
+_MOTION_KEYS = {
+    "keyframes",
+    "ctrl_file",
+    "interpolation",
+    "duration",
+    "initial_keyframe",
+    "control_period",
+    "actuators",
+}
 
 
 def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> MotionSpec:
@@ -509,7 +520,13 @@ def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> Moti
         read.string(motion["initial_keyframe"], "motion.initial_keyframe") if "initial_keyframe" in motion else None
     )
     period = read.number(motion.get("control_period", 0.01), "motion.control_period", positive=True)
-    return MotionSpec(tuple(keyframes), ctrl_file, interpolation, duration, initial, period)  # type: ignore[arg-type]
+    actuators = None
+    if "actuators" in motion:
+        value = motion["actuators"]
+        if not isinstance(value, list) or not value:
+            raise read.fail("motion.actuators", f"must be a non-empty list of actuator names, got {value!r}")
+        actuators = tuple(read.string(item, "motion.actuators") for item in value)
+    return MotionSpec(tuple(keyframes), ctrl_file, interpolation, duration, initial, period, actuators)  # type: ignore[arg-type]
 
 
 def _check_region(read: _Reader, table: Any, key: str) -> dict[str, Any]:

@@ -217,18 +217,30 @@ def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
 def _motion(spec: SceneSpec, model: mujoco.MjModel) -> Motion:
     motion = spec.motion
     nu = int(model.nu)
+    columns = np.arange(nu)
+    if motion.actuators is not None:
+        columns = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) for name in motion.actuators])
+        for name, index in zip(motion.actuators, columns, strict=True):
+            if index < 0:
+                raise spec.error("motion.actuators", f"no actuator {name!r} in {spec.mjcf.name}")
+    width = int(columns.size)
+    what = (
+        f"{width} actuators in motion.actuators"
+        if motion.actuators is not None
+        else f"{nu} actuators in {spec.mjcf.name}"
+    )
     if motion.ctrl_file is not None:
-        times, ctrl = _read_ctrl_file(spec, nu)
+        times, ctrl = _read_ctrl_file(spec, width, what)
     else:
         rows = [k for k in motion.keyframes if k.ctrl is not None]
         times = np.array([k.time for k in rows])
-        ctrl = np.array([k.ctrl for k in rows], dtype=float) if rows else np.zeros((0, nu))
         for keyframe in rows:
-            if len(keyframe.ctrl or ()) != nu:
-                raise spec.error(
-                    f"{keyframe.key}.ctrl",
-                    f"has {len(keyframe.ctrl or ())} values but {spec.mjcf.name} has {nu} actuators",
-                )
+            if len(keyframe.ctrl or ()) != width:
+                raise spec.error(f"{keyframe.key}.ctrl", f"has {len(keyframe.ctrl or ())} values for the {what}")
+        ctrl = np.array([k.ctrl for k in rows], dtype=float) if rows else np.zeros((0, width))
+    full = np.zeros((ctrl.shape[0], nu))
+    full[:, columns] = ctrl
+    ctrl = full
     mocap_rows = [k for k in motion.keyframes if k.mocap]
     nmocap = int(model.nmocap)
     default_pos = np.array(
@@ -255,7 +267,7 @@ def _motion(spec: SceneSpec, model: mujoco.MjModel) -> Motion:
     return Motion(times, ctrl, mocap_times, mocap_pos, mocap_quat, motion.interpolation == "hold")
 
 
-def _read_ctrl_file(spec: SceneSpec, nu: int) -> tuple[np.ndarray, np.ndarray]:
+def _read_ctrl_file(spec: SceneSpec, nu: int, what: str) -> tuple[np.ndarray, np.ndarray]:
     path = spec.motion.ctrl_file
     assert path is not None
     key = "motion.ctrl_file"
@@ -278,7 +290,7 @@ def _read_ctrl_file(spec: SceneSpec, nu: int) -> tuple[np.ndarray, np.ndarray]:
     if ctrl.ndim != 2 or ctrl.shape[0] != times.size or ctrl.shape[1] != nu:
         raise spec.error(
             key,
-            f"{path.name}: ctrl has shape {ctrl.shape}, expected ({times.size}, {nu}) for the model's {nu} actuators",
+            f"{path.name}: ctrl has shape {ctrl.shape}, expected ({times.size}, {nu}) for the {what}",
         )
     if not np.all(np.isfinite(ctrl)):
         raise spec.error(key, f"{path.name}: ctrl holds NaN or infinite values")
