@@ -45,7 +45,7 @@ def test_box_in_a_rotated_moving_body_frame() -> None:
     # The same body after moving by (+1, 0, 0): the box moves with it.
     moved = BoxRegion([0.3, 0.0, 0.0], [0.1, 0.05, 0.05], origin=np.array([3.0, 1.0, 0.0]), rotation=_rot_z(np.pi / 2))
     assert not moved.contains(inside_world)
-    assert moved.contains(inside_world + [1.0, 0.0, 0.0])
+    assert moved.contains(inside_world + np.array([1.0, 0.0, 0.0]))
 
 
 def test_cylinder() -> None:
