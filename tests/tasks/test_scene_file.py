@@ -79,7 +79,7 @@ BAD_INPUTS = [
     ({'bodies = ["box_*"]': 'bodies = ["box_a", "crate"]'}, {}, ":5: objects.bodies:", "no body 'crate'"),
     (
         {},
-        {'0.06 0 0.03"><freejoint/>': '0.06 0 0.03"><joint type="hinge"/>'},
+        {'"box_b" pos="0.06 0 0.03"><freejoint/>': '"box_b" pos="0.06 0 0.03"><joint type="hinge"/>'},
         "objects.joints:",
         "'box_b' in model.xml is not free",
     ),

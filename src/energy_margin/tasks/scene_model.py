@@ -127,7 +127,7 @@ def _one_line(error: Exception) -> str:
 
 
 def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
-    return mujoco.mj_id2name(model, kind, index) or f"#{index}"
+    return mujoco.mj_id2name(model, kind, index) or f"unnamed #{index}"
 
 
 def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
