@@ -113,9 +113,10 @@ def make_resting_frame() -> Callable[..., FrameState]:
 # A tiny user scene: two free boxes on the ground and a mocap pusher that moves them along +y.
 TINY_MODEL = """<mujoco model="two_boxes">
   <option timestep="0.01"/>
+  <default><geom friction="0.4"/></default>
   <worldbody>
     <geom name="ground" type="plane" size="2 2 0.1"/>
-    <site name="goal" pos="0 0.6 0.03"/>
+    <site name="goal" pos="0 0.4 0.03"/>
     <body name="pusher" mocap="true" pos="0 -0.15 0.03">
       <geom name="pusher" type="box" size="0.15 0.02 0.03"/>
     </body>
@@ -132,15 +133,15 @@ mjcf = "model.xml"
 bodies = ["box_*"]
 
 [motion]
-duration = 1.0
+duration = 1.5
 
 [[motion.keyframes]]
 time = 0.0
 mocap.pusher.pos = [0.0, -0.15, 0.03]
 
 [[motion.keyframes]]
-time = 1.0
-mocap.pusher.pos = [0.0, 0.45, 0.03]
+time = 1.5
+mocap.pusher.pos = [0.0, 0.3, 0.03]
 
 [randomize]
 friction = [0.3, 0.6]

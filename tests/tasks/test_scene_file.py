@@ -16,7 +16,7 @@ from energy_margin.tasks.scene_model import load_scene
 def test_tiny_scene_parses_and_builds_a_task(tiny_scene: Path) -> None:
     spec = read_scene_file(tiny_scene)
     assert spec.bodies == ("box_*",)
-    assert spec.motion.duration == 1.0
+    assert spec.motion.duration == 1.5
     assert spec.friction_range == (0.3, 0.6)
     loaded = load_scene(tiny_scene)
     assert loaded.object_names == ("box_a", "box_b")
@@ -28,10 +28,10 @@ def test_tiny_scene_parses_and_builds_a_task(tiny_scene: Path) -> None:
     # The mocap pusher follows the keyframes linearly, at the trajectory's time scale.
     command = task.model_command(np.array([1.0, 1.0]), 0.5)
     assert command is not None and command.mocap_pos is not None
-    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.15, 0.03]])
+    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.0, 0.03]], atol=1e-12)
     command = task.model_command(np.array([2.0, 1.0]), 0.5)
     assert command is not None and command.mocap_pos is not None
-    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.45, 0.03]])
+    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.15, 0.03]])
     # Randomised starts never overlap and respect the ranges.
     trajectory = task.sample_trajectory(np.random.default_rng(3), 2)
     pos = trajectory.initial.object_pos
@@ -59,7 +59,7 @@ def test_locator_finds_keys_in_tables_and_arrays_of_tables(tiny_scene: Path) -> 
     lines = text.splitlines()
     locator = Locator(text)
     line = locator.line("motion.keyframes[1].mocap.pusher.pos")
-    assert line is not None and lines[line - 1].startswith("mocap.pusher.pos = [0.0, 0.45")
+    assert line is not None and lines[line - 1].startswith("mocap.pusher.pos = [0.0, 0.3")
     line = locator.line("capture.region.of[0].type")
     assert line is not None and lines[line - 1].startswith("region = ")
     line = locator.line("randomize.start.yaw")
@@ -84,7 +84,7 @@ BAD_INPUTS = [
         "'box_b' in model.xml is not free",
     ),
     (
-        {"mocap.pusher.pos = [0.0, 0.45, 0.03]": "mocap.pusher.pos = [0.0, 0.45, 0.03]\nctrl = [1.0]"},
+        {"mocap.pusher.pos = [0.0, 0.3, 0.03]": "mocap.pusher.pos = [0.0, 0.3, 0.03]\nctrl = [1.0]"},
         {},
         ":10: motion.keyframes[0]:",
         "has no ctrl",
@@ -92,14 +92,14 @@ BAD_INPUTS = [
     (
         {
             "mocap.pusher.pos = [0.0, -0.15, 0.03]": "mocap.pusher.pos = [0.0, -0.15, 0.03]\nctrl = [1.0]",
-            "mocap.pusher.pos = [0.0, 0.45, 0.03]": "mocap.pusher.pos = [0.0, 0.45, 0.03]\nctrl = [1.0]",
+            "mocap.pusher.pos = [0.0, 0.3, 0.03]": "mocap.pusher.pos = [0.0, 0.3, 0.03]\nctrl = [1.0]",
         },
         {},
         "motion.keyframes[0].ctrl:",
         "has 1 values for the 0 actuators",
     ),
     (
-        {"duration = 1.0\n": 'duration = 1.0\nactuators = ["gripper"]\n'},
+        {"duration = 1.5\n": 'duration = 1.5\nactuators = ["gripper"]\n'},
         {},
         "motion.actuators:",
         "no actuator 'gripper'",
@@ -109,7 +109,7 @@ BAD_INPUTS = [
     (
         {
             "mocap.pusher.pos = [0.0, -0.15": "mocap.box_a.pos = [0.0, -0.15",
-            "mocap.pusher.pos = [0.0, 0.45": "mocap.box_a.pos = [0.0, 0.45",
+            "mocap.pusher.pos = [0.0, 0.3": "mocap.box_a.pos = [0.0, 0.3",
         },
         {},
         "motion.keyframes[0].mocap.box_a:",
@@ -125,7 +125,7 @@ BAD_INPUTS = [
     ({"[randomize]\n": "[randomize]\ncolour = 1\n"}, {}, "randomize.colour:", "unknown key"),
     ({"x = [-0.12, 0.12]\ny = [-0.02, 0.08]": "x = [0.0, 0.0]\ny = [0.0, 0.0]"}, {}, "randomize.start", "cannot place"),
     ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
-    ({"time = 1.0\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
+    ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
     ({"max_duration = 0.1": "max_duration = -0.1"}, {}, "perturbation.max_duration:", "must be > 0"),
 ]
 

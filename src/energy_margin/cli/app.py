@@ -15,12 +15,32 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from energy_margin import __version__
-from energy_margin.cli import analyze, budget, check, evaluate, generate, import_reference, perturb, reproduce
+from energy_margin.cli import (
+    analyze,
+    budget,
+    check,
+    evaluate,
+    generate,
+    import_reference,
+    perturb,
+    record,
+    reproduce,
+)
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
 from energy_margin.errors import EnergyMarginError
 
 #: The commands in the order ``--help`` lists them (the order data flows).
-COMMANDS: tuple[ModuleType, ...] = (generate, import_reference, check, analyze, evaluate, perturb, budget, reproduce)
+COMMANDS: tuple[ModuleType, ...] = (
+    generate,
+    record,
+    import_reference,
+    check,
+    analyze,
+    evaluate,
+    perturb,
+    budget,
+    reproduce,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -64,18 +64,75 @@ def record_trajectory(
             step += 1
         frames.append(simulator.frame_state())
         times.append(step * dt)
+    return trajectory_record(task, frames, times, trajectory.friction, trajectory.drive)
+
+
+def trajectory_record(
+    task: Task, frames: list[FrameState], times: list[float], friction: float, drive: np.ndarray
+) -> dict[str, Any]:
+    """One trajectory's arrays as ``frames.npz`` lays them out (without the trajectory axis), with labels.
+
+    Args:
+        task: the task whose capture and success sets label the frames.
+        frames: the recorded frame states, K of them.
+        times: time of each frame within the roll-out, s.
+        friction: the trajectory's Coulomb coefficient.
+        drive: the trajectory's drive parameters, shape (n_drive,).
+
+    """
     return {
         "object_pos": np.stack([f.object_pos for f in frames]),
         "object_quat": np.stack([f.object_quat for f in frames]),
         "object_vel": np.stack([f.object_vel for f in frames]),
         "robot_q": np.stack([f.robot_q for f in frames]),
         "robot_v": np.stack([f.robot_v for f in frames]),
-        "frame_time": np.array(times),
-        "friction": np.float64(trajectory.friction),
-        "drive": np.asarray(trajectory.drive, dtype=float),
+        "frame_time": np.array(times, dtype=float),
+        "friction": np.float64(friction),
+        "drive": np.asarray(drive, dtype=float),
         "captured": np.array([task.is_captured(f) for f in frames]),
         "in_success": np.array([task.is_successful(f) for f in frames]),
     }
+
+
+def write_records(
+    task: Task,
+    records: list[dict[str, Any]],
+    out: Path,
+    *,
+    engine: str,
+    extra: dict[str, Any],
+    overwrite: bool,
+) -> Dataset:
+    """Stack trajectory records into a dataset, validate it and write it atomically to ``out``.
+
+    Args:
+        task: the task of every record.
+        records: one :func:`trajectory_record` per trajectory, all with the same K.
+        out: the dataset directory.
+        engine: the engine that produced the frames.
+        extra: further metadata (e.g. ``seed``, or the recordings a dataset was made from).
+        overwrite: replace an existing ``out``.
+
+    """
+    arrays = {key: np.stack([r[key] for r in records]) for key in records[0]}
+    metadata = {
+        "format": FORMAT,
+        "schema_version": SCHEMA_VERSION,
+        "task": task.name,
+        "task_config": task.config.to_dict(),
+        "engine": engine,
+        **extra,
+        "n_trajectories": len(records),
+        "n_frames": int(arrays["frame_time"].shape[1]),
+        "n_objects": int(arrays["object_pos"].shape[2]),
+        "n_robot_dofs": int(arrays["robot_q"].shape[-1]),
+        "n_drive": int(arrays["drive"].shape[-1]),
+        "package_version": __version__,
+    }
+    dataset = Dataset(path=out, metadata=metadata, arrays=arrays)
+    validate(dataset)
+    write_directory(out, metadata, arrays, overwrite=overwrite)
+    return dataset
 
 
 def generate_dataset(
@@ -137,25 +194,7 @@ def generate_dataset(
             raise EnergyMarginError(f"cannot generate {task_name} trajectories: {error}") from None
         if progress is not None:
             progress(1)
-    arrays = {key: np.stack([r[key] for r in records]) for key in records[0]}
-    metadata = {
-        "format": FORMAT,
-        "schema_version": SCHEMA_VERSION,
-        "task": task.name,
-        "task_config": task.config.to_dict(),
-        "engine": engine,
-        "seed": int(seed),
-        "n_trajectories": n_trajectories,
-        "n_frames": n_frames,
-        "n_objects": n_objects,
-        "n_robot_dofs": int(arrays["robot_q"].shape[-1]),
-        "n_drive": int(arrays["drive"].shape[-1]),
-        "package_version": __version__,
-    }
-    dataset = Dataset(path=out, metadata=metadata, arrays=arrays)
-    validate(dataset)
-    write_directory(out, metadata, arrays, overwrite=overwrite)
-    return dataset
+    return write_records(task, records, out, engine=engine, extra={"seed": int(seed)}, overwrite=overwrite)
 
 
 def _same_dataset(
