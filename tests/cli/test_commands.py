@@ -15,7 +15,18 @@ import pytest
 from energy_margin.cli import build_parser, main
 from energy_margin.cli.app import COMMANDS
 
-COMMAND_NAMES = ("generate", "analyze", "evaluate", "check", "perturb", "import-reference", "budget", "reproduce")
+COMMAND_NAMES = (
+    "scene",
+    "generate",
+    "record",
+    "analyze",
+    "evaluate",
+    "check",
+    "perturb",
+    "import-reference",
+    "budget",
+    "reproduce",
+)
 
 
 def test_every_command_is_registered_once() -> None:

@@ -25,12 +25,14 @@ from energy_margin.cli import (
     perturb,
     record,
     reproduce,
+    scene,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
 from energy_margin.errors import EnergyMarginError
 
 #: The commands in the order ``--help`` lists them (the order data flows).
 COMMANDS: tuple[ModuleType, ...] = (
+    scene,
     generate,
     record,
     import_reference,
