@@ -217,8 +217,8 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     spread = float(np.max(np.linalg.norm(frame.object_pos - centre, axis=1))) + float(np.max(loaded.object_radius))
     camera.lookat[:] = centre
     camera.distance = max(6.0 * spread, 0.6)
-    camera.azimuth = 90.0
-    camera.elevation = -45.0
+    camera.azimuth = 135.0
+    camera.elevation = -60.0
     image = _render(model, data, camera, width, height)
     figure, ax = plt.subplots(figsize=(width / 100, height / 100 + 0.4), dpi=100)
     ax.imshow(image)

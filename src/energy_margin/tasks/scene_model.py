@@ -155,7 +155,9 @@ def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
             if geoms.size
             else 0.05
         )
-        spacing = 2.0 * radius + 0.01
+        # Free copies start side by side along x; upright copies keep the template's zero origin
+        # (their slide joints measure world positions from it) and take their places from the start draw.
+        spacing = 2.0 * radius + 0.01 if spec.object_joints == "free" else 0.0
         model_spec.copy_during_attach = True
         for index in range(spec.count or 0):
             frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
@@ -201,6 +203,12 @@ def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
                 "give it a <freejoint/> or set objects.joints = 'upright' for slide x, y, z and hinge z",
             )
         return first
+    if np.any(model.body_pos[body] != 0) or np.any(model.body_quat[body] != [1, 0, 0, 0]):
+        raise spec.error(
+            "objects.joints",
+            f"upright body {name!r} in {spec.mjcf.name} must sit at the world origin (pos 0 0 0, no rotation): "
+            "its slide joints then measure its world position",
+        )
     expected = [int(kind) for kind, _ in _UPRIGHT_AXES]
     axes_ok = kinds == expected and all(
         np.allclose(model.jnt_axis[first + i], axis) for i, (_, axis) in enumerate(_UPRIGHT_AXES)
