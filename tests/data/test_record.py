@@ -73,3 +73,28 @@ def test_bad_recordings_are_one_line_naming_file_and_array(tiny_scene: Path, tmp
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and f"{log}: {fragment}" in error, error
     assert not out.exists()
+
+
+def test_record_reads_an_hdf5_file_with_a_group_per_rollout(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    h5py = pytest.importorskip("h5py")
+    first = _log_rollout(tiny_scene, tmp_path / "a.npz", shift=0.0)
+    second = _log_rollout(tiny_scene, tmp_path / "b.npz", shift=0.02)
+    path = tmp_path / "runs.h5"
+    with h5py.File(path, "w") as handle:
+        for name, arrays in (("run0", first), ("run1", second)):
+            group = handle.create_group(name)
+            for key, value in arrays.items():
+                group[key] = value
+    out = tmp_path / "from_h5"
+    assert main(["record", "--scene", str(tiny_scene), str(path), "--frames", "3", "--out", str(out)]) == 0
+    from_npz = tmp_path / "from_npz"
+    npz = [str(tmp_path / "a.npz"), str(tmp_path / "b.npz")]
+    assert main(["record", "--scene", str(tiny_scene), *npz, "--frames", "3", "--out", str(from_npz)]) == 0
+    for key in ("object_pos", "robot_q", "captured", "in_success"):
+        np.testing.assert_array_equal(load_dataset(out).arrays[key], load_dataset(from_npz).arrays[key])
+    with h5py.File(path, "a") as handle:
+        del handle["run1/qvel"]
+        handle["run1/qvel"] = np.zeros((80, 3))
+    assert main(["record", "--scene", str(tiny_scene), str(path), "--frames", "3", "--out", str(tmp_path / "bad")]) == 2
+    assert f"{path}:/run1: qvel: has shape (80, 3), expected (80, 12)" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

@@ -4,9 +4,11 @@ A roll-out is one ``.npz`` file with ``time`` (n,) s, ``qpos`` (n, nq) and ``qve
 MuJoCo's own state layout for the scene's compiled model, and optionally ``ctrl`` (n, nu) (checked,
 not used: the analysis follows the scene file's declared motion from each frame's time) and
 ``mocap_pos`` (n, nmocap, 3) / ``mocap_quat`` (n, nmocap, 4) (without them the mocap bodies take
-the declared motion's pose at each time). ``time`` is the motion's clock: 0 is its start. K
-frames are taken at the rows nearest to K evenly spaced times from the first row to the last; the
-labels come from the scene file's capture and success sets. Every problem is one line naming the
+the declared motion's pose at each time). An HDF5 file (``.h5``/``.hdf5``, read with h5py) holds
+one group per roll-out with the same arrays, taken in the order of the group names. ``time`` is
+the motion's clock: 0 is its start. K frames are taken at the rows nearest to K evenly spaced
+times from the first row to the last; the labels come from the scene file's capture and success
+sets. Every problem is one line naming the
 file and the array.
 """
 
@@ -27,16 +29,46 @@ from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
+_HDF5_SUFFIXES = (".h5", ".hdf5")
 
-def _read_rollout(path: Path, model: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The arrays of one roll-out file, checked against ``model``'s sizes."""
+
+def _load_arrays(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
+    """The roll-outs in one file: ``(name, arrays)``; an ``.npz`` holds one, an HDF5 file one per group."""
     if not path.is_file():
         raise EnergyMarginError(f"{path}: roll-out file does not exist")
+    if path.suffix.lower() in _HDF5_SUFFIXES:
+        try:
+            import h5py
+        except ImportError:
+            raise EnergyMarginError(
+                f"{path}: reading HDF5 roll-outs needs h5py: pip install 'energy-margin[hdf5]'"
+            ) from None
+        try:
+            with h5py.File(path, "r") as handle:
+                rollouts = []
+                for group_name in sorted(handle):
+                    group = handle[group_name]
+                    if not isinstance(group, h5py.Group):
+                        raise EnergyMarginError(
+                            f"{path}: /{group_name}: expected a group per roll-out, found a dataset"
+                        )
+                    arrays = {key: np.asarray(group[key]) for key in group if isinstance(group[key], h5py.Dataset)}
+                    rollouts.append((f"{path}:/{group_name}", arrays))
+        except OSError as error:
+            raise EnergyMarginError(f"{path}: not a readable HDF5 file ({' '.join(str(error).split())})") from None
+        if not rollouts:
+            raise EnergyMarginError(f"{path}: holds no roll-out group")
+        return rollouts
     try:
         with np.load(path, allow_pickle=False) as archive:
             arrays = {name: np.asarray(archive[name]) for name in archive.files}
     except (OSError, ValueError, EOFError) as error:
         raise EnergyMarginError(f"{path}: not a readable .npz roll-out ({' '.join(str(error).split())})") from None
+    return [(str(path), arrays)]
+
+
+def _check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The arrays of one roll-out (``path`` names it in errors), checked against ``model``'s sizes."""
     for name in ("time", "qpos", "qvel"):
         if name not in arrays:
             raise EnergyMarginError(f"{path}: {name}: array is missing (a roll-out needs time, qpos and qvel)")
@@ -94,7 +126,8 @@ def record_dataset(
 
     Args:
         scene_file: the scene file whose model recorded the roll-outs.
-        rollouts: one ``.npz`` per roll-out (see the module docstring).
+        rollouts: one ``.npz`` per roll-out, or HDF5 files (``.h5``, ``.hdf5``) with one group per
+            roll-out holding the same arrays (needs h5py); see the module docstring.
         n_frames: frames K per roll-out, >= 1 (at most the rows of the shortest roll-out).
         out: the dataset directory to create.
         overwrite: replace an existing ``out``.
@@ -114,14 +147,18 @@ def record_dataset(
     drive = np.ones(task.drive_size())
     simulator = task.make_simulator(loaded.n_objects, friction, drive)
     model, data = simulator.model, simulator.data  # type: ignore[attr-defined]
-    records = []
+    loaded_rollouts: list[tuple[str, dict[str, np.ndarray]]] = []
     sources: list[dict[str, Any]] = []
     for item in rollouts:
         path = Path(item)
-        arrays = _read_rollout(path, model)
+        for name, raw in _load_arrays(path):
+            loaded_rollouts.append((name, _check_rollout(name, raw, model)))
+        sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    records = []
+    for name, arrays in loaded_rollouts:
         time = arrays["time"]
         if time.size < n_frames:
-            raise EnergyMarginError(f"{path}: time: has {time.size} rows, fewer than --frames {n_frames}")
+            raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than --frames {n_frames}")
         frames: list[FrameState] = []
         times: list[float] = []
         for row in _frame_rows(time, n_frames):
@@ -138,15 +175,13 @@ def record_dataset(
                 data.mocap_quat[:] = arrays["mocap_quat"][row]
             mujoco.mj_forward(model, data)
             frame = simulator.frame_state()
-            quat_norm = np.linalg.norm(frame.object_quat, axis=1)
-            if np.any(np.abs(quat_norm - 1.0) > 1e-3):
+            if np.any(np.abs(np.linalg.norm(frame.object_quat, axis=1) - 1.0) > 1e-3):
                 raise EnergyMarginError(
-                    f"{path}: qpos: row {row} holds an object quaternion that is not a unit quaternion"
+                    f"{name}: qpos: row {row} holds an object quaternion that is not a unit quaternion"
                 )
             frames.append(frame)
             times.append(float(time[row]))
         records.append(trajectory_record(task, frames, times, friction, drive))
-        sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
         if progress is not None:
             progress(1)
     return write_records(task, records, out, engine="mujoco", extra={"recorded_from": sources}, overwrite=overwrite)
