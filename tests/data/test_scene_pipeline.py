@@ -81,3 +81,15 @@ def test_analyze_refuses_a_dataset_whose_model_changed(tiny_scene: Path, tmp_pat
     assert main(["check", str(out)]) == 2
     assert "changed since these data were made" in capsys.readouterr().out + capsys.readouterr().err
     assert json.loads(before)["task"] == "scene"
+
+
+def test_perturb_and_budget_work_on_a_scene_dataset(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    data = tmp_path / "data"
+    assert _generate(tiny_scene, data) == 0
+    copies = tmp_path / "copies"
+    argv = ["perturb", str(data), "--repeats", "2", "--seed", "1", "--out", str(copies), "--keep-orientation"]
+    assert main(argv) == 0
+    copy = load_dataset(copies / "1")
+    assert copy.metadata["task_config"]["model_sha256"] == load_dataset(data).metadata["task_config"]["model_sha256"]
+    assert main(["budget", str(data), "--budgets", "5", "10", "--methods", "est", "montecarlo"]) == 0
+    assert (data / "budget" / "budget.csv").is_file()

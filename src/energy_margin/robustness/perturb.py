@@ -67,7 +67,7 @@ class FramePerturbation:
 
 
 def _planar(dataset: Dataset) -> bool:
-    return dataset.task.build_scene(1, 0.5).object_motion == "upright"
+    return dataset.task.build_scene(dataset.n_objects, 0.5).object_motion == "upright"
 
 
 def _object_size(dataset: Dataset) -> float:
