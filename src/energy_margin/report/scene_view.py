@@ -216,7 +216,8 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     camera = mujoco.MjvCamera()
     spread = float(np.max(np.linalg.norm(frame.object_pos - centre, axis=1))) + float(np.max(loaded.object_radius))
     camera.lookat[:] = centre
-    camera.distance = max(6.0 * spread, 0.6)
+    reach = float(np.max(np.linalg.norm(data.xpos[1:] - centre, axis=1)))  # every body but the world
+    camera.distance = max(6.0 * spread, 2.2 * reach, 0.6)
     camera.azimuth = 135.0
     camera.elevation = -60.0
     image = _render(model, data, camera, width, height)
