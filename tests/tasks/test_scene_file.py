@@ -176,3 +176,68 @@ def test_template_copies_are_added_without_overlap(make_scene) -> None:
     assert len(set(np.round(start, 6))) == 4
     task = get_task("scene", {"scene_file": str(scene)})
     assert task.fixed_objects == 4
+
+
+ROBOT_MODEL_EDIT = {
+    '<body name="box_a"': '<body name="slider" pos="0 -0.5 0.03"><joint name="slide" type="slide" axis="1 0 0"/>'
+    '<geom type="box" size="0.02 0.02 0.02" mass="1"/></body>\n    <body name="box_a"',
+    "</worldbody>": '</worldbody>\n  <actuator><position name="servo" joint="slide" kp="50"/></actuator>',
+}
+
+
+def test_control_keyframes_interpolate_linearly_or_hold(make_scene) -> None:
+    keyframes = "\n[[motion.keyframes]]\ntime = 0.0\nctrl = [0.0]\n[[motion.keyframes]]\ntime = 1.0\nctrl = [0.4]\n"
+    base = {"[[motion.keyframes]]\ntime = 0.0\nmocap.pusher.pos = [0.0, -0.15, 0.03]\n\n": ""}
+    base["[[motion.keyframes]]\ntime = 1.5\nmocap.pusher.pos = [0.0, 0.3, 0.03]\n"] = keyframes
+    linear = get_task("scene", {"scene_file": str(make_scene(replace=base, model_replace=ROBOT_MODEL_EDIT))})
+    command = linear.model_command(np.ones(2), 0.25)
+    assert command is not None and command.ctrl is not None and command.mocap_pos is None
+    np.testing.assert_allclose(command.ctrl, [0.1])
+    assert linear.robot_dofs() == 1 + 7  # the slide joint, then the (unmoved) mocap pusher
+    hold = dict(base)
+    hold["duration = 1.5\n"] = 'duration = 1.5\ninterpolation = "hold"\n'
+    held = get_task("scene", {"scene_file": str(make_scene(replace=hold, model_replace=ROBOT_MODEL_EDIT))})
+    command = held.model_command(np.ones(2), 0.99)
+    assert command is not None and command.ctrl is not None
+    np.testing.assert_allclose(command.ctrl, [0.0])
+    after = held.model_command(np.ones(2), 1.2)
+    assert after is not None and after.ctrl is not None
+    np.testing.assert_allclose(after.ctrl, [0.4])
+
+
+def test_control_file_and_its_errors(make_scene, tmp_path: Path) -> None:
+    replace = {
+        "[[motion.keyframes]]\ntime = 0.0\nmocap.pusher.pos = [0.0, -0.15, 0.03]\n\n": "",
+        "[[motion.keyframes]]\ntime = 1.5\nmocap.pusher.pos = [0.0, 0.3, 0.03]\n": "",
+        "duration = 1.5\n": 'duration = 1.5\nctrl_file = "ctrl.npz"\n',
+    }
+    scene = make_scene(replace=replace, model_replace=ROBOT_MODEL_EDIT)
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 1.0]), ctrl=np.array([[0.0], [0.2]]))
+    task = get_task("scene", {"scene_file": str(scene)})
+    command = task.model_command(np.array([2.0, 1.0]), 0.25)  # time scale 2: the file's t = 0.5
+    assert command is not None and command.ctrl is not None
+    np.testing.assert_allclose(command.ctrl, [0.1])
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 0.0]), ctrl=np.array([[0.0], [0.2]]))
+    with pytest.raises(Exception, match=r"motion.ctrl_file: ctrl.npz: time is not increasing \(row 1\)"):
+        load_scene(scene)
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 1.0]), ctrl=np.zeros((2, 3)))
+    with pytest.raises(Exception, match=r"ctrl has shape \(2, 3\), expected \(2, 1\)"):
+        load_scene(scene)
+
+
+def test_a_pile_start_has_no_overlap(make_scene) -> None:
+    start = "[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n"
+    pile = '[randomize.start]\nmode = "pile"\nlow = [-0.1, 0.1, 0.05]\nhigh = [0.1, 0.3, 0.2]\n'
+    task = get_task("scene", {"scene_file": str(make_scene(replace={start: pile}))})
+    for seed in range(5):
+        initial = task.sample_trajectory(np.random.default_rng(seed), 2).initial
+        assert np.all(initial.object_pos >= [-0.1, 0.1, 0.05]) and np.all(initial.object_pos <= [0.1, 0.3, 0.2])
+        assert np.linalg.norm(initial.object_pos[0] - initial.object_pos[1]) > 0.1
+        np.testing.assert_allclose(np.linalg.norm(initial.object_quat, axis=1), 1.0)
+
+
+def test_scene_file_takes_no_set_overrides(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(tiny_scene), "--set", "timestep=0.1", "--out", str(out)]) == 2
+    assert "--set does not apply to --scene" in capsys.readouterr().err
+    assert not out.exists()
