@@ -197,8 +197,8 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     frame = start_frame(task, seed)
     model_spec, _ = compile_spec(loaded.spec)
     extent = float(np.max(np.abs(frame.object_pos[:, :2]))) + 1.0
-    _add_region_geoms(model_spec, loaded.spec.capture, task._lookup(frame), _CAPTURE_RGBA, extent)
-    _add_region_geoms(model_spec, loaded.spec.success, task._lookup(None), _SUCCESS_RGBA, extent)
+    _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent)
+    _add_region_geoms(model_spec, loaded.spec.success, task.frame_lookup(None), _SUCCESS_RGBA, extent)
     centre = frame.object_pos.mean(axis=0)
     model_spec.worldbody.add_light(pos=[centre[0], centre[1], centre[2] + 3.0], dir=[0.0, 0.0, -1.0], castshadow=False)
     model = model_spec.compile()

@@ -251,12 +251,10 @@ def _motion(spec: SceneSpec, model: mujoco.MjModel) -> Motion:
     ctrl = full
     mocap_rows = [k for k in motion.keyframes if k.mocap]
     nmocap = int(model.nmocap)
-    default_pos = np.array(
-        model.body_pos[model.body_mocapid >= 0][np.argsort(model.body_mocapid[model.body_mocapid >= 0])]
-    )
-    default_quat = np.array(
-        model.body_quat[model.body_mocapid >= 0][np.argsort(model.body_mocapid[model.body_mocapid >= 0])]
-    )
+    # The model's own mocap poses, in mocap-index order (a mocap body is a child of the world).
+    mocap_bodies = np.flatnonzero(model.body_mocapid >= 0)
+    mocap_bodies = mocap_bodies[np.argsort(model.body_mocapid[mocap_bodies])]
+    default_pos, default_quat = model.body_pos[mocap_bodies], model.body_quat[mocap_bodies]
     mocap_pos = np.tile(default_pos, (len(mocap_rows), 1, 1)).reshape(len(mocap_rows), nmocap, 3)
     mocap_quat = np.tile(default_quat, (len(mocap_rows), 1, 1)).reshape(len(mocap_rows), nmocap, 4)
     for row, keyframe in enumerate(mocap_rows):

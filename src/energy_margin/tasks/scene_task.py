@@ -357,7 +357,7 @@ class SceneTask(Task):
 
     # -- regions ---------------------------------------------------------------------------
 
-    def _lookup(self, frame: FrameState | None) -> Any:
+    def frame_lookup(self, frame: FrameState | None) -> Any:
         """A body/site frame lookup at ``frame`` (the model's start configuration for ``None``)."""
         loaded = self.loaded
         model, data = loaded.model, self._kinematics
@@ -404,7 +404,7 @@ class SceneTask(Task):
         return lookup
 
     def _set(self, table: dict[str, Any], at_least: int | None, frame: FrameState | None) -> Region:
-        region = build_region(table, self._lookup(frame))
+        region = build_region(table, self.frame_lookup(frame))
         result: Region = AtLeast(at_least, region) if at_least is not None else region
         return result
 
