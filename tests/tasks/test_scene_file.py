@@ -241,3 +241,48 @@ def test_scene_file_takes_no_set_overrides(tiny_scene: Path, tmp_path: Path, cap
     assert main(["generate", "--scene", str(tiny_scene), "--set", "timestep=0.1", "--out", str(out)]) == 2
     assert "--set does not apply to --scene" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_contact_region_uses_each_objects_orientation(make_scene) -> None:
+    # Success: every box touches the ground (within 1 mm), taken from the model.
+    success = 'region = { type = "contact", geom = "ground", margin = 0.001 }'
+    old = """region = { type = "all", of = [
+  { type = "distance", site = "goal", max = 0.16 },
+  { type = "height", max = 0.1 },
+] }"""
+    task = get_task("scene", {"scene_file": str(make_scene(replace={old: success}))})
+    region = task.success_region()
+    assert getattr(region, "uses_orientation", False)
+    upright = np.array([1.0, 0.0, 0.0, 0.0])
+    tilted = np.array([np.cos(np.pi / 8), np.sin(np.pi / 8), 0.0, 0.0])  # 45 degrees about x
+    positions = np.array([[[0.0, 0.0, 0.03], [0.3, 0.0, 0.04]], [[0.0, 0.0, 0.0305], [0.3, 0.0, 0.04]]])
+    # A 3 cm half-edge box resting at z = 0.03 touches; upright at z = 0.04 it is 1 cm above.
+    quats = np.array([[upright, upright], [upright, tilted]])
+    inside = region.contains(positions, None, quaternions=quats)
+    assert inside.tolist() == [[True, False], [True, True]]  # tilted 45 degrees its edge reaches down 4.24 cm
+    # Frames label with the objects' own orientations.
+    trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
+    assert task.is_successful(trajectory.initial)  # both boxes start resting on the ground
+    frame = trajectory.initial
+    lifted = type(frame)(
+        frame.object_pos + np.array([0.0, 0.0, 0.01]), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
+    )
+    assert not task.is_successful(lifted)
+    np.testing.assert_allclose(region.signed_distance(np.array([[0.0, 0.0, 0.05]])), [0.001 - 0.02], atol=1e-9)
+    # The analysis scores the tree's states with their orientations: resting boxes stay in contact.
+    from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+
+    config = AnalyzerConfig(iterations=10)
+    scores, field = analyze_frame(task, frame, friction=0.5, drive=trajectory.drive, seed=0, config=config)
+    assert field.object_quat.shape == (field.nodes, 2, 4)
+    assert 0.5 < scores.success_score <= 1.0
+
+
+def test_contact_with_an_unknown_geom_is_one_line(make_scene, tmp_path: Path, capsys) -> None:
+    old = 'region = { type = "box", body = "pusher", center = [0.0, 0.12, 0.0], half_size = [0.2, 0.1, 0.1] }'
+    scene = make_scene(replace={old: 'region = { type = "contact", geom = "floor" }'})
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "capture.region.geom: no geom 'floor' in model.xml" in error and error.count("\n") == 1
+    assert not out.exists()

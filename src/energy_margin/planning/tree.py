@@ -82,6 +82,7 @@ class CostField:
         object_pos: object centres of every node, shape (M, n_objects, 3), m.
         object_vel: object linear then angular velocities of every node, shape (M, n_objects, 6),
             m/s and rad/s, world frame.
+        object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``.
         parents: parent index of every node (-1 for the root), shape (M,); a parent always
             precedes its children.
         times: simulated time of every node, shape (M,), s.
@@ -94,6 +95,7 @@ class CostField:
     costs: np.ndarray
     object_pos: np.ndarray
     object_vel: np.ndarray
+    object_quat: np.ndarray
     parents: np.ndarray
     times: np.ndarray
     iterations: int
@@ -216,6 +218,7 @@ class _Tree:
             costs=self.costs[:count].copy(),
             object_pos=self.positions[:count].copy(),
             object_vel=self.velocities[:count].copy(),
+            object_quat=self.quaternions[:count].copy(),
             parents=self.parents[:count].copy(),
             times=self.times[:count].copy(),
             iterations=iterations,

@@ -49,19 +49,30 @@ class MeasurableRegion(Region, Protocol):
         ...
 
 
-def all_inside(region: Region, object_positions: np.ndarray, object_velocities: np.ndarray | None = None) -> np.ndarray:
+def all_inside(
+    region: Region,
+    object_positions: np.ndarray,
+    object_velocities: np.ndarray | None = None,
+    object_quaternions: np.ndarray | None = None,
+) -> np.ndarray:
     """True where every object of a state lies in ``region``.
 
     Args:
         region: the region.
         object_positions: shape (..., n_objects, 3), metres.
         object_velocities: shape (..., n_objects, 6), m/s and rad/s, or ``None``.
+        object_quaternions: shape (..., n_objects, 4), ``(w, x, y, z)``, or ``None``; passed on to a
+            region whose ``uses_orientation`` attribute is true (e.g. a contact test).
 
     Returns:
         Boolean array of shape (...).
 
     """
-    return np.all(region.contains(object_positions, object_velocities), axis=-1)
+    if object_quaternions is not None and getattr(region, "uses_orientation", False):
+        inside = region.contains(object_positions, object_velocities, quaternions=object_quaternions)  # type: ignore[call-arg]
+    else:
+        inside = region.contains(object_positions, object_velocities)
+    return np.all(inside, axis=-1)
 
 
 @dataclass(frozen=True)
@@ -303,11 +314,11 @@ class Task(ABC):
 
     def is_captured(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the capture region built from ``frame``."""
-        return bool(all_inside(self.capture_region(frame), frame.object_pos, frame.object_vel))
+        return bool(all_inside(self.capture_region(frame), frame.object_pos, frame.object_vel, frame.object_quat))
 
     def is_successful(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the success region."""
-        return bool(all_inside(self.success_region(), frame.object_pos, frame.object_vel))
+        return bool(all_inside(self.success_region(), frame.object_pos, frame.object_vel, frame.object_quat))
 
     @property
     def n_steps(self) -> int:

@@ -20,6 +20,10 @@ Primitives (the ``type`` of a region table; keys in :data:`REGION_TYPES`):
 ``speed``
     linear speed below ``max`` m/s (and angular speed below ``angular_max`` rad/s, default
     unbounded). At rest (no velocities) an object is inside; its signed distance is +inf.
+``contact``
+    the object's geoms, at its position and orientation, within ``margin`` (m, default 0.001) of
+    the geom ``geom`` or of any geom of ``body`` (MuJoCo's ``mj_geomDistance``, the other body
+    taken at the analysed frame). Needs orientations: ``uses_orientation`` is true.
 ``all``, ``any``
     every / at least one of the regions in ``of``.
 ``not``
@@ -40,11 +44,33 @@ import numpy as np
 
 
 class FrameLookup(Protocol):
-    """The pose of a named body or site at the frame a region is built from."""
+    """The pose of a named body, site or geom at the frame a region is built from.
+
+    Attributes:
+        model: the compiled MuJoCo model (for regions that test geometry, e.g. ``contact``).
+        data: MuJoCo data holding the frame's kinematics (read-only for regions).
+        object_geoms: geom ids of each object, in object order.
+
+    """
+
+    model: Any
+    data: Any
+    object_geoms: list[np.ndarray]
 
     def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Origin (3,) m and rotation matrix (3, 3) (columns: the frame's axes in world coordinates)."""
         ...
+
+
+def _contains(
+    region: Any, positions: np.ndarray, velocities: np.ndarray | None, quaternions: np.ndarray | None
+) -> np.ndarray:
+    """``region.contains``, with the orientations when the region uses them."""
+    if quaternions is not None and getattr(region, "uses_orientation", False):
+        result: np.ndarray = region.contains(positions, velocities, quaternions=quaternions)
+        return result
+    result = region.contains(positions, velocities)
+    return result
 
 
 _IDENTITY = np.eye(3)
@@ -202,14 +228,17 @@ class AllOf:
         if not parts:
             raise ValueError("needs at least one region")
         self.parts = parts
+        self.uses_orientation = any(getattr(part, "uses_orientation", False) for part in parts)
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """The smallest of the parts' signed distances (m), shape (...)."""
         return np.min([part.signed_distance(positions) for part in self.parts], axis=0)
 
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
         """Inside every part, shape (...)."""
-        return np.all([part.contains(positions, velocities) for part in self.parts], axis=0)
+        return np.all([_contains(part, positions, velocities, quaternions) for part in self.parts], axis=0)
 
 
 class AnyOf(AllOf):
@@ -219,9 +248,11 @@ class AnyOf(AllOf):
         """The largest of the parts' signed distances (m), shape (...)."""
         return np.max([part.signed_distance(positions) for part in self.parts], axis=0)
 
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
         """Inside some part, shape (...)."""
-        return np.any([part.contains(positions, velocities) for part in self.parts], axis=0)
+        return np.any([_contains(part, positions, velocities, quaternions) for part in self.parts], axis=0)
 
 
 class NotIn:
@@ -230,14 +261,17 @@ class NotIn:
     def __init__(self, region: Any) -> None:
         """Build the complement of ``region``."""
         self.region = region
+        self.uses_orientation = bool(getattr(region, "uses_orientation", False))
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """The region's signed distance, negated (m), shape (...)."""
         return -self.region.signed_distance(positions)
 
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
         """Outside the region, shape (...)."""
-        return ~self.region.contains(positions, velocities)
+        return ~_contains(self.region, positions, velocities, quaternions)
 
 
 class AtLeast:
@@ -254,6 +288,7 @@ class AtLeast:
             raise ValueError(f"at_least must be an integer >= 1, got {count!r}")
         self.count = count
         self.region = region
+        self.uses_orientation = bool(getattr(region, "uses_orientation", False))
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """The ``count``-th largest object distance of each state, for each object (m), shape (..., n)."""
@@ -264,11 +299,93 @@ class AtLeast:
         kth = -np.sort(-distances, axis=-1)[..., self.count - 1]
         return np.broadcast_to(kth[..., None], distances.shape).copy()
 
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
         """Whether at least ``count`` objects of each state are inside, for each object, shape (..., n)."""
-        inside = self.region.contains(positions, velocities)
+        inside = _contains(self.region, positions, velocities, quaternions)
         enough = np.sum(inside, axis=-1) >= self.count
         return np.broadcast_to(enough[..., None], inside.shape).copy()
+
+
+class ContactRegion:
+    """Each object's geoms within ``margin`` of target geoms, the objects at their own poses.
+
+    The targets stay where they are at the analysed frame. Distances are MuJoCo's
+    ``mj_geomDistance`` between every geom of the object and every target geom (the smallest).
+    """
+
+    uses_orientation = True
+
+    def __init__(self, lookup: FrameLookup, targets: np.ndarray, margin: float) -> None:
+        """Build it.
+
+        Args:
+            lookup: the frame's model, kinematics and object geoms.
+            targets: geom ids of the other body (or the one geom), shape (k,).
+            margin: largest distance that counts as contact, m (>= 0).
+
+        """
+        import mujoco
+
+        if margin < 0:
+            raise ValueError(f"margin must be >= 0, got {margin!r}")
+        self._mujoco = mujoco
+        self.model = lookup.model
+        self.data = mujoco.MjData(self.model)
+        self.data.geom_xpos[:] = lookup.data.geom_xpos
+        self.data.geom_xmat[:] = lookup.data.geom_xmat
+        self.targets = np.asarray(targets, dtype=int)
+        self.object_geoms = lookup.object_geoms
+        self.margin = float(margin)
+        model = self.model
+        # Each object geom's pose in its body frame.
+        self._local_pos = [model.geom_pos[geoms].copy() for geoms in self.object_geoms]
+        self._local_mat = []
+        for geoms in self.object_geoms:
+            mats = np.empty((len(geoms), 9))
+            for row, geom in enumerate(geoms):
+                mujoco.mju_quat2Mat(mats[row], model.geom_quat[geom])
+            self._local_mat.append(mats.reshape(-1, 3, 3))
+
+    def _distances(self, positions: np.ndarray, quaternions: np.ndarray | None) -> np.ndarray:
+        """Smallest geom distance of each object to the targets, shape (..., n), m."""
+        positions = np.asarray(positions, dtype=float)
+        shape = positions.shape[:-1]
+        flat_pos = positions.reshape(-1, 3)
+        if quaternions is None:
+            flat_quat = np.tile([1.0, 0.0, 0.0, 0.0], (flat_pos.shape[0], 1))
+        else:
+            flat_quat = np.asarray(quaternions, dtype=float).reshape(-1, 4)
+        n = len(self.object_geoms)
+        result = np.empty(flat_pos.shape[0])
+        mujoco, model, data = self._mujoco, self.model, self.data
+        rotation = np.empty(9)
+        limit = self.margin + 1.0
+        for index in range(flat_pos.shape[0]):
+            obj = index % n
+            geoms = self.object_geoms[obj]
+            mujoco.mju_quat2Mat(rotation, flat_quat[index] / np.linalg.norm(flat_quat[index]))
+            body = rotation.reshape(3, 3)
+            data.geom_xpos[geoms] = flat_pos[index] + self._local_pos[obj] @ body.T
+            data.geom_xmat[geoms] = (body @ self._local_mat[obj]).reshape(-1, 9)
+            result[index] = min(
+                mujoco.mj_geomDistance(model, data, int(geom), int(target), limit, None)
+                for geom in geoms
+                for target in self.targets
+            )
+        return result.reshape(shape)
+
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """``margin`` minus the geom distance of each object in its model orientation, m, shape (...)."""
+        return self.margin - self._distances(positions, None)
+
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Whether each object (..., n) touches the targets (without orientations: identity)."""
+        del velocities
+        return self._distances(positions, quaternions) <= self.margin
 
 
 @dataclass(frozen=True)
@@ -323,6 +440,29 @@ def _build_distance(table: Mapping[str, Any], lookup: FrameLookup, _: Callable[[
 def _build_speed(table: Mapping[str, Any], lookup: FrameLookup, _: Callable[[Mapping[str, Any]], Any]) -> Any:
     del lookup
     return SpeedRegion(table["max"], table.get("angular_max", np.inf))
+
+
+def _build_contact(table: Mapping[str, Any], lookup: FrameLookup, _: Callable[[Mapping[str, Any]], Any]) -> Any:
+    model = lookup.model
+    if "geom" in table:
+        lookup("geom", table["geom"])  # raises for an unknown geom
+        targets = np.array([_geom_id(model, table["geom"])])
+    else:
+        lookup("body", table["body"])
+        targets = np.flatnonzero(model.geom_bodyid == _body_id(model, table["body"]))
+    return ContactRegion(lookup, targets, table.get("margin", 0.001))
+
+
+def _geom_id(model: Any, name: str) -> int:
+    import mujoco
+
+    return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name))
+
+
+def _body_id(model: Any, name: str) -> int:
+    import mujoco
+
+    return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name))
 
 
 def _build_all(table: Mapping[str, Any], lookup: FrameLookup, build: Callable[[Mapping[str, Any]], Any]) -> Any:
@@ -382,6 +522,14 @@ for _type in (
         ("body", "site"),
     ),
     RegionType("speed", {"max": "number", "angular_max": "number"}, ("max",), _build_speed),
+    RegionType(
+        "contact",
+        {"geom": "geom", "body": "body", "margin": "number"},
+        (),
+        _build_contact,
+        (("geom", "body"),),
+        ("geom", "body"),
+    ),
     RegionType("all", {"of": "regions"}, ("of",), _build_all),
     RegionType("any", {"of": "regions"}, ("of",), _build_any),
     RegionType("not", {"region": "region"}, ("region",), _build_not),

@@ -558,8 +558,10 @@ def _check_region(read: _Reader, table: Any, key: str) -> dict[str, Any]:
         if what == "vector3":
             checked[name] = read.vector(value, sub)
         elif what == "number":
-            checked[name] = read.number(value, sub, minimum=0.0 if name in ("radius", "half_height") else None)
-        elif what in ("body", "site"):
+            checked[name] = read.number(
+                value, sub, minimum=0.0 if name in ("radius", "half_height", "margin") else None
+            )
+        elif what in ("body", "site", "geom"):
             checked[name] = read.string(value, sub)
         elif what == "regions":
             if not isinstance(value, list) or not value:
@@ -582,7 +584,7 @@ def region_names(table: Mapping[str, Any], key: str) -> list[tuple[str, str, str
     """Every ``(kind, name, key)`` of a body or site named in a validated region table."""
     found = []
     for name, value in table.items():
-        if name in ("body", "site"):
+        if name in ("body", "site", "geom"):
             found.append((name, value, f"{key}.{name}"))
         elif name == "of":
             for index, part in enumerate(value):

@@ -304,7 +304,7 @@ def _read_ctrl_file(spec: SceneSpec, nu: int, what: str) -> tuple[np.ndarray, np
 
 
 def _check_region_names(spec: SceneSpec, model: mujoco.MjModel) -> None:
-    kinds = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE}
+    kinds = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE, "geom": mujoco.mjtObj.mjOBJ_GEOM}
     for set_name, table in (("capture", spec.capture), ("success", spec.success)):
         for kind, name, key in region_names(table, f"{set_name}.region"):
             if mujoco.mj_name2id(model, kinds[kind], name) < 0:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -81,6 +81,39 @@ def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return result
 
 
+class _FrameLookup:
+    """Poses of named bodies, sites and geoms in one frame's kinematics (a ``FrameLookup``)."""
+
+    _KINDS: ClassVar[dict[str, mujoco.mjtObj]] = {
+        "body": mujoco.mjtObj.mjOBJ_BODY,
+        "site": mujoco.mjtObj.mjOBJ_SITE,
+        "geom": mujoco.mjtObj.mjOBJ_GEOM,
+    }
+
+    def __init__(self, loaded: LoadedScene, data: mujoco.MjData, object_geoms: list[np.ndarray]) -> None:
+        self.loaded = loaded
+        self.model = loaded.model
+        self.data = data
+        self.object_geoms = object_geoms
+        self._poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Origin (3,) m and rotation matrix (3, 3) of body, site or geom ``name``."""
+        if (kind, name) not in self._poses:
+            index = mujoco.mj_name2id(self.model, self._KINDS[kind], name)
+            if index < 0:
+                spec = self.loaded.spec
+                raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
+            data = self.data
+            positions, matrices = {
+                "body": (data.xpos, data.xmat),
+                "site": (data.site_xpos, data.site_xmat),
+                "geom": (data.geom_xpos, data.geom_xmat),
+            }[kind]
+            self._poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
+        return self._poses[(kind, name)]
+
+
 class SceneTask(Task):
     """The task a scene file declares (see ``docs/scenes.md``)."""
 
@@ -120,6 +153,7 @@ class SceneTask(Task):
         self.fixed_objects = loaded.n_objects
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
+        self._object_geoms = [np.flatnonzero(model.geom_bodyid == body) for body in loaded.object_bodies]
         self._success: Region | None = None
         self._placement: Simulator | None = None
 
@@ -357,8 +391,12 @@ class SceneTask(Task):
 
     # -- regions ---------------------------------------------------------------------------
 
-    def frame_lookup(self, frame: FrameState | None) -> Any:
-        """A body/site frame lookup at ``frame`` (the model's start configuration for ``None``)."""
+    def frame_lookup(self, frame: FrameState | None) -> _FrameLookup:
+        """Poses of bodies, sites and geoms at ``frame`` (the model's start configuration for ``None``).
+
+        The lookup holds the scene's kinematics data, which the next call overwrites: regions copy
+        what they keep when they are built.
+        """
         loaded = self.loaded
         model, data = loaded.model, self._kinematics
         mujoco.mj_resetData(model, data)
@@ -386,22 +424,7 @@ class SceneTask(Task):
                 data.mocap_pos[:] = command.mocap_pos
                 data.mocap_quat[:] = command.mocap_quat
         mujoco.mj_kinematics(model, data)
-        kinds = {
-            "body": (mujoco.mjtObj.mjOBJ_BODY, data.xpos, data.xmat),
-            "site": (mujoco.mjtObj.mjOBJ_SITE, data.site_xpos, data.site_xmat),
-        }
-        poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
-
-        def lookup(kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
-            if (kind, name) not in poses:
-                obj, positions, matrices = kinds[kind]
-                index = mujoco.mj_name2id(model, obj, name)
-                if index < 0:
-                    raise EnergyMarginError(f"{loaded.spec.path}: no {kind} {name!r} in {loaded.spec.mjcf.name}")
-                poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
-            return poses[(kind, name)]
-
-        return lookup
+        return _FrameLookup(loaded, data, self._object_geoms)
 
     def _set(self, table: dict[str, Any], at_least: int | None, frame: FrameState | None) -> Region:
         region = build_region(table, self.frame_lookup(frame))
