@@ -88,3 +88,31 @@ def test_register_requires_a_name(private_registry: None) -> None:
 def test_bad_configuration_values_are_user_errors(override: dict[str, Any]) -> None:
     with pytest.raises(EnergyMarginError):
         get_task("pushing", override)
+
+
+def test_a_recorded_configuration_keeps_the_settings_of_its_release() -> None:
+    from energy_margin.tasks import get_recorded_task, get_task
+
+    # A dataset written before `ground_contact` existed was made with the rim contacts.
+    recorded = get_task("pushing").config.to_dict()
+    del recorded["ground_contact"]
+    assert get_recorded_task("pushing", recorded).config.ground_contact == "geometry"
+    assert get_recorded_task("pushing", {**recorded, "ground_contact": "footprint"}).config.ground_contact == (
+        "footprint"
+    )
+    assert get_task("pushing", {"ground_contact": "footprint"}).config.ground_contact == "footprint"
+
+
+def test_an_old_dataset_is_analysed_with_its_own_contacts(tiny_dataset) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from energy_margin.data.dataset import load_dataset
+
+    path = tiny_dataset / "dataset.json"
+    metadata = json.loads(path.read_text())
+    metadata["task_config"]["ground_contact"] = "footprint"
+    path.write_text(json.dumps(metadata))
+    assert load_dataset(tiny_dataset).task.config.ground_contact == "footprint"
+    metadata["task_config"].pop("ground_contact")
+    path.write_text(json.dumps(metadata))
+    assert load_dataset(tiny_dataset).task.config.ground_contact == "geometry"

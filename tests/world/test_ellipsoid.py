@@ -224,3 +224,17 @@ def test_sampling_is_deterministic_and_validates_count() -> None:
 def test_exported_from_the_package() -> None:
     assert energy_margin.min_volume_ellipsoid is min_volume_ellipsoid
     assert energy_margin.Ellipsoid is Ellipsoid
+
+
+def test_snapped_rounds_to_the_grid_and_absorbs_rounding_changes() -> None:
+    fit = min_volume_ellipsoid(np.array([[0.1, 0.2], [0.9, 0.25], [0.5, 0.7], [0.4, 0.1]]))
+    snapped = fit.snapped(1e-7)
+    for values in (snapped.center, snapped.radii, snapped.rotation):
+        assert np.allclose(values / 1e-7, np.round(values / 1e-7), atol=1e-6)
+    assert np.abs(snapped.center - fit.center).max() <= 0.5e-7 + 1e-15
+    nudged = Ellipsoid(fit.center * (1 + 1e-12), fit.radii * (1 + 1e-12), fit.rotation * (1 + 1e-12)).snapped(1e-7)
+    assert np.array_equal(nudged.center, snapped.center)
+    assert np.array_equal(nudged.radii, snapped.radii)
+    assert np.array_equal(nudged.rotation, snapped.rotation)
+    with pytest.raises(ValueError, match="step"):
+        fit.snapped(0.0)

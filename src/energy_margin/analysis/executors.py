@@ -182,6 +182,26 @@ class _RayFrameAnalyzer:
         return [self._analyzer(index) for index in indices]
 
 
+# A chunk is tried on at most this many workers before the run fails.
+_RAY_ATTEMPTS = 3
+
+
+def _ray_lost_worker_errors(ray: Any) -> tuple[type[BaseException], ...]:
+    """Ray's exceptions for an actor whose worker process or node is gone."""
+    exceptions = ray.exceptions
+    names = ("RayActorError", "ActorDiedError", "ActorUnavailableError", "WorkerCrashedError", "NodeDiedError")
+    return tuple(getattr(exceptions, name) for name in names if hasattr(exceptions, name))
+
+
+def _least_loaded(actors: list[Any], in_flight: dict[Any, tuple[Any, list[int], int]]) -> Any:
+    """The actor with the fewest chunks in flight (the first of them on a tie)."""
+    load = {id(actor): 0 for actor in actors}
+    for actor, _, _ in in_flight.values():
+        if id(actor) in load:
+            load[id(actor)] += 1
+    return min(actors, key=lambda actor: load[id(actor)])
+
+
 def _import_ray() -> Any:
     # Ray would otherwise try to report usage statistics over the network.
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
@@ -224,28 +244,58 @@ class RayExecutor:
             except (ConnectionError, RuntimeError, ValueError) as error:
                 raise EnergyMarginError(f"cannot start or reach Ray ({error})") from None
         actor_class = ray.remote(num_cpus=1)(_RayFrameAnalyzer)
+        lost = _ray_lost_worker_errors(ray)
         actors: list[Any] = []
         try:
             # The dataset travels through the object store, so cluster nodes need no shared disk.
             dataset_ref = ray.put(dataset)
-            actors = [actor_class.remote(dataset_ref, config.to_dict(), seed) for _ in range(self.workers)]
+
+            def new_actor() -> Any:
+                actor = actor_class.remote(dataset_ref, config.to_dict(), seed)
+                actors.append(actor)
+                return actor
+
             chunks = iter(_chunks(indices, self.workers))
-            in_flight: dict[Any, Any] = {}
-            for actor in actors:
+            # reference -> (actor, chunk, attempt): a chunk's rows are yielded only when the whole
+            # chunk came back, so a worker lost mid-chunk loses nothing and duplicates nothing.
+            in_flight: dict[Any, tuple[Any, list[int], int]] = {}
+            alive: list[Any] = []
+            for _ in range(self.workers):
+                actor = new_actor()
+                alive.append(actor)
                 for _ in range(2):
                     chunk = next(chunks, None)
                     if chunk is not None:
-                        in_flight[actor.run.remote(chunk)] = actor
+                        in_flight[actor.run.remote(chunk)] = (actor, chunk, 1)
             while in_flight:
                 ready, _ = ray.wait(list(in_flight), num_returns=1)
                 for reference in ready:
-                    actor = in_flight.pop(reference)
-                    yield from ray.get(reference)
-                    chunk = next(chunks, None)
-                    if chunk is not None:
-                        in_flight[actor.run.remote(chunk)] = actor
+                    actor, chunk, attempt = in_flight.pop(reference)
+                    try:
+                        rows = ray.get(reference)
+                    except lost as error:
+                        # Its node left the cluster (or the worker died): run the chunk again on a
+                        # surviving actor (a new one would wait for the CPU the survivors hold),
+                        # or on a new actor, which Ray places on a node still there, if none is left.
+                        if attempt >= _RAY_ATTEMPTS:
+                            raise EnergyMarginError(
+                                f"frames {chunk[0]}..{chunk[-1]} failed on {attempt} Ray workers ({error})"
+                            ) from None
+                        if actor in alive:
+                            alive.remove(actor)
+                        if not alive:
+                            alive.append(new_actor())
+                        target = _least_loaded(alive, in_flight)
+                        in_flight[target.run.remote(chunk)] = (target, chunk, attempt + 1)
+                        continue
+                    yield from rows
+                    following = next(chunks, None)
+                    if following is not None:
+                        target = actor if actor in alive else _least_loaded(alive, in_flight)
+                        in_flight[target.run.remote(following)] = (target, following, 1)
         finally:
             for actor in actors:
-                ray.kill(actor)
+                with contextlib.suppress(Exception):
+                    ray.kill(actor)
             if started_here:
                 ray.shutdown()

@@ -47,6 +47,12 @@ class AnalyzerConfig:
         rrt_extent: half width of the RRT target box, m.
         projection: EST density features, ``"objects"`` (every object's centre relative to the
             root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
+        converge: adaptive budget: stop a frame's tree once neither score has moved by more than
+            this over the last ``converge_window`` expansions (checked every ``converge_every``,
+            never before ``converge_window``); the iteration/node budget stays the upper bound.
+            ``None``: always spend the whole budget.
+        converge_window: expansions over which both scores must stay within ``converge``.
+        converge_every: expansions between two convergence checks.
 
     """
 
@@ -63,6 +69,9 @@ class AnalyzerConfig:
     rollout_length: int = 10
     rrt_extent: float = 0.1
     projection: str = "objects"
+    converge: float | None = None
+    converge_window: int = 50
+    converge_every: int = 25
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -95,6 +104,14 @@ class AnalyzerConfig:
             raise ValueError(f"rrt_extent must be > 0, got {self.rrt_extent!r}")
         if self.projection not in PROJECTIONS:
             raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
+        if self.converge is not None and not (
+            not isinstance(self.converge, bool) and np.isfinite(self.converge) and 0 < self.converge < 1
+        ):
+            raise ValueError(f"converge must be a score tolerance in (0, 1), got {self.converge!r}")
+        for name in ("converge_window", "converge_every"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
 
     @property
     def budget(self) -> TreeBudget:
@@ -141,6 +158,32 @@ def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> t
     return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
 
 
+class ScoresConverged:
+    """Early-stopping rule: both scores stayed within ``tolerance`` over the last ``window`` expansions.
+
+    Called by the tree every few expansions with the cost field so far; it scores the field
+    (Algorithm 1) and keeps the history of both scores, so the decision depends only on the
+    tree, never on timing (same seed, same stopping point).
+    """
+
+    def __init__(self, task: Task, root: FrameState, lam: float, *, tolerance: float, window: int) -> None:
+        self.task, self.root, self.lam = task, root, lam
+        self.tolerance, self.window = tolerance, window
+        self.history: list[tuple[int, float, float]] = []
+
+    def __call__(self, field: CostField) -> bool:
+        """Whether growth can stop after ``field.iterations`` expansions."""
+        capture, success = score_field(self.task, self.root, field, self.lam)
+        self.history.append((field.iterations, capture, success))
+        if field.iterations < self.window:
+            return False
+        recent = [(c, s) for i, c, s in self.history if i >= field.iterations - self.window]
+        if len(recent) < 2 or self.history[0][0] > field.iterations - self.window:
+            return False
+        spread = np.ptp(np.array(recent), axis=0)
+        return bool(np.all(spread <= self.tolerance))
+
+
 def analyze_frame(
     task: Task,
     frame: FrameState,
@@ -173,6 +216,9 @@ def analyze_frame(
         simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
+    stop = None
+    if config.converge is not None:
+        stop = ScoresConverged(task, frame, lam, tolerance=config.converge, window=config.converge_window)
     field = grow_tree(
         simulator,
         task,
@@ -190,6 +236,8 @@ def analyze_frame(
         threads=config.threads,
         rollout_length=config.rollout_length,
         rrt_extent=config.rrt_extent,
+        stop=stop,
+        check_every=config.converge_every,
     )
     capture, success = score_field(task, frame, field, lam)
     runtime = time.perf_counter() - started

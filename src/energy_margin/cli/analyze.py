@@ -60,6 +60,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round (default 1)")
     parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads (default 1)")
     parser.add_argument(
+        "--converge",
+        type=non_negative_float,
+        default=None,
+        metavar="TOL",
+        help="adaptive budget: stop a frame once neither score moved by more than TOL over the last 50 "
+        "expansions (the budget stays the upper bound; default: spend the whole budget)",
+    )
+    parser.add_argument(
         "--projection",
         choices=PROJECTIONS,
         default="objects",
@@ -85,6 +93,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
             batch=args.batch,
             threads=args.threads,
             projection=args.projection,
+            converge=args.converge,
         )
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None

@@ -8,7 +8,7 @@ from energy_margin.cli.common import add_seed, non_negative_float, positive_int
 
 NAME = "perturb"
 SUMMARY = "perturbed copies of a dataset: object centres resampled inside their minimum-volume ellipsoid"
-EXAMPLES = ("energy-margin perturb runs/push10 --repeats 5 --seed 0 --out runs/push10-perturbed",)
+EXAMPLES = ("energy-margin perturb runs/push10 --repeats 5 --seed 0 --out runs/push10-perturbed --workers 2",)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,6 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--keep-orientation", action="store_true", help="keep recorded orientations (default: identity, as the paper)"
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing copies")
+    parser.add_argument("--workers", type=positive_int, default=1, help="parallel processes (default 1)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
         tolerance=args.tolerance,
         keep_orientation=args.keep_orientation,
         overwrite=args.overwrite,
+        workers=args.workers,
+        progress=not args.no_progress,
     )
     print(f"wrote {len(paths)} perturbed copies: {', '.join(str(p) for p in paths)}")
     return 0

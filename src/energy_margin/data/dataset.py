@@ -32,7 +32,7 @@ import numpy as np
 
 from energy_margin.data.io import read_json, staging_directory, write_json
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks import Task, get_task
+from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
 
 FORMAT = "energy-margin-dataset"
@@ -72,7 +72,7 @@ class Dataset:
     @property
     def task(self) -> Task:
         """The task, with the configuration the data were generated with."""
-        return get_task(self.metadata["task"], self.metadata.get("task_config"))
+        return get_recorded_task(self.metadata["task"], self.metadata.get("task_config"))
 
     @property
     def n_trajectories(self) -> int:
@@ -251,7 +251,7 @@ def metadata_problems(metadata: Any) -> list[Problem]:
             problems.append(Problem(METADATA_FILE, "task_config", "", "must be an object"))
         else:
             try:
-                task = get_task(str(metadata["task"]), config)
+                task = get_recorded_task(str(metadata["task"]), config)
             except EnergyMarginError as error:
                 problems.append(Problem(METADATA_FILE, "task_config", "", str(error)))
             else:

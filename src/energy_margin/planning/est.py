@@ -12,6 +12,8 @@ The loop itself is shared with the Monte Carlo and RRT baselines (:mod:`energy_m
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from energy_margin.planning.costs import CostModel
@@ -43,6 +45,8 @@ def grow_tree(
     threads: int = 1,
     rollout_length: int = 10,
     rrt_extent: float = 0.1,
+    stop: Callable[[CostField], bool] | None = None,
+    check_every: int = 25,
 ) -> CostField:
     """Grow a tree (EST by default) from ``root`` and return its energy-cost field.
 
@@ -63,6 +67,9 @@ def grow_tree(
         threads: ``mujoco.rollout`` threads when ``batch`` > 1.
         rollout_length: Monte Carlo propagations per roll-out.
         rrt_extent: RRT target box half width, m.
+        stop: early-stopping rule called every ``check_every`` expansions (see
+            :func:`~energy_margin.planning.tree.grow`).
+        check_every: expansions between two calls of ``stop``.
 
     The end-effector keeps following its script: its command (:func:`command_robot`, without
     random variation) is evaluated at ``start_time`` plus the node's time when a propagation
@@ -93,6 +100,8 @@ def grow_tree(
             start_time=start_time,
             batch=batch,
             threads=threads,
+            stop=stop,
+            check_every=check_every,
         )
     finally:
         # Engines that keep saved states outside the node array (PyBullet) free them now.

@@ -82,25 +82,26 @@ class CostField:
         object_pos: object centres of every node, shape (M, n_objects, 3), m.
         object_vel: object linear then angular velocities of every node, shape (M, n_objects, 6),
             m/s and rad/s, world frame.
-        object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``.
         parents: parent index of every node (-1 for the root), shape (M,); a parent always
             precedes its children.
         times: simulated time of every node, shape (M,), s.
         iterations: expansions (propagations) performed, accepted and rejected.
         physics_s: wall time spent inside the simulator, s.
         total_s: wall time of the whole growth, s.
+        object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``
+            (``None`` when not kept); regions that test geometry (``contact``) use them.
 
     """
 
     costs: np.ndarray
     object_pos: np.ndarray
     object_vel: np.ndarray
-    object_quat: np.ndarray
     parents: np.ndarray
     times: np.ndarray
     iterations: int
     physics_s: float
     total_s: float
+    object_quat: np.ndarray | None = None
 
     @property
     def nodes(self) -> int:
@@ -212,6 +213,21 @@ class _Tree:
         self.count += 1
         return node
 
+    def view(self, iterations: int) -> CostField:
+        """The nodes so far, without copies or timings (valid until the next ``offer``)."""
+        count = self.count
+        return CostField(
+            costs=self.costs[:count],
+            object_pos=self.positions[:count],
+            object_vel=self.velocities[:count],
+            object_quat=self.quaternions[:count],
+            parents=self.parents[:count],
+            times=self.times[:count],
+            iterations=iterations,
+            physics_s=0.0,
+            total_s=0.0,
+        )
+
     def field(self, iterations: int, physics_s: float, started: float) -> CostField:
         count = self.count
         return CostField(
@@ -293,6 +309,8 @@ def grow(
     start_time: float = 0.0,
     batch: int = 1,
     threads: int = 1,
+    stop: Callable[[CostField], bool] | None = None,
+    check_every: int = 25,
 ) -> CostField:
     """Grow a tree from ``root`` with the parent choice of ``make_expansion`` and return its cost field.
 
@@ -311,6 +329,10 @@ def grow(
         start_time: time of the frame within its roll-out, s (the end-effector's script clock).
         batch: iterations propagated together per round, >= 1 (1: one at a time).
         threads: ``mujoco.rollout`` threads when ``batch`` > 1.
+        stop: an early-stopping rule: called with the cost field so far (without timings) every
+            ``check_every`` expansions; growth ends when it returns ``True`` (the budget stays the
+            upper bound). The tree does not know why: scores and tolerances belong to the caller.
+        check_every: expansions between two calls of ``stop``, >= 1.
 
     The end-effector keeps following its script: its command (:func:`command_robot`, without random
     variation) is evaluated at ``start_time`` plus the node's time when a propagation starts, and
@@ -324,6 +346,8 @@ def grow(
     started = time.perf_counter()
     if batch < 1 or threads < 1:
         raise ValueError(f"batch and threads must be >= 1, got {batch} and {threads}")
+    if check_every < 1:
+        raise ValueError(f"check_every must be >= 1, got {check_every}")
     features = features if features is not None else ObjectPositions()
     limits = task.wrench_limits(simulator.scene)
     max_wrench = limits.max_wrench
@@ -361,6 +385,7 @@ def grow(
 
     iterations = 0
     physics_s = 0.0
+    next_check = check_every
     while iterations < limit and tree.count < tree.capacity:
         # Parents and controls of this round (one iteration when batch == 1).
         round_: list[tuple[int, int, np.ndarray, int]] = []
@@ -400,6 +425,10 @@ def grow(
             else:
                 expansion.added(iteration, node, parent, features(outcome.pos, root_pos))
         iterations += len(round_)
+        if stop is not None and iterations >= next_check:
+            next_check += check_every
+            if stop(tree.view(iterations)):
+                break
     return tree.field(iterations, physics_s, started)
 
 

@@ -145,10 +145,10 @@ def frame_figure(
     dataset: Dataset, trajectory: int, frames: list[int], path: Path, *, field: CostField | None = None
 ) -> None:
     """Draw frames of one trajectory (top view for planar tasks, side view otherwise) to ``path``."""
-    from energy_margin.tasks import get_task
+    from energy_margin.tasks import get_recorded_task
 
     plt = _pyplot()
-    task = get_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
+    task = get_recorded_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
     planar = dataset.metadata["task"] == "pushing"
     view = "top" if planar else "side"
     arrays = dataset.arrays
@@ -201,10 +201,10 @@ def cost_field_figure(
     dataset: Dataset, trajectory: int, frame_index: int, field: CostField, likelihood: np.ndarray, path: Path
 ) -> None:
     """The energy-cost field of one frame and the histogram of its likelihoods."""
-    from energy_margin.tasks import get_task
+    from energy_margin.tasks import get_recorded_task
 
     plt = _pyplot()
-    task = get_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
+    task = get_recorded_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
     planar = dataset.metadata["task"] == "pushing"
     view = "top" if planar else "side"
     arrays = dataset.arrays

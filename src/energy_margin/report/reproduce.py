@@ -69,7 +69,14 @@ def _table_one_row(
     step(f"analyze {name} (true states)")
     _analyze(path, config)
     step(f"perturb {name} ({config.repeats} copies)")
-    copies = perturb_dataset(path, repeats=config.repeats, seed=config.seed, out=out / "data" / f"{name}-perturbed")
+    copies = perturb_dataset(
+        path,
+        repeats=config.repeats,
+        seed=config.seed,
+        out=out / "data" / f"{name}-perturbed",
+        workers=config.workers,
+        progress=sys.stderr.isatty(),
+    )
     for index, copy in enumerate(copies, start=1):
         step(f"analyze {name} perturbed copy {index}/{len(copies)}")
         _analyze(copy, config)

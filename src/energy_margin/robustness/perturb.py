@@ -12,6 +12,9 @@ the minimum-volume ellipsoid of the true centres (:func:`~energy_margin.world.el
   ``keep_orientation=True`` keeps each object's recorded orientation instead.
 * Velocities: zero (linear and angular). The end-effector, friction, drive and labels are not
   perturbed: the ground truth stays that of the true states; only the perceived state changes.
+* Stable draws: candidates are drawn from the fitted ellipsoid snapped to a 1e-7 grid
+  (:meth:`~energy_margin.world.ellipsoid.Ellipsoid.snapped`), so fits that differ by rounding give
+  identical copies (tested with the fit's parameters scaled by 1 + 1e-12).
 * No overlaps (unlike the authors' version): objects are placed one at a time by **rejection**.
   A candidate is accepted when, in the task's simulator (the frame's scene, with the objects not
   yet placed parked far away), no contact of the new object - with another object, the
@@ -29,6 +32,9 @@ Layout: ``out/1`` ... ``out/R``, each a dataset directory like any other (format
 
 from __future__ import annotations
 
+import signal
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -117,10 +123,13 @@ def perturb_frame(
     heights = frame.object_pos[:, 2].copy()
     if planar:
         heights[:] = _resting_height(frame, simulator, parked, quat)
+    # Draws come from a snapped copy of the fit: a rounding-level change of the fit (another
+    # BLAS, another Khachiyan step order) leaves every candidate, hence every decision, unchanged.
+    snapped = ellipsoid.snapped()
     candidates = 0
     for restart in range(max_restarts + max_growth_restarts + 1):
         growth = 1.1 ** max(0, restart - max_restarts)
-        sampler = Ellipsoid(ellipsoid.center, ellipsoid.radii * growth, ellipsoid.rotation)
+        sampler = Ellipsoid(snapped.center, snapped.radii * growth, snapped.rotation)
         positions = parked.copy()
         placed = 0
         attempts = 0
@@ -186,6 +195,8 @@ def perturb_dataset(
     keep_orientation: bool = False,
     min_thickness: float | None = None,
     overwrite: bool = False,
+    workers: int = 1,
+    progress: bool = False,
 ) -> list[Path]:
     """Write ``repeats`` perturbed copies of the dataset at ``path`` as ``out/1`` ... ``out/R``.
 
@@ -199,12 +210,15 @@ def perturb_dataset(
         min_thickness: radius of flat ellipsoid axes, m; default the object radius (pushing) or
             half edge (scooping).
         overwrite: replace existing copies.
+        workers: processes that perturb trajectories in parallel, >= 1 (the copies do not
+            depend on it: every frame has its own seed).
+        progress: show a progress bar over the frames on standard error.
 
     Returns:
         The paths of the copies. A copy already written with the same settings is kept as is.
 
     """
-    for name, value, minimum in (("repeats", repeats, 1), ("seed", seed, 0)):
+    for name, value, minimum in (("repeats", repeats, 1), ("seed", seed, 0), ("workers", workers, 1)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
             raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
     if not (np.isfinite(tolerance) and tolerance >= 0):
@@ -242,29 +256,34 @@ def perturb_dataset(
         return targets
     total = source.n_trajectories * source.n_frames
     repeat_seeds = np.random.SeedSequence(seed).spawn(repeats)
-    task = source.task
+    jobs = [
+        (r, trajectory, repeat_seeds[r].spawn(total)[trajectory * source.n_frames : (trajectory + 1) * source.n_frames])
+        for r, target in enumerate(targets)
+        if target in pending
+        for trajectory in range(source.n_trajectories)
+    ]
+    options = {
+        "planar": planar,
+        "min_thickness": thickness,
+        "tolerance": tolerance,
+        "keep_orientation": keep_orientation,
+    }
+    results: dict[tuple[int, int], list[FramePerturbation]] = {}
+    bar = _progress_bar(len(jobs) * source.n_frames, enabled=progress)
+    try:
+        for key, frames in _run_jobs(source, options, jobs, workers):
+            results[key] = frames
+            bar.update(len(frames))
+    finally:
+        bar.close()
     for r, target in enumerate(targets):
         if target not in pending:
             continue
-        frame_seeds = repeat_seeds[r].spawn(total)
         arrays = {key: value.copy() for key, value in source.arrays.items()}
         candidates = restarts = grown = 0
         growths = []
         for trajectory in range(source.n_trajectories):
-            friction = float(source.arrays["friction"][trajectory])
-            drive = source.arrays["drive"][trajectory]
-            simulator = task.make_simulator(source.n_objects, friction, drive, source.metadata["engine"])
-            for index in range(source.n_frames):
-                rng = np.random.default_rng(frame_seeds[trajectory * source.n_frames + index])
-                result = perturb_frame(
-                    source.frame(trajectory, index),
-                    simulator,
-                    rng,
-                    planar=planar,
-                    min_thickness=thickness,
-                    tolerance=tolerance,
-                    keep_orientation=keep_orientation,
-                )
+            for index, result in enumerate(results[(r, trajectory)]):
                 arrays["object_pos"][trajectory, index] = result.frame.object_pos
                 arrays["object_quat"][trajectory, index] = result.frame.object_quat
                 arrays["object_vel"][trajectory, index] = 0.0
@@ -289,6 +308,74 @@ def perturb_dataset(
         validate(dataset)
         _write_directory(target, metadata, arrays, overwrite=overwrite)
     return targets
+
+
+_Job = tuple[int, int, list[np.random.SeedSequence]]
+_WORKER_STATE: dict[str, Any] = {}
+
+
+def _perturb_trajectory(source: Dataset, options: dict[str, Any], job: _Job) -> list[FramePerturbation]:
+    """Perturb every frame of one trajectory for one repeat (the job's per-frame seeds)."""
+    _, trajectory, seeds = job
+    friction = float(source.arrays["friction"][trajectory])
+    drive = source.arrays["drive"][trajectory]
+    simulator = source.task.make_simulator(source.n_objects, friction, drive, source.metadata["engine"])
+    return [
+        perturb_frame(source.frame(trajectory, index), simulator, np.random.default_rng(child), **options)
+        for index, child in enumerate(seeds)
+    ]
+
+
+def _init_worker(source: Dataset, options: dict[str, Any]) -> None:
+    # Ctrl-C goes to the parent, which stops the pool.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER_STATE.update(source=source, options=options)
+
+
+def _run_in_worker(job: _Job) -> tuple[tuple[int, int], list[FramePerturbation]]:
+    return (job[0], job[1]), _perturb_trajectory(_WORKER_STATE["source"], _WORKER_STATE["options"], job)
+
+
+def _run_jobs(
+    source: Dataset, options: dict[str, Any], jobs: list[_Job], workers: int
+) -> Iterator[tuple[tuple[int, int], list[FramePerturbation]]]:
+    """Results of every job, in completion order, in this process or on ``workers`` processes."""
+    if workers == 1 or len(jobs) <= 1:
+        for job in jobs:
+            yield (job[0], job[1]), _perturb_trajectory(source, options, job)
+        return
+    pool = ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)), initializer=_init_worker, initargs=(source, options)
+    )
+    finished = False
+    try:
+        futures = [pool.submit(_run_in_worker, job) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown(wait=True)
+        else:
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _progress_bar(total: int, *, enabled: bool) -> Any:
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="frame", desc="perturb", dynamic_ncols=True)
+
+
+class _NoBar:
+    def update(self, count: int) -> None:
+        del count
+
+    def close(self) -> None:
+        pass
 
 
 def _existing(target: Path, source: Dataset, seed: int, settings: dict[str, Any]) -> bool:

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.sim.base import ModelCommand
-from energy_margin.world.scene import Geom, Link, Scene
+from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -38,17 +38,71 @@ def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-def _geom_xml(geom: Geom, name: str) -> str:
+# Collision bits of the "footprint" ground contact: ordinary geoms have contype = conaffinity =
+# _BODIES; a floor plane only emits _FLOOR, which footprints and robot links accept.
+_BODIES = 1
+_FLOOR = 2
+
+
+def _geom_xml(geom: Geom, name: str, extra: str = "") -> str:
     size = list(geom.size)
     if geom.shape == "plane":
         size = [*size, 0.1]
     return (
         f"<geom name={quoteattr(name)} type={quoteattr(geom.shape)} size={quoteattr(_fmt(size))} "
-        f'pos="{_fmt(geom.pos)}" quat="{_fmt(geom.quat)}" rgba="{_fmt(geom.rgba)}"/>'
+        f'pos="{_fmt(geom.pos)}" quat="{_fmt(geom.quat)}" rgba="{_fmt(geom.rgba)}"{extra}/>'
     )
 
 
-def _link_xml(link: Link) -> str:
+def _is_floor(geom: Geom) -> bool:
+    """A plane whose normal is the world +z axis."""
+    if geom.shape != "plane":
+        return False
+    _, x, y, _ = geom.quat
+    # The plane's normal is its local z axis rotated by the quaternion.
+    normal_z = 1.0 - 2.0 * (x * x + y * y)
+    return normal_z > 1.0 - 1e-9
+
+
+def _base_radius(geom: Geom) -> float | None:
+    """Distance from the centre of an upright shape's flat base to its rim contacts, m."""
+    if geom.shape == "cylinder":
+        return float(geom.size[0])
+    if geom.shape == "box":
+        return float(np.hypot(geom.size[0], geom.size[1]))
+    return None
+
+
+def _spin_friction(scene: Scene, obj: RigidObject) -> str:
+    """Dry friction of an upright object's yaw joint: the spin resistance of its rim contacts.
+
+    Rim contacts carrying the weight m g at the base radius r resist spinning with a torque up to
+    mu m g r; the footprint's single point cannot, so the yaw joint gets it as ``frictionloss``,
+    independent of the sliding friction (as the rim's is, to first order).
+    """
+    rim = _base_radius(obj.geom)
+    if rim is None:
+        return ""
+    weight = obj.mass * float(np.linalg.norm(scene.gravity))
+    return f' frictionloss="{scene.friction * weight * rim!r}"'
+
+
+def _footprint_xml(scene: Scene, name: str, geom: Geom) -> str:
+    """The base-centre contact of an upright object with the floor (see ``Scene.ground_contact``)."""
+    rim = _base_radius(geom)
+    if rim is None:
+        return ""
+    half_height = float(geom.size[-1])
+    # A small sphere touching the base's centre: one contact point at the same height as the base.
+    radius = min(0.25 * rim, half_height)
+    return (
+        f'<geom name={quoteattr(name + "_footprint")} type="sphere" size="{radius!r}" '
+        f'pos="0 0 {-half_height + radius!r}" contype="0" conaffinity="{_FLOOR}" '
+        f'group="3" rgba="0 0 0 0"/>'
+    )
+
+
+def _link_xml(link: Link, geom_extra: str = "") -> str:
     gravcomp = ' gravcomp="1"' if link.gravity_compensation else ""
     parts = [f'<body name={quoteattr(link.name)} pos="{_fmt(link.pos)}"{gravcomp}>']
     for joint in link.joints:
@@ -69,8 +123,8 @@ def _link_xml(link: Link) -> str:
         f'diaginertia="{_fmt(inertia)}"/>'
     )
     for index, geom in enumerate(link.geoms):
-        parts.append(_geom_xml(geom, geom.name or f"{link.name}_geom{index}"))
-    parts.extend(_link_xml(child) for child in link.children)
+        parts.append(_geom_xml(geom, geom.name or f"{link.name}_geom{index}", geom_extra))
+    parts.extend(_link_xml(child, geom_extra) for child in link.children)
     parts.append("</body>")
     return "".join(parts)
 
@@ -109,10 +163,13 @@ def _excludes_xml(scene: Scene) -> str:
 def build_mjcf(scene: Scene) -> str:
     """MJCF text of ``scene`` (objects are free bodies named after :attr:`RigidObject.name`)."""
     worldbody = []
+    footprint = scene.ground_contact == "footprint"
     for index, geom in enumerate(scene.statics):
-        worldbody.append(_geom_xml(geom, geom.name or f"static{index}"))
+        floor = f' contype="{_FLOOR}" conaffinity="0"' if footprint and _is_floor(geom) else ""
+        worldbody.append(_geom_xml(geom, geom.name or f"static{index}", floor))
     if scene.robot is not None:
-        worldbody.append(_link_xml(scene.robot))
+        # Robot links keep touching the floor through their own shapes.
+        worldbody.append(_link_xml(scene.robot, f' conaffinity="{_BODIES | _FLOOR}"' if footprint else ""))
     for obj in scene.objects:
         if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
             raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
@@ -120,13 +177,15 @@ def build_mjcf(scene: Scene) -> str:
             joints = f"<freejoint name={quoteattr(obj.name)}/>"
         else:
             joints = "".join(
-                f'<joint name={quoteattr(obj.name + suffix)} type="{kind}" axis="{axis}"/>'
+                f'<joint name={quoteattr(obj.name + suffix)} type="{kind}" axis="{axis}"'
+                f"{_spin_friction(scene, obj) if suffix == '_yaw' and footprint else ''}/>"
                 for suffix, kind, axis in _UPRIGHT_JOINTS
             )
         worldbody.append(
             f"<body name={quoteattr(obj.name)}>{joints}"
             f'<inertial pos="0 0 0" mass="{obj.mass!r}" diaginertia="{_fmt(obj.inertia)}"/>'
-            f"{_geom_xml(obj.geom, obj.name)}</body>"
+            f"{_geom_xml(obj.geom, obj.name)}"
+            f"{_footprint_xml(scene, obj.name, obj.geom) if footprint else ''}</body>"
         )
     integrator = f' integrator="{scene.integrator}"' if scene.integrator != "Euler" else ""
     solref = f' solref="{scene.contact_time_constant!r} 1"' if scene.contact_time_constant is not None else ""
@@ -226,6 +285,10 @@ class MujocoSimulator:
         body_object[self._object_bodies] = np.arange(len(self._object_bodies))
         self._geom_object = body_object[model.geom_bodyid]
         self._state_buffer = np.empty(mujoco.mj_stateSize(model, _STATE_SPEC))
+        self._spin_dof = np.zeros(model.nv, dtype=bool)
+        if self._upright:
+            self._spin_dof[self._yaw_rate_index] = model.dof_frictionloss[self._yaw_rate_index] > 0
+        self._has_spin_friction = bool(self._spin_dof.any())
         self._pyramid = np.arange(4)
 
     @property
@@ -321,25 +384,40 @@ class MujocoSimulator:
         After ``mj_step`` the contacts, constraint Jacobian and forces describe the start of the
         step. A pyramidal condim-3 contact has four rows with directions ``n + s mu_j t_j``; with row
         forces ``f`` and row velocities ``u = J qvel`` the tangential power is
-        ``((f0 - f1)(u0 - u1) + (f2 - f3)(u2 - u3)) / 2``, which drops the normal component.
+        ``((f0 - f1)(u0 - u1) + (f2 - f3)(u2 - u3)) / 2``, which drops the normal component. With
+        footprints (``Scene.ground_contact``) the objects' yaw-joint dry friction is added.
         """
         data = self.data
+        power = self._joint_friction_power(qvel) if self._has_spin_friction else 0.0
         if data.ncon == 0:
-            return 0.0
+            return power
         contacts = data.contact
         involved = self._geom_is_object[contacts.geom1] | self._geom_is_object[contacts.geom2]
         selected = involved & (contacts.efc_address >= 0) & (contacts.dim == 3)
         if not np.any(selected):
-            return 0.0
+            return power
         row_velocity = np.empty(data.nefc)
         mujoco.mj_mulJacVec(self.model, data, row_velocity, qvel)
         rows = contacts.efc_address[selected][:, None] + self._pyramid
         force = data.efc_force[rows]
         velocity = row_velocity[rows]
-        power = (force[:, 0] - force[:, 1]) * (velocity[:, 0] - velocity[:, 1]) + (force[:, 2] - force[:, 3]) * (
-            velocity[:, 2] - velocity[:, 3]
-        )
-        return 0.5 * float(power.sum())
+        contact_power = (force[:, 0] - force[:, 1]) * (velocity[:, 0] - velocity[:, 1]) + (
+            force[:, 2] - force[:, 3]
+        ) * (velocity[:, 2] - velocity[:, 3])
+        return power + 0.5 * float(contact_power.sum())
+
+    def _joint_friction_power(self, qvel: np.ndarray) -> float:
+        """Power of the dry friction of the objects' yaw joints (``Scene.ground_contact`` footprint), W."""
+        data = self.data
+        rows = np.flatnonzero(data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
+        if rows.size == 0:
+            return 0.0
+        dofs = data.efc_id[rows]
+        own = self._spin_dof[dofs]
+        if not np.any(own):
+            return 0.0
+        # A dof-friction row's Jacobian is the unit vector of its dof: its velocity is qvel[dof].
+        return float(np.dot(data.efc_force[rows[own]], qvel[dofs[own]]))
 
     def object_penetrations(self) -> list[tuple[int, int, float]]:
         """Penetrating contacts that involve an object: ``(object, other or -1, depth in m)``."""

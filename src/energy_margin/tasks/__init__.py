@@ -81,6 +81,21 @@ def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
         raise EnergyMarginError(f"bad configuration for task {name!r}: {error}") from None
 
 
+def get_recorded_task(name: str, config: dict[str, Any] | None) -> Task:
+    """The task a dataset recorded (its ``task_config``), as the release that wrote it meant it.
+
+    A setting added after a dataset was written is absent from its record; it takes the value
+    that release used (:attr:`TaskConfig.recorded_defaults`), not today's default, so an old
+    dataset is analysed with the physics it was generated with.
+    """
+    recorded = dict(config or {})
+    task_class = _REGISTRY.get(name)
+    if task_class is not None:
+        for key, value in task_class.config_class.recorded_defaults.items():
+            recorded.setdefault(key, value)
+    return get_task(name, recorded)
+
+
 register_task(PushingTask)
 register_task(ScoopingTask)
 register_task(SceneTask)
@@ -100,6 +115,7 @@ __all__ = [
     "all_inside",
     "available_tasks",
     "command_robot",
+    "get_recorded_task",
     "get_task",
     "load_plugin_tasks",
     "register_task",

@@ -123,6 +123,10 @@ class TaskConfig:
 
     """
 
+    #: Settings added after datasets were first written, with the value those datasets used:
+    #: a recorded configuration without the key gets this value (see ``get_recorded_task``).
+    recorded_defaults: ClassVar[dict[str, Any]] = {}
+
     duration: float = 2.0
     timestep: float = 1.0 / 240.0
     likelihood_lambda: float = 5.0

@@ -11,6 +11,7 @@ end-effector follows the manipulation while the objects are perturbed.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -73,8 +74,14 @@ class PushingConfig(TaskConfig):
         max_linear_acceleration: perturbation force bound per axis divided by mass, m/s^2.
         max_angular_acceleration: perturbation torque bound divided by inertia, rad/s^2.
         max_speed: reached states with a faster object are rejected, m/s.
+        ground_contact: cylinder-ground contact, ``"geometry"`` (the engine's rim contacts) or
+            ``"footprint"`` (one base-centre contact with the rim's spin friction); see
+            :class:`~energy_margin.world.scene.Scene`.
 
     """
+
+    # Datasets written before ground_contact existed were made with the rim contacts.
+    recorded_defaults: ClassVar[dict[str, Any]] = {"ground_contact": "geometry"}
 
     timestep: float = 1.0 / 120.0
     object_radius: float = 0.05
@@ -108,10 +115,13 @@ class PushingConfig(TaskConfig):
     max_linear_acceleration: float = 2.0
     max_angular_acceleration: float = 0.667
     max_speed: float = 100.0
+    ground_contact: str = "geometry"
 
     def check(self) -> None:
         """Raise ``ValueError`` naming the first setting outside its valid range."""
         super().check()
+        if self.ground_contact not in ("geometry", "footprint"):
+            raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
         require_positive(
             self,
             "object_radius",
@@ -312,6 +322,7 @@ class PushingTask(Task):
             friction=friction,
             timestep=cfg.timestep,
             object_motion="upright",
+            ground_contact=cfg.ground_contact,  # type: ignore[arg-type]
         )
 
     def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:

@@ -20,6 +20,7 @@ ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
 JointKind = Literal["slide", "hinge"]
 ObjectMotion = Literal["free", "upright"]
 Integrator = Literal["Euler", "implicitfast"]
+GroundContact = Literal["geometry", "footprint"]
 
 _SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "plane": 2}
 
@@ -202,6 +203,14 @@ class Scene:
             damping integrated implicitly: stable with stiff, well-damped servos on light links).
         contact_time_constant: time constant of the soft contacts, s (at least two time steps);
             ``None`` keeps the engine's default.
+        ground_contact: how upright objects touch a horizontal ground plane. ``"geometry"``: the
+            engine's own contact of the object's shape with the plane (MuJoCo: up to four points
+            on the rim of a cylinder's base). ``"footprint"``: one point at the centre of the base
+            with the same sliding friction, and the spin resistance of rim contacts (coefficient x
+            weight x base radius) as dry friction of the yaw joint, while the object's shape keeps
+            every lateral contact (other objects, robot, walls). Fewer contact rows per step for
+            the same planar physics; only for ``object_motion="upright"`` on a horizontal ground
+            plane. Backends without it use ``"geometry"``.
 
     """
 
@@ -214,6 +223,7 @@ class Scene:
     object_motion: ObjectMotion = "free"
     integrator: Integrator = "Euler"
     contact_time_constant: float | None = None
+    ground_contact: GroundContact = "geometry"
     robot_joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -234,6 +244,10 @@ class Scene:
                 f"contact_time_constant must be at least two time steps ({2.0 * self.timestep} s), "
                 f"got {self.contact_time_constant}"
             )
+        if self.ground_contact not in ("geometry", "footprint"):
+            raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
+        if self.ground_contact == "footprint" and self.object_motion != "upright":
+            raise ValueError("ground_contact 'footprint' needs object_motion 'upright'")
         names = [joint.name for link in self.robot_links for joint in link.joints]
         object.__setattr__(self, "robot_joint_names", tuple(names))
 

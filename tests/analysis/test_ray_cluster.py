@@ -1,0 +1,135 @@
+"""A Ray cluster as a user starts it, and a node that leaves it in the middle of a run.
+
+`ray start --head` and a second node joining with `ray start --address ...` (both on this
+machine, one CPU each), then `energy-margin analyze --executor ray --address ...`: the scores are
+the local pool's, exactly. Killing every process of the second node once a few frames are done
+(as when a machine is lost) still finishes the run, with every frame scored once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.run import analyze
+from energy_margin.data.generate import generate_dataset
+from energy_margin.data.scores_file import JOURNAL_FILE, load_scores, read_journal
+
+pytestmark = pytest.mark.slow
+
+RAY = Path(sys.executable).with_name("ray")
+DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "iterations", "seed")
+CONFIG = AnalyzerConfig(iterations=400)
+SEED = 3
+
+
+def _environment() -> dict[str, str]:
+    return {**os.environ, "RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "disabled"}
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _ray_processes() -> set[int]:
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
+        except OSError:
+            continue
+        if b"ray" in command:
+            found.add(int(entry.name))
+    return found
+
+
+def _ray(*args: str) -> None:
+    subprocess.run([str(RAY), *args], env=_environment(), check=True, capture_output=True, timeout=120)
+
+
+@pytest.fixture
+def cluster() -> Iterator[tuple[str, set[int]]]:
+    """A head node and a second node (one CPU each); yields the address and the second node's pids."""
+    pytest.importorskip("ray")
+    if not RAY.exists():
+        pytest.skip(f"no `ray` command beside {sys.executable}")
+    port = _free_port()
+    address = f"127.0.0.1:{port}"
+    try:
+        _ray("start", "--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false", "--disable-usage-stats")
+        before = _ray_processes()
+        _ray("start", f"--address={address}", "--num-cpus=1", "--disable-usage-stats")
+        # Every process that appeared with the second node belongs to it (raylet, its workers' parent...).
+        second = _ray_processes() - before
+        yield address, second
+    finally:
+        subprocess.run([str(RAY), "stop", "--force"], env=_environment(), capture_output=True, timeout=120)
+
+
+def _table(directory: Path) -> list[tuple]:
+    scores = load_scores(directory)
+    return sorted(zip(*(scores[c].tolist() for c in DETERMINISTIC), strict=True))
+
+
+def test_a_lost_node_loses_no_frame(tmp_path: Path, cluster: tuple[str, set[int]]) -> None:
+    address, second_node = cluster
+    assert second_node, "the second node started no process"
+    source = tmp_path / "data"
+    generate_dataset("pushing", n_objects=4, n_trajectories=4, n_frames=4, seed=1, out=source)
+    local = tmp_path / "local"
+    shutil.copytree(source, local)
+    analyze(local, CONFIG, seed=SEED, workers=2, progress=False)
+
+    on_cluster = tmp_path / "cluster"
+    shutil.copytree(source, on_cluster)
+    command = [
+        sys.executable,
+        "-m",
+        "energy_margin",
+        "analyze",
+        str(on_cluster),
+        "--iterations",
+        str(CONFIG.iterations),
+        "--seed",
+        str(SEED),
+        "--workers",
+        "2",
+        "--executor",
+        "ray",
+        "--address",
+        address,
+        "--no-progress",
+    ]
+    process = subprocess.Popen(command, env=_environment(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = on_cluster / JOURNAL_FILE
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and process.poll() is None:
+        if journal.exists() and len(read_journal(journal)) >= 2:
+            break
+        time.sleep(0.1)
+    done_before = len(read_journal(journal)) if journal.exists() else 0
+    assert process.poll() is None, "the run ended before the node could be stopped"
+    for pid in second_node:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    _, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    assert done_before < 16
+    assert _table(on_cluster) == _table(local)
+    lines = journal.read_text().splitlines()
+    assert len(lines) == 1 + 16  # header and one line per frame: none lost, none twice
