@@ -25,6 +25,8 @@ COMMAND_NAMES = (
     "perturb",
     "import-reference",
     "budget",
+    "view",
+    "render",
     "reproduce",
 )
 

@@ -1,3 +1,4 @@
+import html
 import json
 import subprocess
 import sys
@@ -53,11 +54,51 @@ def test_report_has_every_section_and_real_figures(reproduced: Path) -> None:
         assert title.split(":")[0] in page
     assert "<script" not in page
     sources = [part.split('"', 1)[0] for part in page.split('<img src="')[1:]]
-    assert len(sources) >= 10
-    for source in sources:
+    posters = [part.split('"', 1)[0] for part in page.split('poster="')[1:]]
+    assert len(sources) >= 10 and len(posters) == 2
+    for source in sources + posters:
         _png_is_a_picture(reproduced / "report" / source)
     figures = sorted((reproduced / "report" / "figures").glob("*.png"))
-    assert {f.name for f in figures} == {Path(s).name for s in sources}
+    assert {f.name for f in figures} == {Path(s).name for s in sources + posters}
+    # Rendered frames of both tasks and perturbed states beside their true frames.
+    assert sum("-render-" in s for s in sources) >= 6
+    assert {"pushing-perturbed-true.png", "pushing-perturbed-perturbed.png"} <= {Path(s).name for s in sources}
+
+
+@pytest.mark.slow
+def test_report_embeds_one_video_per_task_and_links_the_views(reproduced: Path) -> None:
+    import imageio.v3 as iio
+
+    page = (reproduced / "report" / "index.html").read_text(encoding="utf-8")
+    videos = [part.split('"', 1)[0] for part in page.split('<video src="')[1:]]
+    assert sorted(videos) == ["videos/pushing.mp4", "videos/scooping.mp4"]
+    # 2 s of pushing and 2.3 s of scooping at 30 pictures per second.
+    counts = [iio.imread(reproduced / "report" / v, index=None, plugin="FFMPEG").shape[0] for v in sorted(videos)]
+    assert counts == [61, 70]
+    views = [part.split('"', 1)[0] for part in page.split('<a href="views/')[1:]]
+    assert len(views) == 2
+    for view in views:
+        assert "Plotly.newPlot(" in (reproduced / "report" / "views" / view).read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
+def test_report_states_its_provenance(reproduced: Path) -> None:
+    import mujoco
+
+    from energy_margin import __version__
+
+    page = (reproduced / "report" / "index.html").read_text(encoding="utf-8")
+    provenance = page[page.index('<section id="provenance">') : page.index("</section>")]
+    for text in (f"energy-margin {__version__}", "git commit", f"mujoco {mujoco.__version__}", "core(s)"):
+        assert text in provenance
+    assert f"energy-margin reproduce --quick --out {reproduced}" in provenance
+    stages = json.loads((reproduced / "stages.json").read_text(encoding="utf-8"))
+    assert stages[0]["stage"] == "generate pushing-10" and stages[-1]["stage"] == "report"
+    assert all(entry["seconds"] >= 0 for entry in stages)
+    for entry in stages:
+        assert html.escape(entry["stage"]) in provenance
+    # A reproduced number away from the paper's gets its sentence.
+    assert "Where the numbers differ from the paper's" in page and "docs/" in page
 
 
 @pytest.mark.slow
@@ -76,11 +117,25 @@ def test_tables_hold_both_tasks_and_every_ablation_size(reproduced: Path) -> Non
 
 
 @pytest.mark.slow
-def test_running_again_resumes_without_recomputing(reproduced: Path) -> None:
+def test_running_again_resumes_without_recomputing(
+    reproduced: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from energy_margin.report import html as report_html
+    from energy_margin.report import render
+
     scores = reproduced / "data" / "pushing-10" / "scores.csv"
     before = scores.read_bytes()
+    # Without the render extra the report is still written, without videos and views.
+    monkeypatch.setattr(report_html, "_missing_render_extra", lambda: "plotly not installed")
+    monkeypatch.setattr(render, "_warned", set())
     reproduce(reproduced, TINY)
     assert scores.read_bytes() == before
+    # Nothing left to compute: no duration is announced.
+    err = capsys.readouterr().err
+    assert "every dataset is generated and analysed" in err and "expected about" not in err
+    assert err.count("warning: the report leaves out videos and interactive views: plotly not installed") == 1
+    page = (reproduced / "report" / "index.html").read_text(encoding="utf-8")
+    assert "no interactive view (plotly not installed)" in page and "<video" not in page
 
 
 @pytest.mark.slow
@@ -116,10 +171,53 @@ def test_markdown_tables_put_the_paper_beside_ours() -> None:
     assert "| 3 | 0.90 | n/a | 0.100 ± 0.010 | 0.99 | 1.00 | 0.37 ± 0.13 |" in ablation
 
 
-def test_expected_duration_is_announced_for_both_modes() -> None:
+def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) -> None:
+    from energy_margin.report.estimate import Calibration, estimate_seconds, planned_analyses, work_left
+
     quick = ReproduceConfig.create(quick=True, workers=2, engine="mujoco", seed=0)
-    full = ReproduceConfig.create(quick=False, workers=2, engine="mujoco", seed=0)
-    assert 0 < quick.expected_seconds() < 300 < full.expected_seconds()
+    plan = planned_analyses(quick, {"pushing": 10, "scooping": 5})
+    assert len(plan) == 2 * (1 + quick.repeats) + len(quick.ablation_objects)
+    frames, to_write = work_left(tmp_path, plan)
+    assert sum(frames.values()) == sum(e.trajectories * e.frames for e in plan)
+    assert len(to_write) == len(plan)
+    calibration = Calibration(
+        {"pushing": 0.2, "scooping": 0.5},
+        {"pushing": 0.1, "scooping": 0.3},
+        {"pushing": 0.05, "scooping": 0.04},
+        0.02,
+        1,
+    )
+    seconds = estimate_seconds(calibration, frames, to_write, workers=1, report=False)
+
+    def scale(entry):
+        return entry.n_objects / (10 if entry.task == "pushing" else 5)
+
+    expected = sum(count * (0.2 if e.task == "pushing" else 0.5) * scale(e) for e, count in frames.items())
+    expected += sum(
+        e.trajectories * (0.1 if e.task == "pushing" else 0.3) * scale(e)
+        if e.generated
+        else e.trajectories * e.frames * (0.05 if e.task == "pushing" else 0.04) * scale(e)
+        for e in to_write
+    )
+    assert seconds == pytest.approx(expected)
+    # Twice the calibrated frame time: about twice as long.
+    slower = Calibration(
+        {"pushing": 0.4, "scooping": 1.0},
+        {"pushing": 0.1, "scooping": 0.3},
+        {"pushing": 0.05, "scooping": 0.04},
+        0.02,
+        1,
+    )
+    assert estimate_seconds(slower, frames, to_write, workers=1, report=False) > 1.8 * seconds - 60
+
+
+def test_calibration_measures_this_machine() -> None:
+    from energy_margin.report.estimate import calibrate
+
+    calibration = calibrate(ReproduceConfig(iterations=20, workers=1), ["pushing", "scooping"])
+    assert set(calibration.frame_s) == set(calibration.perturb_s) == {"pushing", "scooping"}
+    assert all(0 < value < 30 for value in calibration.frame_s.values())
+    assert 0 < calibration.picture_s < 5 and calibration.measured_s < 60
 
 
 @pytest.mark.slow
@@ -133,7 +231,7 @@ def test_reproduce_quick_runs_end_to_end(tmp_path: Path) -> None:
         check=False,
     )
     assert completed.returncode == 0, completed.stderr[-2000:]
-    assert "expected about" in completed.stderr
+    assert "expected about" in completed.stderr and "on this machine (calibrated in" in completed.stderr
     assert (out / "report" / "index.html").is_file()
     table = json.loads((out / "table1.json").read_text(encoding="utf-8"))
     assert table["pushing"]["capture_ap"] is not None

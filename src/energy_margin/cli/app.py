@@ -24,8 +24,10 @@ from energy_margin.cli import (
     import_reference,
     perturb,
     record,
+    render,
     reproduce,
     scene,
+    view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
 from energy_margin.errors import EnergyMarginError
@@ -41,6 +43,8 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    view,
+    render,
     reproduce,
 )
 

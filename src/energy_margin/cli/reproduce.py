@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import shlex
+import sys
+from pathlib import Path
 
 from energy_margin.cli.common import add_engine, add_seed, positive_int, require_matplotlib
 
@@ -28,7 +31,10 @@ def run(args: argparse.Namespace) -> int:
     require_matplotlib()
     plan = ReproduceConfig.create(quick=args.quick, workers=args.workers, engine=args.engine, seed=args.seed)
     out = args.out or ("runs/reproduce-quick" if args.quick else "runs/reproduce")
-    index = reproduce(out, plan)
+    # The command as typed when run from the shell; the equivalent command otherwise.
+    invoked = Path(sys.argv[0]).name in ("energy-margin", "__main__.py") and sys.argv[1:2] == ["reproduce"]
+    command = shlex.join(["energy-margin", *sys.argv[1:]]) if invoked else None
+    index = reproduce(out, plan, command=command)
     print(f"report: {index}")
     print(f"tables: {index.parent.parent / 'table1.md'}, {index.parent.parent / 'ablation.md'}")
     return 0

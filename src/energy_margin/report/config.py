@@ -4,10 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-# Measured seconds per frame and per object at 300 iterations on the 2-core machine (docs/performance.md),
-# used only to announce the expected duration.
-_SECONDS_PER_OBJECT = {"pushing": 0.023, "scooping": 0.14}
-
 
 @dataclass(frozen=True)
 class ReproduceConfig:
@@ -56,12 +52,3 @@ class ReproduceConfig:
                 seed=seed,
             )
         return cls(workers=workers, engine=engine, seed=seed)
-
-    def expected_seconds(self) -> float:
-        """Rough duration on the reference 2-core machine, s."""
-        scale = self.iterations / 300.0
-        table = self.trajectories * self.frames * (1 + self.repeats)
-        work = table * scale * (10 * _SECONDS_PER_OBJECT["pushing"] + 5 * _SECONDS_PER_OBJECT["scooping"])
-        ablation_frames = self.ablation_trajectories * self.ablation_frames
-        work += sum(ablation_frames * scale * n * _SECONDS_PER_OBJECT["pushing"] for n in self.ablation_objects)
-        return work / max(1, min(self.workers, 2)) + 30.0

@@ -236,71 +236,87 @@ def cost_field_figure(
 
 
 def trajectory_scores_figure(dataset: Dataset, capture: np.ndarray, success: np.ndarray, path: Path) -> None:
-    """Capture and success scores along every trajectory, with the labels."""
+    """Capture and success scores along every trajectory, with the labels.
+
+    Three panels per row with their own axis labels; one legend above the grid, off the data.
+    """
     plt = _pyplot()
     count = dataset.n_trajectories
-    columns = min(5, count)
+    columns = min(3, count)
     rows = int(np.ceil(count / columns))
-    figure, axes = plt.subplots(rows, columns, figsize=(3.0 * columns, 2.2 * rows), squeeze=False, sharey=True)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 2.6 * rows + 0.6), squeeze=False, sharey=True)
     frames = np.arange(dataset.n_frames)
     captured = dataset.arrays["captured"]
     succeeded = dataset.success_labels()
+    handles: list[Any] = []
     for trajectory in range(rows * columns):
         ax = axes[trajectory // columns][trajectory % columns]
         if trajectory >= count:
             ax.axis("off")
             continue
-        ax.plot(frames, capture[trajectory], color="#1f78b4", marker="o", ms=3, lw=1, label="capture score")
-        ax.plot(frames, success[trajectory], color="#33a02c", marker="s", ms=3, lw=1, label="success score")
-        ax.scatter(
-            frames,
-            captured[trajectory].astype(float) * 1.08 - 0.04,
-            marker="|",
-            color="black",
-            s=30,
-            label="captured label",
-        )
+        lines = [
+            ax.plot(frames, capture[trajectory], color="#1f78b4", marker="o", ms=3, lw=1.2, label="capture score")[0],
+            ax.plot(frames, success[trajectory], color="#33a02c", marker="s", ms=3, lw=1.2, label="success score")[0],
+            ax.scatter(
+                frames,
+                captured[trajectory].astype(float) * 1.08 - 0.04,
+                marker="|",
+                color="black",
+                s=40,
+                label="captured label (1 = captured)",
+            ),
+        ]
+        handles = handles or lines
         ax.set_ylim(-0.1, 1.1)
+        ax.set_xticks(frames)
         outcome = "success" if succeeded[trajectory] else "failure"
         ax.set_title(
-            f"trajectory {trajectory}: {outcome}", fontsize=8, color="#33a02c" if succeeded[trajectory] else "#e31a1c"
+            f"trajectory {trajectory}: {outcome}", fontsize=9, color="#33a02c" if succeeded[trajectory] else "#e31a1c"
         )
-        ax.tick_params(labelsize=7)
-    axes[0][0].legend(fontsize=6, loc="center left")
-    figure.supxlabel("frame")
-    figure.tight_layout()
+        ax.tick_params(labelsize=8)
+        ax.set_xlabel("frame", fontsize=8)
+        if trajectory % columns == 0:
+            ax.set_ylabel("score", fontsize=8)
+    figure.legend(handles=handles, loc="upper center", ncol=3, fontsize=8, frameon=False)
+    figure.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.5 / (2.6 * rows + 0.6)))
     figure.savefig(path, dpi=80)
     plt.close(figure)
 
 
 def precision_recall_figure(curves: dict[str, tuple[np.ndarray, np.ndarray]], path: Path, *, title: str) -> None:
-    """Precision-recall curves, one per entry ``name -> (labels, scores)``."""
+    r"""Precision-recall curves, one per entry ``name -> (labels, scores)``, each with its chance line.
+
+    The chance line of a curve is its positive rate: the precision of scores that know nothing.
+    Names are matplotlib text (mathtext such as ``$\hat{k}$`` works).
+    """
     from sklearn.metrics import average_precision_score, precision_recall_curve
 
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(5, 4.2))
+    figure, ax = plt.subplots(figsize=(5.0, 4.4))
     for name, (labels, scores) in curves.items():
         labels = np.asarray(labels, dtype=bool).ravel()
         if labels.all() or not labels.any():
             continue
         precision, recall, _ = precision_recall_curve(labels, np.asarray(scores).ravel())
         ap = average_precision_score(labels, np.asarray(scores).ravel())
-        ax.step(recall, precision, where="post", label=f"{name} (AP {ap:.3f})")
+        (line,) = ax.step(recall, precision, where="post", label=f"{name} (AP {ap:.3f})")
+        rate = float(labels.mean())
+        ax.axhline(rate, color=line.get_color(), ls=":", lw=1.0, label=f"chance, {name} ({rate:.2f})")
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
     ax.set_xlim(0, 1.02)
     ax.set_ylim(0, 1.05)
     ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=8.5, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     figure.tight_layout()
-    figure.savefig(path, dpi=90)
+    figure.savefig(path, dpi=100, bbox_inches="tight")
     plt.close(figure)
 
 
-def runtime_figure(rows: list[dict[str, Any]], path: Path) -> None:
-    """Runtime per frame (mean and standard deviation) against the number of objects."""
+def runtime_figure(rows: list[dict[str, Any]], path: Path, *, paper: dict[int, dict[str, Any]] | None = None) -> None:
+    """Runtime per frame (mean and standard deviation) against the number of objects, beside the paper's."""
     plt = _pyplot()
-    figure, ax = plt.subplots(figsize=(5, 4))
+    figure, ax = plt.subplots(figsize=(5.6, 4.2))
     objects = [row["n_objects"] for row in rows]
     ax.errorbar(
         objects,
@@ -309,11 +325,25 @@ def runtime_figure(rows: list[dict[str, Any]], path: Path) -> None:
         marker="o",
         capsize=3,
         color="#1f78b4",
+        label="this project (this machine)",
     )
-    ax.set_xlabel("number of objects n_o")
+    if paper:
+        sizes = sorted(paper)
+        ax.errorbar(
+            sizes,
+            [paper[n]["runtime"][0] for n in sizes],
+            yerr=[paper[n]["runtime"][1] for n in sizes],
+            marker="s",
+            capsize=3,
+            color="#e31a1c",
+            ls="--",
+            label="paper (Fig. 2, PyBullet)",
+        )
+    ax.set_xlabel("number of objects $n_o$")
     ax.set_ylabel("runtime per frame [s]")
     ax.set_title("Algorithm 1 runtime against the number of objects", fontsize=9)
     ax.set_ylim(bottom=0)
+    ax.legend(fontsize=8, loc="upper left")
     figure.tight_layout()
     figure.savefig(path, dpi=90)
     plt.close(figure)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shlex
 import sys
 import time
 from collections.abc import Callable
@@ -82,6 +83,7 @@ def _table_one_row(
         _analyze(copy, config)
     result = compare_perturbed(path, [str(copy) for copy in copies])
     result["dataset"] = str(path.relative_to(out))
+    result["perturbed"] = [str(Path(copy).relative_to(out)) for copy in copies]
     return result
 
 
@@ -164,8 +166,85 @@ def ablation_markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def reproduce(out: Path | str, config: ReproduceConfig) -> Path:
-    """Run every stage into ``out`` and return the path of the report's ``index.html``."""
+def _announce(out: Path, config: ReproduceConfig) -> None:
+    """Say how long the work left will take on this machine (a short calibration), or that none is left."""
+    from energy_margin.report.estimate import calibrate, estimate_seconds, planned_analyses, work_left
+
+    table_objects = {task: int(PAPER_TABLE_I[task]["n_objects"]) for task in ("pushing", "scooping")}
+    plan = planned_analyses(config, table_objects)
+    frames, to_write = work_left(out, plan)
+    report_done = (out / "report" / "index.html").is_file()
+    if not any(frames.values()) and not to_write:
+        _say(
+            f"reproduce ({'quick' if config.quick else 'full'}): every dataset is generated and analysed; "
+            + ("writing the report again" if report_done else "writing the report")
+        )
+        return
+    calibration = calibrate(config, list(table_objects))
+    seconds = estimate_seconds(calibration, frames, to_write, workers=config.workers, report=True)
+    left = sum(frames.values())
+    rates = ", ".join(
+        f"{task} {calibration.frame_s[task]:.2f} s/frame ({n} objects)" for task, n in table_objects.items()
+    )
+    resumed = "" if left == sum(e.trajectories * e.frames for e in plan) else f"{left} frames left; "
+    _say(
+        f"reproduce ({'quick' if config.quick else 'full'}): {resumed}expected about {_duration(seconds)} with "
+        f"{config.workers} worker(s) on this machine (calibrated in {calibration.measured_s:.1f} s: {rates}); "
+        "interrupt at any time and run the same command to resume"
+    )
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60.0:.1f} min" if seconds < 600 else f"{seconds / 60.0:.0f} min"
+
+
+def _record_stages(out: Path, stages: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Merge this run's stage times into ``stages.json``: a stage keeps its longest time.
+
+    A resumed run skips finished work, so the longest time is the one that did the work.
+    """
+    path = out / "stages.json"
+    previous: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            loaded = json.loads(path.read_text(encoding="utf-8"))
+            previous = {entry["stage"]: entry for entry in loaded if isinstance(entry, dict) and "stage" in entry}
+        except (OSError, ValueError, TypeError):
+            previous = {}
+    merged = []
+    for entry in stages:
+        earlier = previous.get(entry["stage"])
+        if earlier is not None and float(earlier.get("seconds", 0.0)) > entry["seconds"]:
+            merged.append({**earlier, "resumed": True})
+        else:
+            merged.append(entry)
+    write_json(path, merged)
+    return merged
+
+
+def command_line(out: Path, config: ReproduceConfig) -> str:
+    """The ``energy-margin reproduce`` command that runs ``config`` into ``out``."""
+    quick = " --quick" if config.quick else ""
+    return (
+        f"energy-margin reproduce{quick} --out {shlex.quote(str(out))} --workers {config.workers} "
+        f"--engine {config.engine} --seed {config.seed}"
+    )
+
+
+def reproduce(out: Path | str, config: ReproduceConfig, *, command: str | None = None) -> Path:
+    """Run every stage into ``out`` and return the path of the report's ``index.html``.
+
+    Args:
+        out: output directory.
+        config: what to run.
+        command: the command line shown in the report's provenance (default: the equivalent
+            ``energy-margin reproduce`` command).
+
+    """
+    from energy_margin.report.provenance import provenance
+
     if config.workers < 1:
         raise EnergyMarginError(f"workers must be >= 1, got {config.workers}")
     out = Path(out)
@@ -183,19 +262,21 @@ def reproduce(out: Path | str, config: ReproduceConfig) -> Path:
             )
     write_json(previous, resolved)
     stages = 2 * (3 + config.repeats) + 2 * len(config.ablation_objects) + 1
-    counter = {"done": 0}
     started = time.monotonic()
+    timings: list[dict[str, Any]] = []
+
+    def close_stage() -> None:
+        if timings and "seconds" not in timings[-1]:
+            timings[-1]["seconds"] = time.monotonic() - timings[-1].pop("_started")
+            timings[-1]["resumed"] = False
 
     def step(message: str) -> None:
-        counter["done"] += 1
+        close_stage()
+        timings.append({"stage": message, "_started": time.monotonic()})
         elapsed = time.monotonic() - started
-        _say(f"[{counter['done']}/{stages}] {message} ({elapsed:.0f} s elapsed)")
+        _say(f"[{len(timings)}/{stages}] {message} ({elapsed:.0f} s elapsed)")
 
-    minutes = config.expected_seconds() / 60.0
-    _say(
-        f"reproduce ({'quick' if config.quick else 'full'}): expected about {minutes:.0f} min with "
-        f"{config.workers} worker(s) on a 2-core machine; interrupt at any time and run the same command to resume"
-    )
+    _announce(out, config)
     table_one = {
         task: _table_one_row(out, task, int(PAPER_TABLE_I[task]["n_objects"]), config, step)
         for task in ("pushing", "scooping")
@@ -206,7 +287,19 @@ def reproduce(out: Path | str, config: ReproduceConfig) -> Path:
     write_json(out / "ablation.json", ablation)
     atomic_write_text(out / "ablation.md", ablation_markdown(ablation))
     step("report")
-    index = write_report(out, table_one, ablation, config)
+
+    def describe() -> dict[str, Any]:
+        # Called when the page is assembled: the report stage has drawn every figure by then.
+        close_stage()
+        recorded = _record_stages(out, timings)
+        return provenance(
+            engine=config.engine,
+            command=command or command_line(out, config),
+            stages=recorded,
+            total_s=time.monotonic() - started,
+        )
+
+    index = write_report(out, table_one, ablation, config, describe=describe)
     _say(f"done in {time.monotonic() - started:.0f} s: {index}")
     return index
 
@@ -227,5 +320,6 @@ def _strip(rows: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
         "success_positive_rate",
         "runtime_per_frame_s",
         "baselines",
+        "perturbed",
     )
     return {task: {key: row.get(key) for key in keys} for task, row in rows.items()}

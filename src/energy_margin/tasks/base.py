@@ -49,6 +49,52 @@ class MeasurableRegion(Region, Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class RegionShape:
+    """One solid of a region's drawing (pictures only: :meth:`Region.contains` decides membership).
+
+    Attributes:
+        kind: ``"box"`` or ``"cylinder"`` (axis along world z).
+        centre: centre of the solid, shape (3,), m, world frame.
+        half_size: box half extents (x, y, z) before the yaw, or cylinder (radius, half height, 0), m.
+        yaw: rotation about world z, rad.
+
+    """
+
+    kind: str
+    centre: tuple[float, float, float]
+    half_size: tuple[float, float, float]
+    yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("box", "cylinder"):
+            raise ValueError(f"kind must be 'box' or 'cylinder', got {self.kind!r}")
+
+    def contains(self, positions: np.ndarray) -> np.ndarray:
+        """Whether each position (..., 3), m, lies in the solid; shape (...)."""
+        relative = np.asarray(positions, dtype=float) - np.asarray(self.centre)
+        cos, sin = np.cos(self.yaw), np.sin(self.yaw)
+        local_x = cos * relative[..., 0] + sin * relative[..., 1]
+        local_y = -sin * relative[..., 0] + cos * relative[..., 1]
+        within_z = np.abs(relative[..., 2]) <= self.half_size[2 if self.kind == "box" else 1]
+        if self.kind == "cylinder":
+            return (np.hypot(local_x, local_y) <= self.half_size[0]) & within_z
+        return (np.abs(local_x) <= self.half_size[0]) & (np.abs(local_y) <= self.half_size[1]) & within_z
+
+
+@runtime_checkable
+class DrawableRegion(Region, Protocol):
+    """A region that can be drawn as a union of solids (renders, interactive views)."""
+
+    def shapes(self) -> tuple[RegionShape, ...]:
+        """Solids whose union draws the region (unbounded sides cut off).
+
+        A region that ignores height (a planar task's) is drawn as its footprint: thin solids on
+        the floor under the objects, whose horizontal extent matches ``contains``.
+        """
+        ...
+
+
 def all_inside(
     region: Region,
     object_positions: np.ndarray,

@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from energy_margin.tasks.base import (
+    RegionShape,
     Task,
     TaskConfig,
     Trajectory,
@@ -29,6 +30,10 @@ from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
 
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
+# A drawn swept sector is made of boxes whose chords at the outer radius are at most this long, m
+# (at most _SECTOR_SEGMENTS of them).
+_SECTOR_CHORD = 0.02
+_SECTOR_SEGMENTS = 400
 _PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)
 
 
@@ -238,6 +243,41 @@ class SweptRegion:
         )
         return np.minimum(np.minimum(band, angular * distance), workspace)
 
+    def shapes(self) -> tuple[RegionShape, ...]:
+        """The disc, or boxes along the sector's arc, as thin slabs on the ground.
+
+        The region ignores height, so it is drawn as its footprint under the objects. The
+        workspace bound is not drawn (it lies outside every picture of the task).
+        """
+        config = self.config
+        z, half_height = _slab(config)
+        if self.is_disc:
+            centre = (float(self.pusher_xy[0]), float(self.pusher_xy[1]), z)
+            return (RegionShape("cylinder", centre, (config.capture_disc_radius, half_height, 0.0)),)
+        span = min(self.arc_length + self.arc_margin, 2.0 * np.pi)
+        outer = self.radius + config.capture_half_width
+        count = int(np.clip(np.ceil(span * outer / _SECTOR_CHORD), 1, _SECTOR_SEGMENTS))
+        step = span / count
+        # Each box covers its slice of the band out to the outer radius (chords fall inside).
+        half_length = outer * np.tan(0.5 * step) if step < np.pi else outer
+        # The band's inner edge stops at the centre of rotation for a tight turn.
+        inner = max(0.0, self.radius - config.capture_half_width)
+        middle, half_band = 0.5 * (inner + outer), 0.5 * (outer - inner)
+        shapes = []
+        for index in range(count):
+            angle = self.start_angle + self.turn * (-self.arc_margin + (index + 0.5) * step)
+            direction = np.array([np.cos(angle), np.sin(angle)])
+            centre_xy = self.centre + middle * direction
+            shapes.append(
+                RegionShape(
+                    "box",
+                    (float(centre_xy[0]), float(centre_xy[1]), z),
+                    (half_band, float(half_length), half_height),
+                    yaw=float(angle),
+                )
+            )
+        return tuple(shapes)
+
 
 class WallBand:
     """The band along the wall where the objects must end (success region)."""
@@ -260,6 +300,20 @@ class WallBand:
         xy = np.asarray(positions, dtype=float)[..., :2]
         y = xy[..., 1]
         return np.minimum(np.minimum(y - self.low, self.high - y), _workspace_distance(xy, self.config))
+
+    def shapes(self) -> tuple[RegionShape, ...]:
+        """One thin slab on the ground across the workspace (the band's footprint)."""
+        config = self.config
+        low, high = config.workspace
+        z, half_height = _slab(config)
+        centre = (0.5 * (low + high), 0.5 * (self.low + self.high), z)
+        half = (0.5 * (high - low), 0.5 * (self.high - self.low), half_height)
+        return (RegionShape("box", centre, half),)
+
+
+def _slab(config: PushingConfig) -> tuple[float, float]:
+    """Centre height and half thickness of a drawn footprint: 2 mm on the ground, m."""
+    return config.ground_z + 0.001, 0.001
 
 
 def _workspace_distance(xy: np.ndarray, config: PushingConfig) -> np.ndarray:

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from energy_margin.tasks.base import (
+    RegionShape,
     Task,
     TaskConfig,
     Trajectory,
@@ -234,6 +235,8 @@ class BoxesAboveTable:
 
         """
         self.min_z = config.table_top + config.box_half_edge + height
+        # The region is open upwards; drawings stop at the height the lift reaches.
+        self.drawn_top = config.table_top + config.approach_height + config.lift_height + config.success_height
         self.half_x = config.open_gap / 2.0 + config.tip_length
         self.half_y = config.tip_half_width + config.box_half_edge
         self.fall_speed = config.fall_speed
@@ -261,6 +264,11 @@ class BoxesAboveTable:
             positions[..., 2] - self.min_z,
             np.minimum(self.half_x - np.abs(positions[..., 0]), self.half_y - np.abs(positions[..., 1])),
         )
+
+    def shapes(self) -> tuple[RegionShape, ...]:
+        """One box over the footprint from ``min_z`` up to ``drawn_top`` (the region is open upwards)."""
+        half_z = 0.5 * (self.drawn_top - self.min_z)
+        return (RegionShape("box", (0.0, 0.0, self.min_z + half_z), (self.half_x, self.half_y, half_z)),)
 
 
 class ScoopingTask(Task):

@@ -1,0 +1,206 @@
+"""How long ``reproduce`` will take on this machine: a short calibration and the work left to do.
+
+The calibration records one roll-out of each task, grows the trees of its middle and last frames
+with the run's iterations (at most 300), perturbs its three frames once and draws one picture; the estimate multiplies
+those wall times by the frames not yet in a ``scores.csv`` or journal (pushing scaled by the number
+of objects, which the runtime grows with linearly), the roll-outs not yet generated, the frames of
+the perturbed copies not yet written and the pictures of the report.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from energy_margin.report.config import ReproduceConfig
+
+#: Objects of the calibration scenes (the paper's Table I sizes).
+CALIBRATION_OBJECTS = {"pushing": 10, "scooping": 5}
+#: Most iterations a calibration tree grows (its time is scaled to the run's iterations). A tree's
+#: later iterations cost more than its first (more nodes, more contacts), so the calibration grows
+#: the run's own number up to this.
+CALIBRATION_ITERATIONS = 300
+#: Pictures the report draws per task (rendered frames, perturbed examples, one video at 30 fps).
+_REPORT_PICTURES = {"pushing": 10 + 61, "scooping": 10 + 70}
+#: Matplotlib figures, views and encoding of the report, s (measured: docs/report.md).
+_REPORT_OVERHEAD_S = 25.0
+
+
+@dataclass(frozen=True)
+class PlannedAnalysis:
+    """One dataset ``reproduce`` generates and analyses.
+
+    Attributes:
+        path: the dataset directory relative to the output directory.
+        task: task name.
+        n_objects: objects per scene.
+        trajectories: roll-outs.
+        frames: frames per roll-out.
+        generated: whether ``reproduce`` generates it (perturbed copies are not rolled out).
+
+    """
+
+    path: str
+    task: str
+    n_objects: int
+    trajectories: int
+    frames: int
+    generated: bool
+
+
+def planned_analyses(config: ReproduceConfig, table_objects: dict[str, int]) -> list[PlannedAnalysis]:
+    """Every dataset of a run: Table I datasets and their perturbed copies, then the ablation."""
+    plan = []
+    for task, n_objects in table_objects.items():
+        name = f"{task}-{n_objects}"
+        plan.append(PlannedAnalysis(f"data/{name}", task, n_objects, config.trajectories, config.frames, True))
+        plan.extend(
+            PlannedAnalysis(f"data/{name}-perturbed/{r}", task, n_objects, config.trajectories, config.frames, False)
+            for r in range(1, config.repeats + 1)
+        )
+    plan.extend(
+        PlannedAnalysis(
+            f"data/ablation-pushing-{n}", "pushing", n, config.ablation_trajectories, config.ablation_frames, True
+        )
+        for n in config.ablation_objects
+    )
+    return plan
+
+
+def frames_left(directory: Path, total: int) -> int:
+    """Frames of a dataset directory not yet scored (``scores.csv`` or its journal)."""
+    from energy_margin.data.scores_file import JOURNAL_FILE, SCORES_FILE, read_journal
+
+    if (directory / SCORES_FILE).is_file():
+        return 0
+    return max(0, total - len(read_journal(directory / JOURNAL_FILE)))
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Wall times measured on this machine.
+
+    Attributes:
+        frame_s: seconds per analysed frame of each task at the calibration size, at the run's
+            iterations.
+        rollout_s: seconds per generated roll-out of each task at the calibration size.
+        perturb_s: seconds per perturbed frame of each task at the calibration size.
+        picture_s: seconds per drawn picture of the report.
+        measured_s: wall time of the calibration itself.
+
+    """
+
+    frame_s: dict[str, float]
+    rollout_s: dict[str, float]
+    perturb_s: dict[str, float]
+    picture_s: float
+    measured_s: float
+
+
+def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
+    """Measure a roll-out, two trees, a perturbation and a picture of each task on this machine (seconds)."""
+    from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+    from energy_margin.data.dataset import frame_from_arrays
+    from energy_margin.data.generate import record_trajectory
+    from energy_margin.report.render import FrameRenderer
+    from energy_margin.robustness.perturb import perturb_frame
+    from energy_margin.sim import make_simulator
+    from energy_margin.tasks import get_task
+
+    started = time.perf_counter()
+    frame_s, rollout_s, perturb_s = {}, {}, {}
+    picture_s = 0.05
+    iterations = max(1, min(config.iterations, CALIBRATION_ITERATIONS))
+    for name in tasks:
+        task = get_task(name)
+        n_objects = CALIBRATION_OBJECTS.get(name, 5)
+        rng = np.random.default_rng(config.seed)
+        tick = time.perf_counter()
+        record = record_trajectory(task, n_objects, 3, rng, engine=config.engine)
+        rollout_s[name] = time.perf_counter() - tick
+        friction, drive = float(record["friction"]), record["drive"]
+        simulator = make_simulator(task.build_scene(n_objects, friction, drive), config.engine)
+        # The middle and the last frame: contacts (pusher, wall, blades) make them the costly ones.
+        tick = time.perf_counter()
+        for index in (1, 2):
+            analyze_frame(
+                task,
+                frame_from_arrays(record, index),
+                friction=friction,
+                drive=drive,
+                seed=config.seed,
+                config=AnalyzerConfig(iterations=iterations, engine=config.engine),
+                start_time=float(record["frame_time"][index]),
+                simulator=simulator,
+            )
+        frame_s[name] = (time.perf_counter() - tick) / 2.0 * config.iterations / iterations
+        scene = simulator.scene
+        tick = time.perf_counter()
+        # Perturbing costs little for a spread pile and much for a packed one: all three frames.
+        for index in (0, 1, 2):
+            # A frame that cannot be perturbed still took its time.
+            with contextlib.suppress(Exception):
+                perturb_frame(
+                    frame_from_arrays(record, index),
+                    simulator,
+                    np.random.default_rng(config.seed),
+                    planar=scene.object_motion == "upright",
+                    min_thickness=min(min(obj.geom.size) for obj in scene.objects),
+                )
+        perturb_s[name] = (time.perf_counter() - tick) / 3.0
+    try:
+        from energy_margin.sim.mujoco_backend import MujocoSimulator
+
+        task = get_task(tasks[0])
+        record = record_trajectory(task, 2, 1, np.random.default_rng(0))
+        with FrameRenderer(MujocoSimulator(task.build_scene(2, float(record["friction"]))), task) as renderer:
+            frame = frame_from_arrays(record, 0)
+            renderer.render(frame)
+            tick = time.perf_counter()
+            renderer.render(frame)
+            picture_s = time.perf_counter() - tick
+    except Exception:  # the report falls back to matplotlib; its cost is in the overhead
+        pass
+    return Calibration(frame_s, rollout_s, perturb_s, picture_s, time.perf_counter() - started)
+
+
+def work_left(out: Path, plan: list[PlannedAnalysis]) -> tuple[dict[PlannedAnalysis, int], list[PlannedAnalysis]]:
+    """Frames left to analyse per planned dataset, and the datasets still to write (generate or perturb)."""
+    from energy_margin.data.dataset import METADATA_FILE
+
+    frames = {entry: frames_left(out / entry.path, entry.trajectories * entry.frames) for entry in plan}
+    to_write = [entry for entry in plan if not (out / entry.path / METADATA_FILE).is_file()]
+    return frames, to_write
+
+
+def estimate_seconds(
+    calibration: Calibration,
+    frames: dict[PlannedAnalysis, int],
+    to_write: list[PlannedAnalysis],
+    *,
+    workers: int,
+    report: bool,
+) -> float:
+    """Expected wall time of the work left, s (frames shared by ``workers`` on this machine's cores)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    parallel = max(1, min(workers, cores))
+
+    def per_object(table: dict[str, float], entry: PlannedAnalysis) -> float:
+        reference = CALIBRATION_OBJECTS.get(entry.task, 5)
+        return table[entry.task] * entry.n_objects / reference
+
+    analysis = sum(count * per_object(calibration.frame_s, entry) for entry, count in frames.items())
+    generation = sum(
+        entry.trajectories * per_object(calibration.rollout_s, entry)
+        if entry.generated
+        else entry.trajectories * entry.frames * per_object(calibration.perturb_s, entry)
+        for entry in to_write
+    )
+    pictures = sum(_REPORT_PICTURES.get(task, 80) for task in {entry.task for entry in frames})
+    report_s = pictures * calibration.picture_s + _REPORT_OVERHEAD_S if report else 0.0
+    return analysis / parallel + generation + report_s
