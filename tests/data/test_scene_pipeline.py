@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
@@ -93,3 +94,17 @@ def test_perturb_and_budget_work_on_a_scene_dataset(tiny_scene: Path, tmp_path: 
     assert copy.metadata["task_config"]["model_sha256"] == load_dataset(data).metadata["task_config"]["model_sha256"]
     assert main(["budget", str(data), "--budgets", "5", "10", "--methods", "est", "montecarlo"]) == 0
     assert (data / "budget" / "budget.csv").is_file()
+
+
+def test_render_and_view_work_on_a_scene_dataset(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    pytest.importorskip("imageio")
+    pytest.importorskip("plotly")
+    data = tmp_path / "data"
+    assert _generate(tiny_scene, data) == 0
+    assert main(["analyze", str(data), "--iterations", "10"]) == 0
+    video, page = tmp_path / "roll.gif", tmp_path / "view.html"
+    assert (
+        main(["render", str(data), "--trajectory", "0", "--out", str(video), "--width", "160", "--height", "120"]) == 0
+    )
+    assert main(["view", str(data), "--trajectory", "0", "--frame", "1", "--out", str(page)]) == 0
+    assert video.stat().st_size > 1000 and page.stat().st_size > 1000
