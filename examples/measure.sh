@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Reproduce the figures of the examples' READMEs: each example on a 20 x 10 set, one worker.
 #   bash examples/measure.sh OUT_DIR [ITERATIONS]
-# With ITERATIONS (default 300, the analyzer's default) smaller, it is the quick mode CI runs.
+# ITERATIONS defaults to 300 (the analyzer's default); smaller sizes give a quick run (CI runs the
+# examples in quick mode through tests/test_examples.py).
 set -euo pipefail
 out=${1:?usage: examples/measure.sh OUT_DIR [ITERATIONS] [TRAJECTORIES] [FRAMES]}
 iterations=${2:-300}
