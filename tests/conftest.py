@@ -108,3 +108,105 @@ def make_block_scene() -> Callable[..., Scene]:
 @pytest.fixture
 def make_resting_frame() -> Callable[..., FrameState]:
     return resting_frame
+
+
+# A tiny user scene: two free boxes on the ground and a mocap pusher that moves them along +y.
+TINY_MODEL = """<mujoco model="two_boxes">
+  <option timestep="0.01"/>
+  <default><geom friction="0.4"/></default>
+  <worldbody>
+    <geom name="ground" type="plane" size="2 2 0.1"/>
+    <site name="goal" pos="0 0.4 0.03"/>
+    <body name="pusher" mocap="true" pos="0 -0.15 0.03">
+      <geom name="pusher" type="box" size="0.15 0.02 0.03"/>
+    </body>
+    <body name="box_a" pos="-0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>
+    <body name="box_b" pos="0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+TINY_SCENE = """schema_version = 1
+mjcf = "model.xml"
+
+[objects]
+bodies = ["box_*"]
+
+[motion]
+duration = 1.5
+
+[[motion.keyframes]]
+time = 0.0
+mocap.pusher.pos = [0.0, -0.15, 0.03]
+
+[[motion.keyframes]]
+time = 1.5
+mocap.pusher.pos = [0.0, 0.3, 0.03]
+
+[randomize]
+friction = [0.3, 0.6]
+
+[randomize.start]
+x = [-0.12, 0.12]
+y = [-0.02, 0.08]
+yaw = [-0.3, 0.3]
+
+[perturbation]
+linear_acceleration = [2.0, 2.0, 0.0]
+angular_acceleration = [0.0, 0.0, 5.0]
+max_duration = 0.1
+
+[capture]
+region = { type = "box", body = "pusher", center = [0.0, 0.12, 0.0], half_size = [0.2, 0.1, 0.1] }
+
+[success]
+region = { type = "all", of = [
+  { type = "distance", site = "goal", max = 0.16 },
+  { type = "height", max = 0.1 },
+] }
+"""
+
+
+def write_tiny_scene(directory: Path, scene: str = TINY_SCENE, model: str = TINY_MODEL) -> Path:
+    """Write the tiny model and scene file into ``directory``; return the scene file's path."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "model.xml").write_text(model)
+    path = directory / "scene.toml"
+    path.write_text(scene)
+    return path
+
+
+@pytest.fixture
+def tiny_scene(tmp_path: Path) -> Path:
+    """The tiny two-box scene file (and its model) in a fresh directory."""
+    return write_tiny_scene(tmp_path / "scene")
+
+
+class SceneFactory:
+    """Writes variants of the tiny scene: ``factory(replace={old: new}, model_replace={old: new})``."""
+
+    scene = TINY_SCENE
+    model = TINY_MODEL
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.count = 0
+
+    def __call__(
+        self, *, replace: dict[str, str] | None = None, model_replace: dict[str, str] | None = None, append: str = ""
+    ) -> Path:
+        scene, model = self.scene, self.model
+        for old, new in (replace or {}).items():
+            assert old in scene, old
+            scene = scene.replace(old, new)
+        for old, new in (model_replace or {}).items():
+            assert old in model, old
+            model = model.replace(old, new)
+        self.count += 1
+        return write_tiny_scene(self.root / f"variant{self.count}", scene + append, model)
+
+
+@pytest.fixture
+def make_scene(tmp_path: Path) -> SceneFactory:
+    """A factory of tiny-scene variants in ``tmp_path``."""
+    return SceneFactory(tmp_path)

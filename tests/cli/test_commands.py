@@ -16,7 +16,9 @@ from energy_margin.cli import build_parser, main
 from energy_margin.cli.app import COMMANDS
 
 COMMAND_NAMES = (
+    "scene",
     "generate",
+    "record",
     "analyze",
     "evaluate",
     "check",

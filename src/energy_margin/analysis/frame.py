@@ -20,7 +20,7 @@ from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
-from energy_margin.sim import ENGINES, Simulator, make_simulator
+from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, all_inside
 from energy_margin.world.state import FrameState
 
@@ -153,8 +153,8 @@ def frame_seeds(seed: int, count: int) -> list[int]:
 
 def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
     """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
-    captured = all_inside(task.capture_region(root), field.object_pos, field.object_vel)
-    successful = all_inside(task.success_region(), field.object_pos, field.object_vel)
+    captured = all_inside(task.capture_region(root), field.object_pos, field.object_vel, field.object_quat)
+    successful = all_inside(task.success_region(), field.object_pos, field.object_vel, field.object_quat)
     return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
 
 
@@ -213,7 +213,7 @@ def analyze_frame(
     """
     config = config if config is not None else AnalyzerConfig()
     if simulator is None:
-        simulator = make_simulator(task.build_scene(frame.n_objects, friction, drive), config.engine)
+        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     stop = None
@@ -268,8 +268,7 @@ class FrameAnalyzer:
             # more would let memory grow with the number of distinct trajectories.
             while len(self._simulators) >= _SIMULATOR_CACHE:
                 self._simulators.pop(next(iter(self._simulators)))
-            scene = self.task.build_scene(self.dataset.n_objects, friction, drive)
-            simulator = make_simulator(scene, self.config.engine)
+            simulator = self.task.make_simulator(self.dataset.n_objects, friction, drive, self.config.engine)
         self._simulators[key] = simulator
         return simulator
 

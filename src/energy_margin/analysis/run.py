@@ -20,6 +20,7 @@ from energy_margin import __version__
 from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
+from energy_margin.data.generate import check_engine
 from energy_margin.data.io import atomic_write_text, read_json, write_json
 from energy_margin.data.scores_file import (
     CONFIG_FILE,
@@ -111,6 +112,7 @@ def analyze(
         raise EnergyMarginError(f"seed must be a non-negative integer, got {seed!r}")
     runner = make_executor(executor, workers=workers, address=address)
     dataset = require_valid(path, overlaps=True, scores=False)
+    check_engine(dataset.task, config.engine)
     directory = Path(path)
     description = _run_description(dataset, config, seed)
     config_path, journal_path, scores_path = (directory / name for name in (CONFIG_FILE, JOURNAL_FILE, SCORES_FILE))

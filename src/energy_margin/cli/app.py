@@ -23,8 +23,10 @@ from energy_margin.cli import (
     generate,
     import_reference,
     perturb,
+    record,
     render,
     reproduce,
+    scene,
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
@@ -32,7 +34,9 @@ from energy_margin.errors import EnergyMarginError
 
 #: The commands in the order ``--help`` lists them (the order data flows).
 COMMANDS: tuple[ModuleType, ...] = (
+    scene,
     generate,
+    record,
     import_reference,
     check,
     analyze,

@@ -83,6 +83,13 @@ def task_overrides(pairs: list[str]) -> dict[str, object]:
     return overrides
 
 
+def scene_task_config(scene: str, overrides: dict[str, object]) -> tuple[str, dict[str, object]]:
+    """The task name and configuration of ``--scene SCENE.toml`` (a scene file takes no ``--set``)."""
+    if overrides:
+        raise EnergyMarginError(f"--set does not apply to --scene {scene}: edit the scene file instead")
+    return "scene", {"scene_file": os.path.abspath(scene)}
+
+
 def print_json(value: Any) -> None:
     """Print ``value`` as one JSON object with sorted keys."""
     print(json.dumps(value, sort_keys=True))

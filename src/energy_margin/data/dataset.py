@@ -263,8 +263,8 @@ def metadata_problems(metadata: Any) -> list[Problem]:
 def _task_size_problems(task: Task, metadata: dict[str, Any]) -> list[Problem]:
     """The end-effector and drive sizes of the metadata must be the task's."""
     try:
-        dofs = task.build_scene(1, 0.5).n_robot_dofs
-        drive = int(np.asarray(task.sample_trajectory(np.random.default_rng(0), 1).drive).size)
+        dofs = task.robot_dofs()
+        drive = task.drive_size()
     except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
         return [Problem(METADATA_FILE, "task_config", "", f"cannot build the task's scene ({error})")]
     problems = []

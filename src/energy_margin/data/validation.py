@@ -17,7 +17,6 @@ from pathlib import Path
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
-from energy_margin.sim import make_simulator
 
 #: Interpenetration deeper than this fraction of an object's largest half-extent is an overlap.
 #: Soft contacts leave some penetration in valid frames: up to about 10 mm between the 5 cm-radius
@@ -35,10 +34,10 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
     arrays = dataset.arrays
     for trajectory in range(dataset.n_trajectories):
         try:
-            scene = task.build_scene(
-                dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory]
+            simulator = task.make_simulator(
+                dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory], engine
             )
-            simulator = make_simulator(scene, engine)
+            scene = simulator.scene
         except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
             return [
                 Problem("dataset.json", "task_config", "", f"cannot build the scene ({' '.join(str(error).split())})")

@@ -88,6 +88,8 @@ class CostField:
         iterations: expansions (propagations) performed, accepted and rejected.
         physics_s: wall time spent inside the simulator, s.
         total_s: wall time of the whole growth, s.
+        object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``
+            (``None`` when not kept); regions that test geometry (``contact``) use them.
 
     """
 
@@ -99,6 +101,7 @@ class CostField:
     iterations: int
     physics_s: float
     total_s: float
+    object_quat: np.ndarray | None = None
 
     @property
     def nodes(self) -> int:
@@ -217,6 +220,7 @@ class _Tree:
             costs=self.costs[:count],
             object_pos=self.positions[:count],
             object_vel=self.velocities[:count],
+            object_quat=self.quaternions[:count],
             parents=self.parents[:count],
             times=self.times[:count],
             iterations=iterations,
@@ -230,6 +234,7 @@ class _Tree:
             costs=self.costs[:count].copy(),
             object_pos=self.positions[:count].copy(),
             object_vel=self.velocities[:count].copy(),
+            object_quat=self.quaternions[:count].copy(),
             parents=self.parents[:count].copy(),
             times=self.times[:count].copy(),
             iterations=iterations,

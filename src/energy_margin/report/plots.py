@@ -145,7 +145,6 @@ def frame_figure(
     dataset: Dataset, trajectory: int, frames: list[int], path: Path, *, field: CostField | None = None
 ) -> None:
     """Draw frames of one trajectory (top view for planar tasks, side view otherwise) to ``path``."""
-    from energy_margin.sim import make_simulator
     from energy_margin.tasks import get_recorded_task
 
     plt = _pyplot()
@@ -153,8 +152,9 @@ def frame_figure(
     planar = dataset.metadata["task"] == "pushing"
     view = "top" if planar else "side"
     arrays = dataset.arrays
-    scene = task.build_scene(dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory])
-    simulator = make_simulator(scene)
+    friction = float(arrays["friction"][trajectory])
+    simulator = task.make_simulator(dataset.n_objects, friction, arrays["drive"][trajectory])
+    scene = simulator.scene
     size = max(max(obj.geom.size) for obj in scene.objects)
     margin = 0.6 if planar else 12 * size
     extent = _frame_extent(dataset, trajectory, view, margin)
@@ -201,7 +201,6 @@ def cost_field_figure(
     dataset: Dataset, trajectory: int, frame_index: int, field: CostField, likelihood: np.ndarray, path: Path
 ) -> None:
     """The energy-cost field of one frame and the histogram of its likelihoods."""
-    from energy_margin.sim import make_simulator
     from energy_margin.tasks import get_recorded_task
 
     plt = _pyplot()
@@ -209,8 +208,8 @@ def cost_field_figure(
     planar = dataset.metadata["task"] == "pushing"
     view = "top" if planar else "side"
     arrays = dataset.arrays
-    scene = task.build_scene(dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory])
-    simulator = make_simulator(scene)
+    friction = float(arrays["friction"][trajectory])
+    simulator = task.make_simulator(dataset.n_objects, friction, arrays["drive"][trajectory])
     frame = dataset.frame(trajectory, frame_index)
     simulator.reset(frame)
     figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))

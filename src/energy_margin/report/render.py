@@ -478,10 +478,12 @@ def dataset_renderer(dataset: Dataset, trajectory: int, **options: Any) -> Frame
 
     check_trajectory(dataset, trajectory)
     arrays = dataset.arrays
-    scene = dataset.task.build_scene(
+    task = dataset.task
+    simulator = task.make_simulator(
         dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory]
     )
-    return FrameRenderer(MujocoSimulator(scene), dataset.task, **options)
+    assert isinstance(simulator, MujocoSimulator)
+    return FrameRenderer(simulator, task, **options)
 
 
 def check_trajectory(dataset: Dataset, trajectory: int, frame: int | None = None) -> None:

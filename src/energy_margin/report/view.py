@@ -185,10 +185,11 @@ def view_figure(tree: AnalysedTree) -> Any:
     dataset, field, frame = tree.dataset, tree.field, tree.frame
     arrays = dataset.arrays
     task = dataset.task
-    scene = task.build_scene(
+    simulator = task.make_simulator(
         dataset.n_objects, float(arrays["friction"][tree.trajectory]), arrays["drive"][tree.trajectory]
     )
-    simulator = MujocoSimulator(scene)
+    assert isinstance(simulator, MujocoSimulator)
+    scene = simulator.scene
     simulator.reset(frame)
     model, data = simulator.model, simulator.data
     robot = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]

@@ -45,7 +45,6 @@ from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.errors import EnergyMarginError
-from energy_margin.sim import make_simulator
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 
@@ -74,7 +73,7 @@ class FramePerturbation:
 
 
 def _planar(dataset: Dataset) -> bool:
-    return dataset.task.build_scene(1, 0.5).object_motion == "upright"
+    return dataset.task.build_scene(dataset.n_objects, 0.5).object_motion == "upright"
 
 
 def _object_size(dataset: Dataset) -> float:
@@ -320,8 +319,7 @@ def _perturb_trajectory(source: Dataset, options: dict[str, Any], job: _Job) -> 
     _, trajectory, seeds = job
     friction = float(source.arrays["friction"][trajectory])
     drive = source.arrays["drive"][trajectory]
-    scene = source.task.build_scene(source.n_objects, friction, drive)
-    simulator = make_simulator(scene, source.metadata["engine"])
+    simulator = source.task.make_simulator(source.n_objects, friction, drive, source.metadata["engine"])
     return [
         perturb_frame(source.frame(trajectory, index), simulator, np.random.default_rng(child), **options)
         for index, child in enumerate(seeds)

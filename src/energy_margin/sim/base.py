@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
+
+
+@dataclass(frozen=True)
+class ModelCommand:
+    """Inputs of a user's MuJoCo model at one instant (see :class:`~energy_margin.sim.mujoco_model`).
+
+    Attributes:
+        ctrl: the model's actuator controls, shape (nu,), in each actuator's own unit; ``None``
+            leaves them unchanged.
+        mocap_pos: positions of the mocap bodies, shape (nmocap, 3), metres; ``None`` leaves them.
+        mocap_quat: orientations of the mocap bodies, shape (nmocap, 4), ``(w, x, y, z)``; ``None``
+            leaves them.
+
+    """
+
+    ctrl: np.ndarray | None = None
+    mocap_pos: np.ndarray | None = None
+    mocap_quat: np.ndarray | None = None
 
 
 @runtime_checkable

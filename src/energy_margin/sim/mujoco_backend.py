@@ -18,6 +18,7 @@ from xml.sax.saxutils import quoteattr
 import mujoco
 import numpy as np
 
+from energy_margin.sim.base import ModelCommand
 from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
@@ -196,6 +197,20 @@ def build_mjcf(scene: Scene) -> str:
     )
 
 
+def apply_model_command(data: mujoco.MjData, command: ModelCommand) -> None:
+    """Write a model command's actuator controls and mocap poses into ``data``."""
+    if command.ctrl is not None:
+        data.ctrl[:] = command.ctrl
+    if command.mocap_pos is not None:
+        data.mocap_pos[:] = command.mocap_pos
+    if command.mocap_quat is not None:
+        data.mocap_quat[:] = command.mocap_quat
+
+
+def _id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    return int(mujoco.mj_name2id(model, kind, name))
+
+
 def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
     """Rotate vectors (n, 3) by quaternions (n, 4) (w, x, y, z)."""
     w = quat[:, :1]
@@ -213,18 +228,41 @@ class MujocoSimulator:
     """A :class:`~energy_margin.sim.base.Simulator` on MuJoCo."""
 
     def __init__(self, scene: Scene) -> None:
+        model = mujoco.MjModel.from_xml_string(build_mjcf(scene))
+        first_joint = "_x" if scene.object_motion == "upright" else ""
+        self._bind(
+            scene,
+            model,
+            object_joints=[_id(model, mujoco.mjtObj.mjOBJ_JOINT, obj.name + first_joint) for obj in scene.objects],
+            robot_joints=[_id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in scene.robot_joint_names],
+            servoed=[joint.servoed for joint in scene.robot_joints],
+            servo_actuators=[
+                _id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, joint.name + "_servo")
+                for joint in scene.robot_joints
+                if joint.servoed
+            ],
+        )
+
+    def _bind(
+        self,
+        scene: Scene,
+        model: mujoco.MjModel,
+        *,
+        object_joints: list[int],
+        robot_joints: list[int],
+        servoed: list[bool],
+        servo_actuators: list[int],
+    ) -> None:
+        """Index the model: the objects' first joints, the robot's joints and servo actuators (ids)."""
         self.scene = scene
-        self.model = mujoco.MjModel.from_xml_string(build_mjcf(scene))
+        self.model = model
         self.data = mujoco.MjData(self.model)
-        model = self.model
         self._object_bodies = np.array(
             [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, obj.name) for obj in scene.objects]
         )
         self._upright = scene.object_motion == "upright"
-        first_joint = "_x" if self._upright else ""
-        joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, obj.name + first_joint) for obj in scene.objects]
-        qpos_adr = model.jnt_qposadr[joints]
-        qvel_adr = model.jnt_dofadr[joints]
+        qpos_adr = model.jnt_qposadr[object_joints]
+        qvel_adr = model.jnt_dofadr[object_joints]
         # Index arrays gather every object's coordinates in one fancy-indexing operation.
         self._pos_index = qpos_adr[:, None] + np.arange(3)
         self._linvel_index = qvel_adr[:, None] + np.arange(3)
@@ -234,22 +272,14 @@ class MujocoSimulator:
         else:
             self._quat_index = qpos_adr[:, None] + 3 + np.arange(4)
             self._angvel_index = qvel_adr[:, None] + 3 + np.arange(3)
-        robot_joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in scene.robot_joint_names]
         self._robot_qpos = np.array(model.jnt_qposadr[robot_joints], dtype=int)
         self._robot_qvel = np.array(model.jnt_dofadr[robot_joints], dtype=int)
         # Robot coordinates driven by a servo, and the actuator of each (same order).
-        self._servoed = np.array([joint.servoed for joint in scene.robot_joints], dtype=bool)
-        self._servo_actuators = np.array(
-            [
-                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, joint.name + "_servo")
-                for joint in scene.robot_joints
-                if joint.servoed
-            ],
-            dtype=int,
-        )
+        self._servoed = np.array(servoed, dtype=bool)
+        self._servo_actuators = np.array(servo_actuators, dtype=int)
         self._masses = model.body_mass[self._object_bodies].copy()
         self._inertias = model.body_inertia[self._object_bodies].copy()
-        self._gravity = np.asarray(scene.gravity, dtype=float)
+        self._gravity = np.asarray(model.opt.gravity, dtype=float).copy()
         self._geom_is_object = np.isin(model.geom_bodyid, self._object_bodies)
         body_object = np.full(model.nbody, -1)
         body_object[self._object_bodies] = np.arange(len(self._object_bodies))
@@ -260,6 +290,16 @@ class MujocoSimulator:
             self._spin_dof[self._yaw_rate_index] = model.dof_frictionloss[self._yaw_rate_index] > 0
         self._has_spin_friction = bool(self._spin_dof.any())
         self._pyramid = np.arange(4)
+
+    @property
+    def n_robot_dofs(self) -> int:
+        """Length of the end-effector coordinate vectors (``robot_q`` and ``robot_v``)."""
+        return int(self._robot_qpos.size)
+
+    def _set_robot_state(self, robot_q: np.ndarray, robot_v: np.ndarray) -> None:
+        """Write the end-effector coordinates of a frame into ``data`` (before ``mj_forward``)."""
+        self.data.qpos[self._robot_qpos] = robot_q
+        self.data.qvel[self._robot_qvel] = robot_v
 
     @property
     def timestep(self) -> float:
@@ -276,7 +316,7 @@ class MujocoSimulator:
 
         Servo targets are set to the frame's joint positions (the servos hold the pose).
         """
-        frame.validate(n_objects=self.scene.n_objects, n_robot_dofs=self.scene.n_robot_dofs)
+        frame.validate(n_objects=self.scene.n_objects, n_robot_dofs=self.n_robot_dofs)
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
         quat = np.asarray(frame.object_quat, dtype=float)
@@ -291,8 +331,7 @@ class MujocoSimulator:
             data.qpos[self._quat_index] = quat
             # Free-joint angular velocity is expressed in the body frame.
             data.qvel[self._angvel_index] = _rotate_inverse(quat, np.asarray(frame.object_vel[:, 3:], float))
-        data.qpos[self._robot_qpos] = frame.robot_q
-        data.qvel[self._robot_qvel] = frame.robot_v
+        self._set_robot_state(frame.robot_q, frame.robot_v)
         # Servos hold the frame's joint positions until new targets are set.
         self.set_robot_targets(frame.robot_q)
         mujoco.mj_forward(model, data)
@@ -316,6 +355,10 @@ class MujocoSimulator:
     def set_robot_force(self, force: np.ndarray) -> None:
         """Hold generalized forces (n_robot_dofs,) on the end-effector joints."""
         self.data.qfrc_applied[self._robot_qvel] = force
+
+    def set_model_command(self, command: ModelCommand) -> None:
+        """Hold a model command: the model's actuator controls and mocap body poses."""
+        apply_model_command(self.data, command)
 
     def set_robot_targets(self, targets: np.ndarray) -> None:
         """Hold servo targets (n_robot_dofs,) [m or rad]; entries of unservoed joints are ignored."""
@@ -471,7 +514,11 @@ class MujocoSimulator:
 
 _FULL_PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _CONTROL_SPEC = (
-    mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    mujoco.mjtState.mjSTATE_CTRL
+    | mujoco.mjtState.mjSTATE_QFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_MOCAP_POS
+    | mujoco.mjtState.mjSTATE_MOCAP_QUAT
 )
 
 
@@ -524,12 +571,16 @@ class RolloutPropagator:
         nq, nv = self._nq, self._nv
         return states[..., 1 : 1 + nq], states[..., 1 + nq : 1 + nq + nv]
 
-    def _control(self, wrenches: np.ndarray, force: np.ndarray, targets: np.ndarray | None) -> np.ndarray:
+    def _control(
+        self, wrenches: np.ndarray, force: np.ndarray, targets: np.ndarray | None, command: ModelCommand | None
+    ) -> np.ndarray:
         sim, scratch = self.simulator, self._scratch
         scratch.xfrc_applied[sim._object_bodies] = wrenches
-        scratch.qfrc_applied[sim._robot_qvel] = force
+        scratch.qfrc_applied[sim._robot_qvel] = np.asarray(force)[: sim._robot_qvel.size]
         if targets is not None and sim._servo_actuators.size:
             scratch.ctrl[sim._servo_actuators] = np.asarray(targets, dtype=float)[sim._servoed]
+        if command is not None:
+            apply_model_command(scratch, command)
         row = np.empty(self.control_size)
         mujoco.mj_getState(sim.model, scratch, row, _CONTROL_SPEC)
         return row
@@ -576,7 +627,7 @@ class RolloutPropagator:
                 time = float(start_times[j]) + done * dt
                 force = task.robot_force(drive, time, robot_q, robot_v, None)
                 targets = task.robot_targets(drive, time, robot_q, robot_v, None)
-                row = self._control(wrenches[j], force, targets)
+                row = self._control(wrenches[j], force, targets, task.model_command(drive, time))
                 controls[j, done : done + chunk] = row
                 done += chunk
             controls[j, steps:] = row

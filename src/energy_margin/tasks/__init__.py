@@ -1,7 +1,15 @@
-"""Task registry: ``register_task`` adds a task class, ``get_task`` builds one by name."""
+"""Task registry: ``register_task`` adds a task class, ``get_task`` builds one by name.
+
+Installed packages add tasks through the entry-point group ``energy_margin.tasks``: each entry
+point names a :class:`Task` subclass (``my_task = "my_package.tasks:MyTask"``), registered under
+its ``name`` the first time the registry is read, so ``--task my_task`` works after
+``pip install my-package``.
+"""
 
 from __future__ import annotations
 
+import sys
+from importlib.metadata import entry_points
 from typing import Any
 
 from energy_margin.errors import EnergyMarginError
@@ -15,9 +23,35 @@ from energy_margin.tasks.base import (
     command_robot,
 )
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
+from energy_margin.tasks.scene_task import SceneTask, SceneTaskConfig
 from energy_margin.tasks.scooping import ScoopingConfig, ScoopingTask
 
 _REGISTRY: dict[str, type[Task]] = {}
+ENTRY_POINT_GROUP = "energy_margin.tasks"
+#: Entry points that could not be loaded: name -> reason (shown when the task is asked for).
+_BROKEN: dict[str, str] = {}
+_plugins_loaded = False
+
+
+def load_plugin_tasks() -> None:
+    """Register the tasks of the ``energy_margin.tasks`` entry points (once per process)."""
+    global _plugins_loaded
+    if _plugins_loaded:
+        return
+    _plugins_loaded = True
+    for point in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            task_class = point.load()
+            if not (isinstance(task_class, type) and issubclass(task_class, Task)):
+                raise TypeError(f"{point.value} is not a Task subclass")
+            register_task(task_class)
+        except Exception as error:
+            reason = " ".join(f"{type(error).__name__}: {error}".split())
+            _BROKEN[point.name] = reason
+            print(
+                f"energy-margin: warning: task entry point {point.name!r} ({point.value}) skipped: {reason}",
+                file=sys.stderr,
+            )
 
 
 def register_task(task_class: type[Task]) -> type[Task]:
@@ -29,12 +63,16 @@ def register_task(task_class: type[Task]) -> type[Task]:
 
 
 def available_tasks() -> list[str]:
-    """Names of the registered tasks."""
+    """Names of the registered tasks (built-in and from entry points)."""
+    load_plugin_tasks()
     return sorted(_REGISTRY)
 
 
 def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
     """Build the registered task ``name`` with optional configuration overrides."""
+    load_plugin_tasks()
+    if name in _BROKEN and name not in _REGISTRY:
+        raise EnergyMarginError(f"task {name!r} comes from an entry point that cannot be loaded: {_BROKEN[name]}")
     if name not in _REGISTRY:
         raise EnergyMarginError(f"unknown task {name!r}; available: {', '.join(available_tasks())}")
     try:
@@ -60,11 +98,14 @@ def get_recorded_task(name: str, config: dict[str, Any] | None) -> Task:
 
 register_task(PushingTask)
 register_task(ScoopingTask)
+register_task(SceneTask)
 
 __all__ = [
     "PushingConfig",
     "PushingTask",
     "Region",
+    "SceneTask",
+    "SceneTaskConfig",
     "ScoopingConfig",
     "ScoopingTask",
     "Task",
@@ -76,5 +117,6 @@ __all__ = [
     "command_robot",
     "get_recorded_task",
     "get_task",
+    "load_plugin_tasks",
     "register_task",
 ]

@@ -15,7 +15,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.sim.base import Simulator
+from energy_margin.sim import make_simulator
+from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
@@ -94,19 +95,30 @@ class DrawableRegion(Region, Protocol):
         ...
 
 
-def all_inside(region: Region, object_positions: np.ndarray, object_velocities: np.ndarray | None = None) -> np.ndarray:
+def all_inside(
+    region: Region,
+    object_positions: np.ndarray,
+    object_velocities: np.ndarray | None = None,
+    object_quaternions: np.ndarray | None = None,
+) -> np.ndarray:
     """True where every object of a state lies in ``region``.
 
     Args:
         region: the region.
         object_positions: shape (..., n_objects, 3), metres.
         object_velocities: shape (..., n_objects, 6), m/s and rad/s, or ``None``.
+        object_quaternions: shape (..., n_objects, 4), ``(w, x, y, z)``, or ``None``; passed on to a
+            region whose ``uses_orientation`` attribute is true (e.g. a contact test).
 
     Returns:
         Boolean array of shape (...).
 
     """
-    return np.all(region.contains(object_positions, object_velocities), axis=-1)
+    if object_quaternions is not None and getattr(region, "uses_orientation", False):
+        inside = region.contains(object_positions, object_velocities, quaternions=object_quaternions)  # type: ignore[call-arg]
+    else:
+        inside = region.contains(object_positions, object_velocities)
+    return np.all(inside, axis=-1)
 
 
 @dataclass(frozen=True)
@@ -245,6 +257,11 @@ class Task(ABC):
         converted: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         return cls(cls.config_class(**converted))
 
+    @property
+    def label(self) -> str:
+        """How messages name the task, e.g. ``task 'pushing'``."""
+        return f"task {self.name!r}"
+
     @abstractmethod
     def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
         """The world with ``n_objects`` objects and contact friction ``friction``.
@@ -291,9 +308,43 @@ class Task(ABC):
         del drive, time, robot_q, robot_v, rng
         return None
 
+    def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
+        """Actuator controls and mocap poses of a task built on a user's MuJoCo model at ``time`` (s).
+
+        ``None`` (the default) for a task whose end-effector is driven by :meth:`robot_force` and
+        :meth:`robot_targets` only. Evaluated after them by :func:`command_robot`.
+        """
+        del drive, time
+        return None
+
+    #: Engines that can simulate the task; ``None`` for every engine of :data:`energy_margin.sim.ENGINES`.
+    engines: ClassVar[tuple[str, ...] | None] = None
+
+    #: Objects of every scene of the task, when the task fixes them (a scene file does); ``None``
+    #: lets ``generate --objects`` choose.
+    fixed_objects: int | None = None
+
+    def make_simulator(
+        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+    ) -> Simulator:
+        """A simulator of the task's world: :meth:`build_scene` on ``engine`` by default.
+
+        A task built on a compiled MuJoCo model overrides this to simulate that model itself.
+        """
+        return make_simulator(self.build_scene(n_objects, friction, drive), engine)
+
+    def robot_dofs(self) -> int:
+        """Length of the end-effector coordinates ``robot_q`` and ``robot_v`` of a frame."""
+        return self.build_scene(self.fixed_objects or 1, 0.5).n_robot_dofs
+
+    def drive_size(self) -> int:
+        """Length of a trajectory's drive parameters."""
+        trajectory = self.sample_trajectory(np.random.default_rng(0), self.fixed_objects or 1)
+        return int(np.asarray(trajectory.drive).size)
+
     #: During analysis the scripted command is re-evaluated every this many seconds of a
     #: propagation; ``None`` evaluates it once at the start of each propagation.
-    control_period: ClassVar[float | None] = None
+    control_period: float | None = None
 
     @abstractmethod
     def capture_region(self, root: FrameState) -> Region:
@@ -313,11 +364,11 @@ class Task(ABC):
 
     def is_captured(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the capture region built from ``frame``."""
-        return bool(all_inside(self.capture_region(frame), frame.object_pos, frame.object_vel))
+        return bool(all_inside(self.capture_region(frame), frame.object_pos, frame.object_vel, frame.object_quat))
 
     def is_successful(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the success region."""
-        return bool(all_inside(self.success_region(), frame.object_pos, frame.object_vel))
+        return bool(all_inside(self.success_region(), frame.object_pos, frame.object_vel, frame.object_quat))
 
     @property
     def n_steps(self) -> int:
@@ -338,6 +389,7 @@ def command_robot(
 
     Sets the generalized forces of :meth:`Task.robot_force`, then, for a task with servos, the
     targets of :meth:`Task.robot_targets`; both see the current joint positions and velocities.
+    A task on a user's model then sets its :meth:`Task.model_command`.
     Used identically by the data generator (every step, with ``rng``) and the analyzer (with
     ``None``).
     """
@@ -346,6 +398,12 @@ def command_robot(
     targets = task.robot_targets(drive, time, robot_q, robot_v, rng)
     if targets is not None:
         simulator.set_robot_targets(targets)
+    command = task.model_command(drive, time)
+    if command is not None:
+        set_command = getattr(simulator, "set_model_command", None)
+        if set_command is None:
+            raise ValueError(f"task {task.name!r} commands a MuJoCo model: it needs the 'mujoco' engine")
+        set_command(command)
 
 
 def sample_separated(

@@ -1,0 +1,187 @@
+"""Recorded MuJoCo roll-outs of a scene file's model turned into a dataset (``energy-margin record``).
+
+A roll-out is one ``.npz`` file with ``time`` (n,) s, ``qpos`` (n, nq) and ``qvel`` (n, nv) in
+MuJoCo's own state layout for the scene's compiled model, and optionally ``ctrl`` (n, nu) (checked,
+not used: the analysis follows the scene file's declared motion from each frame's time) and
+``mocap_pos`` (n, nmocap, 3) / ``mocap_quat`` (n, nmocap, 4) (without them the mocap bodies take
+the declared motion's pose at each time). An HDF5 file (``.h5``/``.hdf5``, read with h5py) holds
+one group per roll-out with the same arrays, taken in the order of the group names. ``time`` is
+the motion's clock: 0 is its start. K frames are taken at the rows nearest to K evenly spaced
+times from the first row to the last; the labels come from the scene file's capture and success
+sets. Every problem is one line naming the
+file and the array.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from energy_margin.data.dataset import Dataset, check_target
+from energy_margin.data.generate import trajectory_record, write_records
+from energy_margin.errors import EnergyMarginError
+from energy_margin.tasks import get_task
+from energy_margin.tasks.scene_task import SceneTask
+from energy_margin.world.state import FrameState
+
+_HDF5_SUFFIXES = (".h5", ".hdf5")
+
+
+def _load_arrays(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
+    """The roll-outs in one file: ``(name, arrays)``; an ``.npz`` holds one, an HDF5 file one per group."""
+    if not path.is_file():
+        raise EnergyMarginError(f"{path}: roll-out file does not exist")
+    if path.suffix.lower() in _HDF5_SUFFIXES:
+        try:
+            import h5py
+        except ImportError:
+            raise EnergyMarginError(
+                f"{path}: reading HDF5 roll-outs needs h5py: pip install 'energy-margin[hdf5]'"
+            ) from None
+        try:
+            with h5py.File(path, "r") as handle:
+                rollouts = []
+                for group_name in sorted(handle):
+                    group = handle[group_name]
+                    if not isinstance(group, h5py.Group):
+                        raise EnergyMarginError(
+                            f"{path}: /{group_name}: expected a group per roll-out, found a dataset"
+                        )
+                    arrays = {key: np.asarray(group[key]) for key in group if isinstance(group[key], h5py.Dataset)}
+                    rollouts.append((f"{path}:/{group_name}", arrays))
+        except OSError as error:
+            raise EnergyMarginError(f"{path}: not a readable HDF5 file ({' '.join(str(error).split())})") from None
+        if not rollouts:
+            raise EnergyMarginError(f"{path}: holds no roll-out group")
+        return rollouts
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {name: np.asarray(archive[name]) for name in archive.files}
+    except (OSError, ValueError, EOFError) as error:
+        raise EnergyMarginError(f"{path}: not a readable .npz roll-out ({' '.join(str(error).split())})") from None
+    return [(str(path), arrays)]
+
+
+def _check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The arrays of one roll-out (``path`` names it in errors), checked against ``model``'s sizes."""
+    for name in ("time", "qpos", "qvel"):
+        if name not in arrays:
+            raise EnergyMarginError(f"{path}: {name}: array is missing (a roll-out needs time, qpos and qvel)")
+    for name, value in arrays.items():
+        if value.dtype.kind not in "fiu":
+            raise EnergyMarginError(f"{path}: {name}: must hold numbers, got {value.dtype}")
+    time = arrays["time"].astype(float)
+    if time.ndim != 1 or time.size < 1:
+        raise EnergyMarginError(f"{path}: time: must be a non-empty 1-d array, got shape {time.shape}")
+    n = time.size
+    widths = {
+        "qpos": (n, int(model.nq)),
+        "qvel": (n, int(model.nv)),
+        "ctrl": (n, int(model.nu)),
+        "mocap_pos": (n, int(model.nmocap), 3),
+        "mocap_quat": (n, int(model.nmocap), 4),
+    }
+    for name, shape in widths.items():
+        if name in arrays and arrays[name].shape != shape:
+            raise EnergyMarginError(
+                f"{path}: {name}: has shape {arrays[name].shape}, expected {shape} for the scene's model "
+                f"(nq {model.nq}, nv {model.nv}, nu {model.nu}, nmocap {model.nmocap})"
+            )
+    for name, value in arrays.items():
+        bad = np.argwhere(~np.isfinite(value.astype(float)))
+        if bad.size:
+            raise EnergyMarginError(f"{path}: {name}: NaN or infinite value at row {int(bad[0][0])}")
+    steps = np.diff(time)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise EnergyMarginError(f"{path}: time: is not increasing (row {row}: {time[row]} after {time[row - 1]})")
+    return {name: value.astype(float) for name, value in arrays.items()}
+
+
+def _frame_rows(time: np.ndarray, n_frames: int) -> np.ndarray:
+    """Row indices nearest to ``n_frames`` evenly spaced times from the first to the last row."""
+    targets = np.linspace(time[0], time[-1], n_frames) if n_frames > 1 else np.array([time[-1]])
+    rows = np.clip(np.searchsorted(time, targets), 1, time.size - 1) if time.size > 1 else np.zeros(n_frames, int)
+    if time.size > 1:
+        nearer_before = np.abs(time[rows - 1] - targets) <= np.abs(time[rows] - targets)
+        rows = np.where(nearer_before, rows - 1, rows)
+    return rows.astype(int)
+
+
+def record_dataset(
+    scene_file: Path | str,
+    rollouts: Sequence[Path | str],
+    *,
+    n_frames: int,
+    out: Path | str,
+    overwrite: bool = False,
+    progress: Callable[[int], None] | None = None,
+) -> Dataset:
+    """Turn recorded roll-outs of a scene file's model into a dataset directory.
+
+    Args:
+        scene_file: the scene file whose model recorded the roll-outs.
+        rollouts: one ``.npz`` per roll-out, or HDF5 files (``.h5``, ``.hdf5``) with one group per
+            roll-out holding the same arrays (needs h5py); see the module docstring.
+        n_frames: frames K per roll-out, >= 1 (at most the rows of the shortest roll-out).
+        out: the dataset directory to create.
+        overwrite: replace an existing ``out``.
+        progress: called with 1 after each roll-out.
+
+    """
+    if isinstance(n_frames, bool) or not isinstance(n_frames, int) or n_frames < 1:
+        raise EnergyMarginError(f"frames must be an integer >= 1, got {n_frames!r}")
+    if not rollouts:
+        raise EnergyMarginError("record needs at least one roll-out file")
+    task = get_task("scene", {"scene_file": str(Path(scene_file).resolve())})
+    assert isinstance(task, SceneTask)
+    out = Path(out)
+    check_target(out, overwrite=overwrite)
+    loaded = task.loaded
+    friction = task.default_friction()
+    drive = np.ones(task.drive_size())
+    simulator = task.make_simulator(loaded.n_objects, friction, drive)
+    model, data = simulator.model, simulator.data  # type: ignore[attr-defined]
+    loaded_rollouts: list[tuple[str, dict[str, np.ndarray]]] = []
+    sources: list[dict[str, Any]] = []
+    for item in rollouts:
+        path = Path(item)
+        for name, raw in _load_arrays(path):
+            loaded_rollouts.append((name, _check_rollout(name, raw, model)))
+        sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    records = []
+    for name, arrays in loaded_rollouts:
+        time = arrays["time"]
+        if time.size < n_frames:
+            raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than --frames {n_frames}")
+        frames: list[FrameState] = []
+        times: list[float] = []
+        for row in _frame_rows(time, n_frames):
+            mujoco.mj_resetData(model, data)
+            data.qpos[:] = arrays["qpos"][row]
+            data.qvel[:] = arrays["qvel"][row]
+            command = task.model_command(drive, float(time[row]))
+            if command is not None and command.mocap_pos is not None:
+                data.mocap_pos[:] = command.mocap_pos
+                data.mocap_quat[:] = command.mocap_quat
+            if "mocap_pos" in arrays:
+                data.mocap_pos[:] = arrays["mocap_pos"][row]
+            if "mocap_quat" in arrays:
+                data.mocap_quat[:] = arrays["mocap_quat"][row]
+            mujoco.mj_forward(model, data)
+            frame = simulator.frame_state()
+            if np.any(np.abs(np.linalg.norm(frame.object_quat, axis=1) - 1.0) > 1e-3):
+                raise EnergyMarginError(
+                    f"{name}: qpos: row {row} holds an object quaternion that is not a unit quaternion"
+                )
+            frames.append(frame)
+            times.append(float(time[row]))
+        records.append(trajectory_record(task, frames, times, friction, drive))
+        if progress is not None:
+            progress(1)
+    return write_records(task, records, out, engine="mujoco", extra={"recorded_from": sources}, overwrite=overwrite)

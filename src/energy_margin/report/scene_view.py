@@ -1,0 +1,239 @@
+"""What a scene file declares, in words and as a picture (``energy-margin scene``).
+
+:func:`describe_scene` lists the objects with their masses, the actuators and mocap bodies, the
+motion's duration, the sets and the wrench ranges. :func:`render_scene` draws the scene at t = 0
+(the first start ``generate --seed 0`` would use) with MuJoCo's own renderer, the capture set in
+translucent blue and the success set in translucent green, added as visual-only geoms to a copy of
+the model edited with ``MjSpec``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from energy_margin.data.io import staging_directory
+from energy_margin.tasks.scene_model import compile_spec
+from energy_margin.tasks.scene_task import SceneTask
+from energy_margin.world.state import FrameState
+
+_CAPTURE_RGBA = (0.12, 0.47, 0.71, 0.3)
+_SUCCESS_RGBA = (0.2, 0.63, 0.17, 0.3)
+_EXCLUDED_RGBA = (0.9, 0.1, 0.1, 0.25)
+
+
+def _region_text(table: Mapping[str, Any]) -> str:
+    kind = table["type"]
+    if kind in ("all", "any"):
+        return f"{kind}(" + ", ".join(_region_text(part) for part in table["of"]) + ")"
+    if kind == "not":
+        return f"not({_region_text(table['region'])})"
+    keys = ", ".join(f"{k}={_fmt(v)}" for k, v in table.items() if k != "type")
+    return f"{kind}[{keys}]"
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, tuple | list):
+        return "(" + ", ".join(f"{v:g}" for v in value) + ")"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def describe_scene(task: SceneTask) -> list[str]:
+    """Lines that say what the scene file declares and what the model holds."""
+    loaded = task.loaded
+    spec, model = loaded.spec, loaded.model
+    lines = [f"scene file {spec.path} (schema_version 1), model {spec.mjcf.name} (sha256 {loaded.model_sha256[:12]})"]
+    lines.append(f"objects ({loaded.n_objects}, {spec.object_joints}):")
+    for index, name in enumerate(loaded.object_names):
+        body = loaded.object_bodies[index]
+        inertia = ", ".join(f"{v:.3g}" for v in model.body_inertia[body])
+        lines.append(
+            f"  {name}: mass {model.body_mass[body]:.4g} kg, inertia ({inertia}) kg m^2, "
+            f"bounding radius {loaded.object_radius[index]:.3g} m"
+        )
+    actuators = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}" for i in range(model.nu)]
+    lines.append(f"actuators ({model.nu}): {', '.join(actuators) if actuators else 'none'}")
+    mocap = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(model.nbody) if model.body_mocapid[b] >= 0
+    ]
+    joints = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}" for j in loaded.robot_joints]
+    lines.append(f"robot joints ({len(joints)}): {', '.join(joints) if joints else 'none'}")
+    lines.append(f"mocap bodies ({model.nmocap}): {', '.join(str(m) for m in mocap) if mocap else 'none'}")
+    motion = spec.motion
+    source = (
+        f"ctrl file {motion.ctrl_file.name}" if motion.ctrl_file is not None else f"{len(motion.keyframes)} keyframes"
+    )
+    lines.append(
+        f"motion: {source}, {motion.interpolation} interpolation, duration {motion.duration:g} s "
+        f"({task.n_steps} steps of {model.opt.timestep:g} s), command every {motion.control_period:g} s in analysis"
+    )
+    friction = f"{spec.friction_range[0]:g}-{spec.friction_range[1]:g}" if spec.friction_range else "the model's"
+    start = dict(spec.start.ranges) if spec.start.mode == "ranges" else (spec.start.low, spec.start.high)
+    lines.append(
+        f"randomize: friction {friction}, mass scale {spec.mass_scale or '1'}, time scale {spec.time_scale or '1'}, "
+        f"start {spec.start.mode} {start}"
+    )
+    lines.append(
+        f"perturbation: linear acceleration {_fmt(spec.linear_acceleration)} m/s^2, angular acceleration "
+        f"{_fmt(spec.angular_acceleration)} rad/s^2, longest propagation {spec.max_duration:g} s, lambda "
+        f"{spec.likelihood_lambda:g} 1/J"
+    )
+    limits = task.wrench_limits(task.build_scene(loaded.n_objects, 0.5)).max_wrench
+    lines.append(
+        f"wrench bounds of {loaded.object_names[0]}: force {_fmt(tuple(limits[0, :3]))} N, "
+        f"torque {_fmt(tuple(limits[0, 3:]))} N m"
+    )
+    for name, table, at_least in (
+        ("capture", spec.capture, spec.capture_at_least),
+        ("success", spec.success, spec.success_at_least),
+    ):
+        who = f"at least {at_least} objects" if at_least is not None else "every object"
+        lines.append(f"{name}: {who} in {_region_text(table)}")
+    return lines
+
+
+def start_frame(task: SceneTask, seed: int = 0) -> FrameState:
+    """The first start ``generate --seed SEED`` draws (trajectory 0)."""
+    child = np.random.SeedSequence(seed).spawn(1)[0]
+    return task.sample_trajectory(np.random.default_rng(child), task.loaded.n_objects).initial
+
+
+def _add_region_geoms(
+    spec: mujoco.MjSpec, table: Mapping[str, Any], lookup: Any, rgba: tuple[float, ...], extent: float
+) -> None:
+    kind = table["type"]
+    if kind in ("all", "any"):
+        for part in table["of"]:
+            _add_region_geoms(spec, part, lookup, rgba, extent)
+        return
+    if kind == "not":
+        _add_region_geoms(spec, table["region"], lookup, _EXCLUDED_RGBA, extent)
+        return
+    origin, rotation = np.zeros(3), np.eye(3)
+    for frame_kind in ("body", "site"):
+        if frame_kind in table and kind in ("box", "cylinder"):
+            origin, rotation = lookup(frame_kind, table[frame_kind])
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, rotation.ravel())
+    common = {"contype": 0, "conaffinity": 0, "group": 0, "rgba": list(rgba)}
+    if kind == "box":
+        pos = origin + rotation @ np.asarray(table["center"])
+        spec.worldbody.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_BOX, size=list(table["half_size"]), pos=pos, quat=quat, **common
+        )
+    elif kind == "cylinder":
+        pos = origin + rotation @ np.asarray(table["center"])
+        size = [table["radius"], table["half_height"], 0.0]
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=size, pos=pos, quat=quat, **common)
+    elif kind == "distance":
+        point = lookup("site" if "site" in table else "body", table.get("site", table.get("body")))[0]
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[table["max"], 0, 0], pos=point, **common)
+    elif kind == "height":
+        reference = float(lookup("body", table["body"])[0][2]) if "body" in table else float(table.get("plane", 0.0))
+        # Thin sheets at the bounds: a solid slab would hide the scene.
+        levels = [reference + float(table.get("min", 0.0))]
+        if "max" in table:
+            levels.append(reference + float(table["max"]))
+        sheet = {**common, "rgba": [rgba[0], rgba[1], rgba[2], 0.06]}
+        for level in levels:
+            spec.worldbody.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_BOX, size=[extent, extent, 0.0005], pos=[0.0, 0.0, level + 0.001], **sheet
+            )
+
+
+def _gl_context(width: int, height: int) -> Any:
+    """An OpenGL context: on Linux EGL (headless) unless MUJOCO_GL asks for OSMesa or, with a display, GLFW."""
+    if sys.platform.startswith("linux"):
+        choice = os.environ.get("MUJOCO_GL", "").lower()
+        if choice == "osmesa":
+            from mujoco.osmesa import GLContext as OSMesaContext
+
+            return OSMesaContext(width, height)
+        if not (choice in ("glfw", "glx") and os.environ.get("DISPLAY")):
+            from mujoco.egl import GLContext as EGLContext
+
+            return EGLContext(width, height)
+    return mujoco.GLContext(width, height)
+
+
+def _render(
+    model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCamera, width: int, height: int
+) -> np.ndarray:
+    """RGB pixels (height, width, 3) of ``data`` seen from ``camera`` with MuJoCo's renderer."""
+    context = _gl_context(width, height)
+    context.make_current()
+    try:
+        scene = mujoco.MjvScene(model, maxgeom=10_000)
+        options = mujoco.MjvOption()
+        mujoco.mjv_updateScene(model, data, options, None, camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
+        render_context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, render_context)
+        viewport = mujoco.MjrRect(0, 0, width, height)
+        mujoco.mjr_render(viewport, scene, render_context)
+        pixels = np.empty((height, width, 3), dtype=np.uint8)
+        mujoco.mjr_readPixels(pixels, None, viewport, render_context)
+        render_context.free()
+    finally:
+        context.free()
+    return np.flipud(pixels)
+
+
+def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960, height: int = 720) -> FrameState:
+    """Write a PNG of the scene at t = 0 with its capture (blue) and success (green) sets; return the frame."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    loaded = task.loaded
+    frame = start_frame(task, seed)
+    model_spec, _ = compile_spec(loaded.spec)
+    extent = float(np.max(np.abs(frame.object_pos[:, :2]))) + 1.0
+    _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent)
+    _add_region_geoms(model_spec, loaded.spec.success, task.frame_lookup(None), _SUCCESS_RGBA, extent)
+    centre = frame.object_pos.mean(axis=0)
+    model_spec.worldbody.add_light(pos=[centre[0], centre[1], centre[2] + 3.0], dir=[0.0, 0.0, -1.0], castshadow=False)
+    model = model_spec.compile()
+    model.vis.headlight.ambient[:] = 0.35
+    model.vis.headlight.diffuse[:] = 0.5
+    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
+    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+    simulator = task.make_simulator(loaded.n_objects, task.default_friction(), np.ones(2))
+    simulator.reset(frame)
+    data = mujoco.MjData(model)
+    data.qpos[:] = simulator.data.qpos  # type: ignore[attr-defined]
+    data.mocap_pos[:] = simulator.data.mocap_pos  # type: ignore[attr-defined]
+    data.mocap_quat[:] = simulator.data.mocap_quat  # type: ignore[attr-defined]
+    mujoco.mj_forward(model, data)
+    camera = mujoco.MjvCamera()
+    spread = float(np.max(np.linalg.norm(frame.object_pos - centre, axis=1))) + float(np.max(loaded.object_radius))
+    camera.lookat[:] = centre
+    reach = float(np.max(np.linalg.norm(data.xpos[1:] - centre, axis=1)))  # every body but the world
+    camera.distance = max(6.0 * spread, 2.2 * reach, 0.6)
+    camera.azimuth = 135.0
+    camera.elevation = -60.0
+    image = _render(model, data, camera, width, height)
+    figure, ax = plt.subplots(figsize=(width / 100, height / 100 + 0.4), dpi=100)
+    ax.imshow(image)
+    ax.set_axis_off()
+    ax.set_title(f"{loaded.spec.path.name} at t = 0 (seed {seed}): capture set blue, success set green", fontsize=10)
+    figure.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    staging = staging_directory(path.parent, path.name)
+    try:
+        figure.savefig(staging / path.name)
+        (staging / path.name).replace(path)
+    finally:
+        plt.close(figure)
+        for leftover in staging.iterdir():
+            leftover.unlink()
+        staging.rmdir()
+    return frame

@@ -1,0 +1,74 @@
+"""MuJoCo backend on a user's compiled model (a scene file's MJCF) instead of a generated one.
+
+The model is simulated exactly as compiled. The objects are bodies with a free joint (or the
+upright joints slide x, y, z and hinge z, in that order); every other joint is the robot's and
+must be a hinge or a slide. The robot's coordinates ``robot_q`` are those joints' positions
+followed by every mocap body's position (3) and quaternion (4); ``robot_v`` the joints'
+velocities followed by zeros for the mocap coordinates (a mocap body has no velocity state). The
+robot is driven by :class:`~energy_margin.sim.base.ModelCommand` (the model's actuator controls
+and mocap poses) through ``set_model_command``; ``set_robot_force`` adds generalized forces on
+the robot joints (its mocap entries are ignored).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from energy_margin.sim.mujoco_backend import MujocoSimulator
+from energy_margin.world.scene import Scene
+
+
+class MujocoModelSimulator(MujocoSimulator):
+    """A :class:`~energy_margin.sim.base.Simulator` on a compiled user model."""
+
+    def __init__(
+        self, model: mujoco.MjModel, scene: Scene, *, object_joints: list[int], robot_joints: list[int]
+    ) -> None:
+        """Bind ``model``.
+
+        Args:
+            model: the compiled model (not copied: one simulator per model).
+            scene: the objects' description; ``scene.objects[i].name`` is object i's body.
+            object_joints: joint id of each object's free joint (or first upright joint).
+            robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
+
+        """
+        self._bind(
+            scene,
+            model,
+            object_joints=object_joints,
+            robot_joints=robot_joints,
+            servoed=[False] * len(robot_joints),
+            servo_actuators=[],
+        )
+        self._n_mocap = int(model.nmocap)
+
+    @property
+    def n_robot_dofs(self) -> int:
+        """Robot joints plus seven coordinates per mocap body."""
+        return int(self._robot_qpos.size) + 7 * self._n_mocap
+
+    def _set_robot_state(self, robot_q: np.ndarray, robot_v: np.ndarray) -> None:
+        joints = self._robot_qpos.size
+        self.data.qpos[self._robot_qpos] = robot_q[:joints]
+        self.data.qvel[self._robot_qvel] = robot_v[:joints]
+        if self._n_mocap:
+            mocap = np.asarray(robot_q[joints:], dtype=float)
+            self.data.mocap_pos[:] = mocap[: 3 * self._n_mocap].reshape(-1, 3)
+            quat = mocap[3 * self._n_mocap :].reshape(-1, 4)
+            self.data.mocap_quat[:] = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+
+    def robot_positions(self) -> np.ndarray:
+        """Robot joint positions, then mocap positions and quaternions, shape (n_robot_dofs,)."""
+        return np.concatenate(
+            [self.data.qpos[self._robot_qpos], self.data.mocap_pos.ravel(), self.data.mocap_quat.ravel()]
+        )
+
+    def robot_velocities(self) -> np.ndarray:
+        """Robot joint velocities, then zeros for the mocap coordinates, shape (n_robot_dofs,)."""
+        return np.concatenate([self.data.qvel[self._robot_qvel], np.zeros(7 * self._n_mocap)])
+
+    def set_robot_force(self, force: np.ndarray) -> None:
+        """Hold generalized forces on the robot joints (the first entries of ``force``)."""
+        self.data.qfrc_applied[self._robot_qvel] = np.asarray(force)[: self._robot_qvel.size]

@@ -1,0 +1,383 @@
+"""A scene file's MuJoCo model: loaded and edited with ``mujoco.MjSpec``, compiled, its names checked.
+
+:func:`load_scene` reads the scene file (:mod:`energy_margin.tasks.scene_file`), loads the model
+it names, adds the copies of a template object body, compiles it and resolves every name the file
+uses (object bodies, actuators, mocap bodies, sites, the initial keyframe) against the compiled
+model. Each problem is one :class:`~energy_margin.errors.EnergyMarginError` line naming the scene
+file, the key and the body, actuator or site.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
+
+_FREE = mujoco.mjtJoint.mjJNT_FREE
+_SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
+_HINGE = mujoco.mjtJoint.mjJNT_HINGE
+_JOINT_KINDS = {int(_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball", int(_SLIDE): "slide", int(_HINGE): "hinge"}
+_UPRIGHT_AXES = ((_SLIDE, (1, 0, 0)), (_SLIDE, (0, 1, 0)), (_SLIDE, (0, 0, 1)), (_HINGE, (0, 0, 1)))
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The robot's motion as arrays (the model's actuators and mocap bodies).
+
+    Attributes:
+        ctrl_times: times of the control rows, shape (n_ctrl,), s (empty: no controls).
+        ctrl: control rows for every actuator of the model, shape (n_ctrl, nu).
+        mocap_times: times of the mocap rows, shape (n_mocap_rows,), s.
+        mocap_pos: mocap positions, shape (n_mocap_rows, nmocap, 3), m (the model's own pose for a
+            mocap body the file does not move).
+        mocap_quat: mocap quaternions, shape (n_mocap_rows, nmocap, 4), (w, x, y, z).
+        hold: zero-order hold instead of linear interpolation.
+
+    """
+
+    ctrl_times: np.ndarray
+    ctrl: np.ndarray
+    mocap_times: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+    hold: bool
+
+    def ctrl_at(self, time: float) -> np.ndarray | None:
+        """Controls (nu,) at ``time`` (s), held at the ends; ``None`` without controls."""
+        if self.ctrl_times.size == 0:
+            return None
+        return _interpolate(self.ctrl_times, self.ctrl, time, hold=self.hold)
+
+    def mocap_at(self, time: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """Mocap positions (nmocap, 3) and unit quaternions (nmocap, 4) at ``time``; ``None`` without mocap."""
+        if self.mocap_times.size == 0:
+            return None
+        pos = _interpolate(self.mocap_times, self.mocap_pos, time, hold=self.hold)
+        quat = _interpolate(self.mocap_times, self.mocap_quat, time, hold=self.hold)
+        return pos, quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+
+
+def _interpolate(times: np.ndarray, values: np.ndarray, time: float, *, hold: bool) -> np.ndarray:
+    """Values (n, ...) at ``time`` between rows at ``times`` (n,), held before the first and after the last."""
+    if time <= times[0]:
+        return values[0].copy()
+    if time >= times[-1]:
+        return values[-1].copy()
+    upper = int(np.searchsorted(times, time, side="right"))
+    lower = upper - 1
+    if hold:
+        return values[lower].copy()
+    weight = (time - times[lower]) / (times[upper] - times[lower])
+    result: np.ndarray = (1.0 - weight) * values[lower] + weight * values[upper]
+    return result
+
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """A scene file with its compiled model and resolved names.
+
+    Attributes:
+        spec: the validated scene file.
+        model: the compiled model (templates copied); treat as read-only.
+        model_sha256: SHA-256 of the compiled model in MuJoCo's binary format.
+        object_bodies: body id of each object, shape (n_objects,).
+        object_names: body name of each object.
+        object_joints: joint id of each object's free joint (or first upright joint).
+        robot_joints: ids of the hinge and slide joints that belong to no object.
+        object_radius: bounding radius of each object about its body origin, shape (n_objects,), m.
+        object_half_extents: half extents of each object's bounding box in its body frame, (n_objects, 3), m.
+        motion: the robot's motion.
+        initial_qpos: the model's start configuration (its reference or the initial keyframe), (nq,).
+
+    """
+
+    spec: SceneSpec
+    model: mujoco.MjModel
+    model_sha256: str
+    object_bodies: np.ndarray
+    object_names: tuple[str, ...]
+    object_joints: tuple[int, ...]
+    robot_joints: tuple[int, ...]
+    object_radius: np.ndarray
+    object_half_extents: np.ndarray
+    motion: Motion
+    initial_qpos: np.ndarray
+
+    @property
+    def n_objects(self) -> int:
+        """Number of objects."""
+        return len(self.object_names)
+
+
+def model_hash(model: mujoco.MjModel) -> str:
+    """SHA-256 of a compiled model in MuJoCo's binary format (MJB)."""
+    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return hashlib.sha256(buffer.tobytes()).hexdigest()
+
+
+def _one_line(error: Exception) -> str:
+    return " ".join(str(error).split())
+
+
+def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
+    return mujoco.mj_id2name(model, kind, index) or f"unnamed #{index}"
+
+
+def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
+    """Load the scene's MJCF with ``MjSpec``, add the template copies and compile it."""
+    if not spec.mjcf.is_file():
+        raise spec.error("mjcf", f"model file {spec.mjcf} does not exist")
+    try:
+        model_spec = mujoco.MjSpec.from_file(str(spec.mjcf))
+    except ValueError as error:
+        raise spec.error("mjcf", f"{spec.mjcf.name} cannot be loaded: {_one_line(error)}") from None
+    if spec.template is not None:
+        template = model_spec.body(spec.template)
+        if template is None:
+            raise spec.error("objects.template", f"no body {spec.template!r} in {spec.mjcf.name}")
+        if template.parent.name != model_spec.worldbody.name:
+            raise spec.error("objects.template", f"body {spec.template!r} must be a child of the worldbody")
+        try:
+            probe = model_spec.compile()
+        except ValueError as error:
+            raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
+        body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, spec.template)
+        geoms = np.flatnonzero(probe.geom_bodyid == body)
+        radius = (
+            float(np.max(np.linalg.norm(probe.geom_pos[geoms], axis=1) + probe.geom_rbound[geoms]))
+            if geoms.size
+            else 0.05
+        )
+        # Free copies start side by side along x; upright copies keep the template's zero origin
+        # (their slide joints measure world positions from it) and take their places from the start draw.
+        spacing = 2.0 * radius + 0.01 if spec.object_joints == "free" else 0.0
+        model_spec.copy_during_attach = True
+        for index in range(spec.count or 0):
+            frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
+            frame.attach_body(template, "", f"_{index}")
+        model_spec.delete(template)
+    try:
+        model = model_spec.compile()
+    except ValueError as error:
+        raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
+    return model_spec, model
+
+
+def _object_bodies(spec: SceneSpec, model: mujoco.MjModel) -> list[int]:
+    names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
+    if spec.template is not None:
+        return [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{spec.template}_{i}") for i in range(spec.count or 0)
+        ]
+    chosen: list[int] = []
+    for pattern in spec.bodies or ():
+        matches = [index + 1 for index, name in enumerate(names) if fnmatch.fnmatchcase(name, pattern)]
+        if not matches:
+            raise spec.error("objects.bodies", f"no body {pattern!r} in {spec.mjcf.name}")
+        chosen.extend(match for match in matches if match not in chosen)
+    return chosen
+
+
+def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
+    name = _name(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+    kinds = [int(model.jnt_type[j]) for j in range(first, first + count)]
+    described = ", ".join(
+        f"{_JOINT_KINDS.get(kind, '?')} {_name(model, mujoco.mjtObj.mjOBJ_JOINT, j)!r}"
+        for j, kind in zip(range(first, first + count), kinds, strict=True)
+    )
+    if model.body_parentid[body] != 0:
+        raise spec.error("objects", f"object body {name!r} must be a child of the worldbody")
+    if spec.object_joints == "free":
+        if kinds != [int(_FREE)]:
+            raise spec.error(
+                "objects.joints",
+                f"body {name!r} in {spec.mjcf.name} is not free (joints: {described or 'none'}); "
+                "give it a <freejoint/> or set objects.joints = 'upright' for slide x, y, z and hinge z",
+            )
+        return first
+    if np.any(model.body_pos[body] != 0) or np.any(model.body_quat[body] != [1, 0, 0, 0]):
+        raise spec.error(
+            "objects.joints",
+            f"upright body {name!r} in {spec.mjcf.name} must sit at the world origin (pos 0 0 0, no rotation): "
+            "its slide joints then measure its world position",
+        )
+    expected = [int(kind) for kind, _ in _UPRIGHT_AXES]
+    axes_ok = kinds == expected and all(
+        np.allclose(model.jnt_axis[first + i], axis) for i, (_, axis) in enumerate(_UPRIGHT_AXES)
+    )
+    if not axes_ok:
+        raise spec.error(
+            "objects.joints",
+            f"body {name!r} in {spec.mjcf.name} does not have the upright joints slide x, slide y, slide z, "
+            f"hinge z in that order (joints: {described or 'none'})",
+        )
+    return first
+
+
+def _motion(spec: SceneSpec, model: mujoco.MjModel) -> Motion:
+    motion = spec.motion
+    nu = int(model.nu)
+    columns = np.arange(nu)
+    if motion.actuators is not None:
+        columns = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) for name in motion.actuators])
+        for name, index in zip(motion.actuators, columns, strict=True):
+            if index < 0:
+                raise spec.error("motion.actuators", f"no actuator {name!r} in {spec.mjcf.name}")
+    width = int(columns.size)
+    what = (
+        f"{width} actuators in motion.actuators"
+        if motion.actuators is not None
+        else f"{nu} actuators in {spec.mjcf.name}"
+    )
+    if motion.ctrl_file is not None:
+        times, ctrl = _read_ctrl_file(spec, width, what)
+    else:
+        rows = [k for k in motion.keyframes if k.ctrl is not None]
+        times = np.array([k.time for k in rows])
+        for keyframe in rows:
+            if len(keyframe.ctrl or ()) != width:
+                raise spec.error(f"{keyframe.key}.ctrl", f"has {len(keyframe.ctrl or ())} values for the {what}")
+        ctrl = np.array([k.ctrl for k in rows], dtype=float) if rows else np.zeros((0, width))
+    full = np.zeros((ctrl.shape[0], nu))
+    full[:, columns] = ctrl
+    ctrl = full
+    mocap_rows = [k for k in motion.keyframes if k.mocap]
+    nmocap = int(model.nmocap)
+    # The model's own mocap poses, in mocap-index order (a mocap body is a child of the world).
+    mocap_bodies = np.flatnonzero(model.body_mocapid >= 0)
+    mocap_bodies = mocap_bodies[np.argsort(model.body_mocapid[mocap_bodies])]
+    default_pos, default_quat = model.body_pos[mocap_bodies], model.body_quat[mocap_bodies]
+    mocap_pos = np.tile(default_pos, (len(mocap_rows), 1, 1)).reshape(len(mocap_rows), nmocap, 3)
+    mocap_quat = np.tile(default_quat, (len(mocap_rows), 1, 1)).reshape(len(mocap_rows), nmocap, 4)
+    for row, keyframe in enumerate(mocap_rows):
+        for body_name, (pos, quat) in keyframe.mocap.items():
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body_name)
+            key = f"{keyframe.key}.mocap.{body_name}"
+            if body < 0:
+                raise spec.error(key, f"no body {body_name!r} in {spec.mjcf.name}")
+            mocap_id = int(model.body_mocapid[body])
+            if mocap_id < 0:
+                raise spec.error(key, f'body {body_name!r} in {spec.mjcf.name} is not a mocap body (mocap="true")')
+            mocap_pos[row, mocap_id] = pos
+            if quat is not None:
+                mocap_quat[row, mocap_id] = np.asarray(quat) / np.linalg.norm(quat)
+    mocap_times = np.array([k.time for k in mocap_rows])
+    return Motion(times, ctrl, mocap_times, mocap_pos, mocap_quat, motion.interpolation == "hold")
+
+
+def _read_ctrl_file(spec: SceneSpec, nu: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    path = spec.motion.ctrl_file
+    assert path is not None
+    key = "motion.ctrl_file"
+    if not path.is_file():
+        raise spec.error(key, f"{path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            missing = [name for name in ("time", "ctrl") if name not in archive.files]
+            if missing:
+                raise spec.error(key, f"{path.name} has no array {missing[0]!r} (it needs time (n,) and ctrl (n, nu))")
+            times = np.asarray(archive["time"], dtype=float)
+            ctrl = np.asarray(archive["ctrl"], dtype=float)
+    except (OSError, ValueError) as error:
+        raise spec.error(key, f"{path.name} is not a readable .npz file ({_one_line(error)})") from None
+    if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
+        raise spec.error(key, f"{path.name}: time must be a non-empty 1-d array of finite seconds")
+    if np.any(np.diff(times) <= 0):
+        row = int(np.flatnonzero(np.diff(times) <= 0)[0]) + 1
+        raise spec.error(key, f"{path.name}: time is not increasing (row {row})")
+    if ctrl.ndim != 2 or ctrl.shape[0] != times.size or ctrl.shape[1] != nu:
+        raise spec.error(
+            key,
+            f"{path.name}: ctrl has shape {ctrl.shape}, expected ({times.size}, {nu}) for the {what}",
+        )
+    if not np.all(np.isfinite(ctrl)):
+        raise spec.error(key, f"{path.name}: ctrl holds NaN or infinite values")
+    return times, ctrl
+
+
+def _check_region_names(spec: SceneSpec, model: mujoco.MjModel) -> None:
+    kinds = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE, "geom": mujoco.mjtObj.mjOBJ_GEOM}
+    for set_name, table in (("capture", spec.capture), ("success", spec.success)):
+        for kind, name, key in region_names(table, f"{set_name}.region"):
+            if mujoco.mj_name2id(model, kinds[kind], name) < 0:
+                raise spec.error(key, f"no {kind} {name!r} in {spec.mjcf.name}")
+
+
+def load_scene(path: Path | str) -> LoadedScene:
+    """Read the scene file at ``path``, compile its model and resolve its names."""
+    spec = read_scene_file(path)
+    _, model = compile_spec(spec)
+    bodies = _object_bodies(spec, model)
+    joints = [_object_joint(spec, model, body) for body in bodies]
+    if spec.capture_at_least is not None and spec.capture_at_least > len(bodies):
+        raise spec.error("capture.at_least", f"is {spec.capture_at_least} but the scene has {len(bodies)} objects")
+    if spec.success_at_least is not None and spec.success_at_least > len(bodies):
+        raise spec.error("success.at_least", f"is {spec.success_at_least} but the scene has {len(bodies)} objects")
+    object_joint_ids: set[int] = set()
+    for body in bodies:
+        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+        object_joint_ids.update(range(first, first + count))
+    robot = []
+    for joint in range(model.njnt):
+        if joint in object_joint_ids:
+            continue
+        kind = int(model.jnt_type[joint])
+        if kind not in (int(_SLIDE), int(_HINGE)):
+            body_name = _name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.jnt_bodyid[joint]))
+            raise spec.error(
+                "objects",
+                f"body {body_name!r} in {spec.mjcf.name} has a {_JOINT_KINDS.get(kind, '?')} joint but is not an "
+                "object: add it to objects.bodies (robot joints must be hinges or slides)",
+            )
+        robot.append(joint)
+    _check_region_names(spec, model)
+    motion = _motion(spec, model)
+    initial: np.ndarray = np.array(model.qpos0, dtype=float)
+    if spec.motion.initial_keyframe is not None:
+        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, spec.motion.initial_keyframe)
+        if key < 0:
+            raise spec.error(
+                "motion.initial_keyframe", f"no keyframe {spec.motion.initial_keyframe!r} in {spec.mjcf.name}"
+            )
+        initial = np.array(model.key_qpos[key], dtype=float)
+    radius = np.zeros(len(bodies))
+    extents = np.zeros((len(bodies), 3))
+    for index, body in enumerate(bodies):
+        geoms = np.flatnonzero(model.geom_bodyid == body)
+        if geoms.size == 0:
+            raise spec.error("objects", f"object body {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} has no geom")
+        radius[index] = float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms]))
+        # geom_aabb: centre (3) and half sizes (3) in each geom's frame; bound them in the body frame.
+        corners = []
+        for geom in geoms:
+            centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+            rotation = model.geom_quat[geom]
+            flat = np.empty(9)
+            mujoco.mju_quat2Mat(flat, rotation)
+            matrix = flat.reshape(3, 3)
+            signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+            corners.append(model.geom_pos[geom] + (centre + signs * half) @ matrix.T)
+        points = np.concatenate(corners)
+        extents[index] = np.max(np.abs(points), axis=0)
+    names = tuple(_name(model, mujoco.mjtObj.mjOBJ_BODY, body) for body in bodies)
+    return LoadedScene(
+        spec=spec,
+        model=model,
+        model_sha256=model_hash(model),
+        object_bodies=np.array(bodies, dtype=int),
+        object_names=names,
+        object_joints=tuple(joints),
+        robot_joints=tuple(robot),
+        object_radius=radius,
+        object_half_extents=extents,
+        motion=motion,
+        initial_qpos=initial,
+    )

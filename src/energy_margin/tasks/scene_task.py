@@ -1,0 +1,465 @@
+"""A task built from a scene file: the user's MuJoCo model, declared motion, randomisation and sets.
+
+:class:`SceneTask` is registered as ``"scene"``; its configuration names the scene file and the
+hashes of the file and of its compiled model, so a dataset written from it rebuilds the same task
+and refuses to (``dataset.json: task_config: ...``) when the file or the model changed since.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.sim.base import ModelCommand, Simulator
+from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks.regions import AtLeast, build_region
+from energy_margin.tasks.scene_model import LoadedScene, load_scene
+from energy_margin.world.scene import Geom, RigidObject, Scene
+from energy_margin.world.state import FrameState
+
+#: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
+_LAYOUT_ATTEMPTS = 200
+#: Deepest accepted contact penetration of a freshly placed object, m.
+_PLACEMENT_TOLERANCE = 1e-3
+
+
+@dataclass(frozen=True)
+class SceneTaskConfig(TaskConfig):
+    """Settings of a scene-file task (everything else comes from the file).
+
+    Attributes:
+        scene_file: path of the scene file (absolute once resolved).
+        scene_sha256: SHA-256 of the scene file the data were made with ("" accepts any).
+        model_sha256: SHA-256 of the compiled model the data were made with ("" accepts any).
+
+    """
+
+    scene_file: str = ""
+    scene_sha256: str = ""
+    model_sha256: str = ""
+
+
+_CACHE: dict[tuple[str, int, int], LoadedScene] = {}
+
+
+def _cached_load(path: Path) -> LoadedScene:
+    """Load a scene file once per (path, modification times of the file and its model)."""
+    try:
+        scene_time = path.stat().st_mtime_ns
+    except OSError:
+        return load_scene(path)
+    loaded = None
+    for key, value in _CACHE.items():
+        if key[0] == str(path) and key[1] == scene_time:
+            try:
+                if value.spec.mjcf.stat().st_mtime_ns == key[2]:
+                    loaded = value
+            except OSError:
+                pass
+    if loaded is None:
+        loaded = load_scene(path)
+        model_time = loaded.spec.mjcf.stat().st_mtime_ns
+        if len(_CACHE) > 8:
+            _CACHE.clear()
+        _CACHE[(str(path), scene_time, model_time)] = loaded
+    return loaded
+
+
+def _quat_yaw(yaw: float) -> np.ndarray:
+    return np.array([np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)])
+
+
+def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    result = np.empty(4)
+    mujoco.mju_mulQuat(result, a, b)
+    return result
+
+
+class _FrameLookup:
+    """Poses of named bodies, sites and geoms in one frame's kinematics (a ``FrameLookup``)."""
+
+    _KINDS: ClassVar[dict[str, mujoco.mjtObj]] = {
+        "body": mujoco.mjtObj.mjOBJ_BODY,
+        "site": mujoco.mjtObj.mjOBJ_SITE,
+        "geom": mujoco.mjtObj.mjOBJ_GEOM,
+    }
+
+    def __init__(self, loaded: LoadedScene, data: mujoco.MjData, object_geoms: list[np.ndarray]) -> None:
+        self.loaded = loaded
+        self.model = loaded.model
+        self.data = data
+        self.object_geoms = object_geoms
+        self._poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Origin (3,) m and rotation matrix (3, 3) of body, site or geom ``name``."""
+        if (kind, name) not in self._poses:
+            index = mujoco.mj_name2id(self.model, self._KINDS[kind], name)
+            if index < 0:
+                spec = self.loaded.spec
+                raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
+            data = self.data
+            positions, matrices = {
+                "body": (data.xpos, data.xmat),
+                "site": (data.site_xpos, data.site_xmat),
+                "geom": (data.geom_xpos, data.geom_xmat),
+            }[kind]
+            self._poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
+        return self._poses[(kind, name)]
+
+
+class SceneTask(Task):
+    """The task a scene file declares (see ``docs/scenes.md``)."""
+
+    name = "scene"
+    config_class = SceneTaskConfig
+    engines = ("mujoco",)
+    config: SceneTaskConfig
+
+    def __init__(self, config: SceneTaskConfig | None = None) -> None:
+        if config is None or not config.scene_file:
+            raise ValueError("the scene task is built from a scene file: pass --scene SCENE.toml")
+        path = Path(config.scene_file).resolve()
+        loaded = _cached_load(path)
+        if config.scene_sha256 and config.scene_sha256 != loaded.spec.text_sha256:
+            raise ValueError(
+                f"scene file {path} changed since these data were made "
+                f"(sha256 {config.scene_sha256[:12]}…, now {loaded.spec.text_sha256[:12]}…)"
+            )
+        if config.model_sha256 and config.model_sha256 != loaded.model_sha256:
+            raise ValueError(
+                f"the model of {path} ({loaded.spec.mjcf.name}) changed since these data were made "
+                f"(sha256 {config.model_sha256[:12]}…, now {loaded.model_sha256[:12]}…)"
+            )
+        spec = loaded.spec
+        model = loaded.model
+        resolved = SceneTaskConfig(
+            duration=spec.motion.duration,
+            timestep=float(model.opt.timestep),
+            likelihood_lambda=spec.likelihood_lambda,
+            max_duration=spec.max_duration,
+            scene_file=str(path),
+            scene_sha256=spec.text_sha256,
+            model_sha256=loaded.model_sha256,
+        )
+        super().__init__(resolved)
+        self.loaded = loaded
+        self.fixed_objects = loaded.n_objects
+        self.control_period = spec.motion.control_period
+        self._kinematics = mujoco.MjData(model)
+        self._object_geoms = [np.flatnonzero(model.geom_bodyid == body) for body in loaded.object_bodies]
+        self._success: Region | None = None
+        self._placement: Simulator | None = None
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any] | None) -> Task:
+        """Build from ``{"scene_file": ..., "scene_sha256": ..., "model_sha256": ...}``.
+
+        The other settings are the file's; stored ones (``duration``, ``timestep``, ...) are accepted
+        and replaced by the file's values, which the hashes pin.
+        """
+        values = dict(values or {})
+        known = {
+            "scene_file",
+            "scene_sha256",
+            "model_sha256",
+            "duration",
+            "timestep",
+            "likelihood_lambda",
+            "max_duration",
+        }
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown scene configuration keys: {', '.join(unknown)}")
+        for key in ("scene_file", "scene_sha256", "model_sha256"):
+            if key in values and not isinstance(values[key], str):
+                raise ValueError(f"{key} must be a string, got {values[key]!r}")
+        return cls(
+            SceneTaskConfig(
+                scene_file=values.get("scene_file", ""),
+                scene_sha256=values.get("scene_sha256", ""),
+                model_sha256=values.get("model_sha256", ""),
+            )
+        )
+
+    @property
+    def label(self) -> str:
+        """``scene file PATH``."""
+        return f"scene file {self.loaded.spec.path}"
+
+    # -- the world -------------------------------------------------------------------------
+
+    def _check_objects(self, n_objects: int) -> None:
+        if n_objects != self.loaded.n_objects:
+            raise ValueError(f"the scene file declares {self.loaded.n_objects} objects, not {n_objects}")
+
+    def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
+        """The objects' description (bounding boxes, masses); the physics is the model itself."""
+        self._check_objects(n_objects)
+        loaded = self.loaded
+        scale = float(drive[1]) if drive is not None else 1.0
+        objects = tuple(
+            RigidObject(
+                name=name,
+                geom=Geom("box", tuple(float(v) for v in np.maximum(loaded.object_half_extents[i], 1e-4))),
+                mass=float(loaded.model.body_mass[loaded.object_bodies[i]]) * scale,
+            )
+            for i, name in enumerate(loaded.object_names)
+        )
+        return Scene(
+            objects=objects,
+            robot=None,
+            statics=(),
+            friction=friction,
+            timestep=float(loaded.model.opt.timestep),
+            gravity=tuple(float(g) for g in loaded.model.opt.gravity),  # type: ignore[arg-type]
+            object_motion=loaded.spec.object_joints,
+        )
+
+    def compiled_model(self, friction: float, drive: np.ndarray | None = None) -> mujoco.MjModel:
+        """A copy of the compiled model with the trajectory's friction and object mass scale."""
+        loaded = self.loaded
+        model = copy.copy(loaded.model)
+        if loaded.spec.friction_range is not None:
+            model.geom_friction[:, 0] = friction
+        if drive is not None and float(drive[1]) != 1.0:
+            bodies = loaded.object_bodies
+            model.body_mass[bodies] *= float(drive[1])
+            model.body_inertia[bodies] *= float(drive[1])
+        return model
+
+    def make_simulator(
+        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+    ) -> Simulator:
+        """A MuJoCo simulator of the scene's compiled model (the only engine for scene files)."""
+        if engine != "mujoco":
+            raise ValueError(
+                f"scene file {self.loaded.spec.path}: only the 'mujoco' engine runs a scene file, not {engine!r}"
+            )
+        from energy_margin.sim.mujoco_model import MujocoModelSimulator
+
+        return MujocoModelSimulator(
+            self.compiled_model(friction, drive),
+            self.build_scene(n_objects, friction, drive),
+            object_joints=list(self.loaded.object_joints),
+            robot_joints=list(self.loaded.robot_joints),
+        )
+
+    def robot_dofs(self) -> int:
+        """Robot hinge and slide joints plus seven coordinates per mocap body."""
+        return len(self.loaded.robot_joints) + 7 * int(self.loaded.model.nmocap)
+
+    def drive_size(self) -> int:
+        """Two drive parameters: the motion's time scale and the objects' mass scale."""
+        return 2
+
+    def default_friction(self) -> float:
+        """The sliding friction of the first object geom of the model (used without a friction range)."""
+        loaded = self.loaded
+        geom = int(np.flatnonzero(loaded.model.geom_bodyid == loaded.object_bodies[0])[0])
+        return float(loaded.model.geom_friction[geom, 0])
+
+    # -- the motion ------------------------------------------------------------------------
+
+    def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
+        """Friction, time and mass scales, then object start poses placed without overlaps."""
+        self._check_objects(n_objects)
+        spec = self.loaded.spec
+        friction = (
+            float(rng.uniform(*spec.friction_range)) if spec.friction_range is not None else self.default_friction()
+        )
+        time_scale = float(rng.uniform(*spec.time_scale)) if spec.time_scale is not None else 1.0
+        mass_scale = float(rng.uniform(*spec.mass_scale)) if spec.mass_scale is not None else 1.0
+        drive = np.array([time_scale, mass_scale])
+        simulator = self.make_simulator(n_objects, friction, drive)
+        for _ in range(_LAYOUT_ATTEMPTS):
+            pos, quat = self._draw_layout(rng)
+            initial = self.initial_frame(pos, quat, drive)
+            simulator.reset(initial)
+            self._apply_start_command(simulator, drive)
+            if all(depth <= _PLACEMENT_TOLERANCE for _, _, depth in simulator.object_penetrations()):
+                return Trajectory(initial=initial, friction=friction, drive=drive)
+        raise ValueError(
+            f"{spec.path}: randomize.start: cannot place the {n_objects} objects without overlap in "
+            f"{_LAYOUT_ATTEMPTS} draws; widen the start ranges or lower min_separation"
+        )
+
+    def _apply_start_command(self, simulator: Simulator, drive: np.ndarray) -> None:
+        command = self.model_command(drive, 0.0)
+        if command is not None:
+            simulator.set_model_command(command)  # type: ignore[attr-defined]
+        mujoco.mj_forward(simulator.model, simulator.data)  # type: ignore[attr-defined]
+
+    def _draw_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation."""
+        loaded = self.loaded
+        start = loaded.spec.start
+        n = loaded.n_objects
+        base_pos = np.array([loaded.initial_qpos[self._qpos_address(i) : self._qpos_address(i) + 3] for i in range(n)])
+        separation = (
+            start.min_separation if start.min_separation is not None else 2.0 * float(np.max(loaded.object_radius))
+        )
+        pos = np.empty((n, 3))
+        quat = np.empty((n, 4))
+        for index in range(n):
+            for _attempt in range(100_000):
+                if start.low is not None and start.high is not None:
+                    candidate = rng.uniform(start.low, start.high)
+                else:
+                    candidate = base_pos[index].copy()
+                    for axis, column in (("x", 0), ("y", 1), ("z", 2)):
+                        if axis in start.ranges:
+                            candidate[column] = rng.uniform(*start.ranges[axis])
+                if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
+                    break
+            else:
+                raise ValueError(
+                    f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart"
+                )
+            pos[index] = candidate
+            if start.mode == "pile":
+                axis_angle = rng.normal(size=4)
+                quat[index] = axis_angle / np.linalg.norm(axis_angle)
+            else:
+                yaw = float(rng.uniform(*start.ranges["yaw"])) if "yaw" in start.ranges else 0.0
+                base = self._base_quat(index)
+                quat[index] = _quat_multiply(_quat_yaw(yaw), base)
+        return pos, quat
+
+    def _qpos_address(self, index: int) -> int:
+        return int(self.loaded.model.jnt_qposadr[self.loaded.object_joints[index]])
+
+    def _base_quat(self, index: int) -> np.ndarray:
+        if self.loaded.spec.object_joints == "upright":
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        address = self._qpos_address(index)
+        quat = self.loaded.initial_qpos[address + 3 : address + 7]
+        return quat / np.linalg.norm(quat)
+
+    def initial_frame(self, object_pos: np.ndarray, object_quat: np.ndarray, drive: np.ndarray) -> FrameState:
+        """The start frame: objects at rest at these poses, the robot at its start and the motion's t = 0."""
+        loaded = self.loaded
+        model = loaded.model
+        robot_q = [loaded.initial_qpos[model.jnt_qposadr[j]] for j in loaded.robot_joints]
+        mocap = self._mocap_coordinates(0.0, drive)
+        n = loaded.n_objects
+        return FrameState(
+            object_pos=np.asarray(object_pos, dtype=float),
+            object_quat=np.asarray(object_quat, dtype=float),
+            object_vel=np.zeros((n, 6)),
+            robot_q=np.concatenate([np.array(robot_q, dtype=float), mocap]),
+            robot_v=np.zeros(self.robot_dofs()),
+        )
+
+    def _mocap_coordinates(self, time: float, drive: np.ndarray) -> np.ndarray:
+        model = self.loaded.model
+        poses = self.loaded.motion.mocap_at(time * float(drive[0]))
+        if poses is None:
+            data = self._kinematics
+            mujoco.mj_resetData(model, data)
+            return np.concatenate([data.mocap_pos.ravel(), data.mocap_quat.ravel()])
+        return np.concatenate([poses[0].ravel(), poses[1].ravel()])
+
+    def robot_force(
+        self,
+        drive: np.ndarray,
+        time: float,
+        robot_q: np.ndarray,
+        robot_v: np.ndarray,
+        rng: np.random.Generator | None,
+    ) -> np.ndarray:
+        """No generalized forces: the model's actuators and mocap bodies move the robot."""
+        del drive, time, robot_q, robot_v, rng
+        return np.zeros(self.robot_dofs())
+
+    def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
+        """The declared motion at ``time`` (s) times the trajectory's time scale ``drive[0]``."""
+        motion = self.loaded.motion
+        clock = time * float(drive[0])
+        mocap = motion.mocap_at(clock)
+        return ModelCommand(
+            ctrl=motion.ctrl_at(clock),
+            mocap_pos=None if mocap is None else mocap[0],
+            mocap_quat=None if mocap is None else mocap[1],
+        )
+
+    # -- regions ---------------------------------------------------------------------------
+
+    def frame_lookup(self, frame: FrameState | None) -> _FrameLookup:
+        """Poses of bodies, sites and geoms at ``frame`` (the model's start configuration for ``None``).
+
+        The lookup holds the scene's kinematics data, which the next call overwrites: regions copy
+        what they keep when they are built.
+        """
+        loaded = self.loaded
+        model, data = loaded.model, self._kinematics
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = loaded.initial_qpos
+        if frame is not None:
+            for index in range(loaded.n_objects):
+                address = self._qpos_address(index)
+                data.qpos[address : address + 3] = frame.object_pos[index]
+                if loaded.spec.object_joints == "free":
+                    data.qpos[address + 3 : address + 7] = frame.object_quat[index]
+                else:
+                    quat = frame.object_quat[index]
+                    data.qpos[address + 3] = np.arctan2(
+                        2.0 * (quat[0] * quat[3] + quat[1] * quat[2]), 1.0 - 2.0 * (quat[2] ** 2 + quat[3] ** 2)
+                    )
+            joints = len(loaded.robot_joints)
+            data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
+            nmocap = int(model.nmocap)
+            if nmocap:
+                data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)
+                data.mocap_quat[:] = frame.robot_q[joints + 3 * nmocap :].reshape(-1, 4)
+        else:
+            command = self.model_command(np.ones(2), 0.0)
+            if command is not None and command.mocap_pos is not None:
+                data.mocap_pos[:] = command.mocap_pos
+                data.mocap_quat[:] = command.mocap_quat
+        mujoco.mj_kinematics(model, data)
+        return _FrameLookup(loaded, data, self._object_geoms)
+
+    def _set(self, table: dict[str, Any], at_least: int | None, frame: FrameState | None) -> Region:
+        region = build_region(table, self.frame_lookup(frame))
+        result: Region = AtLeast(at_least, region) if at_least is not None else region
+        return result
+
+    def capture_region(self, root: FrameState) -> Region:
+        """The capture set with body and site frames taken at ``root``."""
+        spec = self.loaded.spec
+        return self._set(spec.capture, spec.capture_at_least, root)
+
+    def success_region(self) -> Region:
+        """The success set with body and site frames at the model's start configuration."""
+        if self._success is None:
+            spec = self.loaded.spec
+            self._success = self._set(spec.success, spec.success_at_least, None)
+        return self._success
+
+    def wrench_limits(self, scene: Scene) -> WrenchLimits:
+        """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias."""
+        loaded = self.loaded
+        base_mass = loaded.model.body_mass[loaded.object_bodies]
+        scale = scene.object_masses / base_mass
+        inertia = loaded.model.body_inertia[loaded.object_bodies] * scale[:, None]
+        spec = loaded.spec
+        limits = np.zeros((scene.n_objects, 6))
+        limits[:, :3] = scene.object_masses[:, None] * np.asarray(spec.linear_acceleration)
+        limits[:, 3:] = inertia * np.asarray(spec.angular_acceleration)
+        if spec.object_joints == "upright":
+            limits[:, 3:5] = 0.0
+        return WrenchLimits(max_wrench=limits, max_duration=spec.max_duration)
+
+    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+        """Objects inside the bounds box and slower than ``bounds.max_speed``."""
+        spec = self.loaded.spec
+        if np.any(object_pos < np.asarray(spec.bounds_low)) or np.any(object_pos > np.asarray(spec.bounds_high)):
+            return False
+        return bool(np.max(np.linalg.norm(object_vel[:, :3], axis=1)) <= spec.max_speed)

@@ -1,0 +1,288 @@
+"""Scene files: parsing, the task built from one, and every bad input as one line naming file and key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.cli import main
+from energy_margin.tasks import get_task
+from energy_margin.tasks.scene_file import Locator, read_scene_file
+from energy_margin.tasks.scene_model import load_scene
+
+
+def test_tiny_scene_parses_and_builds_a_task(tiny_scene: Path) -> None:
+    spec = read_scene_file(tiny_scene)
+    assert spec.bodies == ("box_*",)
+    assert spec.motion.duration == 1.5
+    assert spec.friction_range == (0.3, 0.6)
+    loaded = load_scene(tiny_scene)
+    assert loaded.object_names == ("box_a", "box_b")
+    assert loaded.robot_joints == ()
+    np.testing.assert_allclose(loaded.model.body_mass[loaded.object_bodies], [0.1, 0.1])
+    task = get_task("scene", {"scene_file": str(tiny_scene)})
+    assert task.fixed_objects == 2
+    assert task.robot_dofs() == 7  # one mocap body: position and quaternion
+    # The mocap pusher follows the keyframes linearly, at the trajectory's time scale.
+    command = task.model_command(np.array([1.0, 1.0]), 0.5)
+    assert command is not None and command.mocap_pos is not None
+    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.0, 0.03]], atol=1e-12)
+    command = task.model_command(np.array([2.0, 1.0]), 0.5)
+    assert command is not None and command.mocap_pos is not None
+    np.testing.assert_allclose(command.mocap_pos, [[0.0, 0.15, 0.03]])
+    # Randomised starts never overlap and respect the ranges.
+    trajectory = task.sample_trajectory(np.random.default_rng(3), 2)
+    pos = trajectory.initial.object_pos
+    assert np.all((pos[:, 0] >= -0.12) & (pos[:, 0] <= 0.12))
+    assert np.linalg.norm(pos[0] - pos[1]) > 2 * 0.03 * np.sqrt(3)
+    assert 0.3 <= trajectory.friction <= 0.6
+
+
+def test_capture_region_follows_the_pusher_of_the_frame(tiny_scene: Path) -> None:
+    task = get_task("scene", {"scene_file": str(tiny_scene)})
+    trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
+    frame = trajectory.initial
+    # Pusher at y = -0.15: the box covers y in [-0.13, 0.07] in front of it.
+    region = task.capture_region(frame)
+    assert region.contains(np.array([[0.0, -0.1, 0.03], [0.0, 0.2, 0.03]])).tolist() == [True, False]
+    moved_q = frame.robot_q.copy()
+    moved_q[1] = 0.15
+    moved = type(frame)(frame.object_pos, frame.object_quat, frame.object_vel, moved_q, frame.robot_v)
+    region = task.capture_region(moved)
+    assert region.contains(np.array([[0.0, -0.1, 0.03], [0.0, 0.2, 0.03]])).tolist() == [False, True]
+
+
+def test_locator_finds_keys_in_tables_and_arrays_of_tables(tiny_scene: Path) -> None:
+    text = tiny_scene.read_text()
+    lines = text.splitlines()
+    locator = Locator(text)
+    line = locator.line("motion.keyframes[1].mocap.pusher.pos")
+    assert line is not None and lines[line - 1].startswith("mocap.pusher.pos = [0.0, 0.3")
+    line = locator.line("capture.region.of[0].type")
+    assert line is not None and lines[line - 1].startswith("region = ")
+    line = locator.line("randomize.start.yaw")
+    assert line is not None and lines[line - 1].startswith("yaw =")
+
+
+BAD_INPUTS = [
+    # (scene replacements, model replacements, expected key, expected fragment)
+    ({'mjcf = "model.xml"': 'mjcf = "missing.xml"'}, {}, ":2: mjcf:", "missing.xml does not exist"),
+    ({}, {'type="plane"': 'type="planar"'}, ":2: mjcf:", "model.xml cannot be loaded"),
+    (
+        {},
+        {'mass="0.1"/></body>\n    <body name="box_b"': 'mass="-1"/></body>\n    <body name="box_b"'},
+        ":2: mjcf:",
+        "does not compile",
+    ),
+    ({'bodies = ["box_*"]': 'bodies = ["box_a", "crate"]'}, {}, ":5: objects.bodies:", "no body 'crate'"),
+    (
+        {},
+        {'"box_b" pos="0.06 0 0.03"><freejoint/>': '"box_b" pos="0.06 0 0.03"><joint type="hinge"/>'},
+        "objects.joints:",
+        "'box_b' in model.xml is not free",
+    ),
+    (
+        {"mocap.pusher.pos = [0.0, 0.3, 0.03]": "mocap.pusher.pos = [0.0, 0.3, 0.03]\nctrl = [1.0]"},
+        {},
+        ":10: motion.keyframes[0]:",
+        "has no ctrl",
+    ),
+    (
+        {
+            "mocap.pusher.pos = [0.0, -0.15, 0.03]": "mocap.pusher.pos = [0.0, -0.15, 0.03]\nctrl = [1.0]",
+            "mocap.pusher.pos = [0.0, 0.3, 0.03]": "mocap.pusher.pos = [0.0, 0.3, 0.03]\nctrl = [1.0]",
+        },
+        {},
+        "motion.keyframes[0].ctrl:",
+        "has 1 values for the 0 actuators",
+    ),
+    (
+        {"duration = 1.5\n": 'duration = 1.5\nactuators = ["gripper"]\n'},
+        {},
+        "motion.actuators:",
+        "no actuator 'gripper'",
+    ),
+    ({'site = "goal"': 'site = "target"'}, {}, "success.region.of[0].site:", "no site 'target'"),
+    ({'body = "pusher", center': 'body = "arm", center'}, {}, "capture.region.body:", "no body 'arm'"),
+    (
+        {
+            "mocap.pusher.pos = [0.0, -0.15": "mocap.box_a.pos = [0.0, -0.15",
+            "mocap.pusher.pos = [0.0, 0.3": "mocap.box_a.pos = [0.0, 0.3",
+        },
+        {},
+        "motion.keyframes[0].mocap.box_a:",
+        "is not a mocap body",
+    ),
+    ({'type = "box", body': 'type = "sphere", body'}, {}, "capture.region.type:", "unknown region type 'sphere'"),
+    (
+        {"half_size = [0.2, 0.1, 0.1] }": "half_size = [0.2, 0.1, 0.1], radius = 2.0 }"},
+        {},
+        "capture.region.radius:",
+        "unknown key",
+    ),
+    ({"[randomize]\n": "[randomize]\ncolour = 1\n"}, {}, "randomize.colour:", "unknown key"),
+    ({"x = [-0.12, 0.12]\ny = [-0.02, 0.08]": "x = [0.0, 0.0]\ny = [0.0, 0.0]"}, {}, "randomize.start", "cannot place"),
+    ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
+    ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
+    ({"max_duration = 0.1": "max_duration = -0.1"}, {}, "perturbation.max_duration:", "must be > 0"),
+]
+
+
+@pytest.mark.parametrize(("replace", "model_replace", "key", "fragment"), BAD_INPUTS)
+def test_bad_scene_inputs_are_one_line_naming_file_and_key(
+    make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str], replace, model_replace, key, fragment
+) -> None:
+    scene = make_scene(replace=replace, model_replace=model_replace)
+    out = tmp_path / "out"
+    status = main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "2", "--out", str(out)])
+    error = capsys.readouterr().err
+    assert status == 2
+    assert error.count("\n") == 1 and "Traceback" not in error
+    assert str(scene) in error, error
+    assert key in error, error
+    assert fragment in error, error
+    assert not out.exists()
+    assert not any(path.name.startswith(".") for path in tmp_path.iterdir())
+
+
+def test_pybullet_with_a_scene_file_is_one_line(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    status = main(["generate", "--scene", str(tiny_scene), "--engine", "pybullet", "--out", str(out)])
+    error = capsys.readouterr().err
+    assert status == 2 and error.count("\n") == 1
+    assert f"scene file {tiny_scene} runs on mujoco only, not --engine pybullet" in error
+    assert not out.exists()
+
+
+def test_wrong_object_count_and_missing_scene_file(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(tiny_scene), "--objects", "3", "--out", str(out)]) == 2
+    assert "has 2 objects; --objects 3 differs" in capsys.readouterr().err
+    assert main(["generate", "--scene", str(tmp_path / "nope.toml"), "--out", str(out)]) == 2
+    assert "nope.toml: scene file does not exist" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_template_copies_are_added_without_overlap(make_scene) -> None:
+    box_b = (
+        '<body name="box_b" pos="0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>'
+    )
+    scene = make_scene(replace={'bodies = ["box_*"]': 'template = "box_a"\ncount = 4'}, model_replace={box_b: ""})
+    loaded = load_scene(scene)
+    assert loaded.object_names == ("box_a_0", "box_a_1", "box_a_2", "box_a_3")
+    start = loaded.model.qpos0[[loaded.model.jnt_qposadr[j] for j in loaded.object_joints]]
+    assert len(set(np.round(start, 6))) == 4
+    task = get_task("scene", {"scene_file": str(scene)})
+    assert task.fixed_objects == 4
+
+
+ROBOT_MODEL_EDIT = {
+    '<body name="box_a"': '<body name="slider" pos="0 -0.5 0.03"><joint name="slide" type="slide" axis="1 0 0"/>'
+    '<geom type="box" size="0.02 0.02 0.02" mass="1"/></body>\n    <body name="box_a"',
+    "</worldbody>": '</worldbody>\n  <actuator><position name="servo" joint="slide" kp="50"/></actuator>',
+}
+
+
+def test_control_keyframes_interpolate_linearly_or_hold(make_scene) -> None:
+    keyframes = "\n[[motion.keyframes]]\ntime = 0.0\nctrl = [0.0]\n[[motion.keyframes]]\ntime = 1.0\nctrl = [0.4]\n"
+    base = {"[[motion.keyframes]]\ntime = 0.0\nmocap.pusher.pos = [0.0, -0.15, 0.03]\n\n": ""}
+    base["[[motion.keyframes]]\ntime = 1.5\nmocap.pusher.pos = [0.0, 0.3, 0.03]\n"] = keyframes
+    linear = get_task("scene", {"scene_file": str(make_scene(replace=base, model_replace=ROBOT_MODEL_EDIT))})
+    command = linear.model_command(np.ones(2), 0.25)
+    assert command is not None and command.ctrl is not None and command.mocap_pos is None
+    np.testing.assert_allclose(command.ctrl, [0.1])
+    assert linear.robot_dofs() == 1 + 7  # the slide joint, then the (unmoved) mocap pusher
+    hold = dict(base)
+    hold["duration = 1.5\n"] = 'duration = 1.5\ninterpolation = "hold"\n'
+    held = get_task("scene", {"scene_file": str(make_scene(replace=hold, model_replace=ROBOT_MODEL_EDIT))})
+    command = held.model_command(np.ones(2), 0.99)
+    assert command is not None and command.ctrl is not None
+    np.testing.assert_allclose(command.ctrl, [0.0])
+    after = held.model_command(np.ones(2), 1.2)
+    assert after is not None and after.ctrl is not None
+    np.testing.assert_allclose(after.ctrl, [0.4])
+
+
+def test_control_file_and_its_errors(make_scene, tmp_path: Path) -> None:
+    replace = {
+        "[[motion.keyframes]]\ntime = 0.0\nmocap.pusher.pos = [0.0, -0.15, 0.03]\n\n": "",
+        "[[motion.keyframes]]\ntime = 1.5\nmocap.pusher.pos = [0.0, 0.3, 0.03]\n": "",
+        "duration = 1.5\n": 'duration = 1.5\nctrl_file = "ctrl.npz"\n',
+    }
+    scene = make_scene(replace=replace, model_replace=ROBOT_MODEL_EDIT)
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 1.0]), ctrl=np.array([[0.0], [0.2]]))
+    task = get_task("scene", {"scene_file": str(scene)})
+    command = task.model_command(np.array([2.0, 1.0]), 0.25)  # time scale 2: the file's t = 0.5
+    assert command is not None and command.ctrl is not None
+    np.testing.assert_allclose(command.ctrl, [0.1])
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 0.0]), ctrl=np.array([[0.0], [0.2]]))
+    with pytest.raises(Exception, match=r"motion.ctrl_file: ctrl.npz: time is not increasing \(row 1\)"):
+        load_scene(scene)
+    np.savez(scene.parent / "ctrl.npz", time=np.array([0.0, 1.0]), ctrl=np.zeros((2, 3)))
+    with pytest.raises(Exception, match=r"ctrl has shape \(2, 3\), expected \(2, 1\)"):
+        load_scene(scene)
+
+
+def test_a_pile_start_has_no_overlap(make_scene) -> None:
+    start = "[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n"
+    pile = '[randomize.start]\nmode = "pile"\nlow = [-0.1, 0.1, 0.05]\nhigh = [0.1, 0.3, 0.2]\n'
+    task = get_task("scene", {"scene_file": str(make_scene(replace={start: pile}))})
+    for seed in range(5):
+        initial = task.sample_trajectory(np.random.default_rng(seed), 2).initial
+        assert np.all(initial.object_pos >= [-0.1, 0.1, 0.05]) and np.all(initial.object_pos <= [0.1, 0.3, 0.2])
+        assert np.linalg.norm(initial.object_pos[0] - initial.object_pos[1]) > 0.1
+        np.testing.assert_allclose(np.linalg.norm(initial.object_quat, axis=1), 1.0)
+
+
+def test_scene_file_takes_no_set_overrides(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(tiny_scene), "--set", "timestep=0.1", "--out", str(out)]) == 2
+    assert "--set does not apply to --scene" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_contact_region_uses_each_objects_orientation(make_scene) -> None:
+    # Success: every box touches the ground (within 1 mm), taken from the model.
+    success = 'region = { type = "contact", geom = "ground", margin = 0.001 }'
+    old = """region = { type = "all", of = [
+  { type = "distance", site = "goal", max = 0.16 },
+  { type = "height", max = 0.1 },
+] }"""
+    task = get_task("scene", {"scene_file": str(make_scene(replace={old: success}))})
+    region = task.success_region()
+    assert getattr(region, "uses_orientation", False)
+    upright = np.array([1.0, 0.0, 0.0, 0.0])
+    tilted = np.array([np.cos(np.pi / 8), np.sin(np.pi / 8), 0.0, 0.0])  # 45 degrees about x
+    positions = np.array([[[0.0, 0.0, 0.03], [0.3, 0.0, 0.04]], [[0.0, 0.0, 0.0305], [0.3, 0.0, 0.04]]])
+    # A 3 cm half-edge box resting at z = 0.03 touches; upright at z = 0.04 it is 1 cm above.
+    quats = np.array([[upright, upright], [upright, tilted]])
+    inside = region.contains(positions, None, quaternions=quats)
+    assert inside.tolist() == [[True, False], [True, True]]  # tilted 45 degrees its edge reaches down 4.24 cm
+    # Frames label with the objects' own orientations.
+    trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
+    assert task.is_successful(trajectory.initial)  # both boxes start resting on the ground
+    frame = trajectory.initial
+    lifted = type(frame)(
+        frame.object_pos + np.array([0.0, 0.0, 0.01]), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
+    )
+    assert not task.is_successful(lifted)
+    np.testing.assert_allclose(region.signed_distance(np.array([[0.0, 0.0, 0.05]])), [0.001 - 0.02], atol=1e-9)
+    # The analysis scores the tree's states with their orientations: resting boxes stay in contact.
+    from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+
+    config = AnalyzerConfig(iterations=10)
+    scores, field = analyze_frame(task, frame, friction=0.5, drive=trajectory.drive, seed=0, config=config)
+    assert field.object_quat.shape == (field.nodes, 2, 4)
+    assert 0.5 < scores.success_score <= 1.0
+
+
+def test_contact_with_an_unknown_geom_is_one_line(make_scene, tmp_path: Path, capsys) -> None:
+    old = 'region = { type = "box", body = "pusher", center = [0.0, 0.12, 0.0], half_size = [0.2, 0.1, 0.1] }'
+    scene = make_scene(replace={old: 'region = { type = "contact", geom = "floor" }'})
+    out = tmp_path / "out"
+    assert main(["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "capture.region.geom: no geom 'floor' in model.xml" in error and error.count("\n") == 1
+    assert not out.exists()
