@@ -286,3 +286,28 @@ def test_contact_with_an_unknown_geom_is_one_line(make_scene, tmp_path: Path, ca
     error = capsys.readouterr().err
     assert "capture.region.geom: no geom 'floor' in model.xml" in error and error.count("\n") == 1
     assert not out.exists()
+
+
+def test_success_region_in_a_moving_body_frame_is_taken_at_the_frame(make_scene) -> None:
+    # Success: every box inside a box carried by the pusher (a tray), taken where the frame has it.
+    tray = 'region = { type = "box", body = "pusher", center = [0.0, 0.12, 0.0], half_size = [0.2, 0.1, 0.1] }'
+    old = """region = { type = "all", of = [
+  { type = "distance", site = "goal", max = 0.16 },
+  { type = "height", max = 0.1 },
+] }"""
+    task = get_task("scene", {"scene_file": str(make_scene(replace={old: tray}))})
+    frame = task.sample_trajectory(np.random.default_rng(0), 2).initial
+    points = np.array([[0.0, -0.1, 0.03], [0.0, 0.2, 0.03]])
+    assert task.success_region(frame).contains(points).tolist() == [True, False]
+    moved_q = frame.robot_q.copy()
+    moved_q[1] = 0.15
+    moved = type(frame)(frame.object_pos, frame.object_quat, frame.object_vel, moved_q, frame.robot_v)
+    assert task.success_region(moved).contains(points).tolist() == [False, True]
+    # Labels use the frame's own tray pose.
+    boxes_ahead = type(frame)(
+        np.array([[0.0, 0.2, 0.03], [0.05, 0.22, 0.03]]), frame.object_quat, frame.object_vel, moved_q, frame.robot_v
+    )
+    assert task.is_successful(boxes_ahead)
+    assert not task.is_successful(
+        type(frame)(boxes_ahead.object_pos, frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v)
+    )

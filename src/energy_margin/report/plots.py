@@ -166,7 +166,9 @@ def frame_figure(
         draw_region(
             ax, task.capture_region(frame), extent, view=view, fixed=fixed, colour="#1f78b4", label="capture region"
         )
-        draw_region(ax, task.success_region(), extent, view=view, fixed=fixed, colour="#33a02c", label="success region")
+        draw_region(
+            ax, task.success_region(frame), extent, view=view, fixed=fixed, colour="#33a02c", label="success region"
+        )
         draw_scene(ax, simulator, view=view)
         if planar and dataset.n_objects >= 1:
             draw_ellipse(ax, frame.object_pos[:, :2], min_thickness=size)
