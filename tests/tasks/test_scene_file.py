@@ -298,11 +298,11 @@ def test_success_region_in_a_moving_body_frame_is_taken_at_the_frame(make_scene)
     task = get_task("scene", {"scene_file": str(make_scene(replace={old: tray}))})
     frame = task.sample_trajectory(np.random.default_rng(0), 2).initial
     points = np.array([[0.0, -0.1, 0.03], [0.0, 0.2, 0.03]])
-    assert task.success_region(frame).contains(points).tolist() == [True, False]
+    assert task.success_region_at(frame).contains(points).tolist() == [True, False]
     moved_q = frame.robot_q.copy()
     moved_q[1] = 0.15
     moved = type(frame)(frame.object_pos, frame.object_quat, frame.object_vel, moved_q, frame.robot_v)
-    assert task.success_region(moved).contains(points).tolist() == [False, True]
+    assert task.success_region_at(moved).contains(points).tolist() == [False, True]
     # Labels use the frame's own tray pose.
     boxes_ahead = type(frame)(
         np.array([[0.0, 0.2, 0.03], [0.05, 0.22, 0.03]]), frame.object_quat, frame.object_vel, moved_q, frame.robot_v

@@ -26,14 +26,14 @@ def distance_scores(dataset: Dataset) -> tuple[np.ndarray, np.ndarray] | None:
     task = dataset.task
     capture = np.empty((dataset.n_trajectories, dataset.n_frames))
     success = np.empty_like(capture)
-    if not isinstance(task.success_region(dataset.frame(0, 0)), MeasurableRegion):
+    if not isinstance(task.success_region_at(dataset.frame(0, 0)), MeasurableRegion):
         return None
     try:
         for trajectory in range(dataset.n_trajectories):
             for index in range(dataset.n_frames):
                 frame = dataset.frame(trajectory, index)
                 capture[trajectory, index] = _min_distance(task.capture_region(frame), frame.object_pos)
-                success[trajectory, index] = _min_distance(task.success_region(frame), frame.object_pos)
+                success[trajectory, index] = _min_distance(task.success_region_at(frame), frame.object_pos)
     except TypeError:
         return None
     return capture, success

@@ -112,7 +112,7 @@ def _grid(cells: list[str]) -> str:
 def _membership_note(task: Any, frame: Any, drawn_inside: Any) -> str:
     """A check that every object drawn inside (outside) a region is labelled inside (outside)."""
     notes = []
-    for label, region in (("capture", task.capture_region(frame)), ("success", task.success_region(frame))):
+    for label, region in (("capture", task.capture_region(frame)), ("success", task.success_region_at(frame))):
         labelled = np.asarray(region.contains(frame.object_pos, frame.object_vel), dtype=bool)
         drawn = drawn_inside(region, frame.object_pos)
         if drawn is None:

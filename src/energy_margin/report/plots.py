@@ -167,7 +167,7 @@ def frame_figure(
             ax, task.capture_region(frame), extent, view=view, fixed=fixed, colour="#1f78b4", label="capture region"
         )
         draw_region(
-            ax, task.success_region(frame), extent, view=view, fixed=fixed, colour="#33a02c", label="success region"
+            ax, task.success_region_at(frame), extent, view=view, fixed=fixed, colour="#33a02c", label="success region"
         )
         draw_scene(ax, simulator, view=view)
         if planar and dataset.n_objects >= 1:

@@ -421,7 +421,7 @@ class FrameRenderer:
         return self._canvas.project(points)
 
     def _regions(self, frame: FrameState) -> list[tuple[Region, tuple[float, float, float, float]]]:
-        return [(self.task.capture_region(frame), CAPTURE_RGBA), (self.task.success_region(frame), SUCCESS_RGBA)]
+        return [(self.task.capture_region(frame), CAPTURE_RGBA), (self.task.success_region_at(frame), SUCCESS_RGBA)]
 
     @staticmethod
     def _extent(view: View) -> np.ndarray:

@@ -206,7 +206,7 @@ def view_figure(tree: AnalysedTree) -> Any:
     height = float(np.mean(frame.object_pos[:, 2]))
     for label, region, rgba in (
         ("capture region", task.capture_region(frame), CAPTURE_RGBA),
-        ("success region", task.success_region(frame), SUCCESS_RGBA),
+        ("success region", task.success_region_at(frame), SUCCESS_RGBA),
     ):
         meshes = region_meshes(region_shapes(region, bounds, height=height), bounds)
         if meshes:

@@ -351,14 +351,17 @@ class Task(ABC):
         """The capture region R_cap(z_init) built from the frame being analysed."""
 
     @abstractmethod
-    def success_region(self, root: FrameState | None = None) -> Region:
-        """The task success region R_suc.
+    def success_region(self) -> Region:
+        """The task success region R_suc (at the task's start configuration)."""
 
-        Args:
-            root: the frame the region is for (the analysed frame z_init, or the frame being
-                labelled): a task whose success set moves with a body takes the body's pose
-                there; ``None`` takes the start configuration. Fixed regions ignore it.
+    def success_region_at(self, root: FrameState) -> Region:
+        """The success region for ``root`` (the analysed frame z_init, or the frame being labelled).
+
+        A task whose success set moves with a body (a tray the robot carries) overrides this to
+        take the body's pose in ``root``; by default the region does not depend on the frame.
         """
+        del root
+        return self.success_region()
 
     @abstractmethod
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
@@ -374,7 +377,7 @@ class Task(ABC):
 
     def is_successful(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the success region."""
-        return bool(all_inside(self.success_region(frame), frame.object_pos, frame.object_vel, frame.object_quat))
+        return bool(all_inside(self.success_region_at(frame), frame.object_pos, frame.object_vel, frame.object_quat))
 
     @property
     def n_steps(self) -> int:

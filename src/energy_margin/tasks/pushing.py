@@ -423,9 +423,8 @@ class PushingTask(Task):
         """Swept annular sector (disc at low speed) from the pusher's pose and velocity."""
         return SweptRegion(self.config, root.robot_q[:2], root.robot_v[[0, 1, 3]])
 
-    def success_region(self, root: FrameState | None = None) -> WallBand:
+    def success_region(self) -> WallBand:
         """Band of half width ``success_half_width`` around the line where cylinders touch the wall."""
-        del root  # the wall does not move
         return WallBand(self.config)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:

@@ -436,14 +436,17 @@ class SceneTask(Task):
         spec = self.loaded.spec
         return self._set(spec.capture, spec.capture_at_least, root)
 
-    def success_region(self, root: FrameState | None = None) -> Region:
-        """The success set with body and site frames taken at ``root`` (the start configuration for ``None``)."""
-        spec = self.loaded.spec
-        if root is not None:
-            return self._set(spec.success, spec.success_at_least, root)
+    def success_region(self) -> Region:
+        """The success set with body and site frames at the model's start configuration."""
         if self._success is None:
+            spec = self.loaded.spec
             self._success = self._set(spec.success, spec.success_at_least, None)
         return self._success
+
+    def success_region_at(self, root: FrameState) -> Region:
+        """The success set with body and site frames taken at ``root``."""
+        spec = self.loaded.spec
+        return self._set(spec.success, spec.success_at_least, root)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
         """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias."""

@@ -482,9 +482,8 @@ class ScoopingTask(Task):
         del root
         return BoxesAboveTable(self.config, self.config.capture_margin)
 
-    def success_region(self, root: FrameState | None = None) -> BoxesAboveTable:
+    def success_region(self) -> BoxesAboveTable:
         """Boxes ``success_height`` (5 cm) above resting on the table and not falling."""
-        del root  # the table does not move
         return BoxesAboveTable(self.config, self.config.success_height)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
