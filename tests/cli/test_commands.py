@@ -126,7 +126,8 @@ def test_files_and_folders_follow_the_umask(tmp_path: Path, umask: int) -> None:
         assert modes[f"data/{name}"] == 0o666 & ~umask, name
 
 
-def test_interrupt_delivered_twice_is_one_line(tmp_path: Path) -> None:
+@pytest.mark.parametrize("delay", [0.0, 0.3, 1.0], ids=["pool-starting", "early", "running"])
+def test_interrupt_delivered_twice_is_one_line(tmp_path: Path, delay: float) -> None:
     data = tmp_path / "data"
     assert main(["generate", "--task", "pushing", "--objects", "3", "--trajectories", "2", "--frames", "3",
                  "--out", str(data)]) == 0  # fmt: skip
@@ -139,7 +140,7 @@ def test_interrupt_delivered_twice_is_one_line(tmp_path: Path) -> None:
     deadline = time.monotonic() + 60
     while not (data / "scores.journal.csv").exists() and time.monotonic() < deadline:
         time.sleep(0.05)
-    time.sleep(1.0)
+    time.sleep(delay)
     process.send_signal(signal.SIGINT)
     os.killpg(process.pid, signal.SIGINT)
     _, err = process.communicate(timeout=60)

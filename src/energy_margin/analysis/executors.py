@@ -102,6 +102,26 @@ def _run_local_chunk(indices: list[int]) -> list[dict[str, Any]]:
 
 
 @contextlib.contextmanager
+def sigint_deferred() -> Iterator[None]:
+    """Hold a Ctrl-C that arrives inside the block and raise it as ``KeyboardInterrupt`` after it.
+
+    Starting a process pool forks; CPython prints and swallows an exception raised in its
+    at-fork callbacks, so an interrupt landing there would be lost. Main thread only.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda number, frame: received.append(number))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if received and previous is signal.default_int_handler:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
     """Ignore SIGINT inside the block (main thread only; elsewhere a no-op)."""
     if threading.current_thread() is not threading.main_thread():
@@ -142,11 +162,13 @@ class LocalExecutor:
         chunks = iter(_chunks(indices, self.workers))
         finished = False
         try:
-            # Keep two chunks in flight per worker so none idles while results are written.
-            for first in chunks:
-                pending.add(pool.submit(_run_local_chunk, first))
-                if len(pending) >= 2 * self.workers:
-                    break
+            # Keep two chunks in flight per worker so none idles while results are written. The
+            # first submissions fork the workers: an interrupt meanwhile is held until they exist.
+            with sigint_deferred():
+                for first in chunks:
+                    pending.add(pool.submit(_run_local_chunk, first))
+                    if len(pending) >= 2 * self.workers:
+                        break
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
@@ -165,7 +187,10 @@ class LocalExecutor:
                 with _sigint_ignored():
                     for process in list(getattr(pool, "_processes", {}).values()):
                         process.terminate()
-                    pool.shutdown(wait=False, cancel_futures=True)
+                    # Wait for the pool's manager thread (the workers are gone, so this is quick):
+                    # left running, it races the interpreter's exit handler over its wake-up pipe
+                    # ("Exception ignored in: <module 'threading'> ... Bad file descriptor").
+                    pool.shutdown(wait=True, cancel_futures=True)
 
 
 # --- Ray ---------------------------------------------------------------------------------------

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.analysis.executors import sigint_deferred
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
@@ -349,7 +350,9 @@ def _run_jobs(
     )
     finished = False
     try:
-        futures = [pool.submit(_run_in_worker, job) for job in jobs]
+        # Submitting forks the workers: an interrupt meanwhile is held until they exist.
+        with sigint_deferred():
+            futures = [pool.submit(_run_in_worker, job) for job in jobs]
         for future in as_completed(futures):
             yield future.result()
         finished = True
@@ -359,7 +362,8 @@ def _run_jobs(
         else:
             for process in list(getattr(pool, "_processes", {}).values()):
                 process.terminate()
-            pool.shutdown(wait=False, cancel_futures=True)
+            # Join the manager thread now (the workers are gone), not at interpreter exit.
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _progress_bar(total: int, *, enabled: bool) -> Any:
