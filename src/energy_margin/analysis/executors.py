@@ -134,6 +134,25 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def stop_pool(pool: ProcessPoolExecutor, *, finished: bool) -> None:
+    """Shut a process pool down: drain it when ``finished``, else stop its workers at once.
+
+    Interrupted (Ctrl-C, an error, or the consumer stopped), the workers are terminated rather
+    than drained. A second SIGINT (`timeout -s INT` signals the process and then its group) must
+    not cut this short, or the workers outlive the pool and exit waits for them. The pool's manager
+    thread is joined here (the workers are gone, so this is quick): left running, it races the
+    interpreter's exit handler over its wake-up pipe ("Exception ignored in: <module 'threading'>
+    ... Bad file descriptor").
+    """
+    if finished:
+        pool.shutdown(wait=True)
+        return
+    with _sigint_ignored():
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 class LocalExecutor:
     """This process (one worker) or a ``ProcessPoolExecutor`` (several)."""
 
@@ -178,19 +197,7 @@ class LocalExecutor:
                         pending.add(pool.submit(_run_local_chunk, following))
             finished = True
         finally:
-            if finished:
-                pool.shutdown(wait=True)
-            else:
-                # Interrupted (Ctrl-C, an error, or the consumer stopped): stop now, do not drain.
-                # A second SIGINT (`timeout -s INT` signals the process and then its group) must
-                # not cut this short, or the workers outlive the pool and exit waits for them.
-                with _sigint_ignored():
-                    for process in list(getattr(pool, "_processes", {}).values()):
-                        process.terminate()
-                    # Wait for the pool's manager thread (the workers are gone, so this is quick):
-                    # left running, it races the interpreter's exit handler over its wake-up pipe
-                    # ("Exception ignored in: <module 'threading'> ... Bad file descriptor").
-                    pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(pool, finished=finished)
 
 
 # --- Ray ---------------------------------------------------------------------------------------

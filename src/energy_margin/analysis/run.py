@@ -141,7 +141,7 @@ def analyze(
     if done and progress:
         print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
 
-    bar = _progress_bar(total, len(done), enabled=progress)
+    bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
     try:
         with journal_path.open("a", encoding="utf-8") as journal:
             for row in runner.run(dataset, config, seed, pending):
@@ -169,9 +169,10 @@ class _NoBar:
         pass
 
 
-def _progress_bar(total: int, initial: int, *, enabled: bool) -> Any:
+def progress_bar(total: int, *, desc: str, initial: int = 0, enabled: bool) -> Any:
+    """A per-frame tqdm bar on standard error (``update``, ``close``), or one that shows nothing."""
     if not enabled:
         return _NoBar()
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=initial, unit="frame", desc="analyze", dynamic_ncols=True)
+    return tqdm(total=total, initial=initial, unit="frame", desc=desc, dynamic_ncols=True)

@@ -41,7 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.analysis.executors import sigint_deferred
+from energy_margin.analysis.executors import sigint_deferred, stop_pool
+from energy_margin.analysis.run import progress_bar
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
@@ -270,7 +271,7 @@ def perturb_dataset(
         "keep_orientation": keep_orientation,
     }
     results: dict[tuple[int, int], list[FramePerturbation]] = {}
-    bar = _progress_bar(len(jobs) * source.n_frames, enabled=progress)
+    bar = progress_bar(len(jobs) * source.n_frames, desc="perturb", enabled=progress)
     try:
         for key, frames in _run_jobs(source, options, jobs, workers):
             results[key] = frames
@@ -357,29 +358,7 @@ def _run_jobs(
             yield future.result()
         finished = True
     finally:
-        if finished:
-            pool.shutdown(wait=True)
-        else:
-            for process in list(getattr(pool, "_processes", {}).values()):
-                process.terminate()
-            # Join the manager thread now (the workers are gone), not at interpreter exit.
-            pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _progress_bar(total: int, *, enabled: bool) -> Any:
-    if not enabled:
-        return _NoBar()
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="frame", desc="perturb", dynamic_ncols=True)
-
-
-class _NoBar:
-    def update(self, count: int) -> None:
-        del count
-
-    def close(self) -> None:
-        pass
+        stop_pool(pool, finished=finished)
 
 
 def _existing(target: Path, source: Dataset, seed: int, settings: dict[str, Any]) -> bool:
