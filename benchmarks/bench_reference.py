@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import re
 import shutil
 import statistics
@@ -43,19 +42,6 @@ FRAME_LINE = re.compile(
 def skip(reason: str) -> None:
     print(f"skip: {reason}")
     sys.exit(0)
-
-
-def machine() -> str:
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as stream:
-            for line in stream:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} logical CPUs, Python {platform.python_version()}"
 
 
 def authors_python(venv: Path | None) -> Path:
@@ -134,6 +120,8 @@ def main() -> None:
         skip(f"the authors' code and frames are not at {SHARED} (../shared/reference from the project root)")
     python = authors_python(args.authors_venv)
 
+    # The machine line of the other benchmarks (run from benchmarks/, so it is importable).
+    from bench_analysis import machine
     from energy_margin import AnalyzerConfig, analyze_frame
     from energy_margin.analysis.frame import frame_seeds
     from energy_margin.data.reference import import_reference

@@ -14,7 +14,7 @@ import importlib.machinery
 import sys
 import types
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 #: Old module of 0.1.0 -> the modules that now hold its names, searched in order.
@@ -78,20 +78,18 @@ def _lookup(old_module: str, name: str) -> Any:
     raise AttributeError(f"module {old_module!r} has no attribute {name!r}")
 
 
-def stage_getattr(package: str, own: Sequence[str] = ()) -> Callable[[str], Any]:
+def stage_getattr(package: str) -> Callable[[str], Any]:
     """A module ``__getattr__`` for a stage package whose name was a flat module in 0.1.0.
 
     Args:
         package: the package, e.g. ``"energy_margin.analysis"``.
-        own: names the package itself serves (never warned about).
 
     Returns:
         The function to bind as the package's ``__getattr__``.
     """
-    own_set = set(own)
 
     def module_getattr(name: str) -> Any:
-        if name.startswith("__") or name in own_set:
+        if name.startswith("__"):
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         return _lookup(package, name)
 

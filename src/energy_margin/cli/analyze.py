@@ -5,8 +5,12 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.cli.common import add_engine, add_seed, non_negative_float, non_negative_int, positive_int
 from energy_margin.errors import EnergyMarginError
+from energy_margin.planning.costs import COST_MODELS
+from energy_margin.planning.density import PROJECTIONS
+from energy_margin.planning.methods import METHODS
 
 if TYPE_CHECKING:
     from energy_margin.analysis.frame import AnalyzerConfig
@@ -17,10 +21,8 @@ EXAMPLES = (
     "energy-margin analyze runs/push10 --iterations 300 --workers 2 --seed 0",
     "energy-margin analyze runs/push10 --nodes 200 --cost energy --overwrite",
 )
-COSTS = ("wrench", "energy")
-METHODS = ("est", "montecarlo", "rrt")
-PROJECTIONS = ("objects", "ellipsoid")
-EXECUTORS = ("local", "ray")
+# The choices are the registries themselves, so a new method or cost model shows up here.
+COSTS = tuple(COST_MODELS)
 DEFAULT_ITERATIONS = 300
 
 

@@ -6,11 +6,11 @@ import argparse
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int
 from energy_margin.errors import EnergyMarginError
+from energy_margin.planning.methods import METHODS
 
 NAME = "budget"
 SUMMARY = "AP (with bootstrap intervals) and runtime against the expansion budget, per tree method"
 EXAMPLES = ("energy-margin budget runs/push10 --budgets 10 30 100 300 --methods est montecarlo --workers 2",)
-METHODS = ("est", "montecarlo", "rrt")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

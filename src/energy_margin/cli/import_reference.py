@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 
+from energy_margin.data.reference import DRIVES
+
 NAME = "import-reference"
 SUMMARY = "convert the authors' published frames, labels and scores into a dataset"
 EXAMPLES = (
     "energy-margin import-reference ../energy_margin_workshop/planepush-10objects --out runs/ref-push",
     "energy-margin import-reference PATH --out runs/ref-push-coast --drive coast --no-scores",
 )
-DRIVES = ("nominal", "coast")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
