@@ -142,3 +142,26 @@ def test_bad_inputs_are_one_clear_error(tmp_path: Path, options: dict, message: 
 )
 def test_wilson_interval(successes: int, trials: int, expected: tuple[float, float]) -> None:
     assert wilson_interval(successes, trials) == pytest.approx(expected, abs=1e-4)
+
+
+def test_a_scooping_episode_closes_and_lifts_on_the_script_timeline(tmp_path: Path) -> None:
+    from energy_margin.tasks import get_task
+
+    summary, dataset = run_control(
+        "scooping",
+        n_objects=1,
+        episodes=1,
+        policy="task",
+        disturbance="none",
+        seed=0,
+        out=tmp_path / "scoop",
+        controller=ControllerConfig(samples=2, horizon=1, period=0.1),
+        n_frames=3,
+        score_expansions=0,
+    )
+    task = get_task("scooping")
+    assert summary["decisions"] == 23
+    final = dataset.arrays["robot_q"][0, -1]  # type: ignore[attr-defined]
+    # Fingers (coordinates 1 and 3) closed, base lifted most of lift_height above contact.
+    assert final[1] == pytest.approx(task.closed_travel, abs=2e-3)
+    assert final[0] > task.contact_height + 0.5 * task.config.lift_height

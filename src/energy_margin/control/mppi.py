@@ -133,7 +133,8 @@ class Controller:
         innovation = np.sqrt(1.0 - config.correlation**2)
         for h in range(1, config.horizon):
             noise[:, h] = config.correlation * noise[:, h - 1] + innovation * white[:, h]
-        noise *= half_range
+        scale = np.ones(space.dimension) if space.noise_scale is None else np.asarray(space.noise_scale)
+        noise *= half_range * scale
         noise[0] = 0.0
         period = self.period_steps * self.dt
         scripted = np.stack([space.nominal(self.trajectory, time + h * period) for h in range(config.horizon)])
