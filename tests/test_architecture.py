@@ -28,6 +28,7 @@ STAGES = (
     "analysis",
     "evaluation",
     "robustness",
+    "learning",
     "report",
     "cli",
 )
