@@ -32,8 +32,9 @@ from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
 from energy_margin.world.state import FrameState
 
-#: Default cap on the expansions of one live call.
-MAX_EXPANSIONS = 10_000
+#: Default cap on the expansions of one live call (the tree's arrays are sized for it: a larger cap
+#: costs set-up time; raise it for budgets beyond a few tenths of a second).
+MAX_EXPANSIONS = 2_000
 
 
 @dataclass(frozen=True)

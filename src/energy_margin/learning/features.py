@@ -175,10 +175,18 @@ class FrameFeatures:
         return np.concatenate([statistics, set_features, robot_q, robot_v], axis=1)
 
 
+#: Whether each region class measures distances (a protocol ``isinstance`` is slow per frame).
+_MEASURABLE: dict[type, bool] = {}
+
+
 def _signed_distance(region: Region, positions: np.ndarray) -> np.ndarray:
     """Signed distance (n,) of each object to ``region``, m; 0 where the region measures none."""
-    if isinstance(region, MeasurableRegion):
-        return np.asarray(region.signed_distance(positions), dtype=float)
+    kind = type(region)
+    measurable = _MEASURABLE.get(kind)
+    if measurable is None:
+        measurable = _MEASURABLE[kind] = isinstance(region, MeasurableRegion)
+    if measurable:
+        return np.asarray(region.signed_distance(positions), dtype=float)  # type: ignore[attr-defined]
     return np.zeros(positions.shape[0])
 
 

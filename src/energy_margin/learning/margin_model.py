@@ -248,12 +248,11 @@ class _Frames:
     runtime: np.ndarray  # (T, K) tree seconds per frame
 
 
-def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
-    """Features and scores of every frame of analysed ``datasets`` (one task, one configuration).
+def check_same_task(datasets: Sequence[Dataset]) -> None:
+    """Refuse no datasets, or datasets of different tasks or task settings (one line).
 
     Raises:
-        EnergyMarginError: no datasets, datasets of different tasks or settings, or one without
-            ``scores.csv``.
+        EnergyMarginError: as above.
     """
     if not datasets:
         raise EnergyMarginError("give at least one analysed dataset")
@@ -271,6 +270,17 @@ def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
                 f"datasets {first.path} and {other.path} were generated with different {first.metadata['task']} "
                 f"settings ({key}: {a[key]!r} and {b.get(key)!r})"
             )
+
+
+def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
+    """Features and scores of every frame of analysed ``datasets`` (one task, one configuration).
+
+    Raises:
+        EnergyMarginError: no datasets, datasets of different tasks or settings, or one without
+            ``scores.csv``.
+    """
+    check_same_task(datasets)
+    first = datasets[0]
     task = first.task
     features = FrameFeatures(task)
     frames = []
@@ -470,11 +480,18 @@ def _seconds_per_call(call: Any, *, repeats: int) -> float:
 
 
 def load_training_datasets(paths: Sequence[Path | str]) -> list[Dataset]:
-    """Load analysed datasets for :func:`fit_margin_model`, each checked with its ``scores.csv``.
+    """Load analysed datasets of one task for :func:`fit_margin_model`.
 
     Raises:
-        EnergyMarginError: a dataset with a problem, or without ``scores.csv`` (one line).
+        EnergyMarginError: a dataset with a problem (its ``scores.csv`` included), datasets of
+            different tasks, or one without ``scores.csv`` (one line).
     """
     from energy_margin.data.validation import require_valid
 
-    return [require_valid(path, overlaps=False, scores=True) for path in paths]
+    if not paths:
+        raise EnergyMarginError("give at least one analysed dataset")
+    datasets = [require_valid(path, overlaps=False, scores=None) for path in paths]
+    check_same_task(datasets)
+    for path in paths:
+        require_valid(path, overlaps=False, scores=True)
+    return datasets
