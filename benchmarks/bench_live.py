@@ -2,8 +2,8 @@
 
 Usage::
 
-    python benchmarks/bench_live.py DIR [--frames 30] [--budgets 0.02 0.05 0.1] [--model MODEL] [--seed 0]
-        [--json]
+    python benchmarks/bench_live.py DIR [--frames 30] [--budgets 0.02 0.05 0.1] [--expansions 10 25 50 100]
+        [--model MODEL] [--seed 0] [--json]
 
 DIR is an analysed dataset (``scores.csv`` from ``analyze`` with its default 300 expansions). For
 a random sample of its frames (``--seed``) this script, in one process, one frame after another:
@@ -12,11 +12,15 @@ a random sample of its frames (``--seed``) this script, in one process, one fram
   times it;
 * calls ``score_state`` with every budget (reusing one simulator per frame, built beforehand and
   timed apart) with the same seed, so the budgeted tree is the first expansions of the full one;
+* calls ``score_state`` without a deadline at every cap of ``--expansions`` (deterministic; its
+  CPU time does not depend on the machine's load, so budget / CPU per call tells what a budget
+  reaches on an idle core);
 * with ``--model``, times ``MarginModel.score_state`` on the same state and one batched
   ``MarginModel.predict`` over the sample.
 
 It prints, per budget, the expansions reached (median, range), the seconds used (median, max) and
-the mean absolute difference of both scores to the full analysis.
+the mean absolute difference of both scores to the full analysis (and how often both sides of 0.5
+agree); per cap, the same with the CPU seconds per call.
 """
 
 from __future__ import annotations
@@ -47,8 +51,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     rng = np.random.default_rng(args.seed)
     rows = rng.choice(len(scores["trajectory"]), size=min(args.frames, len(scores["trajectory"])), replace=False)
     model = load_margin_model(args.model, task_name=task.name) if args.model else None
-    full_s, build_s, learned_s = [], [], []
+    full_s, full_cpu_s, build_s, learned_s, learned_cpu_s = [], [], [], [], []
     live: dict[float, list[tuple[int, float, float, float]]] = {budget: [] for budget in args.budgets}
+    capped: dict[int, list[tuple[float, float, float, float, bool, bool]]] = {cap: [] for cap in args.expansions}
     states = []
     for row in rows:
         trajectory, index = int(scores["trajectory"][row]), int(scores["frame"][row])
@@ -61,6 +66,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         tick = time.perf_counter()
         simulator = task.make_simulator(dataset.n_objects, friction, drive, config.engine)
         build_s.append(time.perf_counter() - tick)
+        cpu_tick = time.process_time()
         full, _ = analyze_frame(
             task,
             state,
@@ -72,6 +78,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             simulator=simulator,
         )
         full_s.append(full.runtime_s)
+        full_cpu_s.append(time.process_time() - cpu_tick)
         for budget in args.budgets:
             result = score_state(
                 task,
@@ -92,9 +99,35 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                     abs(result.success - full.success_score),
                 )
             )
+        for cap in args.expansions:
+            cpu_tick = time.process_time()
+            result = score_state(
+                task,
+                state,
+                friction=friction,
+                drive=drive,
+                budget_s=None,
+                max_expansions=cap,
+                seed=seed,
+                start_time=start_time,
+                simulator=simulator,
+                config=config,
+            )
+            capped[cap].append(
+                (
+                    result.seconds,
+                    time.process_time() - cpu_tick,
+                    abs(result.capture - full.capture_score),
+                    abs(result.success - full.success_score),
+                    (result.capture >= 0.5) == (full.capture_score >= 0.5),
+                    (result.success >= 0.5) == (full.success_score >= 0.5),
+                )
+            )
         if model is not None:
             model.score_state(task, state)  # warm-up of the feature cache
+            cpu_tick = time.process_time()
             learned_s.append(model.score_state(task, state).seconds)
+            learned_cpu_s.append(time.process_time() - cpu_tick)
     result: dict[str, Any] = {
         "dataset": str(args.dataset),
         "task": task.name,
@@ -103,6 +136,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "full_iterations": config.iterations,
         "full_seconds_median": statistics.median(full_s),
         "full_seconds_mean": statistics.fmean(full_s),
+        "full_cpu_seconds_median": statistics.median(full_cpu_s),
         "simulator_build_seconds_median": statistics.median(build_s),
         "budgets": {},
         "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}",
@@ -119,6 +153,17 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "capture_abs_diff_mean": statistics.fmean(v[2] for v in values),
             "success_abs_diff_mean": statistics.fmean(v[3] for v in values),
         }
+    result["expansions"] = {
+        str(cap): {
+            "seconds_median": statistics.median(v[0] for v in values),
+            "cpu_seconds_median": statistics.median(v[1] for v in values),
+            "capture_abs_diff_mean": statistics.fmean(v[2] for v in values),
+            "success_abs_diff_mean": statistics.fmean(v[3] for v in values),
+            "capture_agree_at_half": statistics.fmean(float(v[4]) for v in values),
+            "success_agree_at_half": statistics.fmean(float(v[5]) for v in values),
+        }
+        for cap, values in capped.items()
+    }
     if model is not None:
         tick = time.perf_counter()
         model.predict(task, states)
@@ -126,6 +171,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         result["learned"] = {
             "kind": model.kind,
             "single_seconds_median": statistics.median(learned_s),
+            "single_cpu_seconds_median": statistics.median(learned_cpu_s),
+            "speedup_cpu": statistics.median(full_cpu_s) / max(statistics.median(learned_cpu_s), 1e-9),
             "batched_seconds_per_frame": batched / len(states),
         }
     return result
@@ -136,6 +183,7 @@ def main() -> None:
     parser.add_argument("dataset")
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--budgets", type=float, nargs="+", default=[0.02, 0.05, 0.1])
+    parser.add_argument("--expansions", type=int, nargs="+", default=[10, 25, 50, 100])
     parser.add_argument("--model", default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
@@ -147,7 +195,8 @@ def main() -> None:
     print(
         f"{result['task']} n_o={result['n_objects']}, {result['frames']} frames; {result['machine']}\n"
         f"full analysis ({result['full_iterations']} expansions): median {result['full_seconds_median']:.3f} s "
-        f"(mean {result['full_seconds_mean']:.3f} s); simulator build {result['simulator_build_seconds_median']:.4f} s"
+        f"(mean {result['full_seconds_mean']:.3f} s, CPU median {result['full_cpu_seconds_median']:.3f} s); "
+        f"simulator build {result['simulator_build_seconds_median']:.4f} s"
     )
     print("budget_s  expansions (median, min-max)  seconds (median, max)  |Δcapture|  |Δsuccess|")
     for budget, row in result["budgets"].items():
@@ -156,11 +205,19 @@ def main() -> None:
             f"        {row['seconds_median']:.4f}, {row['seconds_max']:.4f}        "
             f"{row['capture_abs_diff_mean']:.3f}       {row['success_abs_diff_mean']:.3f}"
         )
+    print("cap  seconds (median)  CPU s (median)  |Δcapture|  |Δsuccess|  agree@0.5 capture, success")
+    for cap, row in result["expansions"].items():
+        print(
+            f"{int(cap):3d}  {row['seconds_median']:16.4f}  {row['cpu_seconds_median']:14.4f}  "
+            f"{row['capture_abs_diff_mean']:10.3f}  {row['success_abs_diff_mean']:10.3f}  "
+            f"{row['capture_agree_at_half']:.2f}, {row['success_agree_at_half']:.2f}"
+        )
     if "learned" in result:
         learned = result["learned"]
         print(
-            f"learned ({learned['kind']}): {learned['single_seconds_median'] * 1e6:.0f} µs for one state, "
-            f"{learned['batched_seconds_per_frame'] * 1e6:.0f} µs per frame batched"
+            f"learned ({learned['kind']}): {learned['single_seconds_median'] * 1e6:.0f} µs for one state "
+            f"(CPU {learned['single_cpu_seconds_median'] * 1e6:.0f} µs, {learned['speedup_cpu']:.0f}x less CPU than "
+            f"the full analysis), {learned['batched_seconds_per_frame'] * 1e6:.0f} µs per frame batched"
         )
 
 

@@ -332,9 +332,11 @@ def fit_margin_model(
         ``success`` (per trajectory, from the last ``success_frames`` frames), each ``learned``
         beside ``tree`` (the analysed scores of the same frames); ``n_trajectories`` and
         ``n_frames`` (``train``, ``held_out``); ``seconds_per_query`` (one batched predict over
-        the held-out frames, per frame), ``seconds_single_query`` (one frame per call),
-        ``tree_seconds_per_frame`` (the analysis' mean runtime of the held-out frames) and
-        ``speedup`` (their ratio); ``fit_seconds``.
+        the held-out frames, per frame, wall time), ``seconds_single_query`` (one frame per call),
+        ``cpu_seconds_per_query`` and ``cpu_seconds_single_query`` (the same in CPU time),
+        ``tree_seconds_per_frame`` (the analysis' mean wall time of the held-out frames, from
+        ``scores.csv``), ``speedup`` and ``speedup_single_query`` (tree over learned wall time);
+        ``fit_seconds``.
 
     Raises:
         EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
@@ -442,8 +444,10 @@ def _held_out_report(
         tree_success.append(trajectory_success_score(item.success[trajectories], last=last, scheme="linear"))
         runtimes.append(item.runtime[trajectories].ravel())
         states.extend(dataset.frame(t, i) for t in trajectories for i in range(k))
-    batched = _seconds_per_call(lambda: model.predict(task, states), repeats=5) / len(states)
-    single = _seconds_per_call(lambda: model.predict(task, states[:1]), repeats=50)
+    batched, batched_cpu = (
+        value / len(states) for value in _seconds_per_call(lambda: model.predict(task, states), repeats=5)
+    )
+    single, single_cpu = _seconds_per_call(lambda: model.predict(task, states[:1]), repeats=50)
     tree_seconds = float(np.concatenate(runtimes).mean())
     return {
         "r2": {"capture": _r2(test_y[:, 0], learned[:, 0]), "success": _r2(test_y[:, 1], learned[:, 1])},
@@ -462,21 +466,28 @@ def _held_out_report(
         "success_positive_rate": float(np.concatenate(success_labels).mean()),
         "seconds_per_query": batched,
         "seconds_single_query": single,
+        "cpu_seconds_per_query": batched_cpu,
+        "cpu_seconds_single_query": single_cpu,
         "tree_seconds_per_frame": tree_seconds,
         "speedup": tree_seconds / batched if batched > 0 else None,
         "speedup_single_query": tree_seconds / single if single > 0 else None,
     }
 
 
-def _seconds_per_call(call: Any, *, repeats: int) -> float:
-    """Median wall time of ``call()`` over ``repeats`` calls after one warm-up call, s."""
+def _seconds_per_call(call: Any, *, repeats: int) -> tuple[float, float]:
+    """Median wall time and median CPU time of this process of ``call()`` over ``repeats`` calls, s.
+
+    One warm-up call comes first. On a busy machine the wall time of a long call includes the
+    time the process waits for a core; the CPU time does not.
+    """
     call()
-    times = []
+    wall, cpu = [], []
     for _ in range(repeats):
-        tick = time.perf_counter()
+        tick, cpu_tick = time.perf_counter(), time.process_time()
         call()
-        times.append(time.perf_counter() - tick)
-    return float(np.median(times))
+        wall.append(time.perf_counter() - tick)
+        cpu.append(time.process_time() - cpu_tick)
+    return float(np.median(wall)), float(np.median(cpu))
 
 
 def load_training_datasets(paths: Sequence[Path | str]) -> list[Dataset]:
