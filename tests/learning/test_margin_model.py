@@ -70,7 +70,7 @@ def test_report_splits_by_trajectory(fitted: tuple[MarginModel, dict], dataset: 
     assert report["n_trajectories"] == {"train": 4, "held_out": 2}
     assert report["n_frames"] == {"train": 4 * dataset.n_frames, "held_out": 2 * dataset.n_frames}
     assert set(report["r2"]) == {"capture", "success"}
-    for question in ("capture", "success"):
+    for question in ("capture", "capture_window2", "success", "success_first_half"):
         assert set(report["ap"][question]) == {"learned", "tree"}
     assert report["seconds_per_query"] > 0 and report["tree_seconds_per_frame"] > 0
     assert report["speedup"] == pytest.approx(report["tree_seconds_per_frame"] / report["seconds_per_query"])
@@ -205,7 +205,7 @@ def test_learn_command(analysed: Path, tmp_path: Path, capsys: pytest.CaptureFix
     assert "already exists" in capsys.readouterr().err
     assert main(["learn", str(analysed), "--out", str(out), "--overwrite"]) == 0
     text = capsys.readouterr().out
-    assert "held-out R²" in text and "learned  tree" in text and "per query" in text
+    assert "held-out R²" in text and "learned  tree" in text and "k-hat=2" in text and "per query" in text
     # A dataset of another task, and one without scores, are refused with one line.
     scoop = tmp_path / "scoop"
     generate_dataset("scooping", out=scoop, n_objects=2, n_trajectories=1, n_frames=2, seed=0)

@@ -16,6 +16,13 @@ EXAMPLES = (
     "energy-margin learn runs/push10 runs/push10-b --out model.npz --kind boosting --seed 1 --json",
 )
 KINDS = ("mlp", "boosting")
+#: The AP questions of the report, as ``evaluate`` asks them.
+AP_ROWS = (
+    ("capture", "capture, k-hat=0"),
+    ("capture_window2", "capture, k-hat=2"),
+    ("success", "success, last frames"),
+    ("success_first_half", "success, first half"),
+)
 
 
 def _fraction(text: str) -> float:
@@ -58,9 +65,8 @@ def format_report(report: dict[str, Any], out: Path) -> str:
             f"({report['n_frames']['held_out']} frames, split by trajectory); {report['n_features']} features "
             f"({report['feature_set']})",
             f"held-out R²: capture {_cell(r2['capture'])}, success {_cell(r2['success'])}",
-            "held-out AP   learned  tree (true scores)",
-            f"  capture     {_cell(ap['capture']['learned']):>7}  {_cell(ap['capture']['tree'])}",
-            f"  success     {_cell(ap['success']['learned']):>7}  {_cell(ap['success']['tree'])}",
+            "held-out AP             learned  tree (true scores)",
+            *(f"  {label:<20}  {_cell(ap[key]['learned']):>7}  {_cell(ap[key]['tree'])}" for key, label in AP_ROWS),
             f"per query: {report['seconds_per_query'] * 1e6:.1f} µs batched, "
             f"{report['seconds_single_query'] * 1e6:.1f} µs for one frame "
             f"(CPU {report['cpu_seconds_per_query'] * 1e6:.1f} and {report['cpu_seconds_single_query'] * 1e6:.1f} µs); "

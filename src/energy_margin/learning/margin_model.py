@@ -328,10 +328,12 @@ def fit_margin_model(
 
     Returns:
         The model (fitted on the kept trajectories) and its report: ``r2`` of ``capture`` and
-        ``success`` on the held-out frames; ``ap``: ``capture`` (per frame, labels at k-hat 0) and
-        ``success`` (per trajectory, from the last ``success_frames`` frames), each ``learned``
-        beside ``tree`` (the analysed scores of the same frames); ``n_trajectories`` and
-        ``n_frames`` (``train``, ``held_out``); ``seconds_per_query`` (one batched predict over
+        ``success`` on the held-out frames; ``ap``: ``capture`` (per frame, labels at k-hat 0),
+        ``capture_window2`` (labels at k-hat 2: the objects stay captured two more frames),
+        ``success`` (per trajectory, from the last ``success_frames`` frames) and
+        ``success_first_half`` (from the first half of the frames only), each ``learned`` beside
+        ``tree`` (the analysed scores of the same frames), as ``evaluate`` asks them;
+        ``n_trajectories`` and ``n_frames`` (``train``, ``held_out``); ``seconds_per_query`` (one batched predict over
         the held-out frames, per frame, wall time), ``seconds_single_query`` (one frame per call),
         ``cpu_seconds_per_query`` and ``cpu_seconds_single_query`` (the same in CPU time),
         ``tree_seconds_per_frame`` (the analysis' mean wall time of the held-out frames, from
@@ -424,6 +426,7 @@ def _held_out_report(
     learned = np.clip(model.regressor.predict(test_x), 0.0, 1.0)
     capture_labels, learned_capture, tree_capture = [], [], []
     success_labels, learned_success, tree_success = [], [], []
+    future_labels, early_learned, early_tree = [], [], []
     runtimes: list[np.ndarray] = []
     states: list[FrameState] = []
     offset = 0
@@ -442,6 +445,12 @@ def _held_out_report(
         success_labels.append(dataset.success_labels()[trajectories])
         learned_success.append(trajectory_success_score(block[:, :, 1], last=last, scheme="linear"))
         tree_success.append(trajectory_success_score(item.success[trajectories], last=last, scheme="linear"))
+        future_labels.append(dataset.capture_labels(min(2, k - 1))[trajectories].ravel())
+        half = max(1, k // 2)
+        early_learned.append(trajectory_success_score(block[:, :half, 1], last=min(last, half), scheme="linear"))
+        early_tree.append(
+            trajectory_success_score(item.success[trajectories, :half], last=min(last, half), scheme="linear")
+        )
         runtimes.append(item.runtime[trajectories].ravel())
         states.extend(dataset.frame(t, i) for t in trajectories for i in range(k))
     batched, batched_cpu = (
@@ -459,6 +468,14 @@ def _held_out_report(
             "success": {
                 "learned": average_precision(np.concatenate(success_labels), np.concatenate(learned_success)),
                 "tree": average_precision(np.concatenate(success_labels), np.concatenate(tree_success)),
+            },
+            "capture_window2": {
+                "learned": average_precision(np.concatenate(future_labels), np.concatenate(learned_capture)),
+                "tree": average_precision(np.concatenate(future_labels), np.concatenate(tree_capture)),
+            },
+            "success_first_half": {
+                "learned": average_precision(np.concatenate(success_labels), np.concatenate(early_learned)),
+                "tree": average_precision(np.concatenate(success_labels), np.concatenate(early_tree)),
             },
         },
         "success_frames": success_frames,
