@@ -143,6 +143,11 @@ def test_refuses_foreign_task_version_and_files(fitted: tuple[MarginModel, dict]
         np.savez(stream, **arrays)
     with pytest.raises(EnergyMarginError, match="corrupt"):
         load_margin_model(path)
+    # Parameters of another width than the header's feature names.
+    model.save(path)
+    rewrite_header(path, feature_names=["x"] * 5)
+    with pytest.raises(EnergyMarginError, match="corrupt parameters"):
+        load_margin_model(path)
 
 
 def test_features_do_not_depend_on_object_order_or_count(dataset: Dataset) -> None:

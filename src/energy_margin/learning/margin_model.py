@@ -191,8 +191,8 @@ def load_margin_model(path: Path | str, *, task_name: str | None = None) -> Marg
     except (ValueError, TypeError) as error:
         raise EnergyMarginError(f"margin model {path}: corrupt {header['kind']} parameters ({error})") from None
     width = len(header["feature_names"])
-    if regressor.predict(np.zeros((1, width))).shape != (1, 2):
-        raise EnergyMarginError(f"margin model {path}: the parameters do not fit {width} features")
+    if regressor.n_features != width:
+        raise EnergyMarginError(f"margin model {path}: corrupt parameters (they do not fit {width} features)")
     return MarginModel(
         task_name=header["task"],
         task_config=header["task_config"],

@@ -27,6 +27,11 @@ class Regressor(Protocol):
 
     kind: str
 
+    @property
+    def n_features(self) -> int:
+        """Number of features D it was fitted on."""
+        ...
+
     def predict(self, features: np.ndarray) -> np.ndarray:
         """Raw predictions, shape (F, 2), from ``features`` (F, D)."""
         ...
@@ -63,6 +68,11 @@ class MlpRegressor:
         if width != N_OUTPUTS:
             raise ValueError(f"the last layer must have {N_OUTPUTS} outputs, got {width}")
         self.mean, self.scale, self.weights, self.biases = mean, scale, weights, biases
+
+    @property
+    def n_features(self) -> int:
+        """Number of features D."""
+        return int(self.mean.shape[0])
 
     @classmethod
     def from_sklearn(cls, scaler: Any, mlp: Any) -> MlpRegressor:
@@ -106,6 +116,7 @@ class BoostingRegressor:
         right: right child index, same shape (a leaf points to itself).
         value: leaf value (learning rate included), same shape (0 at split nodes).
         depth: largest depth of any tree (traversal steps).
+        n_features: number of features D it was fitted on (every split feature is below it).
     """
 
     kind = "boosting"
@@ -119,6 +130,7 @@ class BoostingRegressor:
         right: np.ndarray,
         value: np.ndarray,
         depth: int,
+        n_features: int,
     ) -> None:
         shape = feature.shape
         if baseline.shape != (N_OUTPUTS,) or len(shape) != 3 or shape[0] != N_OUTPUTS:
@@ -128,8 +140,8 @@ class BoostingRegressor:
                 raise ValueError(f"{name} has shape {array.shape}, expected {shape}")
         if shape[2] and (left.min() < 0 or right.min() < 0 or left.max() >= shape[2] or right.max() >= shape[2]):
             raise ValueError("child indices point outside the node arrays")
-        if feature.min(initial=0) < 0:
-            raise ValueError("split features must be >= 0")
+        if feature.min(initial=0) < 0 or feature.max(initial=0) >= n_features:
+            raise ValueError(f"split features must lie in [0, {n_features})")
         if depth < 0:
             raise ValueError(f"depth must be >= 0, got {depth}")
         self.baseline = baseline
@@ -137,6 +149,12 @@ class BoostingRegressor:
         self.threshold, self.value = threshold, value
         self.left, self.right = left.astype(np.int64), right.astype(np.int64)
         self.depth = int(depth)
+        self._n_features = int(n_features)
+
+    @property
+    def n_features(self) -> int:
+        """Number of features D."""
+        return self._n_features
 
     @classmethod
     def from_sklearn(cls, models: list[Any]) -> BoostingRegressor:
@@ -164,7 +182,7 @@ class BoostingRegressor:
                 value[output, tree, :count] = np.where(leaf, nodes["value"], 0.0)
                 depth = max(depth, int(nodes["depth"].max()))
         baseline = np.array([float(np.ravel(model._baseline_prediction)[0]) for model in models])
-        return cls(baseline, feature, threshold, left, right, value, depth)
+        return cls(baseline, feature, threshold, left, right, value, depth, int(models[0].n_features_in_))
 
     def predict(self, features: np.ndarray) -> np.ndarray:
         """Raw predictions, shape (F, 2)."""
@@ -183,7 +201,7 @@ class BoostingRegressor:
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """``baseline``, ``feature``, ``threshold``, ``left``, ``right``, ``value``, ``depth``."""
+        """``baseline``, ``feature``, ``threshold``, ``left``, ``right``, ``value``, ``depth``, ``n_features``."""
         return {
             "baseline": self.baseline,
             "feature": self.feature,
@@ -192,6 +210,7 @@ class BoostingRegressor:
             "right": self.right,
             "value": self.value,
             "depth": np.array(self.depth),
+            "n_features": np.array(self._n_features),
         }
 
 
@@ -219,6 +238,7 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
                 np.asarray(arrays["right"]),
                 np.asarray(arrays["value"], dtype=float),
                 int(arrays["depth"]),
+                int(arrays["n_features"]),
             )
     except KeyError as error:
         raise ValueError(f"array {error.args[0]!r} is missing") from None
