@@ -22,7 +22,7 @@ def test_wall_clock_budget_is_respected(pushing_state) -> None:
     result = score_state(task, trajectory.initial, budget_s=0.03, seed=1, **options)
     assert result.stopped_by == "budget"
     # Loosely: the deadline passed, then one expansion and the scoring (a shared machine may be slow).
-    assert 0.03 <= result.seconds < 0.03 + 0.5
+    assert 0.03 <= result.seconds < 0.03 + 1.0
     assert result.expansions >= 1 and 0.0 <= result.capture <= 1.0 and 0.0 <= result.success <= 1.0
     capped = score_state(task, trajectory.initial, budget_s=10.0, max_expansions=3, seed=1, **options)
     assert capped.stopped_by == "max_expansions" and capped.expansions == 3 and capped.seconds < 10.0
