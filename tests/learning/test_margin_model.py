@@ -225,3 +225,12 @@ def test_learn_command(analysed: Path, tmp_path: Path, capsys: pytest.CaptureFix
 
 def test_load_training_datasets_checks_scores(analysed: Path) -> None:
     assert [d.path for d in load_training_datasets([analysed])] == [analysed]
+
+
+def test_same_seed_same_model(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+    model, report = fitted
+    again, report_again = fit_margin_model([dataset], seed=0, kind=model.kind, **SMALL[model.kind])
+    frames = frames_of(dataset)
+    for ours, theirs in zip(model.predict(dataset.task, frames), again.predict(dataset.task, frames), strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+    assert report_again["r2"] == report["r2"] and report_again["ap"] == report["ap"]
