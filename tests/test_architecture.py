@@ -28,6 +28,7 @@ STAGES = (
     "analysis",
     "evaluation",
     "robustness",
+    "learning",
     "control",
     "report",
     "cli",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -184,6 +185,23 @@ class ScoresConverged:
         return bool(np.all(spread <= self.tolerance))
 
 
+class _EitherStop:
+    """Stop when ``first`` says so (every call) or ``periodic`` does (every ``period`` expansions)."""
+
+    def __init__(self, first: Callable[[CostField], bool], periodic: Callable[[CostField], bool], period: int) -> None:
+        self.first, self.periodic, self.period = first, periodic, period
+        self.next_check = period
+
+    def __call__(self, field: CostField) -> bool:
+        """Whether growth can stop after ``field.iterations`` expansions."""
+        if self.first(field):
+            return True
+        if field.iterations < self.next_check:
+            return False
+        self.next_check = (field.iterations // self.period + 1) * self.period
+        return self.periodic(field)
+
+
 def analyze_frame(
     task: Task,
     frame: FrameState,
@@ -194,6 +212,8 @@ def analyze_frame(
     config: AnalyzerConfig | None = None,
     start_time: float = 0.0,
     simulator: Simulator | None = None,
+    stop: Callable[[CostField], bool] | None = None,
+    check_every: int | None = None,
 ) -> tuple[FrameScores, CostField]:
     """Grow a tree (``config.method``, EST by default) from ``frame`` and score it.
 
@@ -206,6 +226,11 @@ def analyze_frame(
         config: analysis settings (defaults when ``None``).
         start_time: time of the frame within its roll-out, s.
         simulator: a simulator of the frame's scene, to reuse one across frames.
+        stop: a further early-stopping rule (e.g. a wall-clock deadline), called with the cost
+            field so far every ``check_every`` expansions; growth ends when it or the
+            convergence rule of ``config.converge`` says so (the budget stays the upper bound).
+        check_every: expansions between two calls of ``stop``, >= 1 (``config.converge_every``
+            when ``None``); the convergence rule keeps its own period.
 
     Returns:
         The scores and the energy-cost field.
@@ -216,9 +241,10 @@ def analyze_frame(
         simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
-    stop = None
+    every = config.converge_every if check_every is None or stop is None else check_every
     if config.converge is not None:
-        stop = ScoresConverged(task, frame, lam, tolerance=config.converge, window=config.converge_window)
+        converged = ScoresConverged(task, frame, lam, tolerance=config.converge, window=config.converge_window)
+        stop = converged if stop is None else _EitherStop(stop, converged, config.converge_every)
     field = grow_tree(
         simulator,
         task,
@@ -237,7 +263,7 @@ def analyze_frame(
         rollout_length=config.rollout_length,
         rrt_extent=config.rrt_extent,
         stop=stop,
-        check_every=config.converge_every,
+        check_every=every,
     )
     capture, success = score_field(task, frame, field, lam)
     runtime = time.perf_counter() - started

@@ -1,0 +1,146 @@
+"""Live scoring: the energy margins of one state of a running robot within a latency budget.
+
+:func:`score_state` grows the frame's tree (:func:`~energy_margin.analysis.frame.analyze_frame`,
+the same EST as ``analyze``) until a wall-clock deadline passes or ``max_expansions`` expansions are
+done, and scores what it reached. The deadline is checked after every expansion (after every round
+with ``batch`` > 1), so a call overruns its budget by at most one expansion plus the final scoring
+(a millisecond or so for the built-in tasks).
+
+Determinism: with a wall-clock budget the number of expansions reached depends on the machine and
+its load, so two calls with the same seed may stop at different expansions and return different
+scores; the expansions that are done are the same (the controls are a fixed function of the seed
+and the expansion number), so a call that reaches more expansions extends the other's tree. For a
+reproducible score pass ``budget_s=None`` with ``max_expansions``: growth then stops at exactly that
+many expansions and the scores depend only on the state, the seed and the settings.
+
+The learned path, a fitted regressor's estimate in microseconds, is
+:meth:`energy_margin.learning.margin_model.MarginModel.score_state`; it returns the same
+:class:`LiveScore`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.planning import CostField
+from energy_margin.sim import Simulator
+from energy_margin.tasks import Task
+from energy_margin.world.state import FrameState
+
+#: Default cap on the expansions of one live call (the tree's arrays are sized for it: a larger cap
+#: costs set-up time; raise it for budgets beyond a few tenths of a second).
+MAX_EXPANSIONS = 2_000
+
+
+@dataclass(frozen=True)
+class LiveScore:
+    """The estimate of one live call.
+
+    Attributes:
+        capture: capture score, in [0, 1].
+        success: success score, in [0, 1].
+        expansions: tree expansions reached (accepted or rejected); 0 for the learned path.
+        nodes: tree nodes including the root; 0 for the learned path.
+        seconds: wall time of the call, s (building a simulator included when none was given).
+        stopped_by: ``"budget"`` (the deadline passed), ``"max_expansions"`` (the cap was
+            reached first) or ``"learned"`` (a regressor's estimate, no tree).
+
+    """
+
+    capture: float
+    success: float
+    expansions: int
+    nodes: int
+    seconds: float
+    stopped_by: str
+
+
+class Deadline:
+    """Early-stopping rule of a wall-clock budget: stop once ``time.perf_counter()`` passes ``at``."""
+
+    def __init__(self, at: float) -> None:
+        self.at = at
+        self.reached = False
+
+    def __call__(self, field: CostField) -> bool:
+        """Whether the deadline has passed (the field is not looked at)."""
+        del field
+        self.reached = time.perf_counter() >= self.at
+        return self.reached
+
+
+def score_state(
+    task: Task,
+    state: FrameState,
+    *,
+    friction: float,
+    drive: np.ndarray,
+    budget_s: float | None = 0.05,
+    seed: int = 0,
+    engine: str = "mujoco",
+    max_expansions: int = MAX_EXPANSIONS,
+    start_time: float = 0.0,
+    simulator: Simulator | None = None,
+    config: AnalyzerConfig | None = None,
+) -> LiveScore:
+    """Score one state by growing its tree until ``budget_s`` seconds have passed.
+
+    Args:
+        task: the task.
+        state: the robot's current state.
+        friction: Coulomb coefficient of the scene (the running robot's estimate).
+        drive: the roll-out's drive parameters, shape (n_drive,) (the task's units).
+        budget_s: wall-clock budget of the whole call, s, > 0; ``None`` for no deadline (then
+            ``max_expansions`` alone stops growth, and the result is deterministic).
+        seed: seed of the tree's random perturbations.
+        engine: physics engine (when no ``simulator`` is given).
+        max_expansions: upper bound on the expansions, >= 1.
+        start_time: time of the state on the end-effector's script clock, s.
+        simulator: a simulator of the state's scene to reuse across calls (saves building one,
+            several milliseconds); built from the task when ``None``.
+        config: further analysis settings (cost model, method, projection, lambda, batch); its
+            iteration and node budgets and its engine are replaced by ``max_expansions`` and
+            ``engine``.
+
+    Returns:
+        The scores with the expansions reached and the seconds used.
+
+    Raises:
+        ValueError: a ``budget_s`` that is not > 0, or a ``max_expansions`` below 1.
+
+    """
+    started = time.perf_counter()
+    if budget_s is not None and not (
+        not isinstance(budget_s, bool) and isinstance(budget_s, int | float) and np.isfinite(budget_s) and budget_s > 0
+    ):
+        raise ValueError(f"budget_s must be a number of seconds > 0 or None, got {budget_s!r}")
+    if isinstance(max_expansions, bool) or not isinstance(max_expansions, int | np.integer) or max_expansions < 1:
+        raise ValueError(f"max_expansions must be an integer >= 1, got {max_expansions!r}")
+    base = config if config is not None else AnalyzerConfig()
+    settings = dataclasses.replace(base, iterations=int(max_expansions), nodes=None, engine=engine)
+    deadline = Deadline(started + budget_s) if budget_s is not None else None
+    scores, _ = analyze_frame(
+        task,
+        state,
+        friction=friction,
+        drive=drive,
+        seed=seed,
+        config=settings,
+        start_time=start_time,
+        simulator=simulator,
+        stop=deadline,
+        check_every=1,
+    )
+    return LiveScore(
+        capture=scores.capture_score,
+        success=scores.success_score,
+        expansions=scores.iterations,
+        nodes=scores.nodes,
+        seconds=time.perf_counter() - started,
+        stopped_by="budget" if deadline is not None and deadline.reached else "max_expansions",
+    )

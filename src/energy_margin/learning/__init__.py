@@ -1,0 +1,1 @@
+"""Learned energy margins: frame features and a small regressor fitted to analysed scores."""

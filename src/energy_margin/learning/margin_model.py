@@ -1,0 +1,525 @@
+"""A learned margin: a small regressor from frame features to the analysed capture and success scores.
+
+:func:`fit_margin_model` fits one (an MLP or gradient-boosted trees, scikit-learn) to the scores of
+analysed datasets of one task, holding out whole trajectories, and reports how close it comes on
+them: R² of both scores, and the Average Precision of the learned scores against the labels beside
+that of the tree's scores on the same frames. :class:`MarginModel` predicts both scores of many
+frames in one vectorised call; :meth:`MarginModel.score_state` is the learned path of live scoring
+(:mod:`energy_margin.analysis.live`).
+
+A saved model is one ``.npz`` archive read with ``allow_pickle=False``: the regressor's parameters
+as arrays and a JSON header (format, schema version, package version, task name and configuration,
+feature definition and names, regressor kind, the fit's report). Loading checks the header before
+any array is used, and refuses a model of another task, another package version or another
+feature definition with one line.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin import __version__
+from energy_margin.analysis.live import LiveScore
+from energy_margin.analysis.scores import trajectory_success_score
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.io import atomic_path
+from energy_margin.data.scores_file import load_scores
+from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.metrics import average_precision, score_grid
+from energy_margin.learning.features import FrameFeatures
+from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
+from energy_margin.tasks import Task, get_recorded_task
+from energy_margin.world.state import FrameState
+
+#: ``format`` of a saved model's header.
+FORMAT = "energy-margin-margin-model"
+#: Version of the saved layout.
+SCHEMA_VERSION = 1
+#: Regressor kinds :func:`fit_margin_model` fits.
+KINDS = ("mlp", "boosting")
+_HEADER = "header"
+_PREFIX = "regressor."
+
+
+@dataclass
+class MarginModel:
+    """A fitted learned margin of one task.
+
+    Attributes:
+        task_name: the task it was fitted on, e.g. ``"pushing"``.
+        task_config: that task's resolved configuration (as in ``dataset.json``).
+        feature_set: the feature definition, ``name/version`` (e.g. ``"frame-statistics/1"``).
+        package_version: the energy-margin version that fitted it.
+        kind: regressor kind, ``"mlp"`` or ``"boosting"``.
+        feature_names: name of every feature column, shape (D,).
+        regressor: the fitted parameters and their prediction.
+        report: what :func:`fit_margin_model` measured (JSON-compatible).
+
+    """
+
+    task_name: str
+    task_config: dict[str, Any]
+    feature_set: str
+    package_version: str
+    kind: str
+    feature_names: tuple[str, ...]
+    regressor: Regressor
+    report: dict[str, Any] = field(default_factory=dict)
+    _features: dict[int, tuple[Task, FrameFeatures]] = field(default_factory=dict, init=False, repr=False)
+
+    @property
+    def task(self) -> Task:
+        """The task it was fitted on, with its configuration."""
+        return get_recorded_task(self.task_name, self.task_config)
+
+    def features(self, task: Task) -> FrameFeatures:
+        """The feature definition bound to ``task`` (built once per task object).
+
+        Raises:
+            EnergyMarginError: ``task`` is another task than the model's, or its features differ.
+        """
+        cached = self._features.get(id(task))
+        if cached is not None and cached[0] is task:
+            return cached[1]
+        if task.name != self.task_name:
+            raise EnergyMarginError(f"this margin model was fitted on task {self.task_name!r}, not {task.name!r}")
+        features = FrameFeatures(task)
+        if features.identifier != self.feature_set or features.names != self.feature_names:
+            raise EnergyMarginError(
+                f"this margin model uses features {self.feature_set!r} of {len(self.feature_names)} columns; "
+                f"{task.label} gives {features.identifier!r} of {features.dimension}"
+            )
+        if len(self._features) >= 8:
+            self._features.clear()
+        self._features[id(task)] = (task, features)
+        return features
+
+    def predict(self, task: Task, frames: Sequence[FrameState]) -> tuple[np.ndarray, np.ndarray]:
+        """Learned capture and success scores of ``frames``, each shape (F,), in [0, 1].
+
+        One call computes the features of every frame and runs the regressor once on all of
+        them; frames may hold any number of objects.
+
+        Raises:
+            EnergyMarginError: ``task`` is not the model's task.
+            ValueError: no frames, or a frame whose end-effector size is not the task's.
+        """
+        raw = self.regressor.predict(self.features(task)(frames))
+        scores = np.clip(raw, 0.0, 1.0)
+        return scores[:, 0].copy(), scores[:, 1].copy()
+
+    def score_state(self, task: Task, state: FrameState) -> LiveScore:
+        """The learned path of live scoring: both scores of one state, with the seconds it took.
+
+        The counterpart of :func:`energy_margin.analysis.live.score_state` (which grows a tree);
+        the result has ``expansions`` 0 and ``stopped_by`` ``"learned"``.
+        """
+        started = time.perf_counter()
+        capture, success = self.predict(task, [state])
+        return LiveScore(
+            capture=float(capture[0]),
+            success=float(success[0]),
+            expansions=0,
+            nodes=0,
+            seconds=time.perf_counter() - started,
+            stopped_by="learned",
+        )
+
+    def header(self) -> dict[str, Any]:
+        """The JSON header of the saved file."""
+        return {
+            "format": FORMAT,
+            "schema_version": SCHEMA_VERSION,
+            "package_version": self.package_version,
+            "task": self.task_name,
+            "task_config": self.task_config,
+            "feature_set": self.feature_set,
+            "feature_names": list(self.feature_names),
+            "kind": self.kind,
+            "report": self.report,
+        }
+
+    def save(self, path: Path | str) -> None:
+        """Write the model to ``path`` (an ``.npz`` archive, whatever its name), atomically."""
+        path = Path(path)
+        if path.is_dir():
+            raise EnergyMarginError(f"{path} is a directory; give a model file name, e.g. model.npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        header = np.frombuffer(json.dumps(self.header(), sort_keys=True).encode("utf-8"), dtype=np.uint8)
+        arrays = {f"{_PREFIX}{name}": value for name, value in self.regressor.arrays().items()}
+        with atomic_path(path) as temporary, temporary.open("wb") as stream:
+            np.savez_compressed(stream, allow_pickle=False, **{_HEADER: header}, **arrays)
+
+
+def load_margin_model(path: Path | str, *, task_name: str | None = None) -> MarginModel:
+    """Read a model saved by :meth:`MarginModel.save`.
+
+    Args:
+        path: the model file.
+        task_name: the task the caller scores; a model of another task is refused.
+
+    Raises:
+        EnergyMarginError: a missing, corrupt or foreign file, a model of another task, of another
+            package version or of another feature definition (one line each).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise EnergyMarginError(f"margin model {path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            contents = {name: archive[name] for name in archive.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as error:
+        raise EnergyMarginError(f"margin model {path}: not a margin model file ({_one_line(error)})") from None
+    if _HEADER not in contents:
+        raise EnergyMarginError(f"margin model {path}: not a margin model file (no header)")
+    try:
+        header = json.loads(contents[_HEADER].astype(np.uint8).tobytes().decode("utf-8"))
+    except (ValueError, UnicodeDecodeError):
+        raise EnergyMarginError(f"margin model {path}: the header is not valid JSON") from None
+    _check_header(path, header, task_name)
+    arrays = {name[len(_PREFIX) :]: value for name, value in contents.items() if name.startswith(_PREFIX)}
+    try:
+        regressor = regressor_from_arrays(header["kind"], arrays)
+    except (ValueError, TypeError) as error:
+        raise EnergyMarginError(f"margin model {path}: corrupt {header['kind']} parameters ({error})") from None
+    width = len(header["feature_names"])
+    if regressor.n_features != width:
+        raise EnergyMarginError(f"margin model {path}: corrupt parameters (they do not fit {width} features)")
+    return MarginModel(
+        task_name=header["task"],
+        task_config=header["task_config"],
+        feature_set=header["feature_set"],
+        package_version=header["package_version"],
+        kind=header["kind"],
+        feature_names=tuple(header["feature_names"]),
+        regressor=regressor,
+        report=header.get("report", {}),
+    )
+
+
+def _check_header(path: Path, header: Any, task_name: str | None) -> None:
+    """Refuse a header of another format, version, task or feature definition."""
+    where = f"margin model {path}"
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        raise EnergyMarginError(f"{where}: not a margin model file")
+    if header.get("schema_version") != SCHEMA_VERSION:
+        raise EnergyMarginError(
+            f"{where}: schema version {header.get('schema_version')!r} is not supported (this version reads "
+            f"{SCHEMA_VERSION})"
+        )
+    if header.get("package_version") != __version__:
+        raise EnergyMarginError(
+            f"{where} was fitted by energy-margin {header.get('package_version')!r}, this is {__version__}: "
+            "fit it again with `energy-margin learn`"
+        )
+    required = {"task": str, "task_config": dict, "feature_set": str, "feature_names": list, "kind": str}
+    for key, kind in required.items():
+        if not isinstance(header.get(key), kind):
+            raise EnergyMarginError(f"{where}: header field {key!r} is missing or not a {kind.__name__}")
+    if task_name is not None and header["task"] != task_name:
+        raise EnergyMarginError(f"{where} is a model of task {header['task']!r}, not {task_name!r}")
+    if header["feature_set"] != f"{FrameFeatures.name}/{FrameFeatures.version}":
+        raise EnergyMarginError(
+            f"{where} uses features {header['feature_set']!r}; this version computes "
+            f"{FrameFeatures.name}/{FrameFeatures.version}"
+        )
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """The frames of one analysed dataset with their features and scores, trajectory-major."""
+
+    dataset: Dataset
+    features: np.ndarray  # (T * K, D)
+    capture: np.ndarray  # (T, K) tree capture scores
+    success: np.ndarray  # (T, K) tree success scores
+    runtime: np.ndarray  # (T, K) tree seconds per frame
+
+
+def check_same_task(datasets: Sequence[Dataset]) -> None:
+    """Refuse no datasets, or datasets of different tasks or task settings (one line).
+
+    Raises:
+        EnergyMarginError: as above.
+    """
+    if not datasets:
+        raise EnergyMarginError("give at least one analysed dataset")
+    first = datasets[0]
+    for other in datasets[1:]:
+        if other.metadata["task"] != first.metadata["task"]:
+            raise EnergyMarginError(
+                f"datasets {first.path} and {other.path} are of different tasks "
+                f"({first.metadata['task']!r} and {other.metadata['task']!r}): a margin model is fitted on one task"
+            )
+        if other.task.config.to_dict() != first.task.config.to_dict():
+            a, b = first.task.config.to_dict(), other.task.config.to_dict()
+            key = next(k for k in a if a[k] != b.get(k))
+            raise EnergyMarginError(
+                f"datasets {first.path} and {other.path} were generated with different {first.metadata['task']} "
+                f"settings ({key}: {a[key]!r} and {b.get(key)!r})"
+            )
+
+
+def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
+    """Features and scores of every frame of analysed ``datasets`` (one task, one configuration).
+
+    Raises:
+        EnergyMarginError: no datasets, datasets of different tasks or settings, or one without
+            ``scores.csv``.
+    """
+    check_same_task(datasets)
+    first = datasets[0]
+    task = first.task
+    features = FrameFeatures(task)
+    frames = []
+    for dataset in datasets:
+        if dataset.path is None:
+            raise EnergyMarginError("a dataset read from disk is needed (its scores.csv sits beside it)")
+        scores = load_scores(dataset.path)
+        states = [
+            dataset.frame(trajectory, index)
+            for trajectory in range(dataset.n_trajectories)
+            for index in range(dataset.n_frames)
+        ]
+        frames.append(
+            _Frames(
+                dataset=dataset,
+                features=features(states),
+                capture=score_grid(dataset, scores, "capture_score"),
+                success=score_grid(dataset, scores, "success_score"),
+                runtime=score_grid(dataset, scores, "runtime_s"),
+            )
+        )
+    return frames
+
+
+def fit_margin_model(
+    datasets: Sequence[Dataset],
+    *,
+    seed: int,
+    kind: str = "mlp",
+    holdout: float = 0.25,
+    success_frames: int = 3,
+    **options: Any,
+) -> tuple[MarginModel, dict[str, Any]]:
+    """Fit a learned margin to analysed datasets of one task and measure it on held-out trajectories.
+
+    Args:
+        datasets: analysed datasets (``load_dataset``; each with ``scores.csv`` beside it), one
+            task and one task configuration; their numbers of objects may differ.
+        seed: seed of the split and of the regressor.
+        kind: ``"mlp"`` (a ReLU perceptron) or ``"boosting"`` (gradient-boosted trees).
+        holdout: fraction of the trajectories (whole trajectories, never single frames) held out
+            for the report, in (0, 1); at least one trajectory is held out and one kept.
+        success_frames: k-bar of the trajectory success AP (as in ``evaluate``), >= 1.
+        options: regressor settings (:func:`energy_margin.learning.regressors.fit_regressor`).
+
+    Returns:
+        The model (fitted on the kept trajectories) and its report: ``r2`` of ``capture`` and
+        ``success`` on the held-out frames; ``ap``: ``capture`` (per frame, labels at k-hat 0),
+        ``capture_window2`` (labels at k-hat 2: the objects stay captured two more frames),
+        ``success`` (per trajectory, from the last ``success_frames`` frames) and
+        ``success_first_half`` (from the first half of the frames only), each ``learned`` beside
+        ``tree`` (the analysed scores of the same frames), as ``evaluate`` asks them;
+        ``n_trajectories`` and ``n_frames`` (``train``, ``held_out``); ``seconds_per_query`` (one batched predict over
+        the held-out frames, per frame, wall time), ``seconds_single_query`` (one frame per call),
+        ``cpu_seconds_per_query`` and ``cpu_seconds_single_query`` (the same in CPU time),
+        ``tree_seconds_per_frame`` (the analysis' mean wall time of the held-out frames, from
+        ``scores.csv``), ``speedup`` and ``speedup_single_query`` (tree over learned wall time);
+        ``fit_seconds``.
+
+    Raises:
+        EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
+        ValueError: a bad ``kind``, ``holdout`` or ``success_frames``.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    if not (isinstance(holdout, float | int) and not isinstance(holdout, bool) and 0.0 < holdout < 1.0):
+        raise ValueError(f"holdout must be a fraction in (0, 1), got {holdout!r}")
+    if isinstance(success_frames, bool) or not isinstance(success_frames, int) or success_frames < 1:
+        raise ValueError(f"success_frames must be an integer >= 1, got {success_frames!r}")
+    frames = training_frames(datasets)
+    groups = [(d, t) for d, item in enumerate(frames) for t in range(item.dataset.n_trajectories)]
+    if len(groups) < 2:
+        raise EnergyMarginError("a margin model needs at least 2 trajectories (one is held out)")
+    order = np.random.default_rng(seed).permutation(len(groups))
+    n_held = min(len(groups) - 1, max(1, round(holdout * len(groups))))
+    held = {groups[i] for i in order[:n_held]}
+
+    def select(is_held: bool) -> tuple[np.ndarray, np.ndarray]:
+        rows, targets = [], []
+        for d, item in enumerate(frames):
+            k = item.dataset.n_frames
+            for t in range(item.dataset.n_trajectories):
+                if ((d, t) in held) == is_held:
+                    rows.append(item.features[t * k : (t + 1) * k])
+                    targets.append(np.stack([item.capture[t], item.success[t]], axis=1))
+        return np.concatenate(rows), np.concatenate(targets)
+
+    train_x, train_y = select(False)
+    test_x, test_y = select(True)
+    started = time.perf_counter()
+    regressor = fit_regressor(kind, train_x, train_y, seed=seed, **options)
+    fit_seconds = time.perf_counter() - started
+    task = frames[0].dataset.task
+    definition = FrameFeatures(task)
+    model = MarginModel(
+        task_name=task.name,
+        task_config=task.config.to_dict(),
+        feature_set=definition.identifier,
+        package_version=__version__,
+        kind=kind,
+        feature_names=definition.names,
+        regressor=regressor,
+    )
+    report = _held_out_report(model, frames, held, test_x, test_y, success_frames=success_frames)
+    report.update(
+        {
+            "task": task.name,
+            "kind": kind,
+            "seed": seed,
+            "holdout": float(holdout),
+            "feature_set": definition.identifier,
+            "n_features": definition.dimension,
+            "n_trajectories": {"train": len(groups) - n_held, "held_out": n_held},
+            "n_frames": {"train": int(train_x.shape[0]), "held_out": int(test_x.shape[0])},
+            "fit_seconds": fit_seconds,
+            "datasets": [str(item.dataset.path) for item in frames],
+        }
+    )
+    model.report = report
+    return model, report
+
+
+def _r2(truth: np.ndarray, predicted: np.ndarray) -> float | None:
+    """Coefficient of determination, or ``None`` when the truth is constant (variance below 1e-12)."""
+    from sklearn.metrics import r2_score
+
+    if float(np.var(truth)) < 1e-12:
+        return None
+    return float(r2_score(truth, predicted))
+
+
+def _held_out_report(
+    model: MarginModel,
+    frames: list[_Frames],
+    held: set[tuple[int, int]],
+    test_x: np.ndarray,
+    test_y: np.ndarray,
+    *,
+    success_frames: int,
+) -> dict[str, Any]:
+    """R², AP beside the tree's AP, and the time per query on the held-out trajectories."""
+    task = frames[0].dataset.task
+    learned = np.clip(model.regressor.predict(test_x), 0.0, 1.0)
+    capture_labels, learned_capture, tree_capture = [], [], []
+    success_labels, learned_success, tree_success = [], [], []
+    future_labels, early_learned, early_tree = [], [], []
+    runtimes: list[np.ndarray] = []
+    states: list[FrameState] = []
+    offset = 0
+    for d, item in enumerate(frames):
+        dataset, k = item.dataset, item.dataset.n_frames
+        labels = dataset.capture_labels(0)
+        trajectories = [t for t in range(dataset.n_trajectories) if (d, t) in held]
+        if not trajectories:
+            continue
+        block = learned[offset : offset + len(trajectories) * k].reshape(len(trajectories), k, 2)
+        offset += len(trajectories) * k
+        capture_labels.append(labels[trajectories].ravel())
+        learned_capture.append(block[:, :, 0].ravel())
+        tree_capture.append(item.capture[trajectories].ravel())
+        last = min(success_frames, k)
+        success_labels.append(dataset.success_labels()[trajectories])
+        learned_success.append(trajectory_success_score(block[:, :, 1], last=last, scheme="linear"))
+        tree_success.append(trajectory_success_score(item.success[trajectories], last=last, scheme="linear"))
+        future_labels.append(dataset.capture_labels(min(2, k - 1))[trajectories].ravel())
+        half = max(1, k // 2)
+        early_learned.append(trajectory_success_score(block[:, :half, 1], last=min(last, half), scheme="linear"))
+        early_tree.append(
+            trajectory_success_score(item.success[trajectories, :half], last=min(last, half), scheme="linear")
+        )
+        runtimes.append(item.runtime[trajectories].ravel())
+        states.extend(dataset.frame(t, i) for t in trajectories for i in range(k))
+    batched, batched_cpu = (
+        value / len(states) for value in _seconds_per_call(lambda: model.predict(task, states), repeats=5)
+    )
+    single, single_cpu = _seconds_per_call(lambda: model.predict(task, states[:1]), repeats=50)
+    tree_seconds = float(np.concatenate(runtimes).mean())
+    return {
+        "r2": {"capture": _r2(test_y[:, 0], learned[:, 0]), "success": _r2(test_y[:, 1], learned[:, 1])},
+        "ap": {
+            "capture": {
+                "learned": average_precision(np.concatenate(capture_labels), np.concatenate(learned_capture)),
+                "tree": average_precision(np.concatenate(capture_labels), np.concatenate(tree_capture)),
+            },
+            "success": {
+                "learned": average_precision(np.concatenate(success_labels), np.concatenate(learned_success)),
+                "tree": average_precision(np.concatenate(success_labels), np.concatenate(tree_success)),
+            },
+            "capture_window2": {
+                "learned": average_precision(np.concatenate(future_labels), np.concatenate(learned_capture)),
+                "tree": average_precision(np.concatenate(future_labels), np.concatenate(tree_capture)),
+            },
+            "success_first_half": {
+                "learned": average_precision(np.concatenate(success_labels), np.concatenate(early_learned)),
+                "tree": average_precision(np.concatenate(success_labels), np.concatenate(early_tree)),
+            },
+        },
+        "success_frames": success_frames,
+        "capture_positive_rate": float(np.concatenate(capture_labels).mean()),
+        "success_positive_rate": float(np.concatenate(success_labels).mean()),
+        "seconds_per_query": batched,
+        "seconds_single_query": single,
+        "cpu_seconds_per_query": batched_cpu,
+        "cpu_seconds_single_query": single_cpu,
+        "tree_seconds_per_frame": tree_seconds,
+        "speedup": tree_seconds / batched if batched > 0 else None,
+        "speedup_single_query": tree_seconds / single if single > 0 else None,
+    }
+
+
+def _seconds_per_call(call: Any, *, repeats: int) -> tuple[float, float]:
+    """Median wall time and median CPU time of this process of ``call()`` over ``repeats`` calls, s.
+
+    One warm-up call comes first. On a busy machine the wall time of a long call includes the
+    time the process waits for a core; the CPU time does not.
+    """
+    call()
+    wall, cpu = [], []
+    for _ in range(repeats):
+        tick, cpu_tick = time.perf_counter(), time.process_time()
+        call()
+        wall.append(time.perf_counter() - tick)
+        cpu.append(time.process_time() - cpu_tick)
+    return float(np.median(wall)), float(np.median(cpu))
+
+
+def load_training_datasets(paths: Sequence[Path | str]) -> list[Dataset]:
+    """Load analysed datasets of one task for :func:`fit_margin_model`.
+
+    Raises:
+        EnergyMarginError: a dataset with a problem (its ``scores.csv`` included), datasets of
+            different tasks, or one without ``scores.csv`` (one line).
+    """
+    from energy_margin.data.validation import require_valid
+
+    if not paths:
+        raise EnergyMarginError("give at least one analysed dataset")
+    datasets = [require_valid(path, overlaps=False, scores=None) for path in paths]
+    check_same_task(datasets)
+    for path in paths:
+        require_valid(path, overlaps=False, scores=True)
+    return datasets

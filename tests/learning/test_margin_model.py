@@ -1,0 +1,236 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin import __version__
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.run import analyze
+from energy_margin.cli import main
+from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.errors import EnergyMarginError
+from energy_margin.learning.features import FrameFeatures
+from energy_margin.learning.margin_model import (
+    MarginModel,
+    fit_margin_model,
+    load_margin_model,
+    load_training_datasets,
+)
+from energy_margin.learning.regressors import BoostingRegressor, MlpRegressor
+from energy_margin.world.state import FrameState
+
+# Tiny regressors: the tests check the mechanism, not the fit (which then stops before converging).
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+SMALL = {"mlp": {"hidden": (8,), "max_iter": 40}, "boosting": {"max_iter": 8}}
+
+
+@pytest.fixture(scope="module")
+def analysed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A pushing dataset of 3 objects, 6 trajectories x 3 frames, analysed with 8 expansions per frame."""
+    out = tmp_path_factory.mktemp("learn") / "push3"
+    generate_dataset("pushing", out=out, n_objects=3, n_trajectories=6, n_frames=3, seed=2)
+    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def dataset(analysed: Path) -> Dataset:
+    return load_dataset(analysed)
+
+
+@pytest.fixture(scope="module", params=["mlp", "boosting"])
+def fitted(request: pytest.FixtureRequest, dataset: Dataset) -> tuple[MarginModel, dict]:
+    return fit_margin_model([dataset], seed=0, kind=request.param, **SMALL[request.param])
+
+
+def frames_of(dataset: Dataset) -> list[FrameState]:
+    return [dataset.frame(t, k) for t in range(dataset.n_trajectories) for k in range(dataset.n_frames)]
+
+
+def test_predict_shapes_range_and_batching(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+    model, _ = fitted
+    frames = frames_of(dataset)
+    capture, success = model.predict(dataset.task, frames)
+    assert capture.shape == success.shape == (len(frames),)
+    assert np.all((capture >= 0) & (capture <= 1)) and np.all((success >= 0) & (success <= 1))
+    # One vectorised call gives what one call per frame gives.
+    single = np.array([np.concatenate(model.predict(dataset.task, [frame])) for frame in frames])
+    np.testing.assert_allclose(single, np.stack([capture, success], axis=1), rtol=0, atol=1e-12)
+    live = model.score_state(dataset.task, frames[4])
+    assert (live.capture, live.success) == pytest.approx((capture[4], success[4]), abs=1e-12)
+    assert live.stopped_by == "learned" and live.expansions == 0 and live.seconds > 0
+
+
+def test_report_splits_by_trajectory(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+    _, report = fitted
+    assert report["n_trajectories"] == {"train": 4, "held_out": 2}
+    assert report["n_frames"] == {"train": 4 * dataset.n_frames, "held_out": 2 * dataset.n_frames}
+    assert set(report["r2"]) == {"capture", "success"}
+    for question in ("capture", "capture_window2", "success", "success_first_half"):
+        assert set(report["ap"][question]) == {"learned", "tree"}
+    assert report["seconds_per_query"] > 0 and report["tree_seconds_per_frame"] > 0
+    assert report["speedup"] == pytest.approx(report["tree_seconds_per_frame"] / report["seconds_per_query"])
+    assert report["feature_set"] == "frame-statistics/1"
+
+
+def test_save_load_round_trip_predicts_identically(
+    fitted: tuple[MarginModel, dict], dataset: Dataset, tmp_path: Path
+) -> None:
+    model, report = fitted
+    path = tmp_path / "model"  # no .npz suffix: the file keeps the given name
+    model.save(path)
+    assert path.is_file() and not list(tmp_path.glob(".*"))
+    loaded = load_margin_model(path, task_name="pushing")
+    frames = frames_of(dataset)
+    for ours, theirs in zip(model.predict(dataset.task, frames), loaded.predict(dataset.task, frames), strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+    assert (loaded.task_name, loaded.kind, loaded.package_version) == ("pushing", model.kind, __version__)
+    assert loaded.task.config == dataset.task.config
+    assert loaded.report["r2"] == json.loads(json.dumps(report["r2"]))
+
+
+def rewrite_header(path: Path, **changes: object) -> None:
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    header = json.loads(arrays["header"].tobytes())
+    header.update(changes)
+    arrays["header"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+    with path.open("wb") as stream:
+        np.savez(stream, **arrays)
+
+
+def test_refuses_foreign_task_version_and_files(fitted: tuple[MarginModel, dict], tmp_path: Path) -> None:
+    model, _ = fitted
+    path = tmp_path / "model.npz"
+    model.save(path)
+    with pytest.raises(EnergyMarginError, match="is a model of task 'pushing', not 'scooping'"):
+        load_margin_model(path, task_name="scooping")
+    from energy_margin.tasks import get_task
+
+    with pytest.raises(EnergyMarginError, match="fitted on task 'pushing', not 'scooping'"):
+        model.predict(get_task("scooping"), [])
+    rewrite_header(path, package_version="0.0.1")
+    with pytest.raises(EnergyMarginError, match=r"fitted by energy-margin '0.0.1', this is .*learn") as error:
+        load_margin_model(path)
+    assert "\n" not in str(error.value)
+    model.save(path)
+    rewrite_header(path, feature_set="frame-statistics/0")
+    with pytest.raises(EnergyMarginError, match="uses features 'frame-statistics/0'"):
+        load_margin_model(path)
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not an archive at all")
+    with pytest.raises(EnergyMarginError, match="not a margin model file"):
+        load_margin_model(garbage)
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, weights=np.ones(3))
+    with pytest.raises(EnergyMarginError, match=r"not a margin model file \(no header\)"):
+        load_margin_model(foreign)
+    pickled = tmp_path / "pickled.npz"
+    np.savez(pickled, header=np.array([{"a": 1}], dtype=object))
+    with pytest.raises(EnergyMarginError, match="not a margin model file"):
+        load_margin_model(pickled)
+    with pytest.raises(EnergyMarginError, match="does not exist"):
+        load_margin_model(tmp_path / "missing.npz")
+    model.save(path)
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    arrays = {name: value for name, value in arrays.items() if not name.endswith("_0") and name != "regressor.depth"}
+    with path.open("wb") as stream:
+        np.savez(stream, **arrays)
+    with pytest.raises(EnergyMarginError, match="corrupt"):
+        load_margin_model(path)
+    # Parameters of another width than the header's feature names.
+    model.save(path)
+    rewrite_header(path, feature_names=["x"] * 5)
+    with pytest.raises(EnergyMarginError, match="corrupt parameters"):
+        load_margin_model(path)
+
+
+def test_features_do_not_depend_on_object_order_or_count(dataset: Dataset) -> None:
+    features = FrameFeatures(dataset.task)
+    frame = dataset.frame(1, 1)
+    order = np.array([2, 0, 1])
+    shuffled = FrameState(
+        frame.object_pos[order], frame.object_quat[order], frame.object_vel[order], frame.robot_q, frame.robot_v
+    )
+    np.testing.assert_allclose(features([shuffled]), features([frame]), rtol=1e-12, atol=1e-12)
+    fewer = FrameState(frame.object_pos[:2], frame.object_quat[:2], frame.object_vel[:2], frame.robot_q, frame.robot_v)
+    both = features([frame, fewer])
+    assert both.shape == (2, features.dimension) == (2, len(features.names))
+    assert both[1, features.names.index("n_objects")] == 2
+    np.testing.assert_array_equal(both[0], features([frame])[0])
+    # The pusher's anchor: its x and y are robot_q's first two coordinates.
+    dx = features.names.index("dx_mean")
+    assert both[0, dx] == pytest.approx(float(np.mean(frame.object_pos[:, 0] - frame.robot_q[0])))
+
+
+def test_exported_regressors_match_scikit_learn() -> None:
+    from sklearn.ensemble import HistGradientBoostingRegressor
+    from sklearn.neural_network import MLPRegressor
+    from sklearn.preprocessing import StandardScaler
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(60, 5))
+    y = np.stack([np.sin(x[:, 0]), x[:, 1] > 0], axis=1).astype(float)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):  # an oversubscribed OpenMP pool is slow on a shared machine
+        models = [HistGradientBoostingRegressor(max_iter=12, random_state=0).fit(x, y[:, i]) for i in range(2)]
+    boosting = BoostingRegressor.from_sklearn(models)
+    expected = np.stack([model.predict(x) for model in models], axis=1)
+    np.testing.assert_allclose(boosting.predict(x), expected, rtol=0, atol=1e-12)
+    scaler = StandardScaler().fit(x)
+    mlp = MLPRegressor(hidden_layer_sizes=(7, 5), max_iter=30, random_state=0).fit(scaler.transform(x), y)
+    np.testing.assert_allclose(
+        MlpRegressor.from_sklearn(scaler, mlp).predict(x), mlp.predict(scaler.transform(x)), rtol=0, atol=1e-12
+    )
+
+
+def test_fit_validates_its_arguments(dataset: Dataset) -> None:
+    with pytest.raises(ValueError, match="kind"):
+        fit_margin_model([dataset], seed=0, kind="forest")
+    with pytest.raises(ValueError, match="holdout"):
+        fit_margin_model([dataset], seed=0, holdout=1.0)
+    with pytest.raises(EnergyMarginError, match="at least one"):
+        fit_margin_model([], seed=0)
+
+
+def test_learn_command(analysed: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "push.npz"
+    assert main(["learn", str(analysed), "--out", str(out), "--kind", "boosting", "--seed", "1", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["kind"] == "boosting" and report["seed"] == 1 and report["out"] == str(out)
+    assert load_margin_model(out, task_name="pushing").kind == "boosting"
+    # An existing model is kept unless --overwrite.
+    assert main(["learn", str(analysed), "--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert main(["learn", str(analysed), "--out", str(out), "--overwrite"]) == 0
+    text = capsys.readouterr().out
+    assert "held-out R²" in text and "learned  tree" in text and "k-hat=2" in text and "per query" in text
+    # A dataset of another task, and one without scores, are refused with one line.
+    scoop = tmp_path / "scoop"
+    generate_dataset("scooping", out=scoop, n_objects=2, n_trajectories=1, n_frames=2, seed=0)
+    assert main(["learn", str(analysed), str(scoop), "--out", str(tmp_path / "m.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "different tasks" in err and err.count("\n") == 1
+    assert main(["learn", str(scoop), "--out", str(tmp_path / "m.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "scores.csv" in err and "analyze" in err and err.count("\n") == 1
+    assert not (tmp_path / "m.npz").exists()
+
+
+def test_load_training_datasets_checks_scores(analysed: Path) -> None:
+    assert [d.path for d in load_training_datasets([analysed])] == [analysed]
+
+
+def test_same_seed_same_model(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+    model, report = fitted
+    again, report_again = fit_margin_model([dataset], seed=0, kind=model.kind, **SMALL[model.kind])
+    frames = frames_of(dataset)
+    for ours, theirs in zip(model.predict(dataset.task, frames), again.predict(dataset.task, frames), strict=True):
+        np.testing.assert_array_equal(ours, theirs)
+    assert report_again["r2"] == report["r2"] and report_again["ap"] == report["ap"]
