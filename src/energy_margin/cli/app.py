@@ -27,6 +27,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    sweep,
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
@@ -43,6 +44,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    sweep,
     view,
     render,
     reproduce,
