@@ -545,25 +545,56 @@ def design_sweep(
     write_json(out / SETTINGS_FILE, settings)
     rows: list[dict[str, Any]] = []
     outcomes: list[DesignOutcome] = []
+    failed: list[dict[str, Any]] = []
+    results = summarize(settings, rows, outcomes, counts, seed=seed, bootstrap=bootstrap, subsets=subsets)
     for number, design in enumerate(designs, start=1):
         started = time.perf_counter()
         directory = out / DESIGNS_DIR / design.slug
         finished = (directory / SCORES_FILE).is_file()
-        _generate(task, design, directory, settings, progress=progress)
-        analyze(directory, analyzer, seed=seed, workers=workers, progress=progress)
-        outcome = design_outcome(load_dataset(directory), load_scores(directory))
-        row = design_row(design, outcome)
-        rows.append(row)
-        outcomes.append(outcome)
+        prefix = f"sweep [{number}/{len(designs)}] {design.label}"
+        try:
+            _generate(task, design, directory, settings, progress=progress)
+            analyze(directory, analyzer, seed=seed, workers=workers, progress=progress)
+        except EnergyMarginError as error:
+            # A design whose roll-outs cannot be generated or analysed (e.g. a blade angle that
+            # drives the boxes into the gripper) is reported as such; the sweep goes on.
+            failed.append(failed_row(design, directory, str(error)))
+            say(f"{prefix}: not analysed: {error}")
+        else:
+            outcome = design_outcome(load_dataset(directory), load_scores(directory))
+            row = design_row(design, outcome)
+            rows.append(row)
+            outcomes.append(outcome)
+            say(
+                f"{prefix}: success {row['successes']}/{row['trajectories']} "
+                f"[{row['success_rate_low']:.2f}, {row['success_rate_high']:.2f}], early success score "
+                f"{row['early_success_score']:.3f}, capture score {row['capture_score']:.3f} "
+                + ("(already analysed)" if finished else f"({time.perf_counter() - started:.0f} s)")
+            )
         results = summarize(settings, rows, outcomes, counts, seed=seed, bootstrap=bootstrap, subsets=subsets)
+        results["failed"] = failed
         write_results(out, results)
-        say(
-            f"sweep [{number}/{len(designs)}] {design.label}: success {row['successes']}/{row['trajectories']} "
-            f"[{row['success_rate_low']:.2f}, {row['success_rate_high']:.2f}], early success score "
-            f"{row['early_success_score']:.3f}, capture score {row['capture_score']:.3f} "
-            + ("(already analysed)" if finished else f"({time.perf_counter() - started:.0f} s)")
-        )
     return results
+
+
+def failed_row(design: Design, directory: Path, error: str) -> dict[str, Any]:
+    """The row of a design that was not analysed: its values, the labels' success rate if generated, the error."""
+    row: dict[str, Any] = {"design": design.slug, **design.values}
+    try:
+        success = load_dataset(directory).success_labels()
+    except EnergyMarginError:
+        success = None
+    if success is not None:
+        low, high = wilson_interval(int(success.sum()), int(success.size))
+        row.update(
+            trajectories=int(success.size),
+            successes=int(success.sum()),
+            success_rate=float(success.mean()),
+            success_rate_low=low,
+            success_rate_high=high,
+        )
+    row["error"] = error
+    return row
 
 
 def _objects(task: Task, n_objects: int | None) -> int:
@@ -630,7 +661,7 @@ def table_fields(results: dict[str, Any]) -> list[str]:
     """The CSV columns: design, the swept parameters, then the measured values."""
     names = [param["name"] for param in results["settings"]["params"]]
     measured = ["trajectories", "successes", "success_rate", "success_rate_low", "success_rate_high"]
-    return ["design", *names, *measured, *MARGINS, "runtime_per_frame_s"]
+    return ["design", *names, *measured, *MARGINS, "runtime_per_frame_s", "error"]
 
 
 def write_results(out: Path, results: dict[str, Any]) -> list[Path]:
@@ -639,8 +670,9 @@ def write_results(out: Path, results: dict[str, Any]) -> list[Path]:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
-    for row in results["rows"]:
-        writer.writerow({key: json.dumps(row[key]) if isinstance(row[key], list) else row[key] for key in fields})
+    for row in [*results["rows"], *results.get("failed", [])]:
+        cells = {key: row.get(key, "") for key in fields}
+        writer.writerow({key: json.dumps(value) if isinstance(value, list) else value for key, value in cells.items()})
     csv_path = out / RESULTS_FILE
     atomic_write_text(csv_path, buffer.getvalue())
     json_path = csv_path.with_suffix(".json")
@@ -695,9 +727,12 @@ def plot(results: dict[str, Any], path: Path) -> Path | None:
             label = "success rate of t trajectories"
         right.plot(counts, values, marker="o", linestyle="--" if name == "success_rate" else "-", label=label)
     right.set_xscale("log")
+    right.set_xticks(counts, [str(count) for count in counts])
+    right.minorticks_off()
     right.set_xlabel("trajectories t per design")
     right.set_ylabel(f"mean Spearman rho vs success rate of all {settings['n_trajectories']}")
-    right.set_ylim(-1.05, 1.05)
+    shown = [row[name] for row in convergence for name in (*MARGINS, "success_rate") if row[name] is not None]
+    right.set_ylim(max(-1.05, min(shown, default=0.0) - 0.05), 1.02)
     right.grid(True, alpha=0.3)
     right.legend(fontsize=8, loc="lower right")
     objects = "" if settings["n_objects"] is None else f", n_o = {settings['n_objects']}"
@@ -733,6 +768,10 @@ def format_table(results: dict[str, Any]) -> str:
             f"{cells} {row['successes']:>4d}/{row['trajectories']:<3d} {rate:>20s} {row['early_success_score']:10.3f}"
             f" {row['success_score']:10.3f} {row['capture_score']:8.3f} {row['runtime_per_frame_s']:8.3f}"
         )
+    for row in results.get("failed", []):
+        cells = " ".join(f"{json.dumps(row[name]):>{width}s}" for name, width in zip(names, widths, strict=True))
+        rate = "" if "successes" not in row else f" (labels: {row['successes']}/{row['trajectories']} successful)"
+        lines.append(f"{cells} not analysed{rate}: {row['error']}")
     correlations = results.get("correlations")
     if correlations:
         lines.append("")
