@@ -80,7 +80,7 @@ def test_design_grid_is_the_product_with_aliases() -> None:
         ("scooping", [("pusher_width", [0.5])], {}, "is a setting of task 'pushing', not of 'scooping'"),
         ("scooping", [("tip_angle", [1.0])], {}, "unknown scooping parameter 'tip_angle'"),
         ("scooping", [("finger_stiffness", [0, 100])], {}, "design finger_stiffness=0: .*stiffness_range must be > 0"),
-        ("scooping", [("open_gap", ["wide"])], {}, "design open_gap=\"wide\": .*open_gap must be a number"),
+        ("scooping", [("open_gap", ["wide"])], {}, 'design open_gap="wide": .*open_gap must be a number'),
         ("pushing", [("pusher_width", [0.5])], {"pusher_half_extents": [0.3, 0.1, 0.01]}, "which --set fixes"),
         ("scooping", [("finger_stiffness", [100]), ("stiffness_range", [[1, 2]])], {}, "as --param finger_stiffness"),
         ("scooping", [], {}, "at least one --param"),
@@ -201,7 +201,7 @@ def test_sweep_resumes_and_is_deterministic(tiny_sweep: tuple[Path, dict, list[s
         assert [r[name] for r in fresh["rows"]] == [r[name] for r in results["rows"]]
     assert fresh["correlations"] == results["correlations"]
     # Other settings in the same directory are refused.
-    with pytest.raises(EnergyMarginError, match="holds a sweep with other settings .*n_trajectories"):
+    with pytest.raises(EnergyMarginError, match=r"holds a sweep with other settings .*n_trajectories"):
         design_sweep("pushing", PARAMS, out=copy, **{**TINY, "n_trajectories": 3})
 
 
