@@ -173,6 +173,13 @@ def test_rank_statistics_on_known_outcomes() -> None:
     convergence = rank_convergence(outcomes, [1, 4], subsets=30)
     assert convergence[-1]["success_rate"] == pytest.approx(1.0) and convergence[-1]["subsets"] == 1
     assert convergence[0]["subsets"] == 30 and convergence[0]["early_success_score"] > 0.7
+    # Two designs, [1, 0] and [1, 1] successful: one trajectory of index 0 ties them (rho counts as 0),
+    # index 1 orders them (rho = 1); constant margins never rank them (None).
+    pair = [outcome([1, 0], [0.5, 0.5]), outcome([1, 1], [0.5, 0.5])]
+    (single,) = rank_convergence(pair, [1], subsets=200)
+    assert 0 < single["success_rate_defined"] < 200
+    assert single["success_rate"] == pytest.approx(single["success_rate_defined"] / 200)
+    assert single["early_success_score"] is None and single["early_success_score_defined"] == 0
 
 
 @pytest.mark.slow

@@ -29,7 +29,9 @@ Layout of the output directory::
     DIR/results.png                the plot (with matplotlib, the ``plot`` extra)
 
 A design whose dataset and scores are complete is skipped on a rerun; a partly analysed one
-resumes from its journal.
+resumes from its journal. A design whose roll-outs cannot be generated, or are refused by the
+analysis's checks (e.g. boxes pressed into the blades deeper than the overlap limit), is listed
+as not analysed, with the reason, and left out of the correlations.
 """
 
 from __future__ import annotations
@@ -391,7 +393,10 @@ def rank_convergence(
     give each design's margin means and success rate on those trajectories; each row reports, per
     margin column and for the success rate itself (``success_rate``), the mean over the subsets of
     Spearman's rho against the success rate of all T trajectories, and how many subsets had a
-    defined rho (``<name>_defined``). At t = T there is one subset, all trajectories.
+    defined rho (``<name>_defined``); a subset whose estimate is the same for every design (e.g. t
+    = 1 with every design failing it) ranks nothing and counts as rho = 0 in the mean (``None``
+    when no subset has a defined rho: the reference rates are all equal). At t = T there is one
+    subset, all trajectories.
     """
     n_trajectories = outcomes[0].success.size
     reference = _rates(outcomes, np.arange(n_trajectories))
@@ -407,11 +412,11 @@ def rank_convergence(
             values = []
             for indices in chosen:
                 estimate = _rates(outcomes, indices) if name == "success_rate" else _means(outcomes, name, indices)
-                rho = spearman_rho(estimate, reference)
-                if rho is not None:
-                    values.append(rho)
-            row[name] = float(np.mean(values)) if values else None
-            row[f"{name}_defined"] = len(values)
+                values.append(spearman_rho(estimate, reference))
+            defined = [value for value in values if value is not None]
+            # An estimate that ties every design ranks nothing: it counts as rho = 0.
+            row[name] = float(np.mean([0.0 if value is None else value for value in values])) if defined else None
+            row[f"{name}_defined"] = len(defined)
         rows.append(row)
     return rows
 
@@ -501,8 +506,10 @@ def design_sweep(
         log: receives one line per design (standard error by default).
 
     Returns:
-        The contents of ``results.json``: ``settings``, ``rows`` (one per design),
-        ``correlations`` (with at least two designs), ``convergence`` and ``trajectories``.
+        The contents of ``results.json``: ``settings``, ``rows`` (one per analysed design),
+        ``correlations`` and ``convergence`` (with at least two), ``trajectories`` (per-trajectory
+        values of each design) and ``failed`` (designs that could not be generated or analysed,
+        each with its error and, when its roll-outs exist, the labels' success rate).
 
     """
     _check_int("trajectories", n_trajectories, 2)
