@@ -575,7 +575,7 @@ def design_sweep(
             say(
                 f"{prefix}: success {row['successes']}/{row['trajectories']} "
                 f"[{row['success_rate_low']:.2f}, {row['success_rate_high']:.2f}], early success score "
-                f"{row['early_success_score']:.3f}, capture score {row['capture_score']:.3f} "
+                f"{row['early_success_score']:.4f}, capture score {row['capture_score']:.4f} "
                 + ("(already analysed)" if finished else f"({time.perf_counter() - started:.0f} s)")
             )
         results = summarize(settings, rows, outcomes, counts, seed=seed, bootstrap=bootstrap, subsets=subsets)
@@ -714,9 +714,11 @@ def plot(results: dict[str, Any], path: Path) -> Path | None:
         ]
     )
     left.errorbar(x, y, yerr=error, fmt="o", capsize=3)
-    for row, xi, yi in zip(rows, x, y, strict=True):
+    for index, (row, xi, yi) in enumerate(zip(rows, x, y, strict=True)):
         text = ", ".join(json.dumps(row[name]) for name in names)
-        left.annotate(text, (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        # Alternate above and below so that neighbouring designs' labels do not overlap.
+        offset = (4, 4) if index % 2 == 0 else (4, -10)
+        left.annotate(text, (xi, yi), textcoords="offset points", xytext=offset, fontsize=7)
     early = results["correlations"]["early_success_score"]
     rho = "n/a" if early["rho"] is None else f"{early['rho']:.2f}"
     p_value = "" if early["p_value"] is None else f", p = {early['p_value']:.3f}"
@@ -772,8 +774,8 @@ def format_table(results: dict[str, Any]) -> str:
         cells = " ".join(f"{json.dumps(row[name]):>{width}s}" for name, width in zip(names, widths, strict=True))
         rate = f"{row['success_rate']:.2f} [{row['success_rate_low']:.2f}, {row['success_rate_high']:.2f}]"
         lines.append(
-            f"{cells} {row['successes']:>4d}/{row['trajectories']:<3d} {rate:>20s} {row['early_success_score']:10.3f}"
-            f" {row['success_score']:10.3f} {row['capture_score']:8.3f} {row['runtime_per_frame_s']:8.3f}"
+            f"{cells} {row['successes']:>4d}/{row['trajectories']:<3d} {rate:>20s} {row['early_success_score']:10.4f}"
+            f" {row['success_score']:10.4f} {row['capture_score']:8.4f} {row['runtime_per_frame_s']:8.3f}"
         )
     for row in results.get("failed", []):
         cells = " ".join(f"{json.dumps(row[name]):>{width}s}" for name, width in zip(names, widths, strict=True))
