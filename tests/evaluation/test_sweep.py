@@ -227,3 +227,27 @@ def test_cli_prints_the_table_of_a_finished_sweep(
     for line, row in zip(lines[2:4], results["rows"], strict=True):
         assert line.split()[:2] == [json.dumps(row["pusher_width"]), f"{row['successes']}/2"]
     assert captured.err.count("(already analysed)") == 2
+
+
+def test_a_design_that_cannot_be_generated_is_reported_and_skipped(tmp_path: Path) -> None:
+    # Two cylinders cannot be placed 5 m apart in the 0.6 m spawn band: that design fails, the other runs.
+    log: list[str] = []
+    results = design_sweep(
+        "pushing",
+        [("min_separation", [0.1, 5.0])],
+        out=tmp_path / "sweep",
+        analyzer=AnalyzerConfig(iterations=4),
+        log=log.append,
+        **{**TINY, "n_frames": 1},
+    )
+    assert [row["min_separation"] for row in results["rows"]] == [0.1]
+    (failed,) = results["failed"]
+    assert failed["min_separation"] == 5.0 and "cannot place 2 objects 5.0 m apart" in failed["error"]
+    assert "successes" not in failed  # no roll-outs were written
+    assert "not analysed: cannot generate pushing trajectories" in log[1]
+    assert "correlations" not in results  # one analysed design ranks nothing
+    assert not (tmp_path / "sweep" / DESIGNS_DIR / "min_separation-5.0").exists()
+    with (tmp_path / "sweep" / "results.csv").open() as stream:
+        table = list(csv.DictReader(stream))
+    assert [r["error"] != "" for r in table] == [False, True]
+    assert "not analysed" in format_table(results)
