@@ -28,6 +28,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    sweep,
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
@@ -44,6 +45,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    sweep,
     learn,
     view,
     render,
