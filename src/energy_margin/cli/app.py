@@ -29,6 +29,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    sweep,
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
@@ -45,6 +46,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    sweep,
     learn,
     control,
     view,
