@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from energy_margin.control.costs import CostWeights
-from energy_margin.control.episodes import CONTROL_FILE, run_control, wilson_interval
+from energy_margin.control.episodes import CONTROL_FILE, run_control
 from energy_margin.control.mppi import ControllerConfig
 from energy_margin.data.dataset import load_dataset
 from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.statistics import wilson_interval
 
 # One cylinder 0.1-0.15 m short of the wall band, the pusher 0.2-0.3 m behind it, and a script
 # that pushes with no force: only a controller that pushes reaches the band in 1.5 s.

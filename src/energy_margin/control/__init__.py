@@ -9,7 +9,7 @@ the controller, and :mod:`~energy_margin.control.episodes` runs episodes and wri
 from energy_margin.control.commands import CommandSpace, command_space, register_command_space
 from energy_margin.control.costs import COSTS, CostWeights
 from energy_margin.control.disturbances import DISTURBANCES, Disturbance
-from energy_margin.control.episodes import POLICIES, run_control, run_episode, wilson_interval
+from energy_margin.control.episodes import POLICIES, run_control, run_episode
 from energy_margin.control.mppi import Controller, ControllerConfig
 
 __all__ = [
@@ -25,5 +25,4 @@ __all__ = [
     "register_command_space",
     "run_control",
     "run_episode",
-    "wilson_interval",
 ]

@@ -35,6 +35,7 @@ from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load
 from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.data.io import atomic_path, read_json, write_json
 from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState
 
@@ -82,20 +83,6 @@ class ControlSettings:
     def to_dict(self) -> dict[str, Any]:
         """The settings as a JSON-ready dict."""
         return asdict(self)
-
-
-def wilson_interval(successes: int, trials: int, *, z: float = 1.959963984540054) -> tuple[float, float]:
-    """The Wilson score interval of a success rate (95 % by default); (0, 1) without trials."""
-    if trials <= 0:
-        return 0.0, 1.0
-    rate = successes / trials
-    denominator = 1.0 + z * z / trials
-    centre = (rate + z * z / (2 * trials)) / denominator
-    half = z * np.sqrt(rate * (1.0 - rate) / trials + z * z / (4 * trials * trials)) / denominator
-    # At 0 or all successes the bound is exactly 0 or 1 (rounding would leave 1e-17 away).
-    low = 0.0 if successes == 0 else max(0.0, centre - half)
-    high = 1.0 if successes == trials else min(1.0, centre + half)
-    return float(low), float(high)
 
 
 def _observed(plant: Any, disturbance: Disturbance, rng: np.random.Generator) -> FrameState:
@@ -301,7 +288,7 @@ def _run_jobs(
 def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[str, Any]:
     """Success rate with its 95 % Wilson interval, capture along the episodes, time per decision."""
     successes = sum(1 for info in infos if info["success"])
-    low, high = wilson_interval(successes, len(infos))
+    low, high = wilson_interval(successes, len(infos)) if infos else (0.0, 1.0)
     decisions = sum(info["decisions"] for info in infos)
     seconds = sum(info["decision_seconds"] for info in infos)
     scores = [np.mean(info["capture_scores"]) for info in infos if "capture_scores" in info]
