@@ -27,6 +27,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    study,
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
@@ -43,6 +44,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    study,
     view,
     render,
     reproduce,
