@@ -425,7 +425,7 @@ def run_study(
                 )
                 scored = state.score(scores)
                 state.scored[(method, budget)] = scored
-                row = {"task": task, "method": method, "budget": budget, **scored.row()}
+                row: dict[str, Any] = {"task": task, "method": method, "budget": budget, **scored.row()}
                 result.rows.append({**row, **cost_summary(scores)})
                 result.differences = [
                     d for name, other in states.items() for d in _differences(name, other.scored, methods, budgets)
@@ -544,7 +544,7 @@ def _plot_all(result: StudyResult, states: dict[str, _TaskState], out: Path, tra
 def _differences(
     task: str, scored: dict[tuple[str, int], Scored], methods: Sequence[str], budgets: Sequence[int]
 ) -> list[dict[str, Any]]:
-    rows = []
+    rows: list[dict[str, Any]] = []
     if "est" not in methods:
         return rows
     for budget in budgets:
