@@ -99,6 +99,7 @@ def test_study_writes_every_row_and_column(tmp_path: Path) -> None:
     at_five = result.lambdas[1]
     assert all(at_five[q] == est[q] for q in QUESTION_NAMES)
     assert (out / "pushing" / "runs" / "est-3" / "scores.csv").is_file()
+    assert (out / "pushing" / "study.csv").read_text() == (out / "study.csv").read_text()
     assert not (out / "pushing" / "lambda" / "est-3-lambda-5").exists()
     summary = json.loads((out / "study.json").read_text())
     assert summary["tasks"]["pushing"]["positive_rates"]["success"] == pytest.approx(dataset.success_labels().mean())

@@ -21,7 +21,8 @@ them finished), with one journal per lambda, so the sweep resumes too.
 Outputs (rewritten as configurations finish): ``OUT/study.csv`` (AP with intervals),
 ``OUT/study_differences.csv``, ``OUT/study_lambda.csv``, ``OUT/study.json`` (all of them with the
 settings and positive rates) and, with matplotlib, ``OUT/study_<task>.png`` and
-``OUT/study_lambda_<task>.png``.
+``OUT/study_lambda_<task>.png``; the same files of one task alone in ``OUT/<task>/``, so studies of
+different tasks (or budgets) in one ``OUT`` keep each task's latest tables.
 """
 
 from __future__ import annotations
@@ -315,12 +316,30 @@ class StudyResult:
     meta: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def write(self, out: Path) -> list[Path]:
-        """Write the CSV files and the JSON summary under ``out``; their paths."""
+        """Write the tables of every task under ``out`` and each task's own under ``out/<task>``; their paths.
+
+        A later study of other tasks or budgets in the same ``out`` rewrites ``out/study*`` but
+        leaves the per-task tables of tasks it did not run.
+        """
+        paths = self._write(out, self)
+        for task in dict.fromkeys(row["task"] for row in self.rows):
+            mine = StudyResult(
+                [r for r in self.rows if r["task"] == task],
+                [r for r in self.differences if r["task"] == task],
+                [r for r in self.lambdas if r["task"] == task],
+                {**self.meta, "tasks": {task: self.meta.get("tasks", {}).get(task)}},
+            )
+            paths += self._write(out / task, mine)
+        return paths
+
+    @staticmethod
+    def _write(out: Path, result: StudyResult) -> list[Path]:
         paths = [out / "study.csv", out / "study_differences.csv", out / "study_lambda.csv", out / "study.json"]
-        _write_csv(paths[0], self.rows, FIELDS)
-        _write_csv(paths[1], self.differences, DIFFERENCE_FIELDS)
-        _write_csv(paths[2], self.lambdas, LAMBDA_FIELDS)
-        write_json(paths[3], {**self.meta, "rows": self.rows, "differences": self.differences, "lambdas": self.lambdas})
+        _write_csv(paths[0], result.rows, FIELDS)
+        _write_csv(paths[1], result.differences, DIFFERENCE_FIELDS)
+        _write_csv(paths[2], result.lambdas, LAMBDA_FIELDS)
+        rows = {"rows": result.rows, "differences": result.differences, "lambdas": result.lambdas}
+        write_json(paths[3], {**result.meta, **rows})
         return paths
 
 
@@ -536,9 +555,11 @@ def _plot_all(result: StudyResult, states: dict[str, _TaskState], out: Path, tra
     for task, state in states.items():
         title = f"{task}, n_o = {state.dataset.n_objects}, {trajectories} x {frames} frames"
         rows = [r for r in result.rows if r["task"] == task]
-        plot(rows, out / f"study_{task}.png", title=title, questions=QUESTION_NAMES, labels=LABELS)
         lam = float(state.meta["likelihood_lambda"])
-        plot_lambda([r for r in result.lambdas if r["task"] == task], out / f"study_lambda_{task}.png", lam, title)
+        for folder in (out, out / task):
+            plot(rows, folder / f"study_{task}.png", title=title, questions=QUESTION_NAMES, labels=LABELS)
+            lambdas = [r for r in result.lambdas if r["task"] == task]
+            plot_lambda(lambdas, folder / f"study_lambda_{task}.png", lam, title)
 
 
 def _differences(
