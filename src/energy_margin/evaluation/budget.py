@@ -220,8 +220,15 @@ def plot(
     except ImportError:
         return None
     labels = labels if labels is not None else QUESTION_LABELS
-    figure, axes = plt.subplots(1, len(questions), figsize=(4.2 * len(questions), 3.6), sharey=True, squeeze=False)
-    axes = axes[0]
+    # At most three panels a row: budget's three questions in one row, the study's six in two.
+    columns = min(3, len(questions))
+    rows_of_panels = -(-len(questions) // columns)
+    figure, grid = plt.subplots(
+        rows_of_panels, columns, figsize=(4.2 * columns, 3.6 * rows_of_panels), sharey=True, squeeze=False
+    )
+    axes = list(grid.ravel()[: len(questions)])
+    for spare in grid.ravel()[len(questions) :]:
+        spare.set_visible(False)
     methods = [m for m in dict.fromkeys(r["method"] for r in rows)]
     baseline_colors = {"current_state": "grey", "distance": "black", "chance": "tab:brown"}
     for axis, question in zip(axes, questions, strict=True):
@@ -237,6 +244,9 @@ def plot(
                 high = [r[f"{question}_high"] for r in mine]
                 if None not in low and None not in high:
                     axis.fill_between(budgets, low, high, color=line.get_color(), alpha=0.15)
+                    below = [v - lo for v, lo in zip(values, low, strict=True)]
+                    above = [hi - v for v, hi in zip(values, high, strict=True)]
+                    axis.errorbar(budgets, values, yerr=[below, above], fmt="none", ecolor=line.get_color(), capsize=3)
             else:
                 axis.axhline(
                     mine[0][question],
@@ -249,7 +259,8 @@ def plot(
         axis.set_xlabel("expansions per frame")
         axis.set_title(labels.get(question, question))
         axis.grid(True, alpha=0.3)
-    axes[0].set_ylabel("AP (95 % CI over trajectories)")
+    for row_axes in grid:
+        row_axes[0].set_ylabel("AP (95 % CI over trajectories)")
     axes[-1].legend(fontsize=8, loc="lower right")
     if title:
         figure.suptitle(title)
