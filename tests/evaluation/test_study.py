@@ -85,6 +85,7 @@ def test_study_writes_every_row_and_column(tmp_path: Path) -> None:
     assert [(r["comparison"], r["budget"]) for r in result.differences] == [
         ("est - montecarlo", 3),
         ("est - distance", 3),
+        ("est lambda 1 - lambda 5", 3),
     ]
     assert [r["lambda"] for r in result.lambdas] == [1.0, 5.0]
     for row in [*result.rows, *result.differences, *result.lambdas]:

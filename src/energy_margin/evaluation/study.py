@@ -446,9 +446,7 @@ def run_study(
                 state.scored[(method, budget)] = scored
                 row: dict[str, Any] = {"task": task, "method": method, "budget": budget, **scored.row()}
                 result.rows.append({**row, **cost_summary(scores)})
-                result.differences = [
-                    d for name, other in states.items() for d in _differences(name, other.scored, methods, budgets)
-                ]
+                _collect_differences(result, states, methods, budgets)
                 result.write(out_path)
                 say(
                     f"study [{number}/{total}] {task} {method} {budget}: "
@@ -461,6 +459,7 @@ def run_study(
             started = time.perf_counter()
             _lambda_sweep(result, state, lambdas, base, None, seed=seed, workers=workers, progress=progress)
             say(f"study {task}: lambda sweep ({time.perf_counter() - started:.0f} s)")
+    _collect_differences(result, states, methods, budgets)
     result.write(out_path)
     _plot_all(result, states, out_path, trajectories, frames)
     return result
@@ -478,6 +477,7 @@ class _TaskState:
     rates: dict[str, float]
     meta: dict[str, Any]
     scored: dict[tuple[str, int], Scored]
+    lambda_differences: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     @classmethod
     def open(
@@ -540,10 +540,23 @@ def _lambda_sweep(
         progress=progress,
         directories={lam: task_lambda_directory} if task_lambda_directory is not None else None,
     )
-    for value, scores in by_lambda.items():
+    answers = {value: state.score(scores) for value, scores in by_lambda.items()}
+    for value, scored in answers.items():
         row = {"task": state.task, "method": method, "budget": budget, "lambda": value}
         row["factor"] = value / lam if lam > 0 else None
-        result.lambdas.append({**row, **state.score(scores).row()})
+        result.lambdas.append({**row, **scored.row()})
+    # Every lambda against the task's own, paired on the same resamples (the same trees too).
+    if lam in answers:
+        state.lambda_differences = [
+            {
+                "task": state.task,
+                "comparison": f"{method} lambda {value:.4g} - lambda {lam:.4g}",
+                "budget": budget,
+                **paired_difference(scored, answers[lam]),
+            }
+            for value, scored in answers.items()
+            if value != lam
+        ]
 
 
 def result_root(directory: Path) -> Path:
@@ -560,6 +573,16 @@ def _plot_all(result: StudyResult, states: dict[str, _TaskState], out: Path, tra
             plot(rows, folder / f"study_{task}.png", title=title, questions=QUESTION_NAMES, labels=LABELS)
             lambdas = [r for r in result.lambdas if r["task"] == task]
             plot_lambda(lambdas, folder / f"study_lambda_{task}.png", lam, title)
+
+
+def _collect_differences(
+    result: StudyResult, states: dict[str, _TaskState], methods: Sequence[str], budgets: Sequence[int]
+) -> None:
+    result.differences = [
+        row
+        for name, state in states.items()
+        for row in [*_differences(name, state.scored, methods, budgets), *state.lambda_differences]
+    ]
 
 
 def _differences(
