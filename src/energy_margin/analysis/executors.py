@@ -91,7 +91,9 @@ _PR_SET_PDEATHSIG = 1
 AnalyzerFactory = Callable[[Dataset, AnalyzerConfig, int], Callable[[int], dict[str, Any]]]
 
 
-def _init_local_worker(dataset: Dataset, config: dict[str, Any], seed: int, factory: AnalyzerFactory) -> None:
+def _init_local_worker(
+    dataset: Dataset, config: dict[str, Any], seed: int, factory: AnalyzerFactory = FrameAnalyzer
+) -> None:
 
     # Ctrl-C goes to the parent, which stops the pool; workers must not die half-way on their own.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
