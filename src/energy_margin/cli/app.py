@@ -28,6 +28,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    study,
     sweep,
     view,
 )
@@ -45,6 +46,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    study,
     sweep,
     learn,
     view,
