@@ -36,8 +36,8 @@ SECTIONS = (
 _EXPLANATIONS = {
     "capture_ap_perturbed": (
         "perturbed copies resample the object centres uniformly inside the minimum-volume ellipsoid of the true "
-        "centres, which spreads a pile beyond the capture region, and the datasets differ from the authors' in "
-        "their share of captured frames: docs/robustness.md"
+        "centres, which moves piles near the capture region's edge out of it (and uncaptured piles into it); "
+        "this project's piles sit closer to that edge than the authors', under either protocol: docs/robustness.md"
     ),
     "success_ap_perturbed": "see docs/robustness.md for how perturbed copies are drawn",
     "capture_ap": "see docs/reproduce.md and docs/method.md for the datasets and the capture labels",
