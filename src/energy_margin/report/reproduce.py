@@ -155,8 +155,9 @@ def table_one_markdown(rows: dict[str, dict[str, Any]]) -> str:
     for task, row in rows.items():
         paper = PAPER_TABLE_I[task]
         for index, (label, perturbed) in enumerate(protocol_rows(row)):
+            first = f"| {task} |" if index == 0 else "| |"
             lines.append(
-                f"| {task if index == 0 else ''} | {row['n_objects']} | {label} | {_number(row['capture_ap'])} "
+                f"{first} {row['n_objects']} | {label} | {_number(row['capture_ap'])} "
                 f"| {_spread(perturbed['capture_ap_perturbed'])} | {_spread(perturbed['capture_score_error'])} "
                 f"| {_number(row['success_ap'])} | {_spread(perturbed['success_ap_perturbed'])} "
                 f"| {_spread(perturbed['success_score_error'])} |"
