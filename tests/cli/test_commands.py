@@ -25,6 +25,7 @@ COMMAND_NAMES = (
     "perturb",
     "import-reference",
     "budget",
+    "study",
     "sweep",
     "learn",
     "control",

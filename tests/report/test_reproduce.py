@@ -62,7 +62,10 @@ def test_report_has_every_section_and_real_figures(reproduced: Path) -> None:
     assert {f.name for f in figures} == {Path(s).name for s in sources + posters}
     # Rendered frames of both tasks and perturbed states beside their true frames.
     assert sum("-render-" in s for s in sources) >= 6
-    assert {"pushing-perturbed-true.png", "pushing-perturbed-perturbed.png"} <= {Path(s).name for s in sources}
+    assert {"pushing-perturbed-true.png", "pushing-perturbed-perturbed.png", "pushing-perturbed-paper.png"} <= {
+        Path(s).name for s in sources
+    }
+    assert "valid protocol" in page and "paper protocol" in page
 
 
 @pytest.mark.slow
@@ -108,11 +111,21 @@ def test_tables_hold_both_tasks_and_every_ablation_size(reproduced: Path) -> Non
     for row in table.values():
         for key in ("capture_ap_perturbed", "success_ap_perturbed", "capture_score_error", "success_score_error"):
             assert set(row[key]) >= {"mean", "std"}
+        # Table I under both protocols, the valid one also at the top level.
+        assert set(row["by_protocol"]) == {"valid", "paper"}
+        assert row["protocol"] == "valid"
+        for protocol, entry in row["by_protocol"].items():
+            assert entry["protocol"] == protocol and set(entry["capture_ap_perturbed"]) >= {"mean", "std"}
+            suffix = "perturbed" if protocol == "valid" else "perturbed-paper"
+            assert entry["perturbed"] == [f"data/{row['dataset'].split('/')[-1]}-{suffix}/1"]
+            copy = json.loads((reproduced / entry["perturbed"][0] / "dataset.json").read_text(encoding="utf-8"))
+            assert copy["perturbation"]["protocol"] == protocol
     ablation = json.loads((reproduced / "ablation.json").read_text(encoding="utf-8"))
     assert [row["n_objects"] for row in ablation] == [2, 3]
     assert all(row["runtime_per_frame_s"] > 0 for row in ablation)
     markdown = (reproduced / "table1.md").read_text(encoding="utf-8")
     assert "| paper |" in markdown and "0.79 ± 0.03" in markdown
+    assert "this project, valid protocol" in markdown and "this project, paper protocol" in markdown
     assert "| 2 |" in (reproduced / "ablation.md").read_text(encoding="utf-8")
 
 
@@ -157,6 +170,13 @@ def test_markdown_tables_put_the_paper_beside_ours() -> None:
     text = table_one_markdown({"pushing": row})
     assert "| pushing | 10 | this project | 0.99 | 0.95 ± 0.02 |" in text
     assert "| | 10 | paper | 1.00 | 0.96 ± 0.01 |" in text
+    # Both protocols, labelled, each with its own perturbed values; the paper's row last.
+    paper_protocol = {**row, "capture_ap_perturbed": {"mean": 0.5, "std": 0.1}, "protocol": "paper"}
+    both = {**row, "by_protocol": {"valid": {**row, "protocol": "valid"}, "paper": paper_protocol}}
+    lines = table_one_markdown({"pushing": both}).splitlines()
+    assert lines[2].startswith("| pushing | 10 | this project, valid protocol | 0.99 | 0.95 ± 0.02 |")
+    assert lines[3].startswith("| | 10 | this project, paper protocol | 0.99 | 0.50 ± 0.10 |")
+    assert lines[4].startswith("| | 10 | paper | 1.00 | 0.96 ± 0.01 |")
     ablation = ablation_markdown(
         [
             {
@@ -176,7 +196,9 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
 
     quick = ReproduceConfig.create(quick=True, workers=2, engine="mujoco", seed=0)
     plan = planned_analyses(quick, {"pushing": 10, "scooping": 5})
-    assert len(plan) == 2 * (1 + quick.repeats) + len(quick.ablation_objects)
+    # Each Table I set, its copies under both protocols, then the ablation.
+    assert len(plan) == 2 * (1 + 2 * quick.repeats) + len(quick.ablation_objects)
+    assert {e.protocol for e in plan if not e.generated} == {"valid", "paper"}
     frames, to_write = work_left(tmp_path, plan)
     assert sum(frames.values()) == sum(e.trajectories * e.frames for e in plan)
     assert len(to_write) == len(plan)
@@ -198,6 +220,8 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
         if e.generated
         else e.trajectories * e.frames * (0.05 if e.task == "pushing" else 0.04) * scale(e)
         for e in to_write
+        # The paper protocol's draw checks nothing: its copies cost next to nothing to write.
+        if e.generated or e.protocol != "paper"
     )
     assert seconds == pytest.approx(expected)
     # Twice the calibrated frame time: about twice as long.

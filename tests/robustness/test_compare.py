@@ -114,3 +114,26 @@ def test_mismatched_datasets_are_errors(
         assert main(["evaluate", str(true), "--compare", str(bad)]) != 0
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "error" in err
+
+
+def _mark_protocol(copy: Path, protocol: str | None) -> None:
+    path = copy / "dataset.json"
+    meta = json.loads(path.read_text())
+    meta["perturbation"] = {"seed": 0} if protocol is None else {"seed": 0, "protocol": protocol}
+    path.write_text(json.dumps(meta))
+
+
+def test_the_copies_protocol_is_named_and_never_mixed(table_one: tuple[Path, list[Path]]) -> None:
+    true, copies = table_one
+    # Hand-made copies are not `perturb`'s: no protocol.
+    assert compare_perturbed(true, copies)["protocol"] is None
+    for copy in copies:
+        _mark_protocol(copy, "paper")
+    result = compare_perturbed(true, copies)
+    assert result["protocol"] == "paper"
+    assert "paper protocol" in format_robustness_table(result).splitlines()[0]
+    # A copy written before protocols were recorded is a valid-protocol copy.
+    _mark_protocol(copies[1], None)
+    with pytest.raises(EnergyMarginError, match=r"mixes perturbation protocols.*is paper.*is valid"):
+        compare_perturbed(true, copies)
+    assert compare_perturbed(true, [copies[1]])["protocol"] == "valid"

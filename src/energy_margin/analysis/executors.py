@@ -14,7 +14,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Protocol
 
@@ -87,13 +87,19 @@ def _die_with_parent() -> None:
 _PR_SET_PDEATHSIG = 1
 
 
-def _init_local_worker(dataset: Dataset, config: dict[str, Any], seed: int) -> None:
+#: Builds a frame analyser from (dataset, config, seed): a callable from a frame index to its result.
+AnalyzerFactory = Callable[[Dataset, AnalyzerConfig, int], Callable[[int], dict[str, Any]]]
+
+
+def _init_local_worker(
+    dataset: Dataset, config: dict[str, Any], seed: int, factory: AnalyzerFactory = FrameAnalyzer
+) -> None:
 
     # Ctrl-C goes to the parent, which stops the pool; workers must not die half-way on their own.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()
     global _WORKER
-    _WORKER = FrameAnalyzer(dataset, AnalyzerConfig(**config), seed)
+    _WORKER = factory(dataset, AnalyzerConfig(**config), seed)
 
 
 def _run_local_chunk(indices: list[int]) -> list[dict[str, Any]]:
@@ -154,12 +160,20 @@ def stop_pool(pool: ProcessPoolExecutor, *, finished: bool) -> None:
 
 
 class LocalExecutor:
-    """This process (one worker) or a ``ProcessPoolExecutor`` (several)."""
+    """This process (one worker) or a ``ProcessPoolExecutor`` (several).
+
+    Args:
+        workers: worker processes (1: this process).
+        analyzer: what runs on each frame index: :class:`FrameAnalyzer` (a scores row) by default,
+            or another picklable factory of the same signature whose results are yielded as they are.
+
+    """
 
     name = "local"
 
-    def __init__(self, workers: int = 1) -> None:
+    def __init__(self, workers: int = 1, *, analyzer: AnalyzerFactory = FrameAnalyzer) -> None:
         self.workers = workers
+        self.analyzer = analyzer
 
     def run(
         self, dataset: Dataset, config: AnalyzerConfig, seed: int, indices: Sequence[int]
@@ -168,14 +182,14 @@ class LocalExecutor:
         if not indices:
             return
         if self.workers == 1:
-            analyzer = FrameAnalyzer(dataset, config, seed)
+            analyzer = self.analyzer(dataset, config, seed)
             for index in indices:
                 yield analyzer(index)
             return
         pool = ProcessPoolExecutor(
             max_workers=self.workers,
             initializer=_init_local_worker,
-            initargs=(dataset, config.to_dict(), seed),
+            initargs=(dataset, config.to_dict(), seed, self.analyzer),
         )
         pending: set[Future[list[dict[str, Any]]]] = set()
         chunks = iter(_chunks(indices, self.workers))

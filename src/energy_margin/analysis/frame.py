@@ -300,11 +300,15 @@ class FrameAnalyzer:
 
     def __call__(self, index: int) -> dict[str, Any]:
         """The scores row of frame ``index`` (trajectory-major)."""
+        return self.analyse(index)[0]
+
+    def analyse(self, index: int) -> tuple[dict[str, Any], CostField]:
+        """The scores row of frame ``index`` (trajectory-major) and the cost field it was scored on."""
         dataset = self.dataset
         trajectory, frame_index = divmod(index, dataset.n_frames)
         friction = float(dataset.arrays["friction"][trajectory])
         drive = dataset.arrays["drive"][trajectory]
-        scores, _ = analyze_frame(
+        scores, field = analyze_frame(
             self.task,
             dataset.frame(trajectory, frame_index),
             friction=friction,
@@ -324,4 +328,4 @@ class FrameAnalyzer:
             "runtime_s": scores.runtime_s,
             "physics_s": scores.physics_s,
             "seed": self.seeds[index],
-        }
+        }, field

@@ -12,7 +12,7 @@ import json
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -34,7 +34,8 @@ from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError
 
 
-def _run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
+def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
+    """What ``analysis.json`` records of a run: settings, seed, dataset, task and versions."""
     import mujoco
 
     description: dict[str, Any] = {
@@ -114,9 +115,42 @@ def analyze(
     dataset = require_valid(path, overlaps=True, scores=False)
     check_engine(dataset.task, config.engine)
     directory = Path(path)
-    description = _run_description(dataset, config, seed)
-    config_path, journal_path, scores_path = (directory / name for name in (CONFIG_FILE, JOURNAL_FILE, SCORES_FILE))
+    description = run_description(dataset, config, seed)
+    scores_path = directory / SCORES_FILE
+    done = open_run(directory, description, dataset, overwrite=overwrite)
+    if done is None:
+        return scores_path
+    total = dataset.n_trajectories * dataset.n_frames
+    pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
+    if done and progress:
+        print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
 
+    bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
+    try:
+        with (directory / JOURNAL_FILE).open("a", encoding="utf-8") as journal:
+            for row in runner.run(dataset, config, seed, pending):
+                append_row(journal, row)
+                done[(row["trajectory"], row["frame"])] = row
+                bar.update(1)
+    finally:
+        bar.close()
+    return write_scores(directory, done)
+
+
+def open_run(
+    directory: Path, description: dict[str, Any], dataset: Dataset, *, overwrite: bool
+) -> dict[tuple[int, int], dict[str, Any]] | None:
+    """Start or resume the run ``description`` in ``directory``: its finished rows, or ``None`` when complete.
+
+    A directory holding another run's scores is refused unless ``overwrite`` (which discards them).
+    ``analysis.json`` is written and the journal rewritten without torn or duplicate lines, ready
+    for appending.
+
+    Returns:
+        Journal rows by (trajectory, frame); ``None`` when ``scores.csv`` of this very run exists.
+
+    """
+    config_path, journal_path, scores_path = (directory / name for name in (CONFIG_FILE, JOURNAL_FILE, SCORES_FILE))
     if config_path.exists():
         try:
             previous = read_json(config_path, what="analysis configuration")
@@ -131,27 +165,23 @@ def analyze(
             for stale in (journal_path, scores_path):
                 stale.unlink(missing_ok=True)
         elif scores_path.exists():
-            return scores_path
-    total = dataset.n_trajectories * dataset.n_frames
+            return None
     done = {key: row for key, row in read_journal(journal_path).items() if _valid_key(key, dataset)}
     write_json(config_path, description)
-    # Rewrite the journal without torn or duplicate lines before appending to it.
     atomic_write_text(journal_path, header() + "".join(format_row(done[k]) + "\n" for k in sorted(done)))
-    pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
-    if done and progress:
-        print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
+    return done
 
-    bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
-    try:
-        with journal_path.open("a", encoding="utf-8") as journal:
-            for row in runner.run(dataset, config, seed, pending):
-                journal.write(format_row(row) + "\n")
-                journal.flush()
-                os.fsync(journal.fileno())
-                done[(row["trajectory"], row["frame"])] = row
-                bar.update(1)
-    finally:
-        bar.close()
+
+def append_row(journal: TextIO, row: dict[str, Any]) -> None:
+    """Append one scores row to an open journal and make it durable (flushed and synced)."""
+    journal.write(format_row(row) + "\n")
+    journal.flush()
+    os.fsync(journal.fileno())
+
+
+def write_scores(directory: Path, done: dict[tuple[int, int], dict[str, Any]]) -> Path:
+    """Write ``scores.csv`` of ``directory`` atomically from rows by (trajectory, frame), sorted; its path."""
+    scores_path = directory / SCORES_FILE
     lines = [format_row(done[key]) + "\n" for key in sorted(done)]
     atomic_write_text(scores_path, header() + "".join(lines))
     return scores_path

@@ -29,6 +29,7 @@ from energy_margin.cli import (
     render,
     reproduce,
     scene,
+    study,
     sweep,
     view,
 )
@@ -46,6 +47,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     evaluate,
     perturb,
     budget,
+    study,
     sweep,
     learn,
     control,

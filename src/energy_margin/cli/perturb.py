@@ -5,10 +5,14 @@ from __future__ import annotations
 import argparse
 
 from energy_margin.cli.common import add_seed, non_negative_float, positive_int
+from energy_margin.robustness.perturb import PROTOCOLS
 
 NAME = "perturb"
 SUMMARY = "perturbed copies of a dataset: object centres resampled inside their minimum-volume ellipsoid"
-EXAMPLES = ("energy-margin perturb runs/push10 --repeats 5 --seed 0 --out runs/push10-perturbed --workers 2",)
+EXAMPLES = (
+    "energy-margin perturb runs/push10 --repeats 5 --seed 0 --out runs/push10-perturbed --workers 2",
+    "energy-margin perturb runs/push10 --protocol paper --repeats 5 --seed 0 --out runs/push10-perturbed-paper",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,7 +22,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_seed(parser)
     parser.add_argument("--out", required=True, help="parent directory of the copies OUT/1 ... OUT/R")
     parser.add_argument(
-        "--tolerance", type=non_negative_float, default=5e-4, help="largest accepted penetration, m (default 5e-4)"
+        "--protocol",
+        choices=PROTOCOLS,
+        default="valid",
+        help="valid: physically valid states, overlaps rejected (default); paper: the authors' draw, every centre "
+        "at once, overlaps allowed (docs/robustness.md)",
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=non_negative_float,
+        default=None,
+        help="largest accepted penetration, m (default 5e-4; --protocol valid only)",
     )
     parser.add_argument(
         "--keep-orientation", action="store_true", help="keep recorded orientations (default: identity, as the paper)"
@@ -39,9 +53,10 @@ def run(args: argparse.Namespace) -> int:
         out=args.out,
         tolerance=args.tolerance,
         keep_orientation=args.keep_orientation,
+        protocol=args.protocol,
         overwrite=args.overwrite,
         workers=args.workers,
         progress=not args.no_progress,
     )
-    print(f"wrote {len(paths)} perturbed copies: {', '.join(str(p) for p in paths)}")
+    print(f"wrote {len(paths)} perturbed copies ({args.protocol} protocol): {', '.join(str(p) for p in paths)}")
     return 0

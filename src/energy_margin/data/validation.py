@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
@@ -145,11 +146,23 @@ def check_dataset(
         overlaps: also look for overlapping objects (builds the scenes; a fraction of a second).
         scores: check ``scores.csv``: ``True`` requires it, ``None`` checks it when present,
             ``False`` skips it.
-        warnings: receives the overlaps of an imported dataset (``imported_from`` in its
-            metadata), which are warnings, not problems: the authors' frames were recorded with
-            their own robot model, which this project's scene only approximates.
+        warnings: receives the overlaps of a dataset whose overlaps are expected
+            (:func:`overlaps_expected`), which are warnings, not problems.
     """
     return _check(path, overlaps=overlaps, scores=scores, warnings=warnings)[1]
+
+
+def overlaps_expected(metadata: dict[str, Any]) -> bool:
+    """Whether overlapping objects are expected in a dataset with this ``dataset.json`` content.
+
+    Two kinds of set hold them by construction: an imported set (``imported_from``: the authors'
+    frames were recorded with their own robot model, which this project's scene only
+    approximates) and a perturbed copy drawn with the authors' protocol (``perturbation.protocol``
+    ``"paper"``: their draw lets objects interpenetrate).
+    """
+    perturbation = metadata.get("perturbation")
+    paper = isinstance(perturbation, dict) and perturbation.get("protocol") == "paper"
+    return bool(metadata.get("imported_from")) or paper
 
 
 def _check(
@@ -160,7 +173,7 @@ def _check(
         return dataset, problems
     if overlaps:
         found = overlap_problems(dataset)
-        if dataset.metadata.get("imported_from"):
+        if overlaps_expected(dataset.metadata):
             if warnings is not None:
                 warnings.extend(found)
         else:
@@ -181,4 +194,12 @@ def require_valid(path: Path | str, *, overlaps: bool = True, scores: bool | Non
     return dataset
 
 
-__all__ = ["OVERLAP_FRACTION", "Problem", "check_dataset", "overlap_problems", "require_valid", "scores_problems"]
+__all__ = [
+    "OVERLAP_FRACTION",
+    "Problem",
+    "check_dataset",
+    "overlap_problems",
+    "overlaps_expected",
+    "require_valid",
+    "scores_problems",
+]

@@ -66,47 +66,110 @@ def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
     return float(np.sum(np.diff(np.r_[0.0, recall]) * precision))
 
 
-class Questions:
-    """Labels of one dataset and the AP of score grids on a resample of its trajectories."""
+#: Names of the questions in plots and tables.
+QUESTION_LABELS = {
+    "capture_ap": "capture, k-hat = 0",
+    "capture_ap_window2": "capture, k-hat = 2",
+    "success_ap_first_half": "success from first half",
+}
 
-    def __init__(self, dataset: Dataset, success_frames: int = 3) -> None:
-        self.capture0 = dataset.capture_labels(0)
-        self.capture2 = dataset.capture_labels(2)
+
+class Questions:
+    """Labels of one dataset and the AP of score grids on a resample of its trajectories.
+
+    Capture questions score every frame against the capture label with a look-ahead window
+    (k-hat); success questions score every trajectory from the weighted last ``success_frames``
+    frame scores of a span of its frames.
+
+    Args:
+        dataset: the dataset.
+        success_frames: k-bar, the frames averaged by a success question.
+        capture_windows: question name -> k-hat (default: budget's two capture questions).
+        success_spans: question name -> frame slice ``(start, stop)`` (``None`` bounds as in Python
+            slices; default: the first half of the frames).
+
+    """
+
+    def __init__(
+        self,
+        dataset: Dataset,
+        success_frames: int = 3,
+        *,
+        capture_windows: dict[str, int] | None = None,
+        success_spans: dict[str, tuple[int | None, int | None]] | None = None,
+    ) -> None:
+        half = max(1, dataset.n_frames // 2)
+        windows = capture_windows if capture_windows is not None else {"capture_ap": 0, "capture_ap_window2": 2}
+        spans = success_spans if success_spans is not None else {"success_ap_first_half": (0, half)}
+        self.capture = {name: dataset.capture_labels(window) for name, window in windows.items()}
+        self.spans = {name: slice(*span) for name, span in spans.items()}
         self.success = dataset.success_labels()
-        self.half = max(1, dataset.n_frames // 2)
         self.success_frames = success_frames
+        self.names: tuple[str, ...] = (*self.capture, *self.spans)
 
     def answer(self, capture: np.ndarray, success: np.ndarray, rows: np.ndarray) -> dict[str, float | None]:
-        """AP of each question on trajectories ``rows`` (indices, repeats allowed)."""
-        first_half = trajectory_success_score(success[rows, : self.half], last=self.success_frames)
-        return {
-            "capture_ap": average_precision(self.capture0[rows], capture[rows]),
-            "capture_ap_window2": average_precision(self.capture2[rows], capture[rows]),
-            "success_ap_first_half": average_precision(self.success[rows], first_half),
+        """AP of each question on trajectories ``rows`` (indices, repeats allowed).
+
+        Args:
+            capture: capture scores, shape (T, K).
+            success: success scores, shape (T, K).
+            rows: trajectory indices, shape (n,).
+
+        """
+        result: dict[str, float | None] = {
+            name: average_precision(labels[rows], capture[rows]) for name, labels in self.capture.items()
         }
+        for name, span in self.spans.items():
+            scores = trajectory_success_score(success[rows, span], last=self.success_frames)
+            result[name] = average_precision(self.success[rows], scores)
+        return result
+
+
+def bootstrap_answers(
+    questions: Questions, capture: np.ndarray, success: np.ndarray, resamples: np.ndarray
+) -> dict[str, np.ndarray]:
+    """Each question's AP on every resample, shape (n_resamples,), NaN where the resample has one class.
+
+    Args:
+        questions: the questions.
+        capture: capture scores, shape (T, K).
+        success: success scores, shape (T, K).
+        resamples: trajectory indices of each resample, shape (n_resamples, T).
+
+    """
+    samples = {name: np.full(len(resamples), np.nan) for name in questions.names}
+    for number, rows in enumerate(resamples):
+        for name, value in questions.answer(capture, success, rows).items():
+            if value is not None:
+                samples[name][number] = value
+    return samples
+
+
+def percentile_interval(values: np.ndarray) -> tuple[float | None, float | None]:
+    """The 95 % percentile interval of the finite ``values`` (shape (n,)); ``(None, None)`` if none."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return None, None
+    low, high = np.percentile(finite, [2.5, 97.5])
+    return float(low), float(high)
 
 
 def summarize(
     questions: Questions, capture: np.ndarray, success: np.ndarray, resamples: np.ndarray
 ) -> dict[str, float | None]:
     """Point estimates and 95 % percentile intervals over ``resamples`` (n, T) of trajectory indices."""
-    everything = np.arange(capture.shape[0])
-    point = questions.answer(capture, success, everything)
-    samples: dict[str, list[float]] = {q: [] for q in QUESTIONS}
-    for rows in resamples:
-        for name, value in questions.answer(capture, success, rows).items():
-            if value is not None:
-                samples[name].append(value)
+    point = questions.answer(capture, success, np.arange(capture.shape[0]))
+    samples = bootstrap_answers(questions, capture, success, resamples)
     result: dict[str, float | None] = {}
-    for name in QUESTIONS:
+    for name in questions.names:
         result[name] = point[name]
-        values = samples[name]
-        low, high = (float(v) for v in np.percentile(values, [2.5, 97.5])) if values else (None, None)
-        result[f"{name}_low"], result[f"{name}_high"] = low, high
+        result[f"{name}_low"], result[f"{name}_high"] = percentile_interval(samples[name])
     return result
 
 
-def _prepare(directory: Path, work: Path) -> None:
+def copy_dataset(directory: Path, work: Path) -> None:
+    """Copy the dataset files of ``directory`` into the working directory ``work`` (kept if there)."""
     work.mkdir(parents=True, exist_ok=True)
     for name in (METADATA_FILE, FRAMES_FILE):
         target = work / name
@@ -130,8 +193,25 @@ def _write_outputs(rows: list[dict[str, Any]], out: Path, meta: dict[str, Any]) 
     return written
 
 
-def plot(rows: list[dict[str, Any]], path: Path, *, title: str = "") -> Path | None:
-    """AP against budget per method (one panel per question, CIs shaded); ``None`` without matplotlib."""
+def plot(
+    rows: list[dict[str, Any]],
+    path: Path,
+    *,
+    title: str = "",
+    questions: Sequence[str] = QUESTIONS,
+    labels: dict[str, str] | None = None,
+) -> Path | None:
+    """AP against budget per method (one panel per question, CIs shaded); ``None`` without matplotlib.
+
+    Args:
+        rows: summary rows (``method``, ``budget`` and each question with ``_low``/``_high``);
+            rows of a method outside the tree methods are drawn as horizontal baselines.
+        path: the PNG to write.
+        title: figure title.
+        questions: the questions, one panel each.
+        labels: panel titles by question (default :data:`QUESTION_LABELS`).
+
+    """
     try:
         import matplotlib
 
@@ -139,11 +219,19 @@ def plot(rows: list[dict[str, Any]], path: Path, *, title: str = "") -> Path | N
         import matplotlib.pyplot as plt
     except ImportError:
         return None
-    labels = {"capture_ap": "capture, k-hat = 0", "capture_ap_window2": "capture, k-hat = 2"}
-    labels["success_ap_first_half"] = "success from first half"
-    figure, axes = plt.subplots(1, len(QUESTIONS), figsize=(4.2 * len(QUESTIONS), 3.6), sharey=True)
+    labels = labels if labels is not None else QUESTION_LABELS
+    # At most three panels a row: budget's three questions in one row, the study's six in two.
+    columns = min(3, len(questions))
+    rows_of_panels = -(-len(questions) // columns)
+    figure, grid = plt.subplots(
+        rows_of_panels, columns, figsize=(4.2 * columns, 3.6 * rows_of_panels), sharey=True, squeeze=False
+    )
+    axes = list(grid.ravel()[: len(questions)])
+    for spare in grid.ravel()[len(questions) :]:
+        spare.set_visible(False)
     methods = [m for m in dict.fromkeys(r["method"] for r in rows)]
-    for axis, question in zip(axes, QUESTIONS, strict=True):
+    baseline_colors = {"current_state": "grey", "distance": "black", "chance": "tab:brown"}
+    for axis, question in zip(axes, questions, strict=True):
         for method in methods:
             mine = [r for r in rows if r["method"] == method and r.get(question) is not None]
             if not mine:
@@ -156,19 +244,23 @@ def plot(rows: list[dict[str, Any]], path: Path, *, title: str = "") -> Path | N
                 high = [r[f"{question}_high"] for r in mine]
                 if None not in low and None not in high:
                     axis.fill_between(budgets, low, high, color=line.get_color(), alpha=0.15)
+                    below = [v - lo for v, lo in zip(values, low, strict=True)]
+                    above = [hi - v for v, hi in zip(values, high, strict=True)]
+                    axis.errorbar(budgets, values, yerr=[below, above], fmt="none", ecolor=line.get_color(), capsize=3)
             else:
                 axis.axhline(
                     mine[0][question],
                     linestyle="--",
                     linewidth=1,
                     label=method,
-                    color="grey" if method == "current_state" else "black",
+                    color=baseline_colors.get(method, "black"),
                 )
         axis.set_xscale("log")
         axis.set_xlabel("expansions per frame")
-        axis.set_title(labels[question])
+        axis.set_title(labels.get(question, question))
         axis.grid(True, alpha=0.3)
-    axes[0].set_ylabel("AP (95 % CI over trajectories)")
+    for row_axes in grid:
+        row_axes[0].set_ylabel("AP (95 % CI over trajectories)")
     axes[-1].legend(fontsize=8, loc="lower right")
     if title:
         figure.suptitle(title)
@@ -235,27 +327,25 @@ def budget_sweep(
         f"{dataset.n_trajectories} x {dataset.n_frames} frames",
     }
     rows: list[dict[str, Any]] = []
-    for name, grids in _baseline_grids(dataset).items():
+    for name, grids in baseline_grids(dataset).items():
         rows.append({"method": name, "budget": 0, **summarize(questions, *grids, resamples), "frames": 0})
     total = len(methods) * len(budgets)
     for number, (method, budget) in enumerate(((m, b) for m in methods for b in budgets), start=1):
         started = time.perf_counter()
-        work = out_path.parent / f"{method}-{budget}"
-        _prepare(directory, work)
-        fields = {**base.to_dict(), "iterations": budget, "nodes": None, "method": method}
-        try:
-            config = AnalyzerConfig(**fields)
-        except ValueError as error:
-            raise EnergyMarginError(str(error)) from None
-        analyze(work, config, seed=seed, workers=workers, progress=False)
-        scores = load_scores(work)
+        scores = analyze_configuration(
+            directory,
+            out_path.parent / f"{method}-{budget}",
+            base,
+            method=method,
+            budget=budget,
+            seed=seed,
+            workers=workers,
+        )
         capture = score_grid(dataset, scores, "capture_score")
         success = score_grid(dataset, scores, "success_score")
         row: dict[str, Any] = {"method": method, "budget": budget}
         row.update(summarize(questions, capture, success, resamples))
-        row["runtime_per_frame_s"] = float(scores["runtime_s"].mean())
-        row["nodes_per_frame"] = float(scores["nodes"].mean())
-        row["frames"] = int(scores["runtime_s"].size)
+        row.update(cost_summary(scores))
         rows.append(row)
         _write_outputs(rows, out_path, meta)
         say(
@@ -267,7 +357,47 @@ def budget_sweep(
     return rows
 
 
-def _baseline_grids(dataset: Dataset) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def analyze_configuration(
+    directory: Path,
+    work: Path,
+    base: AnalyzerConfig,
+    *,
+    method: str,
+    budget: int,
+    seed: int,
+    workers: int,
+    progress: bool = False,
+) -> dict[str, np.ndarray]:
+    """Analyse the dataset ``directory`` with ``method`` at ``budget`` iterations in its own ``work`` directory.
+
+    ``work`` gets a copy of the dataset files and the resumable journal of
+    :func:`energy_margin.analysis.run.analyze`; a finished configuration is read back, not rerun.
+
+    Returns:
+        The scores columns (:func:`energy_margin.data.scores_file.load_scores`).
+
+    """
+    copy_dataset(directory, work)
+    fields = {**base.to_dict(), "iterations": budget, "nodes": None, "method": method}
+    try:
+        config = AnalyzerConfig(**fields)
+    except ValueError as error:
+        raise EnergyMarginError(str(error)) from None
+    analyze(work, config, seed=seed, workers=workers, progress=progress)
+    return load_scores(work)
+
+
+def cost_summary(scores: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Mean wall time and nodes per frame of a scores file's columns, and its number of frames."""
+    return {
+        "runtime_per_frame_s": float(scores["runtime_s"].mean()),
+        "nodes_per_frame": float(scores["nodes"].mean()),
+        "frames": int(scores["runtime_s"].size),
+    }
+
+
+def baseline_grids(dataset: Dataset) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Capture and success score grids (each (T, K)) of the baselines: ``current_state`` and ``distance``."""
     grids = {
         "current_state": (
             dataset.arrays["captured"].astype(float),
@@ -284,23 +414,30 @@ def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 
 
-def format_table(rows: list[dict[str, Any]]) -> str:
-    """A text table of the sweep's rows."""
+def format_table(
+    rows: list[dict[str, Any]],
+    *,
+    questions: Sequence[str] = QUESTIONS,
+    headers: Sequence[str] = ("capture k=0", "capture k=2", "success 1st half"),
+    first: Sequence[str] = ("method",),
+) -> str:
+    """A text table of summary rows: the ``first`` columns, the budget, each question with its interval."""
+    width = max([13, *(len(str(row.get(key, ""))) for row in rows for key in first)])
     header = (
-        f"{'method':>13s} {'budget':>6s} "
-        + " ".join(f"{q:>24s}" for q in ("capture k=0", "capture k=2", "success 1st half"))
+        " ".join(f"{key:>{width}s}" for key in first)
+        + f" {'budget':>6s} "
+        + " ".join(f"{q:>24s}" for q in headers)
         + f" {'s/frame':>8s}"
     )
     lines = [header, "-" * len(header)]
     for row in rows:
         cells = []
-        for question in QUESTIONS:
+        for question in questions:
             value, low, high = row.get(question), row.get(f"{question}_low"), row.get(f"{question}_high")
             text = _fmt(value) if low is None or high is None else f"{_fmt(value)} [{low:.3f}, {high:.3f}]"
             cells.append(f"{text:>24s}")
         runtime = row.get("runtime_per_frame_s")
-        budget = str(row["budget"]) if row["budget"] else "-"
-        lines.append(
-            f"{row['method']:>13s} {budget:>6s} {' '.join(cells)} {'' if runtime is None else f'{runtime:8.3f}'}"
-        )
+        budget = str(row["budget"]) if row.get("budget") else "-"
+        names = " ".join(f"{row.get(key, '')!s:>{width}s}" for key in first)
+        lines.append(f"{names} {budget:>6s} {' '.join(cells)} {'' if runtime is None else f'{runtime:8.3f}'}")
     return "\n".join(lines)

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+#: Perturbation protocols of Table I, in the order reported, and the suffix of their copies'
+#: directory (``data/<task>-<n>-<suffix>/R``).
+TABLE_ONE_PROTOCOLS = {"valid": "perturbed", "paper": "perturbed-paper"}
+
 
 @dataclass(frozen=True)
 class ReproduceConfig:

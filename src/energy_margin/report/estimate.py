@@ -4,7 +4,8 @@ The calibration records one roll-out of each task, grows the trees of its middle
 with the run's iterations (at most 300), perturbs its three frames once and draws one picture; the estimate multiplies
 those wall times by the frames not yet in a ``scores.csv`` or journal (pushing scaled by the number
 of objects, which the runtime grows with linearly), the roll-outs not yet generated, the frames of
-the perturbed copies not yet written and the pictures of the report.
+the valid-protocol perturbed copies not yet written (the paper protocol's draw checks nothing and
+costs next to nothing) and the pictures of the report.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from energy_margin.report.config import ReproduceConfig
+from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 
 #: Objects of the calibration scenes (the paper's Table I sizes).
 CALIBRATION_OBJECTS = {"pushing": 10, "scooping": 5}
@@ -26,7 +27,7 @@ CALIBRATION_OBJECTS = {"pushing": 10, "scooping": 5}
 #: the run's own number up to this.
 CALIBRATION_ITERATIONS = 300
 #: Pictures the report draws per task (rendered frames, perturbed examples, one video at 30 fps).
-_REPORT_PICTURES = {"pushing": 10 + 61, "scooping": 10 + 70}
+_REPORT_PICTURES = {"pushing": 11 + 61, "scooping": 11 + 70}
 #: Matplotlib figures, views and encoding of the report, s (measured: docs/report.md).
 _REPORT_OVERHEAD_S = 25.0
 
@@ -42,6 +43,7 @@ class PlannedAnalysis:
         trajectories: roll-outs.
         frames: frames per roll-out.
         generated: whether ``reproduce`` generates it (perturbed copies are not rolled out).
+        protocol: the perturbation protocol of a perturbed copy (``None`` for a generated set).
 
     """
 
@@ -51,16 +53,20 @@ class PlannedAnalysis:
     trajectories: int
     frames: int
     generated: bool
+    protocol: str | None = None
 
 
 def planned_analyses(config: ReproduceConfig, table_objects: dict[str, int]) -> list[PlannedAnalysis]:
-    """Every dataset of a run: Table I datasets and their perturbed copies, then the ablation."""
+    """Every dataset of a run: Table I datasets and their perturbed copies (both protocols), then the ablation."""
     plan = []
     for task, n_objects in table_objects.items():
         name = f"{task}-{n_objects}"
         plan.append(PlannedAnalysis(f"data/{name}", task, n_objects, config.trajectories, config.frames, True))
         plan.extend(
-            PlannedAnalysis(f"data/{name}-perturbed/{r}", task, n_objects, config.trajectories, config.frames, False)
+            PlannedAnalysis(
+                f"data/{name}-{suffix}/{r}", task, n_objects, config.trajectories, config.frames, False, protocol
+            )
+            for protocol, suffix in TABLE_ONE_PROTOCOLS.items()
             for r in range(1, config.repeats + 1)
         )
     plan.extend(
@@ -200,6 +206,7 @@ def estimate_seconds(
         if entry.generated
         else entry.trajectories * entry.frames * per_object(calibration.perturb_s, entry)
         for entry in to_write
+        if entry.generated or entry.protocol != "paper"
     )
     pictures = sum(_REPORT_PICTURES.get(task, 80) for task in {entry.task for entry in frames})
     report_s = pictures * calibration.picture_s + _REPORT_OVERHEAD_S if report else 0.0

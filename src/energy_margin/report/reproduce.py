@@ -1,5 +1,9 @@
 """``energy-margin reproduce``: the paper's Table I, the Fig. 2 ablation and a visual report.
 
+Table I is reported under both perturbation protocols (docs/robustness.md): ``valid``
+(physically valid copies, ``data/<task>-<n>-perturbed/R``) and ``paper`` (the authors' draw,
+overlaps allowed, ``data/<task>-<n>-perturbed-paper/R``).
+
 Every stage writes files and is skipped or resumed when run again: datasets are regenerated only
 when missing, analyses resume from their journals, perturbed copies are kept. The resolved
 configuration is saved as ``reproduce.json`` in the output directory.
@@ -18,8 +22,8 @@ from typing import Any
 
 from energy_margin.data.io import atomic_write_text, write_json
 from energy_margin.errors import EnergyMarginError
-from energy_margin.report.config import ReproduceConfig
-from energy_margin.report.html import write_report
+from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
+from energy_margin.report.html import protocol_rows, write_report
 from energy_margin.report.paper import PAPER_FIG_2, PAPER_TABLE_I
 
 
@@ -58,9 +62,22 @@ def _analyze(path: Path, config: ReproduceConfig) -> None:
     )
 
 
+#: What a Table I row holds per protocol (``by_protocol``).
+PROTOCOL_KEYS = (
+    "protocol",
+    "capture_ap_perturbed",
+    "success_ap_perturbed",
+    "capture_score_error",
+    "success_score_error",
+    "runtime_per_frame_perturbed_s",
+    "perturbed",
+)
+
+
 def _table_one_row(
     out: Path, task: str, n_objects: int, config: ReproduceConfig, step: Callable[[str], None]
 ) -> dict[str, Any]:
+    """Table I for one task: the valid protocol's comparison, and ``by_protocol`` for both."""
     from energy_margin.robustness.compare import compare_perturbed
     from energy_margin.robustness.perturb import perturb_dataset
 
@@ -69,22 +86,30 @@ def _table_one_row(
     path = _dataset(out, name, task, n_objects, config.trajectories, config.frames, config)
     step(f"analyze {name} (true states)")
     _analyze(path, config)
-    step(f"perturb {name} ({config.repeats} copies)")
-    copies = perturb_dataset(
-        path,
-        repeats=config.repeats,
-        seed=config.seed,
-        out=out / "data" / f"{name}-perturbed",
-        workers=config.workers,
-        progress=sys.stderr.isatty(),
-    )
-    for index, copy in enumerate(copies, start=1):
-        step(f"analyze {name} perturbed copy {index}/{len(copies)}")
-        _analyze(copy, config)
-    result = compare_perturbed(path, [str(copy) for copy in copies])
-    result["dataset"] = str(path.relative_to(out))
-    result["perturbed"] = [str(Path(copy).relative_to(out)) for copy in copies]
-    return result
+    results = {}
+    for protocol, suffix in TABLE_ONE_PROTOCOLS.items():
+        step(f"perturb {name} ({config.repeats} copies, {protocol} protocol)")
+        copies = perturb_dataset(
+            path,
+            repeats=config.repeats,
+            seed=config.seed,
+            out=out / "data" / f"{name}-{suffix}",
+            protocol=protocol,
+            workers=config.workers,
+            progress=sys.stderr.isatty(),
+        )
+        for index, copy in enumerate(copies, start=1):
+            step(f"analyze {name} perturbed copy {index}/{len(copies)} ({protocol} protocol)")
+            _analyze(copy, config)
+        result = compare_perturbed(path, [str(copy) for copy in copies])
+        result["dataset"] = str(path.relative_to(out))
+        result["perturbed"] = [str(Path(copy).relative_to(out)) for copy in copies]
+        results[protocol] = result
+    row = dict(results["valid"])
+    row["by_protocol"] = {
+        protocol: {key: result.get(key) for key in PROTOCOL_KEYS} for protocol, result in results.items()
+    }
+    return row
 
 
 def _ablation_row(out: Path, n_objects: int, config: ReproduceConfig, step: Callable[[str], None]) -> dict[str, Any]:
@@ -121,7 +146,7 @@ def _spread(entry: dict[str, Any] | None) -> str:
 
 
 def table_one_markdown(rows: dict[str, dict[str, Any]]) -> str:
-    """Table I (ours beside the paper's) as Markdown."""
+    """Table I (ours under each perturbation protocol, beside the paper's) as Markdown."""
     lines = [
         "| task | n_o | | capture AP true | capture AP perturbed | capture score error "
         "| success AP true | success AP perturbed | success score error |",
@@ -129,12 +154,14 @@ def table_one_markdown(rows: dict[str, dict[str, Any]]) -> str:
     ]
     for task, row in rows.items():
         paper = PAPER_TABLE_I[task]
-        lines.append(
-            f"| {task} | {row['n_objects']} | this project | {_number(row['capture_ap'])} "
-            f"| {_spread(row['capture_ap_perturbed'])} | {_spread(row['capture_score_error'])} "
-            f"| {_number(row['success_ap'])} | {_spread(row['success_ap_perturbed'])} "
-            f"| {_spread(row['success_score_error'])} |"
-        )
+        for index, (label, perturbed) in enumerate(protocol_rows(row)):
+            first = f"| {task} |" if index == 0 else "| |"
+            lines.append(
+                f"{first} {row['n_objects']} | {label} | {_number(row['capture_ap'])} "
+                f"| {_spread(perturbed['capture_ap_perturbed'])} | {_spread(perturbed['capture_score_error'])} "
+                f"| {_number(row['success_ap'])} | {_spread(perturbed['success_ap_perturbed'])} "
+                f"| {_spread(perturbed['success_score_error'])} |"
+            )
         lines.append(
             f"| | {paper['n_objects']} | paper | {paper['capture_ap']:.2f} "
             f"| {paper['capture_ap_perturbed'][0]:.2f} ± {paper['capture_ap_perturbed'][1]:.2f} "
@@ -261,7 +288,7 @@ def reproduce(out: Path | str, config: ReproduceConfig, *, command: str | None =
                 f"{out} holds a reproduction with other settings ({previous.name}); choose another --out"
             )
     write_json(previous, resolved)
-    stages = 2 * (3 + config.repeats) + 2 * len(config.ablation_objects) + 1
+    stages = 2 * (2 + len(TABLE_ONE_PROTOCOLS) * (1 + config.repeats)) + 2 * len(config.ablation_objects) + 1
     started = time.monotonic()
     timings: list[dict[str, Any]] = []
 
@@ -321,5 +348,7 @@ def _strip(rows: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
         "runtime_per_frame_s",
         "baselines",
         "perturbed",
+        "protocol",
+        "by_protocol",
     )
     return {task: {key: row.get(key) for key in keys} for task, row in rows.items()}

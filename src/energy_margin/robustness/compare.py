@@ -5,6 +5,9 @@
 same labels). Perturbed AP is the mean ± standard deviation (population, ddof = 0, as the paper's
 values) over the copies; the score error is perturbed − true per frame, pooled over every frame
 of every copy, mean ± standard deviation, for the capture score and the per-frame success score.
+The copies must come from one perturbation protocol (``perturbation.protocol`` in their
+``dataset.json``: ``valid`` or ``paper``; copies written before the choice existed are ``valid``),
+which the result names.
 """
 
 from __future__ import annotations
@@ -54,6 +57,14 @@ def _check_correspondence(true: Dataset, other: Dataset, where: Path) -> None:
             )
 
 
+def copy_protocol(dataset: Dataset) -> str | None:
+    """The perturbation protocol of a perturbed copy (``None`` for a dataset that is not one)."""
+    info = dataset.metadata.get("perturbation")
+    if not isinstance(info, dict):
+        return None
+    return str(info.get("protocol", "valid"))
+
+
 def _mean_std(values: list[float | None] | np.ndarray) -> dict[str, Any]:
     if any(v is None for v in values):
         return {"mean": None, "std": None, "values": list(values)}
@@ -75,10 +86,12 @@ def compare_perturbed(
         :func:`~energy_margin.evaluation.metrics.evaluate`'s result for the true states (``capture_ap``,
         ``success_ap``, baselines, ...) plus ``capture_ap_perturbed``, ``success_ap_perturbed``,
         ``capture_score_error`` and ``success_score_error`` (each ``{"mean", "std", "values"}``;
-        the errors' ``values`` hold one mean per copy), ``n_repeats`` and ``compare`` (paths).
+        the errors' ``values`` hold one mean per copy), ``n_repeats``, ``compare`` (paths) and
+        ``protocol`` (the copies' perturbation protocol, ``None`` when they are not ``perturb``'s).
 
     Raises:
-        EnergyMarginError: when a copy is missing, unscored or does not correspond.
+        EnergyMarginError: when a copy is missing, unscored or does not correspond, or when the
+            copies mix perturbation protocols.
 
     """
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
@@ -100,9 +113,17 @@ def compare_perturbed(
     capture_errors: list[np.ndarray] = []
     success_errors: list[np.ndarray] = []
     runtimes: list[float] = []
+    protocols: dict[str | None, Path] = {}
     for other_path in others:
         other = load_dataset(other_path)
         _check_correspondence(true, other, other_path)
+        protocols.setdefault(copy_protocol(other), Path(other_path))
+        if len(protocols) > 1:
+            (first, first_path), (second, second_path) = list(protocols.items())[:2]
+            raise EnergyMarginError(
+                f"--compare mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
+                f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time"
+            )
         other_result = evaluate(other_path, **options)
         scores = load_scores(other_path)
         capture_errors.append(score_grid(other, scores, "capture_score") - true_capture)
@@ -127,6 +148,7 @@ def compare_perturbed(
                 "values": [float(e.mean()) for e in success_error],
             },
             "n_repeats": len(others),
+            "protocol": next(iter(protocols)),
             "compare": [str(p) for p in others],
             "runtime_per_frame_perturbed_s": float(np.mean(runtimes)),
         }
@@ -148,8 +170,10 @@ def format_robustness_table(result: dict[str, Any]) -> str:
         return "n/a" if value is None else f"{value:.2f}"
 
     header = f"{'score':10s} {'true state':>11s} {'perturbed state':>16s} {'error':>14s}"
+    protocol = result.get("protocol")
+    named = f", {protocol} protocol" if protocol else ""
     lines = [
-        f"Table I ({result['task']}, {result['n_objects']} objects, {result['n_repeats']} perturbed repeats; "
+        f"Table I ({result['task']}, {result['n_objects']} objects, {result['n_repeats']} perturbed repeats{named}; "
         "perturbed: mean ± std over repeats; error: perturbed - true over every frame)",
         header,
         "-" * len(header),

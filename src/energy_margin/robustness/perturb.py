@@ -15,7 +15,11 @@ the minimum-volume ellipsoid of the true centres (:func:`~energy_margin.world.el
 * Stable draws: candidates are drawn from the fitted ellipsoid snapped to a 1e-7 grid
   (:meth:`~energy_margin.world.ellipsoid.Ellipsoid.snapped`), so fits that differ by rounding give
   identical copies (tested with the fit's parameters scaled by 1 + 1e-12).
-* No overlaps (unlike the authors' version): objects are placed one at a time by **rejection**.
+* Two protocols (``protocol``). ``"valid"`` (the default) gives physically valid states: no
+  overlaps, as below. ``"paper"`` is the authors' draw exactly: one point per object drawn at once
+  inside the fitted ellipsoid, nothing checked, so objects may interpenetrate each other, the
+  end-effector and the ground or table; no restarts, no growth.
+* No overlaps (``"valid"``, unlike the authors' version): objects are placed one at a time by **rejection**.
   A candidate is accepted when, in the task's simulator (the frame's scene, with the objects not
   yet placed parked far away), no contact of the new object - with another object, the
   end-effector, the table, ground or wall - penetrates deeper than ``tolerance``. Rejection keeps
@@ -52,6 +56,15 @@ from energy_margin.world.state import FrameState
 
 #: Where objects not yet placed wait (far from everything, one metre apart).
 _PARK_DISTANCE = 100.0
+#: A perturbed frame whose deepest penetration exceeds this counts as overlapping, m.
+_OVERLAP = 5e-4
+#: Perturbation protocols: physically valid states (rejection of overlaps) or the authors' draw.
+PROTOCOLS = ("valid", "paper")
+#: What each protocol does, as recorded in ``dataset.json``.
+PROTOCOL_METHODS = {
+    "valid": "uniform in the minimum-volume ellipsoid of the object centres, rejection of overlaps",
+    "paper": "uniform in the minimum-volume ellipsoid of the object centres, all objects at once, overlaps allowed",
+}
 
 
 @dataclass(frozen=True)
@@ -64,6 +77,8 @@ class FramePerturbation:
         candidates: candidates drawn (accepted and rejected).
         restarts: times the frame started over.
         growth: factor applied to the sampling ellipsoid's radii (1.0 unless the fallback ran).
+        penetration: deepest contact penetration of an object in the perturbed state, m (at most
+            the tolerance for the valid protocol; whatever the draw gave for the paper's).
 
     """
 
@@ -72,6 +87,7 @@ class FramePerturbation:
     candidates: int
     restarts: int
     growth: float
+    penetration: float = 0.0
 
 
 def _planar(dataset: Dataset) -> bool:
@@ -93,11 +109,15 @@ def perturb_frame(
     min_thickness: float,
     tolerance: float = 5e-4,
     keep_orientation: bool = False,
+    protocol: str = "valid",
     max_attempts: int = 500,
     max_restarts: int = 3,
     max_growth_restarts: int = 20,
 ) -> FramePerturbation:
-    """Resample the object centres of ``frame`` uniformly inside their ellipsoid, without overlaps.
+    """Resample the object centres of ``frame`` uniformly inside their ellipsoid.
+
+    With ``protocol="valid"`` no object overlaps anything; with ``"paper"`` (the authors' draw) the
+    ``n`` centres are the first ``n`` points of the frame's stream, overlaps and all.
 
     Args:
         frame: the true state.
@@ -107,14 +127,19 @@ def perturb_frame(
         min_thickness: radius of the ellipsoid's flat axes (e.g. the object radius), m.
         tolerance: largest accepted contact penetration of a placed object, m.
         keep_orientation: keep the recorded orientations instead of the identity.
+        protocol: ``"valid"`` (rejection of overlaps) or ``"paper"`` (the authors' draw; the
+            options below and ``tolerance`` are then unused).
         max_attempts: rejected candidates of one object before the frame starts over.
         max_restarts: restarts with the fitted ellipsoid before its radii start to grow.
         max_growth_restarts: further restarts, the n-th with radii 1.1^n times larger.
 
     Raises:
+        ValueError: when ``protocol`` is not one of :data:`PROTOCOLS`.
         EnergyMarginError: when no admissible placement is found.
 
     """
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
     n = frame.n_objects
     coords = frame.object_pos[:, :2] if planar else frame.object_pos
     ellipsoid = min_volume_ellipsoid(coords, min_thickness=min_thickness)
@@ -128,6 +153,13 @@ def perturb_frame(
     # Draws come from a snapped copy of the fit: a rounding-level change of the fit (another
     # BLAS, another Khachiyan step order) leaves every candidate, hence every decision, unchanged.
     snapped = ellipsoid.snapped()
+    if protocol == "paper":
+        # The authors' draw: every centre at once (angles, then radii), nothing checked.
+        points = snapped.sample(rng, n)
+        perturbed = _with_objects(frame, np.column_stack([points, heights]) if planar else points, quat)
+        simulator.reset(perturbed)
+        depth = _max_penetration(simulator, list(range(n)))
+        return FramePerturbation(perturbed, ellipsoid, n, 0, 1.0, depth)
     candidates = 0
     for restart in range(max_restarts + max_growth_restarts + 1):
         growth = 1.1 ** max(0, restart - max_restarts)
@@ -150,7 +182,10 @@ def perturb_frame(
                 placed += 1
                 attempts = 0
         if placed == n:
-            return FramePerturbation(_with_objects(frame, positions, quat), ellipsoid, candidates, restart, growth)
+            placement = _with_objects(frame, positions, quat)
+            simulator.reset(placement)
+            depth = _max_penetration(simulator, list(range(n)))
+            return FramePerturbation(placement, ellipsoid, candidates, restart, growth, depth)
     raise EnergyMarginError(
         f"cannot place {n} objects without overlaps inside the ellipsoid of their centres "
         f"(radii {np.round(ellipsoid.radii, 4).tolist()} m) after {candidates} candidates"
@@ -193,8 +228,9 @@ def perturb_dataset(
     repeats: int,
     seed: int,
     out: Path | str,
-    tolerance: float = 5e-4,
+    tolerance: float | None = None,
     keep_orientation: bool = False,
+    protocol: str = "valid",
     min_thickness: float | None = None,
     overwrite: bool = False,
     workers: int = 1,
@@ -207,8 +243,11 @@ def perturb_dataset(
         repeats: number of perturbed copies R, >= 1.
         seed: non-negative integer seed.
         out: parent directory of the copies.
-        tolerance: largest accepted contact penetration of a resampled object, m, >= 0.
+        tolerance: largest accepted contact penetration of a resampled object, m, >= 0 (default
+            5e-4; ``protocol="valid"`` only).
         keep_orientation: keep recorded orientations (default: identity, as the authors).
+        protocol: ``"valid"`` (no overlaps, the default) or ``"paper"`` (the authors' draw,
+            overlaps allowed); recorded as ``perturbation.protocol`` in ``dataset.json``.
         min_thickness: radius of flat ellipsoid axes, m; default the object radius (pushing) or
             half edge (scooping).
         overwrite: replace existing copies.
@@ -223,6 +262,13 @@ def perturb_dataset(
     for name, value, minimum in (("repeats", repeats, 1), ("seed", seed, 0), ("workers", workers, 1)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
             raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if protocol not in PROTOCOLS:
+        raise EnergyMarginError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+    if tolerance is not None and protocol != "valid":
+        raise EnergyMarginError(
+            f"tolerance applies to the valid protocol only (protocol {protocol!r} checks no overlaps)"
+        )
+    tolerance = 5e-4 if tolerance is None else tolerance
     if not (np.isfinite(tolerance) and tolerance >= 0):
         raise EnergyMarginError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if min_thickness is not None and not (np.isfinite(min_thickness) and min_thickness > 0):
@@ -235,17 +281,16 @@ def perturb_dataset(
         raise EnergyMarginError(f"{out} exists and is not a directory")
     thickness = float(min_thickness) if min_thickness is not None else _object_size(source)
     planar = _planar(source)
-    settings = {
-        "method": "uniform in the minimum-volume ellipsoid of the object centres, rejection of overlaps",
+    settings: dict[str, Any] = {
+        "protocol": protocol,
+        "method": PROTOCOL_METHODS[protocol],
         "coordinates": "xy" if planar else "xyz",
-        "tolerance_m": float(tolerance),
         "min_thickness_m": thickness,
         "keep_orientation": bool(keep_orientation),
         "velocities": "zero",
-        "max_attempts": 500,
-        "max_restarts": 3,
-        "growth_per_restart": 1.1,
     }
+    if protocol == "valid":
+        settings.update(tolerance_m=float(tolerance), max_attempts=500, max_restarts=3, growth_per_restart=1.1)
     targets = [out / str(r + 1) for r in range(repeats)]
     pending = []
     for target in targets:
@@ -269,6 +314,7 @@ def perturb_dataset(
         "min_thickness": thickness,
         "tolerance": tolerance,
         "keep_orientation": keep_orientation,
+        "protocol": protocol,
     }
     results: dict[tuple[int, int], list[FramePerturbation]] = {}
     bar = progress_bar(len(jobs) * source.n_frames, desc="perturb", enabled=progress)
@@ -282,8 +328,8 @@ def perturb_dataset(
         if target not in pending:
             continue
         arrays = {key: value.copy() for key, value in source.arrays.items()}
-        candidates = restarts = grown = 0
-        growths = []
+        candidates = restarts = grown = overlapping = 0
+        growths, depths = [], []
         for trajectory in range(source.n_trajectories):
             for index, result in enumerate(results[(r, trajectory)]):
                 arrays["object_pos"][trajectory, index] = result.frame.object_pos
@@ -293,6 +339,8 @@ def perturb_dataset(
                 restarts += result.restarts
                 grown += result.growth > 1.0
                 growths.append(result.growth)
+                overlapping += result.penetration > _OVERLAP
+                depths.append(result.penetration)
         metadata = dict(source.metadata)
         metadata["perturbation"] = {
             **settings,
@@ -305,6 +353,8 @@ def perturb_dataset(
             "restarts": int(restarts),
             "frames_with_grown_ellipsoid": int(grown),
             "largest_growth": float(max(growths)),
+            "frames_with_overlaps": int(overlapping),
+            "deepest_penetration_m": float(max(depths)),
         }
         dataset = Dataset(path=target, metadata=metadata, arrays=arrays)
         validate(dataset)
@@ -372,6 +422,8 @@ def _existing(target: Path, source: Dataset, seed: int, settings: dict[str, Any]
     info = existing.metadata.get("perturbation")
     if not isinstance(info, dict) or info.get("seed") != int(seed):
         return False
+    # Copies written before there was a choice of protocol are valid-protocol copies.
+    info = {"protocol": "valid", **info}
     if any(info.get(key) != value for key, value in settings.items()):
         return False
     same_shape = all(
