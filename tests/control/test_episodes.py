@@ -113,6 +113,25 @@ def test_a_run_is_a_dataset_with_its_settings(tmp_path: Path) -> None:
     assert low <= summary["success_rate"] <= high
 
 
+def test_a_run_grows_to_more_episodes_without_recomputing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    reference, reference_set = _run(tmp_path / "reference")
+    _run(tmp_path / "run", episodes=2)
+    from energy_margin.control import episodes
+
+    calls: list[int] = []
+    original = episodes.run_episode
+
+    def counting(*args: object, **kwargs: object) -> dict:
+        calls.append(1)
+        return original(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(episodes, "run_episode", counting)
+    grown, grown_set = _run(tmp_path / "run")
+    assert len(calls) == 1
+    np.testing.assert_array_equal(grown_set.arrays["object_pos"], reference_set.arrays["object_pos"])  # type: ignore[attr-defined]
+    assert grown["successes"] == reference["successes"] and grown["episodes"] == 3
+
+
 def test_other_settings_in_the_same_directory_are_refused(tmp_path: Path) -> None:
     _run(tmp_path / "run")
     with pytest.raises(EnergyMarginError, match="holds episodes of other settings"):

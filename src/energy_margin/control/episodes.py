@@ -308,6 +308,10 @@ def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[st
     }
 
 
+def _without_count(settings: dict[str, Any]) -> dict[str, Any]:
+    return {key: value for key, value in settings.items() if key != "episodes"}
+
+
 def _check_settings(out: Path, settings: ControlSettings, *, overwrite: bool) -> None:
     """Refuse a directory holding another run; clear it with ``overwrite``."""
     control_file = out / CONTROL_FILE
@@ -323,7 +327,11 @@ def _check_settings(out: Path, settings: ControlSettings, *, overwrite: bool) ->
         return
     if control_file.is_file():
         previous = read_json(control_file, what="control run file")
-        if isinstance(previous, dict) and previous.get("settings") == json.loads(json.dumps(settings.to_dict())):
+        # The number of episodes may change: episode i's seed does not depend on it, so a run
+        # grows (or is summarised over its first E episodes) without recomputing any.
+        current = json.loads(json.dumps(settings.to_dict()))
+        stored = previous.get("settings") if isinstance(previous, dict) else None
+        if isinstance(stored, dict) and _without_count(stored) == _without_count(current):
             return
         raise EnergyMarginError(
             f"{out} holds episodes of other settings; pass --overwrite to replace them or choose another --out"
