@@ -7,7 +7,14 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json, task_overrides
+from energy_margin.cli.common import (
+    add_seed,
+    non_negative_int,
+    positive_int,
+    print_json,
+    scene_task_config,
+    task_overrides,
+)
 from energy_margin.errors import EnergyMarginError
 
 NAME = "control"
@@ -27,7 +34,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from energy_margin.control.episodes import POLICIES
 
     parser.add_argument("--task", default="pushing", help=f"task: {', '.join(controllable_tasks())} (default pushing)")
-    parser.add_argument("--objects", type=positive_int, default=5, help="objects per episode (default 5)")
+    parser.add_argument(
+        "--scene", metavar="SCENE.toml", help="a scene file driven by actuator controls (instead of --task)"
+    )
+    parser.add_argument(
+        "--objects", type=positive_int, default=None, help="objects per episode (default 5; a scene file's own)"
+    )
     parser.add_argument("--episodes", type=positive_int, default=100, help="episodes (default 100)")
     parser.add_argument(
         "--policy", choices=POLICIES, default="task", help=f"policy: {', '.join(POLICIES)} (default task)"
@@ -115,20 +127,29 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
+    if args.scene:
+        task_name, overrides = scene_task_config(args.scene, task_overrides(args.set))
+    else:
+        task_name, overrides = args.task, task_overrides(args.set)
+    n_objects = args.objects
+    if n_objects is None:
+        from energy_margin.tasks import get_task
+
+        n_objects = (get_task(task_name, overrides or None).fixed_objects or 5) if args.scene else 5
     model, model_info = (None, None)
     if args.model is not None:
         if args.policy != "learned":
             raise EnergyMarginError("--model is only for --policy learned")
-        model, model_info = _load_model(args.model, args.task)
+        model, model_info = _load_model(args.model, task_name)
     summary, _ = run_control(
-        args.task,
-        n_objects=args.objects,
+        task_name,
+        n_objects=n_objects,
         episodes=args.episodes,
         policy=args.policy,
         disturbance=args.disturbance,
         seed=args.seed,
         out=args.out,
-        task_overrides=task_overrides(args.set),
+        task_overrides=overrides,
         controller=controller,
         weights=CostWeights(margin=args.margin_weight),
         n_frames=args.frames,

@@ -18,6 +18,7 @@ import numpy as np
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.tasks.pushing import PushingTask
+from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.tasks.scooping import ScoopingTask
 
 
@@ -31,12 +32,15 @@ class RobotInputs:
             driven by forces only.
         held: servo targets held at the end of each sequence, shape (k, n_robot_dofs); ``None``
             without servos. The next decision starts from the executed sequence's.
+        ctrl: actuator controls of a user's MuJoCo model, shape (k, steps, nu), in each
+            actuator's unit; ``None`` for a task driven by forces and servo targets.
 
     """
 
     forces: np.ndarray
     targets: np.ndarray | None
     held: np.ndarray | None
+    ctrl: np.ndarray | None = None
 
 
 class CommandSpace(ABC):
@@ -250,9 +254,74 @@ class ScoopingCommands(CommandSpace):
         return RobotInputs(np.zeros((k, steps, 5)), targets, targets[:, -1].copy())
 
 
+class SceneCommands(CommandSpace):
+    """The actuator controls a scene file's motion declares, one command component per actuator.
+
+    The nominal command is the declared control at each instant (on the trajectory's time
+    scale). Bounds: the actuator's ``ctrlrange`` where it is limited, else the declared controls'
+    range widened on either side by their largest magnitude (at least 1). A scene whose motion
+    moves mocap bodies cannot be controlled (their poses are not commands yet).
+    """
+
+    units = ()
+    length_scale = 0.05
+
+    def __init__(self, task: Task, n_objects: int) -> None:
+        if not isinstance(task, SceneTask):
+            raise EnergyMarginError(f"task {task.name!r} is not a scene-file task")
+        motion = task.loaded.motion
+        if motion.mocap_times.size:
+            raise EnergyMarginError(
+                f"{task.label} moves mocap bodies: only scenes driven by actuator controls can be controlled"
+            )
+        if motion.ctrl_times.size == 0:
+            raise EnergyMarginError(f"{task.label} declares no actuator controls to command")
+        model = task.loaded.model
+        self.names = tuple(model.actuator(index).name or f"actuator{index}" for index in range(model.nu))
+        self.units = ("ctrl",) * model.nu
+        self.n_robot_dofs = task.robot_dofs()
+        super().__init__(task, n_objects)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``ctrlrange`` where limited, else the declared range widened by its largest magnitude."""
+        task = self.task
+        assert isinstance(task, SceneTask)
+        model, declared = task.loaded.model, task.loaded.motion.ctrl
+        widen = np.maximum(np.abs(declared).max(axis=0), 1.0)
+        low, high = declared.min(axis=0) - widen, declared.max(axis=0) + widen
+        limited = model.actuator_ctrllimited.astype(bool)
+        low[limited] = model.actuator_ctrlrange[limited, 0]
+        high[limited] = model.actuator_ctrlrange[limited, 1]
+        return low, high
+
+    def nominal(self, trajectory: Trajectory, time: float) -> np.ndarray:
+        """The declared controls at ``time`` (s) on the trajectory's time scale."""
+        task = self.task
+        assert isinstance(task, SceneTask)
+        command = task.model_command(np.asarray(trajectory.drive, dtype=float), time)
+        assert command is not None and command.ctrl is not None
+        return self.clip(np.asarray(command.ctrl, dtype=float))
+
+    def initial_targets(self, trajectory: Trajectory) -> None:
+        """The model's actuators hold their controls; there are no separate servo targets."""
+        del trajectory
+        return None
+
+    def inputs(
+        self, commands: np.ndarray, *, held: np.ndarray | None, start_time: float, dt: float, period_steps: int
+    ) -> RobotInputs:
+        """The controls held for every step; no end-effector forces."""
+        del held, start_time, dt
+        commands = self.clip(np.asarray(commands, dtype=float))
+        k, horizon, _ = commands.shape
+        ctrl = np.repeat(commands, period_steps, axis=1)
+        return RobotInputs(np.zeros((k, horizon * period_steps, self.n_robot_dofs)), None, None, ctrl)
+
+
 _COMMAND_SPACES: dict[str, Callable[[Task, int], CommandSpace]] = {
     "pushing": PushingCommands,
     "scooping": ScoopingCommands,
+    "scene": SceneCommands,
 }
 
 

@@ -32,6 +32,7 @@ import numpy as np
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import Simulator
+from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task
 from energy_margin.tasks.base import MeasurableRegion
 from energy_margin.world.state import FrameState
@@ -52,6 +53,7 @@ class Predictions:
         forces: end-effector forces held at each sequence's end, shape (k, n_robot_dofs).
         targets: servo targets held at each sequence's end, shape (k, n_robot_dofs), or ``None``.
         end_time: episode time at the horizon's end, s.
+        ctrl: actuator controls held at each sequence's end, shape (k, nu), or ``None``.
 
     """
 
@@ -64,6 +66,7 @@ class Predictions:
     forces: np.ndarray
     targets: np.ndarray | None
     end_time: float
+    ctrl: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -206,8 +209,8 @@ def heuristic_cost(predictions: Predictions, context: CostContext) -> np.ndarray
     return cost + context.weights.heuristic * outside / (horizon * context.length_scale)
 
 
-def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None) -> Task:
-    """A copy of ``task`` whose end-effector holds ``force`` and ``targets`` instead of its script.
+def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None, ctrl: np.ndarray | None = None) -> Task:
+    """A copy of ``task`` whose end-effector holds ``force``, ``targets`` and ``ctrl`` instead of its script.
 
     The analysis of a predicted state then sees the controller's command, not the scripted one.
     """
@@ -217,6 +220,9 @@ def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None) -> T
     if targets is not None:
         fixed = np.array(targets, dtype=float)
         setattr(held, "robot_targets", lambda drive, time, robot_q, robot_v, rng: fixed)  # noqa: B010
+    if ctrl is not None:
+        command = ModelCommand(ctrl=np.array(ctrl, dtype=float))
+        setattr(held, "model_command", lambda drive, time: command)  # noqa: B010
     return held
 
 
@@ -228,7 +234,8 @@ def margin_scores(predictions: Predictions, context: CostContext, samples: Seque
     totals = np.empty(len(samples))
     for slot, sample in enumerate(samples):
         targets = None if predictions.targets is None else predictions.targets[sample]
-        task = holding_task(context.task, predictions.forces[sample], targets)
+        ctrl = None if predictions.ctrl is None else predictions.ctrl[sample]
+        task = holding_task(context.task, predictions.forces[sample], targets, ctrl)
         scores, _ = analyze_frame(
             task,
             predictions.frame(sample),

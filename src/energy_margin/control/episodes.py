@@ -36,6 +36,7 @@ from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.data.io import atomic_path, read_json, write_json
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
+from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState
 
@@ -176,6 +177,8 @@ def run_episode(
             plant.set_robot_force(inputs.forces[0, offset])
             if inputs.targets is not None:
                 plant.set_robot_targets(inputs.targets[0, offset])
+            if inputs.ctrl is not None:
+                plant.set_model_command(ModelCommand(ctrl=inputs.ctrl[0, offset]))  # type: ignore[attr-defined]
         plant.step(1)
     drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
     record = trajectory_record(task, frames, times, friction, drive)

@@ -140,7 +140,7 @@ class Controller:
         scripted = np.stack([space.nominal(self.trajectory, time + h * period) for h in range(config.horizon)])
         commands = space.clip(scripted[None] + self.plan[None] + noise)
         inputs = space.inputs(commands, held=held, start_time=time, dt=self.dt, period_steps=self.period_steps)
-        states, _ = self.propagator.roll_commands(state, inputs.forces, inputs.targets)
+        states, _ = self.propagator.roll_commands(state, inputs.forces, inputs.targets, inputs.ctrl)
         knots = states[:, self.period_steps - 1 :: self.period_steps]
         k, horizon = knots.shape[:2]
         pos, quat, vel, robot_q, robot_v = self.propagator.object_states(knots.reshape(k * horizon, -1))
@@ -153,6 +153,7 @@ class Controller:
             commands=(commands - scripted[None]) / half_range,
             forces=inputs.forces[:, -1],
             targets=None if inputs.targets is None else inputs.targets[:, -1],
+            ctrl=None if inputs.ctrl is None else inputs.ctrl[:, -1],
             end_time=time + horizon * self.period_steps * self.dt,
         )
         costs = np.asarray(self.cost(predictions, self.context), dtype=float)

@@ -586,7 +586,11 @@ class RolloutPropagator:
         return row
 
     def roll_commands(
-        self, state: np.ndarray, forces: np.ndarray, targets: np.ndarray | None = None
+        self,
+        state: np.ndarray,
+        forces: np.ndarray,
+        targets: np.ndarray | None = None,
+        ctrl: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Roll ``k`` end-effector command sequences out from one state, without object wrenches.
 
@@ -596,6 +600,8 @@ class RolloutPropagator:
                 N or N m.
             targets: servo targets of every step, shape (k, steps, n_robot_dofs), m or rad;
                 ``None`` keeps the targets held in ``state``'s model (none for a task without servos).
+            ctrl: every actuator's control of every step, shape (k, steps, nu) (a user's model);
+                ``None`` leaves the controls to ``targets``.
 
         Returns:
             The states after every step, shape (k, steps, state_size), and the end states
@@ -613,6 +619,8 @@ class RolloutPropagator:
         controls[..., sim.model.nu + sim._robot_qvel] = forces
         if targets is not None and sim._servo_actuators.size:
             controls[..., sim._servo_actuators] = np.asarray(targets, dtype=float)[..., sim._servoed]
+        if ctrl is not None:
+            controls[..., : sim.model.nu] = ctrl
         initial = np.broadcast_to(state, (k, self.state_size)).copy()
         warmstart = np.zeros((k, self._nv))
         out, _ = self._rollout.rollout(
