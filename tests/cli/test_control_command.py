@@ -73,7 +73,8 @@ def test_control_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     [
         (["--policy", "learned"], "--policy learned needs --model"),
         (["--policy", "task", "--model", "m.npz"], "--model is only for --policy learned"),
-        (["--task", "scene"], "cannot be controlled"),
+        (["--task", "scene"], "pass --scene SCENE.toml"),
+        (["--task", "nosuch"], "cannot be controlled"),
         (["--period", "0"], "period must be a finite number > 0"),
     ],
 )
