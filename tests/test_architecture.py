@@ -29,6 +29,7 @@ STAGES = (
     "evaluation",
     "robustness",
     "learning",
+    "control",
     "report",
     "cli",
 )

@@ -28,6 +28,7 @@ COMMAND_NAMES = (
     "study",
     "sweep",
     "learn",
+    "control",
     "view",
     "render",
     "reproduce",

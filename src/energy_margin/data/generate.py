@@ -135,6 +135,24 @@ def write_records(
         overwrite: replace an existing ``out``.
 
     """
+    dataset = records_dataset(task, records, out, engine=engine, extra=extra)
+    write_directory(out, dataset.metadata, dataset.arrays, overwrite=overwrite)
+    return dataset
+
+
+def records_dataset(
+    task: Task, records: list[dict[str, Any]], out: Path, *, engine: str, extra: dict[str, Any]
+) -> Dataset:
+    """Stack trajectory records into a validated dataset at ``out`` (not written).
+
+    Args:
+        task: the task of every record.
+        records: one :func:`trajectory_record` per trajectory, all with the same K.
+        out: the dataset directory.
+        engine: the engine that produced the frames.
+        extra: further metadata.
+
+    """
     arrays = {key: np.stack([r[key] for r in records]) for key in records[0]}
     metadata = {
         "format": FORMAT,
@@ -152,7 +170,6 @@ def write_records(
     }
     dataset = Dataset(path=out, metadata=metadata, arrays=arrays)
     validate(dataset)
-    write_directory(out, metadata, arrays, overwrite=overwrite)
     return dataset
 
 

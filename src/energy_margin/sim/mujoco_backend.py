@@ -585,6 +585,68 @@ class RolloutPropagator:
         mujoco.mj_getState(sim.model, scratch, row, _CONTROL_SPEC)
         return row
 
+    def roll_commands(
+        self,
+        state: np.ndarray,
+        forces: np.ndarray,
+        targets: np.ndarray | None = None,
+        ctrl: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Roll ``k`` end-effector command sequences out from one state, without object wrenches.
+
+        Args:
+            state: start state, a ``mjSTATE_FULLPHYSICS`` vector (:meth:`current_state`).
+            forces: end-effector generalized forces of every step, shape (k, steps, n_robot_dofs),
+                N or N m.
+            targets: servo targets of every step, shape (k, steps, n_robot_dofs), m or rad;
+                ``None`` keeps the targets held in ``state``'s model (none for a task without servos).
+            ctrl: every actuator's control of every step, shape (k, steps, nu) (a user's model);
+                ``None`` leaves the controls to ``targets``.
+
+        Returns:
+            The states after every step, shape (k, steps, state_size), and the end states
+            (k, state_size).
+
+        """
+        sim = self.simulator
+        forces = np.asarray(forces, dtype=float)
+        k, steps = forces.shape[:2]
+        base = self._control(np.zeros((sim.scene.n_objects, 6)), np.zeros(sim._robot_qvel.size), None, None)
+        if targets is None and sim._servo_actuators.size:
+            base[: sim.model.nu] = sim.data.ctrl
+        controls = np.broadcast_to(base, (k, steps, self.control_size)).copy()
+        # mjSTATE_CTRL comes first in the control vector, then mjSTATE_QFRC_APPLIED (nu + nv).
+        controls[..., sim.model.nu + sim._robot_qvel] = forces
+        if targets is not None and sim._servo_actuators.size:
+            controls[..., sim._servo_actuators] = np.asarray(targets, dtype=float)[..., sim._servoed]
+        if ctrl is not None:
+            controls[..., : sim.model.nu] = ctrl
+        initial = np.broadcast_to(state, (k, self.state_size)).copy()
+        warmstart = np.zeros((k, self._nv))
+        out, _ = self._rollout.rollout(
+            sim.model,
+            self._datas,
+            initial,
+            controls,
+            control_spec=int(_CONTROL_SPEC),
+            nstep=steps,
+            initial_warmstart=warmstart,
+        )
+        return out, out[:, -1]
+
+    def object_states(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Object positions, quaternions, velocities and robot coordinates of states (k, state_size).
+
+        Returns:
+            Positions (k, n_objects, 3), quaternions (k, n_objects, 4), velocities (k, n_objects, 6),
+            robot joint positions (k, n_robot_dofs) and velocities (k, n_robot_dofs).
+
+        """
+        sim = self.simulator
+        qpos, qvel = self.qpos_qvel(states)
+        pos, quat, vel = sim.objects_of(qpos, qvel)
+        return pos, quat, vel, qpos[:, sim._robot_qpos], qvel[:, sim._robot_qvel]
+
     def propagate(
         self,
         task: Any,

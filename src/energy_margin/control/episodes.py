@@ -1,0 +1,466 @@
+"""Closed-loop episodes: a policy drives the task's robot on a disturbed plant; results as a dataset.
+
+An episode samples the task's randomised start, draws the plant's disturbance (friction, pushes,
+observation noise; :mod:`energy_margin.control.disturbances`) and runs the task's duration with
+one of the policies: ``scripted`` (the task's own script, as ``generate`` runs it) or MPPI with
+the ``task``, ``heuristic``, ``margin`` or ``learned`` cost. It records ``frames`` evenly spaced
+frames with their capture and success labels, so the episodes of a run form a dataset that
+``analyze``, ``evaluate`` and the report read. Each episode is saved as it ends and a rerun
+resumes; episode i's generators come from ``SeedSequence(seed).spawn(episodes)[i]``, so the
+results do not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin import __version__
+from energy_margin.analysis.executors import sigint_deferred, stop_pool
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.analysis.run import progress_bar
+from energy_margin.control.commands import command_space, controllable_tasks
+from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
+from energy_margin.control.disturbances import Disturbance, draw_plant, get_disturbance, observe, push_wrenches
+from energy_margin.control.mppi import Controller, ControllerConfig
+from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
+from energy_margin.data.generate import records_dataset, trajectory_record
+from energy_margin.data.io import atomic_path, read_json, write_json
+from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.statistics import wilson_interval
+from energy_margin.sim.base import ModelCommand
+from energy_margin.tasks import Task, command_robot, get_task
+from energy_margin.world.state import FrameState
+
+#: The policies ``energy-margin control --policy`` offers.
+POLICIES = ("scripted", "task", "heuristic", "margin", "learned")
+#: The run's settings and, once finished, its summary.
+CONTROL_FILE = "control.json"
+EPISODES_DIR = "episodes"
+
+
+@dataclass(frozen=True)
+class ControlSettings:
+    """Everything that determines a run's episodes.
+
+    Attributes:
+        task: task name.
+        task_config: the task's resolved settings.
+        n_objects: objects per episode.
+        episodes: number of episodes E.
+        policy: one of :data:`POLICIES`.
+        disturbance: the disturbance level's settings.
+        seed: the run's seed.
+        n_frames: frames recorded per episode.
+        score_expansions: expansions of the energy-margin analysis of every recorded frame (0:
+            none), which gives the mean capture score along the episodes.
+        controller: the MPPI settings (unused by ``scripted``).
+        weights: the cost weights.
+        model: the learned margin's file and its fingerprint (``learned`` only).
+
+    """
+
+    task: str
+    task_config: dict[str, Any]
+    n_objects: int
+    episodes: int
+    policy: str
+    disturbance: dict[str, Any]
+    seed: int
+    n_frames: int = 10
+    score_expansions: int = 30
+    controller: dict[str, Any] = field(default_factory=lambda: ControllerConfig().to_dict())
+    weights: dict[str, Any] = field(default_factory=lambda: asdict(CostWeights()))
+    model: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as a JSON-ready dict."""
+        return asdict(self)
+
+
+def _observed(plant: Any, disturbance: Disturbance, rng: np.random.Generator) -> FrameState:
+    frame = plant.frame_state()
+    return FrameState(
+        observe(frame.object_pos, disturbance, rng), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
+    )
+
+
+def run_episode(
+    task: Task,
+    settings: ControlSettings,
+    seed: np.random.SeedSequence,
+    *,
+    model: MarginPredictor | None = None,
+) -> dict[str, Any]:
+    """One episode: its trajectory record (:func:`~energy_margin.data.generate.trajectory_record`) and ``info``.
+
+    ``info`` holds whether it succeeded, its decisions and their compute time (s), the plant's
+    friction, its pushes and, with ``score_expansions``, the frames' capture and success scores.
+    """
+    trajectory_seed, plant_seed, observe_seed, sample_seed, script_seed, cost_seed, score_seed = seed.spawn(7)
+    trajectory = task.sample_trajectory(np.random.default_rng(trajectory_seed), settings.n_objects)
+    disturbance = Disturbance(**settings.disturbance)
+    duration = task.n_steps * task.config.timestep
+    scratch = task.make_simulator(settings.n_objects, trajectory.friction, trajectory.drive, "mujoco")
+    masses = scratch.scene.object_masses
+    friction, pushes = draw_plant(
+        disturbance,
+        np.random.default_rng(plant_seed),
+        nominal_friction=trajectory.friction,
+        duration=duration,
+        masses=masses,
+    )
+    plant = task.make_simulator(settings.n_objects, friction, trajectory.drive, "mujoco")
+    plant.reset(trajectory.initial)
+    space = command_space(task, settings.n_objects)
+    held = space.initial_targets(trajectory)
+    if held is not None:
+        plant.set_robot_targets(held)
+    controller = None
+    if settings.policy != "scripted":
+        config = ControllerConfig(**settings.controller)
+        context = CostContext(
+            task,
+            length_scale=space.length_scale,
+            weights=CostWeights(**settings.weights),
+            friction=trajectory.friction,
+            drive=trajectory.drive,
+            analysis_drive=lambda force: space.analysis_drive(trajectory, force),
+            margin_expansions=config.margin_expansions,
+            margin_samples=config.margin_samples,
+            seed_sequence=cost_seed,
+            model=model,
+        )
+        controller = Controller(
+            task,
+            space,
+            trajectory,
+            get_cost(settings.policy),
+            context,
+            config,
+            np.random.default_rng(sample_seed),
+        )
+    observe_rng, script_rng = np.random.default_rng(observe_seed), np.random.default_rng(script_seed)
+    dt = plant.timestep
+    record_steps = set(task.frame_steps(settings.n_frames).tolist())
+    frames: list[FrameState] = []
+    times: list[float] = []
+    executed: list[np.ndarray] = []
+    period_steps = controller.period_steps if controller is not None else 1
+    inputs = None
+    for step in range(task.n_steps + 1):
+        now = step * dt
+        if step in record_steps:
+            frames.append(plant.frame_state())
+            times.append(now)
+        if step == task.n_steps:
+            break
+        plant.set_object_wrenches(push_wrenches(pushes, now, settings.n_objects))
+        if controller is None:
+            command_robot(task, plant, trajectory.drive, now, script_rng)
+        else:
+            offset = step % period_steps
+            if offset == 0:
+                command = controller.decide(_observed(plant, disturbance, observe_rng), now, held)
+                executed.append(command)
+                inputs = space.inputs(command[None, None], held=held, start_time=now, dt=dt, period_steps=period_steps)
+                held = None if inputs.held is None else inputs.held[0]
+            assert inputs is not None
+            plant.set_robot_force(inputs.forces[0, offset])
+            if inputs.targets is not None:
+                plant.set_robot_targets(inputs.targets[0, offset])
+            if inputs.ctrl is not None:
+                plant.set_model_command(ModelCommand(ctrl=inputs.ctrl[0, offset]))  # type: ignore[attr-defined]
+        plant.step(1)
+    drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
+    record = trajectory_record(task, frames, times, friction, drive)
+    info: dict[str, Any] = {
+        "success": bool(record["in_success"][-1]),
+        "captured_fraction": float(np.mean(record["captured"])),
+        "decisions": 0 if controller is None else controller.decisions,
+        "decision_seconds": 0.0 if controller is None else controller.seconds,
+        "analyses": 0 if controller is None else controller.context.analyses,
+        "nominal_friction": float(trajectory.friction),
+        "plant_friction": float(friction),
+        "pushes": len(pushes),
+    }
+    if settings.score_expansions > 0:
+        capture, success = _frame_scores(task, frames, times, friction, drive, settings, score_seed)
+        info["capture_scores"] = capture
+        info["success_scores"] = success
+    return {"record": record, "info": info}
+
+
+def _frame_scores(
+    task: Task,
+    frames: list[FrameState],
+    times: list[float],
+    friction: float,
+    drive: np.ndarray,
+    settings: ControlSettings,
+    seed: np.random.SeedSequence,
+) -> tuple[list[float], list[float]]:
+    """Capture and success scores of the recorded frames from a short analysis."""
+    config = AnalyzerConfig(iterations=settings.score_expansions)
+    simulator = task.make_simulator(settings.n_objects, friction, drive, "mujoco")
+    capture, success = [], []
+    for frame, start, child in zip(frames, times, seed.spawn(len(frames)), strict=True):
+        scores, _ = analyze_frame(
+            task,
+            frame,
+            friction=friction,
+            drive=drive,
+            seed=int(child.generate_state(1)[0]),
+            config=config,
+            start_time=start,
+            simulator=simulator,
+        )
+        capture.append(float(scores.capture_score))
+        success.append(float(scores.success_score))
+    return capture, success
+
+
+def _episode_path(out: Path, index: int) -> Path:
+    return out / EPISODES_DIR / f"{index:05d}.npz"
+
+
+def _save_episode(path: Path, result: dict[str, Any]) -> None:
+    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+        np.savez(stream, allow_pickle=False, info=np.array(json.dumps(result["info"])), **result["record"])
+
+
+def _load_episode(path: Path) -> dict[str, Any] | None:
+    """A saved episode, or ``None`` when the file is missing or unreadable (it is then rerun)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            info = json.loads(str(stored["info"]))
+            record = {key: stored[key] for key in stored.files if key != "info"}
+    except (OSError, ValueError, KeyError, json.JSONDecodeError):
+        return None
+    return {"record": record, "info": info}
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(task: Task, settings: ControlSettings, model: MarginPredictor | None) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER.update(task=task, settings=settings, model=model)
+
+
+def _run_in_worker(job: tuple[int, np.random.SeedSequence]) -> tuple[int, dict[str, Any]]:
+    index, seed = job
+    return index, run_episode(_WORKER["task"], _WORKER["settings"], seed, model=_WORKER["model"])
+
+
+def _run_jobs(
+    task: Task,
+    settings: ControlSettings,
+    model: MarginPredictor | None,
+    jobs: list[tuple[int, np.random.SeedSequence]],
+    workers: int,
+) -> Iterator[tuple[int, dict[str, Any]]]:
+    if workers == 1 or len(jobs) <= 1:
+        for index, seed in jobs:
+            yield index, run_episode(task, settings, seed, model=model)
+        return
+    pool = ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)), initializer=_init_worker, initargs=(task, settings, model)
+    )
+    finished = False
+    try:
+        with sigint_deferred():
+            futures = [pool.submit(_run_in_worker, job) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+        finished = True
+    finally:
+        stop_pool(pool, finished=finished)
+
+
+def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate with its 95 % Wilson interval, capture along the episodes, time per decision."""
+    successes = sum(1 for info in infos if info["success"])
+    low, high = wilson_interval(successes, len(infos)) if infos else (0.0, 1.0)
+    decisions = sum(info["decisions"] for info in infos)
+    seconds = sum(info["decision_seconds"] for info in infos)
+    scores = [np.mean(info["capture_scores"]) for info in infos if "capture_scores" in info]
+    return {
+        "task": settings.task,
+        "n_objects": settings.n_objects,
+        "policy": settings.policy,
+        "disturbance": settings.disturbance["name"],
+        "episodes": len(infos),
+        "successes": successes,
+        "success_rate": successes / len(infos) if infos else None,
+        "success_interval": [low, high],
+        "captured_fraction": float(np.mean([info["captured_fraction"] for info in infos])) if infos else None,
+        "mean_capture_score": float(np.mean(scores)) if scores else None,
+        "decisions": decisions,
+        "seconds_per_decision": seconds / decisions if decisions else None,
+    }
+
+
+def _without_count(settings: dict[str, Any]) -> dict[str, Any]:
+    return {key: value for key, value in settings.items() if key != "episodes"}
+
+
+def _check_settings(out: Path, settings: ControlSettings, *, overwrite: bool) -> None:
+    """Refuse a directory holding another run; clear it with ``overwrite``."""
+    control_file = out / CONTROL_FILE
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise EnergyMarginError(f"{out} exists and is not a directory")
+    if overwrite:
+        for name in (EPISODES_DIR,):
+            shutil.rmtree(out / name, ignore_errors=True)
+        for name in (CONTROL_FILE, METADATA_FILE, FRAMES_FILE):
+            (out / name).unlink(missing_ok=True)
+        return
+    if control_file.is_file():
+        previous = read_json(control_file, what="control run file")
+        # The number of episodes may change: episode i's seed does not depend on it, so a run
+        # grows (or is summarised over its first E episodes) without recomputing any.
+        current = json.loads(json.dumps(settings.to_dict()))
+        stored = previous.get("settings") if isinstance(previous, dict) else None
+        if isinstance(stored, dict) and _without_count(stored) == _without_count(current):
+            return
+        raise EnergyMarginError(
+            f"{out} holds episodes of other settings; pass --overwrite to replace them or choose another --out"
+        )
+    if any(out.iterdir()):
+        raise EnergyMarginError(f"{out} already exists; pass --overwrite to replace it")
+
+
+def run_control(
+    task_name: str,
+    *,
+    n_objects: int,
+    episodes: int,
+    policy: str,
+    disturbance: str,
+    seed: int,
+    out: Path | str,
+    task_overrides: dict[str, Any] | None = None,
+    controller: ControllerConfig | None = None,
+    weights: CostWeights | None = None,
+    n_frames: int = 10,
+    score_expansions: int = 30,
+    model: MarginPredictor | None = None,
+    model_info: dict[str, Any] | None = None,
+    workers: int = 1,
+    overwrite: bool = False,
+    progress: bool = False,
+    on_episode: Callable[[int], None] | None = None,
+) -> tuple[dict[str, Any], Dataset]:
+    """Run (or resume) ``episodes`` episodes of ``policy`` and write them as a dataset at ``out``.
+
+    Args:
+        task_name: a registered task with a command space.
+        n_objects: objects per episode, >= 1.
+        episodes: number of episodes, >= 1.
+        policy: one of :data:`POLICIES`.
+        disturbance: a level of :data:`~energy_margin.control.disturbances.DISTURBANCES`.
+        seed: non-negative integer seed.
+        out: the run's directory (the dataset, ``control.json`` and ``episodes/``).
+        task_overrides: task settings to override.
+        controller: MPPI settings (defaults when ``None``).
+        weights: cost weights (defaults when ``None``).
+        n_frames: frames recorded per episode, >= 2.
+        score_expansions: expansions per recorded frame of the scoring analysis, >= 0.
+        model: the learned margin, for ``policy="learned"``.
+        model_info: what identifies the model (saved with the settings).
+        workers: processes running episodes, >= 1.
+        overwrite: replace a run of other settings in ``out``.
+        progress: show a progress bar on standard error.
+        on_episode: called with each episode's index as it is saved (tests use it to interrupt).
+
+    Returns:
+        The summary (:func:`summarize`) and the dataset.
+
+    """
+    for name, value, minimum in (
+        ("objects", n_objects, 1),
+        ("episodes", episodes, 1),
+        ("seed", seed, 0),
+        ("frames", n_frames, 2),
+        ("score expansions", score_expansions, 0),
+        ("workers", workers, 1),
+    ):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+            raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if policy not in POLICIES:
+        raise EnergyMarginError(f"unknown policy {policy!r}; choose one of {', '.join(POLICIES)}")
+    if policy == "learned" and model is None:
+        raise EnergyMarginError("--policy learned needs --model MODEL (made by energy-margin learn)")
+    if policy != "learned" and model is not None:
+        raise EnergyMarginError("--model is only for --policy learned")
+    if task_name not in controllable_tasks():
+        raise EnergyMarginError(
+            f"task {task_name!r} cannot be controlled; controllable tasks: {', '.join(controllable_tasks())}"
+        )
+    task = get_task(task_name, task_overrides or None)
+    if task.fixed_objects is not None and n_objects != task.fixed_objects:
+        raise EnergyMarginError(f"{task.label} has {task.fixed_objects} objects, not {n_objects}")
+    if model is not None and model.task_name != task.name:
+        raise EnergyMarginError(f"the model was learned on task {model.task_name!r}, not {task.name!r}")
+    settings = ControlSettings(
+        task=task.name,
+        task_config=task.config.to_dict(),
+        n_objects=int(n_objects),
+        episodes=int(episodes),
+        policy=policy,
+        disturbance=get_disturbance(disturbance).to_dict(),
+        seed=int(seed),
+        n_frames=int(n_frames),
+        score_expansions=int(score_expansions),
+        controller=(controller or ControllerConfig()).to_dict(),
+        weights=asdict(weights or CostWeights()),
+        model=model_info,
+    )
+    out = Path(out)
+    _check_settings(out, settings, overwrite=overwrite)
+    (out / EPISODES_DIR).mkdir(parents=True, exist_ok=True)
+    write_json(out / CONTROL_FILE, {"settings": settings.to_dict(), "package_version": __version__})
+    seeds = np.random.SeedSequence(seed).spawn(episodes)
+    results: dict[int, dict[str, Any]] = {}
+    for index in range(episodes):
+        saved = _load_episode(_episode_path(out, index))
+        if saved is not None:
+            results[index] = saved
+    jobs = [(index, seeds[index]) for index in range(episodes) if index not in results]
+    bar = progress_bar(episodes, desc=f"control {policy}", initial=len(results), enabled=progress)
+    try:
+        for index, result in _run_jobs(task, settings, model, jobs, workers):
+            _save_episode(_episode_path(out, index), result)
+            results[index] = result
+            bar.update(1)
+            if on_episode is not None:
+                on_episode(index)
+    finally:
+        bar.close()
+    ordered = [results[index] for index in range(episodes)]
+    summary = summarize(settings, [result["info"] for result in ordered])
+    dataset = records_dataset(
+        task,
+        [result["record"] for result in ordered],
+        out,
+        engine="mujoco",
+        extra={"control": {"settings": settings.to_dict(), "summary": summary}},
+    )
+    with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
+        np.savez_compressed(stream, allow_pickle=False, **dataset.arrays)
+    write_json(out / METADATA_FILE, dataset.metadata)
+    write_json(out / CONTROL_FILE, {"settings": settings.to_dict(), "summary": summary, "package_version": __version__})
+    return summary, load_dataset(out)
