@@ -15,8 +15,8 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from typing import Any, Protocol
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, as_completed, wait
+from typing import Any, Protocol, TypeVar
 
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
@@ -157,6 +157,34 @@ def stop_pool(pool: ProcessPoolExecutor, *, finished: bool) -> None:
         for process in list(getattr(pool, "_processes", {}).values()):
             process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+_Result = TypeVar("_Result")
+
+
+def pool_results(
+    worker: Callable[[Any], _Result],
+    jobs: Sequence[Any],
+    *,
+    workers: int,
+    initializer: Callable[..., None],
+    initargs: tuple[Any, ...],
+) -> Iterator[_Result]:
+    """``worker(job)`` of every job on a pool of up to ``workers`` processes, in completion order.
+
+    Each process starts with ``initializer(*initargs)``. Submitting forks the workers: an
+    interrupt meanwhile is held until they exist, and the pool is stopped on the way out.
+    """
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), initializer=initializer, initargs=initargs)
+    finished = False
+    try:
+        with sigint_deferred():
+            futures = [pool.submit(worker, job) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+        finished = True
+    finally:
+        stop_pool(pool, finished=finished)
 
 
 class LocalExecutor:

@@ -16,7 +16,6 @@ import json
 import shutil
 import signal
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin import __version__
-from energy_margin.analysis.executors import sigint_deferred, stop_pool
+from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.analysis.run import progress_bar
 from energy_margin.control.commands import command_space, controllable_tasks
@@ -274,18 +273,9 @@ def _run_jobs(
         for index, seed in jobs:
             yield index, run_episode(task, settings, seed, model=model)
         return
-    pool = ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)), initializer=_init_worker, initargs=(task, settings, model)
+    yield from pool_results(
+        _run_in_worker, jobs, workers=workers, initializer=_init_worker, initargs=(task, settings, model)
     )
-    finished = False
-    try:
-        with sigint_deferred():
-            futures = [pool.submit(_run_in_worker, job) for job in jobs]
-        for future in as_completed(futures):
-            yield future.result()
-        finished = True
-    finally:
-        stop_pool(pool, finished=finished)
 
 
 def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[str, Any]:

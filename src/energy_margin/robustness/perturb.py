@@ -38,14 +38,13 @@ from __future__ import annotations
 
 import signal
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from energy_margin.analysis.executors import sigint_deferred, stop_pool
+from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.run import progress_bar
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
@@ -396,19 +395,7 @@ def _run_jobs(
         for job in jobs:
             yield (job[0], job[1]), _perturb_trajectory(source, options, job)
         return
-    pool = ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)), initializer=_init_worker, initargs=(source, options)
-    )
-    finished = False
-    try:
-        # Submitting forks the workers: an interrupt meanwhile is held until they exist.
-        with sigint_deferred():
-            futures = [pool.submit(_run_in_worker, job) for job in jobs]
-        for future in as_completed(futures):
-            yield future.result()
-        finished = True
-    finally:
-        stop_pool(pool, finished=finished)
+    yield from pool_results(_run_in_worker, jobs, workers=workers, initializer=_init_worker, initargs=(source, options))
 
 
 def _existing(target: Path, source: Dataset, seed: int, settings: dict[str, Any]) -> bool:
