@@ -22,7 +22,8 @@ from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
 from energy_margin.sim import ENGINES, Simulator
-from energy_margin.tasks import Task, all_inside
+from energy_margin.tasks import Task, all_inside, with_contacts
+from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.world.state import FrameState
 
 
@@ -54,6 +55,9 @@ class AnalyzerConfig:
             ``None``: always spend the whole budget.
         converge_window: expansions over which both scores must stay within ``converge``.
         converge_every: expansions between two convergence checks.
+        contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or
+            ``"fast"`` (the task's fast contact model, :attr:`TaskConfig.fast_contacts`: the same
+            contacts from cheaper pairs; pushing: footprint ground contacts and sphere stand-ins).
 
     """
 
@@ -73,6 +77,7 @@ class AnalyzerConfig:
     converge: float | None = None
     converge_window: int = 50
     converge_every: int = 25
+    contacts: str = "recorded"
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -109,6 +114,10 @@ class AnalyzerConfig:
             not isinstance(self.converge, bool) and np.isfinite(self.converge) and 0 < self.converge < 1
         ):
             raise ValueError(f"converge must be a score tolerance in (0, 1), got {self.converge!r}")
+        if self.contacts not in CONTACT_MODELS:
+            raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {self.contacts!r}")
+        if self.contacts == "fast" and self.engine != "mujoco":
+            raise ValueError(f"contacts 'fast' is a MuJoCo contact model, not available with engine {self.engine!r}")
         for name in ("converge_window", "converge_every"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
@@ -237,6 +246,7 @@ def analyze_frame(
 
     """
     config = config if config is not None else AnalyzerConfig()
+    task = with_contacts(task, config.contacts)
     if simulator is None:
         simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
@@ -279,7 +289,7 @@ class FrameAnalyzer:
 
     def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int) -> None:
         self.dataset = dataset
-        self.task = dataset.task
+        self.task = with_contacts(dataset.task, config.contacts)
         self.config = config
         total = dataset.n_trajectories * dataset.n_frames
         self.seeds = frame_seeds(seed, total)

@@ -32,6 +32,7 @@ from energy_margin.data.scores_file import (
 )
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError
+from energy_margin.tasks import with_contacts
 
 
 def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
@@ -54,6 +55,9 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
         else dataset.task.config.likelihood_lambda,
         "versions": {"energy_margin": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__},
     }
+    if config.contacts != "recorded":
+        # The settings the physics of the analysis used (the dataset's, with the contact model's).
+        description["analysis_task_config"] = with_contacts(dataset.task, config.contacts).config.to_dict()
     if config.engine == "pybullet":
         from importlib.metadata import version
 
@@ -62,7 +66,7 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
 
 
 # Analyzer settings added after the first release: an analysis.json without them used their defaults.
-_LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent")
+_LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent", "contacts")
 
 
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
@@ -114,6 +118,10 @@ def analyze(
     runner = make_executor(executor, workers=workers, address=address)
     dataset = require_valid(path, overlaps=True, scores=False)
     check_engine(dataset.task, config.engine)
+    try:
+        with_contacts(dataset.task, config.contacts)
+    except ValueError as error:
+        raise EnergyMarginError(str(error)) from None
     directory = Path(path)
     description = run_description(dataset, config, seed)
     scores_path = directory / SCORES_FILE

@@ -11,6 +11,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
+from energy_margin.tasks.base import CONTACT_MODELS
 
 if TYPE_CHECKING:
     from energy_margin.analysis.frame import AnalyzerConfig
@@ -70,6 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "expansions (the budget stays the upper bound; default: spend the whole budget)",
     )
     parser.add_argument(
+        "--contacts",
+        choices=CONTACT_MODELS,
+        default="recorded",
+        help="contact model: the dataset's (recorded, default) or the task's fast one (pushing: one ground "
+        "contact per cylinder and sphere stand-ins for the lateral pairs; the same contacts, cheaper)",
+    )
+    parser.add_argument(
         "--projection",
         choices=PROJECTIONS,
         default="objects",
@@ -96,6 +104,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
             threads=args.threads,
             projection=args.projection,
             converge=args.converge,
+            contacts=args.contacts,
         )
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None

@@ -102,6 +102,23 @@ def _footprint_xml(scene: Scene, name: str, geom: Geom) -> str:
     )
 
 
+def _object_geoms_xml(scene: Scene, obj: RigidObject) -> str:
+    """An object's own geom, its footprint and its lateral stand-in (see ``Scene``)."""
+    footprint = scene.ground_contact == "footprint" and _base_radius(obj.geom) is not None
+    sphere = scene.lateral_contact == "sphere" and obj.geom.shape == "cylinder"
+    if not sphere:
+        return _geom_xml(obj.geom, obj.name) + (_footprint_xml(scene, obj.name, obj.geom) if footprint else "")
+    # The cylinder keeps only its ground contact (none when the footprint carries it); the sphere
+    # of its radius takes every other contact, in the plane through the centre.
+    own = ' contype="0" conaffinity="0"' if footprint else f' contype="0" conaffinity="{_FLOOR}"'
+    stand_in = (
+        f'<geom name={quoteattr(obj.name + "_lateral")} type="sphere" size="{float(obj.geom.size[0])!r}" '
+        f'contype="{_BODIES}" conaffinity="{_BODIES}" group="3" rgba="0 0 0 0"/>'
+    )
+    base = _footprint_xml(scene, obj.name, obj.geom) if footprint else ""
+    return _geom_xml(obj.geom, obj.name, own) + stand_in + base
+
+
 def _link_xml(link: Link, geom_extra: str = "") -> str:
     gravcomp = ' gravcomp="1"' if link.gravity_compensation else ""
     parts = [f'<body name={quoteattr(link.name)} pos="{_fmt(link.pos)}"{gravcomp}>']
@@ -164,12 +181,14 @@ def build_mjcf(scene: Scene) -> str:
     """MJCF text of ``scene`` (objects are free bodies named after :attr:`RigidObject.name`)."""
     worldbody = []
     footprint = scene.ground_contact == "footprint"
+    # Footprints and lateral stand-ins need the floor on its own collision bit.
+    split_floor = footprint or scene.lateral_contact == "sphere"
     for index, geom in enumerate(scene.statics):
-        floor = f' contype="{_FLOOR}" conaffinity="0"' if footprint and _is_floor(geom) else ""
+        floor = f' contype="{_FLOOR}" conaffinity="0"' if split_floor and _is_floor(geom) else ""
         worldbody.append(_geom_xml(geom, geom.name or f"static{index}", floor))
     if scene.robot is not None:
         # Robot links keep touching the floor through their own shapes.
-        worldbody.append(_link_xml(scene.robot, f' conaffinity="{_BODIES | _FLOOR}"' if footprint else ""))
+        worldbody.append(_link_xml(scene.robot, f' conaffinity="{_BODIES | _FLOOR}"' if split_floor else ""))
     for obj in scene.objects:
         if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
             raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
@@ -184,8 +203,7 @@ def build_mjcf(scene: Scene) -> str:
         worldbody.append(
             f"<body name={quoteattr(obj.name)}>{joints}"
             f'<inertial pos="0 0 0" mass="{obj.mass!r}" diaginertia="{_fmt(obj.inertia)}"/>'
-            f"{_geom_xml(obj.geom, obj.name)}"
-            f"{_footprint_xml(scene, obj.name, obj.geom) if footprint else ''}</body>"
+            f"{_object_geoms_xml(scene, obj)}</body>"
         )
     integrator = f' integrator="{scene.integrator}"' if scene.integrator != "Euler" else ""
     solref = f' solref="{scene.contact_time_constant!r} 1"' if scene.contact_time_constant is not None else ""

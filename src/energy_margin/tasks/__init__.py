@@ -21,6 +21,7 @@ from energy_margin.tasks.base import (
     WrenchLimits,
     all_inside,
     command_robot,
+    with_contacts,
 )
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
 from energy_margin.tasks.scene_task import SceneTask, SceneTaskConfig
@@ -119,4 +120,5 @@ __all__ = [
     "get_task",
     "load_plugin_tasks",
     "register_task",
+    "with_contacts",
 ]

@@ -172,6 +172,9 @@ class TaskConfig:
     #: Settings added after datasets were first written, with the value those datasets used:
     #: a recorded configuration without the key gets this value (see ``get_recorded_task``).
     recorded_defaults: ClassVar[dict[str, Any]] = {}
+    #: Settings that select the task's fast contact model: the same contact geometry from cheaper
+    #: pairs (``AnalyzerConfig(contacts="fast")``, ``analyze --contacts fast``); empty: none.
+    fast_contacts: ClassVar[dict[str, Any]] = {}
 
     duration: float = 2.0
     timestep: float = 1.0 / 240.0
@@ -203,6 +206,34 @@ class TaskConfig:
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible dictionary of every field."""
         return dataclasses.asdict(self)
+
+
+CONTACT_MODELS = ("recorded", "fast")
+
+
+def with_contacts(task: Task, contacts: str) -> Task:
+    """``task`` with the contact model ``contacts``.
+
+    Args:
+        task: a task, as recorded by its dataset.
+        contacts: ``"recorded"`` (the task itself) or ``"fast"`` (its settings
+            :attr:`TaskConfig.fast_contacts` applied).
+
+    Raises:
+        ValueError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
+
+    """
+    if contacts not in CONTACT_MODELS:
+        raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {contacts!r}")
+    if contacts == "recorded":
+        return task
+    fast = type(task.config).fast_contacts
+    if not fast:
+        raise ValueError(f"task {task.name!r} has no fast contact model (contacts 'recorded' only)")
+    current = task.config.to_dict()
+    if all(current.get(key) == value for key, value in fast.items()):
+        return task
+    return type(task)(dataclasses.replace(task.config, **fast))
 
 
 def _finite(name: str, value: Any) -> float:

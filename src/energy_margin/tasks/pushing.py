@@ -82,11 +82,17 @@ class PushingConfig(TaskConfig):
         ground_contact: cylinder-ground contact, ``"geometry"`` (the engine's rim contacts) or
             ``"footprint"`` (one base-centre contact with the rim's spin friction); see
             :class:`~energy_margin.world.scene.Scene`.
+        lateral_contact: cylinder contacts with everything but the ground, ``"geometry"`` (the
+            cylinder itself) or ``"sphere"`` (a sphere of its radius at its centre: the same
+            contacts in the plane of the centres, from the engine's exact sphere pairs); see
+            :class:`~energy_margin.world.scene.Scene`.
 
     """
 
-    # Datasets written before ground_contact existed were made with the rim contacts.
-    recorded_defaults: ClassVar[dict[str, Any]] = {"ground_contact": "geometry"}
+    # Datasets written before these settings existed were made with the cylinders' own contacts.
+    recorded_defaults: ClassVar[dict[str, Any]] = {"ground_contact": "geometry", "lateral_contact": "geometry"}
+    # One base contact per cylinder and spheres for the lateral pairs (docs/performance.md).
+    fast_contacts: ClassVar[dict[str, Any]] = {"ground_contact": "footprint", "lateral_contact": "sphere"}
 
     timestep: float = 1.0 / 120.0
     object_radius: float = 0.05
@@ -121,12 +127,15 @@ class PushingConfig(TaskConfig):
     max_angular_acceleration: float = 0.667
     max_speed: float = 100.0
     ground_contact: str = "geometry"
+    lateral_contact: str = "geometry"
 
     def check(self) -> None:
         """Raise ``ValueError`` naming the first setting outside its valid range."""
         super().check()
         if self.ground_contact not in ("geometry", "footprint"):
             raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
+        if self.lateral_contact not in ("geometry", "sphere"):
+            raise ValueError(f"lateral_contact must be 'geometry' or 'sphere', got {self.lateral_contact!r}")
         require_positive(
             self,
             "object_radius",
@@ -377,6 +386,7 @@ class PushingTask(Task):
             timestep=cfg.timestep,
             object_motion="upright",
             ground_contact=cfg.ground_contact,  # type: ignore[arg-type]
+            lateral_contact=cfg.lateral_contact,  # type: ignore[arg-type]
         )
 
     def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:

@@ -21,6 +21,7 @@ JointKind = Literal["slide", "hinge"]
 ObjectMotion = Literal["free", "upright"]
 Integrator = Literal["Euler", "implicitfast"]
 GroundContact = Literal["geometry", "footprint"]
+LateralContact = Literal["geometry", "sphere"]
 
 _SIZE_LENGTH: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "plane": 2}
 
@@ -211,6 +212,14 @@ class Scene:
             every lateral contact (other objects, robot, walls). Fewer contact rows per step for
             the same planar physics; only for ``object_motion="upright"`` on a horizontal ground
             plane. Backends without it use ``"geometry"``.
+        lateral_contact: how upright cylinders touch everything but the ground. ``"geometry"``:
+            their own shape. ``"sphere"``: a sphere of the cylinder's radius centred on it, which
+            meets the cylinder's side in the horizontal plane through the centre, so a contact
+            with a body at the object's height (another object of the same height, a vertical wall,
+            a face of the pusher) has the same point, normal and depth, from the engine's exact
+            sphere pair instead of its general convex one; the cylinder itself still touches the
+            ground (or its footprint does). Only for ``object_motion="upright"``; other shapes keep
+            their own. Backends without it use ``"geometry"``.
 
     """
 
@@ -224,6 +233,7 @@ class Scene:
     integrator: Integrator = "Euler"
     contact_time_constant: float | None = None
     ground_contact: GroundContact = "geometry"
+    lateral_contact: LateralContact = "geometry"
     robot_joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -248,6 +258,10 @@ class Scene:
             raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
         if self.ground_contact == "footprint" and self.object_motion != "upright":
             raise ValueError("ground_contact 'footprint' needs object_motion 'upright'")
+        if self.lateral_contact not in ("geometry", "sphere"):
+            raise ValueError(f"lateral_contact must be 'geometry' or 'sphere', got {self.lateral_contact!r}")
+        if self.lateral_contact == "sphere" and self.object_motion != "upright":
+            raise ValueError("lateral_contact 'sphere' needs object_motion 'upright'")
         names = [joint.name for link in self.robot_links for joint in link.joints]
         object.__setattr__(self, "robot_joint_names", tuple(names))
 
