@@ -38,8 +38,10 @@ def _fmt(values: tuple[float, ...] | list[float] | np.ndarray) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-# Collision bits of the "footprint" ground contact: ordinary geoms have contype = conaffinity =
-# _BODIES; a floor plane only emits _FLOOR, which footprints and robot links accept.
+# Collision bits: ordinary geoms have contype = conaffinity = _BODIES. With footprints or sphere
+# stand-ins a floor plane only emits _FLOOR, which footprints, robot links and objects without a
+# footprint accept; a cylinder's sphere emits _BODIES and accepts only _BODIES, never _FLOOR, and
+# the cylinder itself then keeps only the floor.
 _BODIES = 1
 _FLOOR = 2
 
@@ -102,20 +104,23 @@ def _footprint_xml(scene: Scene, name: str, geom: Geom) -> str:
     )
 
 
-def _object_geoms_xml(scene: Scene, obj: RigidObject) -> str:
-    """An object's own geom, its footprint and its lateral stand-in (see ``Scene``)."""
+def _object_geoms_xml(scene: Scene, obj: RigidObject, *, split_floor: bool) -> str:
+    """An object's own geom, its footprint and its sphere stand-ins (see ``Scene``)."""
     footprint = scene.ground_contact == "footprint" and _base_radius(obj.geom) is not None
-    sphere = scene.lateral_contact == "sphere" and obj.geom.shape == "cylinder"
-    if not sphere:
-        return _geom_xml(obj.geom, obj.name) + (_footprint_xml(scene, obj.name, obj.geom) if footprint else "")
-    # The cylinder keeps only its ground contact (none when the footprint carries it); the sphere
-    # of its radius takes every other contact, in the plane through the centre.
-    own = ' contype="0" conaffinity="0"' if footprint else f' contype="0" conaffinity="{_FLOOR}"'
+    base = _footprint_xml(scene, obj.name, obj.geom) if footprint else ""
+    floor = 0 if footprint or not split_floor else _FLOOR
+    if not (scene.lateral_contact == "sphere" and obj.geom.shape == "cylinder"):
+        extra = f' conaffinity="{_BODIES | floor}"' if floor else ""
+        return _geom_xml(obj.geom, obj.name, extra) + base
+    # In the plane of the centres the sphere is the cylinder's circle: every contact of that plane
+    # (another upright cylinder, a vertical face of the robot or a wall) has the cylinder's
+    # point, normal and depth. (Against a face the engine reports the cylinder's line contact as
+    # two identical rows; the sphere gives one.)
     stand_in = (
-        f'<geom name={quoteattr(obj.name + "_lateral")} type="sphere" size="{float(obj.geom.size[0])!r}" '
+        f'<geom name={quoteattr(obj.name + "_sphere")} type="sphere" size="{float(obj.geom.size[0])!r}" '
         f'contype="{_BODIES}" conaffinity="{_BODIES}" group="3" rgba="0 0 0 0"/>'
     )
-    base = _footprint_xml(scene, obj.name, obj.geom) if footprint else ""
+    own = f' contype="0" conaffinity="{floor}"'
     return _geom_xml(obj.geom, obj.name, own) + stand_in + base
 
 
@@ -203,7 +208,7 @@ def build_mjcf(scene: Scene) -> str:
         worldbody.append(
             f"<body name={quoteattr(obj.name)}>{joints}"
             f'<inertial pos="0 0 0" mass="{obj.mass!r}" diaginertia="{_fmt(obj.inertia)}"/>'
-            f"{_object_geoms_xml(scene, obj)}</body>"
+            f"{_object_geoms_xml(scene, obj, split_floor=split_floor)}</body>"
         )
     integrator = f' integrator="{scene.integrator}"' if scene.integrator != "Euler" else ""
     solref = f' solref="{scene.contact_time_constant!r} 1"' if scene.contact_time_constant is not None else ""

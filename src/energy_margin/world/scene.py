@@ -213,13 +213,15 @@ class Scene:
             the same planar physics; only for ``object_motion="upright"`` on a horizontal ground
             plane. Backends without it use ``"geometry"``.
         lateral_contact: how upright cylinders touch everything but the ground. ``"geometry"``:
-            their own shape. ``"sphere"``: a sphere of the cylinder's radius centred on it, which
-            meets the cylinder's side in the horizontal plane through the centre, so a contact
-            with a body at the object's height (another object of the same height, a vertical wall,
-            a face of the pusher) has the same point, normal and depth, from the engine's exact
-            sphere pair instead of its general convex one; the cylinder itself still touches the
-            ground (or its footprint does). Only for ``object_motion="upright"``; other shapes keep
-            their own. Backends without it use ``"geometry"``.
+            their own shapes (the engine's general convex pairs). ``"sphere"``: through a sphere
+            of the cylinder's radius at its centre, which meets the cylinder's side in the
+            horizontal plane through the centre, so a contact in that plane (another upright
+            cylinder of the same height, a vertical face of the robot or a wall) has the same
+            point, normal and depth, from the engine's exact sphere pairs (one row where the engine
+            reports a cylinder's line contact with a face as two identical ones); the cylinder
+            itself keeps only the ground (or its footprint does). Only for
+            ``object_motion="upright"``; other shapes keep their own. Backends without it use
+            ``"geometry"``.
 
     """
 
