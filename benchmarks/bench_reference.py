@@ -126,7 +126,7 @@ def main() -> None:
     from energy_margin.analysis.frame import frame_seeds
     from energy_margin.data.reference import import_reference
     from energy_margin.sim import make_simulator
-    from energy_margin.tasks import get_task
+    from energy_margin.tasks import get_task, with_contacts
 
     scratch = Path(tempfile.mkdtemp(prefix="bench-reference-"))
     try:
@@ -151,7 +151,9 @@ def main() -> None:
                 trajectory, frame = divmod(index, dataset.n_frames)
                 friction = float(dataset.arrays["friction"][trajectory])
                 drive = dataset.arrays["drive"][trajectory]
-                simulator = make_simulator(task.build_scene(dataset.n_objects, friction, drive))
+                # The scene of the analysis's contact model (``--analyzer contacts='"fast"'``).
+                scene = with_contacts(task, config.contacts).build_scene(dataset.n_objects, friction, drive)
+                simulator = make_simulator(scene)
                 scores, _ = analyze_frame(
                     task,
                     dataset.frame(trajectory, frame),

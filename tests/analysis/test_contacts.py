@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, analyze_frame
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
@@ -80,3 +80,19 @@ def test_cli_refuses_fast_contacts_without_a_model(tmp_path: Path, capsys: pytes
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fast contact model" in err[0]
     assert not (out / "scores.csv").exists()
+
+
+def test_a_simulator_of_the_recorded_scene_is_refused(tiny_dataset: Path) -> None:
+    dataset = load_dataset(tiny_dataset)
+    task, friction, drive = dataset.task, float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]
+    recorded = task.make_simulator(dataset.n_objects, friction, drive, "mujoco")
+    config = AnalyzerConfig(iterations=5, contacts="fast")
+    with pytest.raises(ValueError, match="simulator"):
+        analyze_frame(
+            task, dataset.frame(0, 0), friction=friction, drive=drive, seed=0, config=config, simulator=recorded
+        )
+    fast = with_contacts(task, "fast").make_simulator(dataset.n_objects, friction, drive, "mujoco")
+    scores, _ = analyze_frame(
+        task, dataset.frame(0, 0), friction=friction, drive=drive, seed=0, config=config, simulator=fast
+    )
+    assert scores.iterations == 5

@@ -234,7 +234,8 @@ def analyze_frame(
         seed: the frame's seed.
         config: analysis settings (defaults when ``None``).
         start_time: time of the frame within its roll-out, s.
-        simulator: a simulator of the frame's scene, to reuse one across frames.
+        simulator: a simulator of the frame's scene under ``config.contacts`` (the scene of
+            ``with_contacts(task, config.contacts)``), to reuse one across frames.
         stop: a further early-stopping rule (e.g. a wall-clock deadline), called with the cost
             field so far every ``check_every`` expansions; growth ends when it or the
             convergence rule of ``config.converge`` says so (the budget stays the upper bound).
@@ -246,9 +247,14 @@ def analyze_frame(
 
     """
     config = config if config is not None else AnalyzerConfig()
-    task = with_contacts(task, config.contacts)
+    recorded_task, task = task, with_contacts(task, config.contacts)
     if simulator is None:
         simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
+    elif task is not recorded_task and getattr(simulator, "scene", None) != task.build_scene(
+        frame.n_objects, friction, drive
+    ):
+        # A simulator of the recorded scene would silently analyse the other contact model.
+        raise ValueError(f"simulator: not a simulator of the scene of contacts {config.contacts!r}")
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     every = config.converge_every if check_every is None or stop is None else check_every
