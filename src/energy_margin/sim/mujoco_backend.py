@@ -105,7 +105,7 @@ def _footprint_xml(scene: Scene, name: str, geom: Geom) -> str:
 
 
 def _object_geoms_xml(scene: Scene, obj: RigidObject, *, split_floor: bool) -> str:
-    """An object's own geom, its footprint and its sphere stand-ins (see ``Scene``)."""
+    """An object's own geom, its footprint and its sphere stand-in (see ``Scene``)."""
     footprint = scene.ground_contact == "footprint" and _base_radius(obj.geom) is not None
     base = _footprint_xml(scene, obj.name, obj.geom) if footprint else ""
     floor = 0 if footprint or not split_floor else _FLOOR
