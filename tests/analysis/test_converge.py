@@ -1,4 +1,4 @@
-"""Adaptive budgets: a frame's tree stops once both scores have converged."""
+"""Adaptive budgets: a frame's tree stops once both scores have converged (projected and window rules)."""
 
 from __future__ import annotations
 
@@ -13,16 +13,18 @@ from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import CONFIG_FILE, load_scores
-from energy_margin.planning.tree import CostField
+from energy_margin.errors import EnergyMarginError
+from energy_margin.planning.tree import CostField, TreeBudget
 
 
-def _field(iterations: int) -> CostField:
+def _field(iterations: int, nodes: int | None = None) -> CostField:
+    count = (iterations if nodes is None else nodes) + 1
     return CostField(
-        costs=np.zeros(iterations + 1),
-        object_pos=np.zeros((iterations + 1, 1, 3)),
-        object_vel=np.zeros((iterations + 1, 1, 6)),
-        parents=np.full(iterations + 1, -1),
-        times=np.zeros(iterations + 1),
+        costs=np.zeros(count),
+        object_pos=np.zeros((count, 1, 3)),
+        object_vel=np.zeros((count, 1, 6)),
+        parents=np.full(count, -1),
+        times=np.zeros(count),
         iterations=iterations,
         physics_s=0.0,
         total_s=0.0,
@@ -35,26 +37,63 @@ def _rule(monkeypatch: pytest.MonkeyPatch, scores: list[tuple[float, float]], **
     return ScoresConverged(None, None, 1.0, **kwargs)  # type: ignore[arg-type]
 
 
-def test_the_rule_waits_for_a_whole_window(monkeypatch: pytest.MonkeyPatch) -> None:
-    rule = _rule(monkeypatch, [(0.5, 0.5)] * 10, tolerance=0.01, window=50)
+def test_the_window_rule_waits_for_a_whole_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    rule = _rule(monkeypatch, [(0.5, 0.5)] * 10, tolerance=0.01, window=50, rule="window")
     assert rule(_field(25)) is False  # less than one window of history
     assert rule(_field(50)) is False  # checks at 25 and 50 span 25 expansions only
     assert rule(_field(75)) is True  # 25, 50, 75: unchanged over the last 50 expansions
 
 
-def test_the_rule_needs_both_scores_still(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_window_rule_needs_both_scores_still(monkeypatch: pytest.MonkeyPatch) -> None:
     moving = [(0.5, 0.1), (0.5, 0.2), (0.5, 0.3), (0.5, 0.3), (0.5, 0.3)]
-    rule = _rule(monkeypatch, moving, tolerance=0.01, window=50)
+    rule = _rule(monkeypatch, moving, tolerance=0.01, window=50, rule="window")
     decisions = [rule(_field(i)) for i in (25, 50, 75, 100, 125)]
     # Success still moves until expansion 75; from 75 to 125 it stays at 0.3.
     assert decisions == [False, False, False, False, True]
 
 
-def test_the_rule_takes_the_spread_over_the_window(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_window_rule_takes_the_spread_over_the_window(monkeypatch: pytest.MonkeyPatch) -> None:
     # A score that drifts by 0.006 per check moves 0.012 over two checks: more than 0.01.
     drifting = [(0.5 + 0.006 * i, 0.2) for i in range(8)]
-    rule = _rule(monkeypatch, drifting, tolerance=0.01, window=50)
+    rule = _rule(monkeypatch, drifting, tolerance=0.01, window=50, rule="window")
     assert not any(rule(_field(25 * (i + 1))) for i in range(8))
+
+
+def test_the_projected_rule_waits_for_a_whole_window(monkeypatch: pytest.MonkeyPatch) -> None:
+    rule = _rule(monkeypatch, [(0.5, 0.5)] * 10, tolerance=0.01, window=50)
+    assert rule.rule == "projected"
+    assert rule(_field(25)) is False
+    assert rule(_field(50)) is False  # no check 50 expansions back yet
+    assert rule(_field(75)) is True  # unchanged since 25: nothing left to move
+
+
+def test_the_projected_rule_lets_a_slow_drift_run_until_the_budget_cannot_carry_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Capture falls by 0.002 per 25 expansions: 0.004 over a window, well inside 0.0105, so the
+    # window rule stops at 75; at that rate the 300-expansion budget's rest would still move it
+    # by (300 - n) / 50 * 0.004, which is <= 0.0105 from n = 175 on.
+    drifting = [(0.9 - 0.002 * i, 0.0) for i in range(12)]
+    checks = [25 * (i + 1) for i in range(12)]
+    window = _rule(monkeypatch, drifting, tolerance=0.0105, window=50, rule="window")
+    assert [window(_field(n)) for n in checks].index(True) == checks.index(75)
+    projected = _rule(monkeypatch, drifting, tolerance=0.0105, window=50, budget=TreeBudget(iterations=300))
+    assert [projected(_field(n)) for n in checks].index(True) == checks.index(175)
+
+
+def test_the_projected_rule_counts_the_nodes_a_node_budget_still_allows(monkeypatch: pytest.MonkeyPatch) -> None:
+    # 0.01 over the last 50 expansions; 100 nodes allowed, 95 accepted: 5 left, 0.001 to come.
+    budget = TreeBudget(iterations=None, nodes=100)
+    rule = _rule(monkeypatch, [(0.50, 0.2), (0.51, 0.2)], tolerance=0.002, window=50, budget=budget)
+    assert rule(_field(50, nodes=45)) is False
+    assert rule(_field(100, nodes=95)) is True
+
+
+def test_the_rule_must_be_known() -> None:
+    with pytest.raises(ValueError, match="rule must be one of projected, window"):
+        ScoresConverged(None, None, 1.0, tolerance=0.01, window=50, rule="spread")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="converge_rule must be one of projected, window"):
+        AnalyzerConfig(converge=0.01, converge_rule="spread")
 
 
 @pytest.mark.parametrize("value", [0.0, 1.0, -0.1, float("nan"), True])
@@ -102,3 +141,22 @@ def test_cli_converge_is_recorded(tiny_dataset: Path) -> None:
     recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["converge"] == 0.05
     assert max(load_scores(tiny_dataset)["iterations"]) <= 100
+
+
+def test_cli_converge_rule_is_recorded(tiny_dataset: Path) -> None:
+    arguments = ["analyze", str(tiny_dataset), "--iterations", "100", "--converge", "0.05", "--no-progress"]
+    assert main([*arguments, "--converge-rule", "window"]) == 0
+    recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
+    assert recorded["analyzer"]["converge_rule"] == "window"
+
+
+def test_a_file_from_before_the_rule_existed_resumes_only_under_the_window_rule(tiny_dataset: Path) -> None:
+    config = AnalyzerConfig(iterations=60, converge=0.05, converge_rule="window")
+    analyze(tiny_dataset, config, seed=0, progress=False)
+    path = tiny_dataset / CONFIG_FILE
+    recorded = json.loads(path.read_text())
+    del recorded["analyzer"]["converge_rule"]  # as written before the setting existed
+    path.write_text(json.dumps(recorded))
+    analyze(tiny_dataset, config, seed=0, progress=False)  # the same run: nothing to redo
+    with pytest.raises(EnergyMarginError, match="different analysis"):
+        analyze(tiny_dataset, AnalyzerConfig(iterations=60, converge=0.05), seed=0, progress=False)

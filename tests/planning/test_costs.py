@@ -179,3 +179,49 @@ def test_energy_model_sees_the_net_external_work_of_separated_objects(
     # total work), so the tolerance is 15 % of sum_i |W_i|.
     assert abs(energy_cost - net) <= 0.15 * total
     assert energy_cost < 0.75 * total
+
+
+# ---------------------------------------------------------------- stacked propagations
+
+
+def _random_quaternions(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    quat = rng.standard_normal((*shape, 4))
+    return quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+
+
+@pytest.mark.parametrize("n_objects", [1, 3, 10, 17])
+def test_stacked_increments_are_the_values_of_one_call_each(n_objects: int) -> None:
+    # The tree costs the nodes it added since the last look in one call: the values must be
+    # those of one call per node, to the last bit (pinned scores depend on it).
+    rng = np.random.default_rng(n_objects)
+    k = 40
+    stacked = Propagation(
+        wrenches=rng.uniform(-2.0, 2.0, (k, n_objects, 6)),
+        pos_before=rng.uniform(-0.5, 0.5, (k, n_objects, 3)),
+        pos_after=rng.uniform(-0.5, 0.5, (k, n_objects, 3)),
+        quat_before=_random_quaternions(rng, (k, n_objects)),
+        quat_after=_random_quaternions(rng, (k, n_objects)),
+        energy_before=rng.uniform(0.0, 1.0, k),
+        energy_after=rng.uniform(0.0, 1.0, k),
+        friction_work=-rng.uniform(0.0, 1.0, k),
+    )
+    for model in (WrenchWorkCost(), EnergyBalanceCost()):
+        increments = model.increments(stacked)
+        assert increments.shape == (k,)
+        one_by_one = [
+            model(
+                Propagation(
+                    wrenches=stacked.wrenches[j],
+                    pos_before=stacked.pos_before[j],
+                    pos_after=stacked.pos_after[j],
+                    quat_before=stacked.quat_before[j],
+                    quat_after=stacked.quat_after[j],
+                    energy_before=float(stacked.energy_before[j]),  # type: ignore[index]
+                    energy_after=float(stacked.energy_after[j]),  # type: ignore[index]
+                    friction_work=float(stacked.friction_work[j]),  # type: ignore[index]
+                )
+            )
+            for j in range(k)
+        ]
+        assert increments.tolist() == one_by_one
+        assert np.all(increments >= MIN_COST)

@@ -26,6 +26,9 @@ from energy_margin.tasks import Task, all_inside, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.world.state import FrameState
 
+#: Rules of the adaptive budget (:class:`ScoresConverged`).
+CONVERGE_RULES = ("projected", "window")
+
 
 @dataclass(frozen=True)
 class AnalyzerConfig:
@@ -49,11 +52,17 @@ class AnalyzerConfig:
         rrt_extent: half width of the RRT target box, m.
         projection: EST density features, ``"objects"`` (every object's centre relative to the
             root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
-        converge: adaptive budget: stop a frame's tree once neither score has moved by more than
-            this over the last ``converge_window`` expansions (checked every ``converge_every``,
-            never before ``converge_window``); the iteration/node budget stays the upper bound.
+        converge: adaptive budget: a score tolerance in (0, 1); the tree stops once the rule of
+            ``converge_rule`` says neither score will move by more than it (checked every
+            ``converge_every`` expansions); the iteration/node budget stays the upper bound.
             ``None``: always spend the whole budget.
-        converge_window: expansions over which both scores must stay within ``converge``.
+        converge_rule: ``"projected"``: stop once neither score, moving on at its rate over the
+            last ``converge_window`` expansions, would move by more than ``converge`` by the end
+            of the budget; ``"window"``: once neither moved by more than ``converge`` over the
+            last ``converge_window`` expansions. Scores drift slowly down as a tree grows into
+            costlier states, and the window rule stops a slow drift early (biased high); the
+            projected rule is the one whose AP holds (docs/performance.md).
+        converge_window: expansions the convergence rule looks back over.
         converge_every: expansions between two convergence checks.
         contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or
             ``"fast"`` (the task's fast contact model, :attr:`TaskConfig.fast_contacts`: the same
@@ -75,6 +84,7 @@ class AnalyzerConfig:
     rrt_extent: float = 0.1
     projection: str = "objects"
     converge: float | None = None
+    converge_rule: str = "projected"
     converge_window: int = 50
     converge_every: int = 25
     contacts: str = "recorded"
@@ -114,6 +124,8 @@ class AnalyzerConfig:
             not isinstance(self.converge, bool) and np.isfinite(self.converge) and 0 < self.converge < 1
         ):
             raise ValueError(f"converge must be a score tolerance in (0, 1), got {self.converge!r}")
+        if self.converge_rule not in CONVERGE_RULES:
+            raise ValueError(f"converge_rule must be one of {', '.join(CONVERGE_RULES)}, got {self.converge_rule!r}")
         if self.contacts not in CONTACT_MODELS:
             raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {self.contacts!r}")
         if self.contacts == "fast" and self.engine != "mujoco":
@@ -169,26 +181,62 @@ def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> t
 
 
 class ScoresConverged:
-    """Early-stopping rule: both scores stayed within ``tolerance`` over the last ``window`` expansions.
+    """Early-stopping rule of the adaptive budget (``AnalyzerConfig.converge``).
 
     Called by the tree every few expansions with the cost field so far; it scores the field
     (Algorithm 1) and keeps the history of both scores, so the decision depends only on the
-    tree, never on timing (same seed, same stopping point).
+    tree, never on timing (same seed, same stopping point). Both rules look back ``window``
+    expansions and need a check at least that far back:
+
+    * ``"projected"``: stop when ``|s(n) - s(n - w)| * remaining / w <= tolerance`` for both
+      scores, ``remaining`` being the expansions the budget still allows (the accepted nodes it
+      still allows when that is fewer): the change the budget's rest would bring at the current
+      rate;
+    * ``"window"``: stop when both scores stayed within ``tolerance`` over the last ``window``.
     """
 
-    def __init__(self, task: Task, root: FrameState, lam: float, *, tolerance: float, window: int) -> None:
+    def __init__(
+        self,
+        task: Task,
+        root: FrameState,
+        lam: float,
+        *,
+        tolerance: float,
+        window: int,
+        rule: str = "projected",
+        budget: TreeBudget | None = None,
+    ) -> None:
+        if rule not in CONVERGE_RULES:
+            raise ValueError(f"rule must be one of {', '.join(CONVERGE_RULES)}, got {rule!r}")
         self.task, self.root, self.lam = task, root, lam
-        self.tolerance, self.window = tolerance, window
+        self.tolerance, self.window, self.rule = tolerance, window, rule
+        self.budget = budget if budget is not None else TreeBudget()
         self.history: list[tuple[int, float, float]] = []
+
+    def _remaining(self, field: CostField) -> int:
+        """Expansions the budget still allows after ``field`` (accepted nodes, when fewer)."""
+        remaining = self.budget.iteration_limit - field.iterations
+        if self.budget.nodes is not None:
+            remaining = min(remaining, self.budget.nodes - (field.nodes - 1))
+        return max(remaining, 0)
 
     def __call__(self, field: CostField) -> bool:
         """Whether growth can stop after ``field.iterations`` expansions."""
         capture, success = score_field(self.task, self.root, field, self.lam)
-        self.history.append((field.iterations, capture, success))
-        if field.iterations < self.window:
+        now = field.iterations
+        self.history.append((now, capture, success))
+        earlier = [entry for entry in self.history if entry[0] <= now - self.window]
+        if not earlier:
             return False
-        recent = [(c, s) for i, c, s in self.history if i >= field.iterations - self.window]
-        if len(recent) < 2 or self.history[0][0] > field.iterations - self.window:
+        if self.rule == "projected":
+            then, capture_then, success_then = earlier[-1]
+            factor = self._remaining(field) / (now - then)
+            return bool(
+                abs(capture - capture_then) * factor <= self.tolerance
+                and abs(success - success_then) * factor <= self.tolerance
+            )
+        recent = [(c, s) for i, c, s in self.history if i >= now - self.window]
+        if len(recent) < 2:
             return False
         spread = np.ptp(np.array(recent), axis=0)
         return bool(np.all(spread <= self.tolerance))
@@ -259,7 +307,15 @@ def analyze_frame(
     started = time.perf_counter()
     every = config.converge_every if check_every is None or stop is None else check_every
     if config.converge is not None:
-        converged = ScoresConverged(task, frame, lam, tolerance=config.converge, window=config.converge_window)
+        converged = ScoresConverged(
+            task,
+            frame,
+            lam,
+            tolerance=config.converge,
+            window=config.converge_window,
+            rule=config.converge_rule,
+            budget=config.budget,
+        )
         stop = converged if stop is None else _EitherStop(stop, converged, config.converge_every)
     field = grow_tree(
         simulator,

@@ -67,12 +67,17 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
 
 # Analyzer settings added after the first release: an analysis.json without them used their defaults.
 _LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent", "contacts")
+#: Settings added later whose behaviour before is not the new default: files without them ran this.
+_EARLIER_BEHAVIOUR = {"converge_rule": "window"}
 
 
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
     if isinstance(previous.get("analyzer"), dict):
         defaults = AnalyzerConfig().to_dict()
-        previous = {**previous, "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **previous["analyzer"]}}
+        previous = {
+            **previous,
+            "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **_EARLIER_BEHAVIOUR, **previous["analyzer"]},
+        }
     keys = ("analyzer", "seed", "dataset", "task_config")
     previous = dict(previous)
     if isinstance(previous.get("analyzer"), dict):

@@ -6,6 +6,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from energy_margin.analysis.executors import EXECUTORS
+from energy_margin.analysis.frame import CONVERGE_RULES
 from energy_margin.cli.common import add_engine, add_seed, non_negative_float, non_negative_int, positive_int
 from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
@@ -67,8 +68,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=None,
         metavar="TOL",
-        help="adaptive budget: stop a frame once neither score moved by more than TOL over the last 50 "
-        "expansions (the budget stays the upper bound; default: spend the whole budget)",
+        help="adaptive budget: stop a frame once neither score would move by more than TOL by the end of the "
+        "budget at its rate over the last 50 expansions (0.02 holds AP; the budget stays the upper bound; "
+        "default: spend the whole budget)",
+    )
+    parser.add_argument(
+        "--converge-rule",
+        choices=CONVERGE_RULES,
+        default="projected",
+        help="rule of --converge: projected (default) or window (neither score moved by more than TOL over "
+        "the last 50 expansions; stops earlier, biased high)",
     )
     parser.add_argument(
         "--contacts",
@@ -104,6 +113,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
             threads=args.threads,
             projection=args.projection,
             converge=args.converge,
+            converge_rule=args.converge_rule,
             contacts=args.contacts,
         )
     except ValueError as error:

@@ -30,7 +30,11 @@ MIN_COST = 1e-9
 
 @dataclass(frozen=True)
 class Propagation:
-    """What the cost models see of one propagation.
+    """What the cost models see of one propagation, or of k propagations stacked.
+
+    The shapes below are those of one propagation; k propagations stack them on a leading axis
+    (``wrenches`` (k, n_objects, 6), the energies and friction work (k,)), which is how the tree
+    costs the nodes it added since it last scored (one vectorised call instead of one per node).
 
     Attributes:
         wrenches: applied wrenches, shape (n_objects, 6), N and N m, world frame.
@@ -49,9 +53,9 @@ class Propagation:
     pos_after: np.ndarray
     quat_before: np.ndarray
     quat_after: np.ndarray
-    energy_before: float = 0.0
-    energy_after: float = 0.0
-    friction_work: float = 0.0
+    energy_before: float | np.ndarray = 0.0
+    energy_after: float | np.ndarray = 0.0
+    friction_work: float | np.ndarray = 0.0
 
 
 class CostModel(Protocol):
@@ -61,16 +65,20 @@ class CostModel(Protocol):
     needs_friction_work: bool
 
     def __call__(self, propagation: Propagation) -> float:
-        """Incremental cost of ``propagation``, J."""
+        """Incremental cost of one propagation, J."""
+        ...
+
+    def increments(self, propagations: Propagation) -> np.ndarray:
+        """Incremental costs of k stacked propagations, shape (k,), J (the same values as calls)."""
         ...
 
 
 def wrench_work_per_object(propagation: Propagation) -> np.ndarray:
-    """Work of each object's perturbation wrench over the propagation, shape (n_objects,), J."""
+    """Work of each object's perturbation wrench, shape (n_objects,) (or (k, n_objects) stacked), J."""
     displacement = propagation.pos_after - propagation.pos_before
     rotation = relative_rotation_vector(propagation.quat_before, propagation.quat_after)
-    forces, torques = propagation.wrenches[:, :3], propagation.wrenches[:, 3:]
-    return np.sum(forces * displacement, axis=1) + np.sum(torques * rotation, axis=1)
+    forces, torques = propagation.wrenches[..., :3], propagation.wrenches[..., 3:]
+    return np.sum(forces * displacement, axis=-1) + np.sum(torques * rotation, axis=-1)
 
 
 class WrenchWorkCost:
@@ -81,7 +89,11 @@ class WrenchWorkCost:
 
     def __call__(self, propagation: Propagation) -> float:
         """Incremental cost, J."""
-        return max(float(np.sum(np.abs(wrench_work_per_object(propagation)))), MIN_COST)
+        return float(self.increments(propagation))
+
+    def increments(self, propagations: Propagation) -> np.ndarray:
+        """Incremental costs of stacked propagations, shape (k,), J."""
+        return np.maximum(np.sum(np.abs(wrench_work_per_object(propagations)), axis=-1), MIN_COST)
 
 
 class EnergyBalanceCost:
@@ -92,8 +104,16 @@ class EnergyBalanceCost:
 
     def __call__(self, propagation: Propagation) -> float:
         """Incremental cost, J."""
-        external = propagation.energy_after - propagation.energy_before - propagation.friction_work
-        return max(abs(external), MIN_COST)
+        return float(self.increments(propagation))
+
+    def increments(self, propagations: Propagation) -> np.ndarray:
+        """Incremental costs of stacked propagations, shape (k,), J."""
+        external = (
+            np.asarray(propagations.energy_after)
+            - np.asarray(propagations.energy_before)
+            - np.asarray(propagations.friction_work)
+        )
+        return np.maximum(np.abs(external), MIN_COST)
 
 
 COST_MODELS: dict[str, type[WrenchWorkCost] | type[EnergyBalanceCost]] = {

@@ -10,7 +10,8 @@ Carlo roll-outs, RRT). Every method shares:
 * the propagation (:func:`_propagate_one`, or :class:`~energy_margin.sim.mujoco_backend.RolloutPropagator`
   for a batch) and the acceptance test: a reached state outside the task's state box, or not
   finite, is rejected but still consumes the iteration;
-* the incremental cost Q of the cost model; a child's cost is its parent's plus Q.
+* the incremental cost Q of the cost model; a child's cost is its parent's plus Q (costed in
+  batches when the field is read, :class:`_Tree`).
 
 Only the choice of the parent differs between methods (:class:`Expansion`).
 
@@ -155,7 +156,13 @@ class Outcome:
 
 
 class _Tree:
-    """Growing node arrays; ``offer`` tests a reached state, costs it and stores it."""
+    """Growing node arrays; ``offer`` tests a reached state and stores it.
+
+    Costs are computed lazily: a node keeps its wrenches and its propagation's energies, and the
+    nodes added since the last look are costed together by the cost model's vectorised
+    ``increments`` when the field is read (a convergence check or the end), which saves a
+    cost-model call per expansion; the values are those of one call per node.
+    """
 
     def __init__(self, capacity: int, state_size: int, n_objects: int, task: Task, cost_model: CostModel) -> None:
         self.states = np.empty((capacity, state_size))
@@ -166,8 +173,11 @@ class _Tree:
         self.velocities = np.empty((capacity, n_objects, 6))
         self.quaternions = np.empty((capacity, n_objects, 4))
         self.energies = np.zeros(capacity)
+        self.wrenches = np.zeros((capacity, n_objects, 6))
+        self.friction_works = np.zeros(capacity)
         self.capacity = capacity
         self.count = 0
+        self.costed = 0
         self.task = task
         self.cost_model = cost_model
 
@@ -178,7 +188,7 @@ class _Tree:
         self.velocities[0] = outcome.vel
         self.quaternions[0] = outcome.quat
         self.energies[0] = outcome.energy
-        self.count = 1
+        self.count = self.costed = 1
 
     def offer(self, parent: int, wrenches: np.ndarray, duration: float, outcome: Outcome) -> int | None:
         """Add the reached state as a child of ``parent``; its index, or ``None`` when rejected."""
@@ -189,32 +199,46 @@ class _Tree:
             return None
         if not self.task.within_bounds(pos, vel):
             return None
-        increment = self.cost_model(
-            Propagation(
-                wrenches=wrenches,
-                pos_before=self.positions[parent],
-                pos_after=pos,
-                quat_before=self.quaternions[parent],
-                quat_after=outcome.quat,
-                energy_before=float(self.energies[parent]),
-                energy_after=outcome.energy,
-                friction_work=outcome.friction_work,
-            )
-        )
         node = self.count
         self.states[node] = outcome.state
-        self.costs[node] = self.costs[parent] + increment
         self.parents[node] = parent
         self.times[node] = self.times[parent] + duration
         self.positions[node] = pos
         self.velocities[node] = vel
         self.quaternions[node] = outcome.quat
         self.energies[node] = outcome.energy
+        self.wrenches[node] = wrenches
+        self.friction_works[node] = outcome.friction_work
         self.count += 1
         return node
 
+    def _cost_new_nodes(self) -> None:
+        """Cost-to-come of the nodes added since the last call (a child's is its parent's plus Q)."""
+        first, count = self.costed, self.count
+        if first >= count:
+            return
+        parents = self.parents[first:count]
+        increments = self.cost_model.increments(
+            Propagation(
+                wrenches=self.wrenches[first:count],
+                pos_before=self.positions[parents],
+                pos_after=self.positions[first:count],
+                quat_before=self.quaternions[parents],
+                quat_after=self.quaternions[first:count],
+                energy_before=self.energies[parents],
+                energy_after=self.energies[first:count],
+                friction_work=self.friction_works[first:count],
+            )
+        )
+        costs = self.costs
+        # In index order: a parent precedes its children, and may itself be new.
+        for node, parent, increment in zip(range(first, count), parents.tolist(), increments.tolist(), strict=True):
+            costs[node] = costs[parent] + increment
+        self.costed = count
+
     def view(self, iterations: int) -> CostField:
         """The nodes so far, without copies or timings (valid until the next ``offer``)."""
+        self._cost_new_nodes()
         count = self.count
         return CostField(
             costs=self.costs[:count],
@@ -229,6 +253,7 @@ class _Tree:
         )
 
     def field(self, iterations: int, physics_s: float, started: float) -> CostField:
+        self._cost_new_nodes()
         count = self.count
         return CostField(
             costs=self.costs[:count].copy(),

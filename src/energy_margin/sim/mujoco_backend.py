@@ -465,19 +465,22 @@ class MujocoSimulator:
         """Orientations (n_objects, 4), (w, x, y, z)."""
         if self._upright:
             half_yaw = 0.5 * self.data.qpos[self._yaw_index]
-            zeros = np.zeros_like(half_yaw)
-            return np.column_stack([np.cos(half_yaw), zeros, zeros, np.sin(half_yaw)])
+            quat = np.zeros((half_yaw.shape[0], 4))
+            quat[:, 0] = np.cos(half_yaw)
+            quat[:, 3] = np.sin(half_yaw)
+            return quat
         return self.data.qpos[self._quat_index]
 
     def object_velocities(self) -> np.ndarray:
         """Linear and angular velocities in the world frame (n_objects, 6)."""
-        linear = self.data.qvel[self._linvel_index]
+        qvel = self.data.qvel
         if self._upright:
-            angular = np.zeros_like(linear)
-            angular[:, 2] = self.data.qvel[self._yaw_rate_index]
-        else:
-            angular = _rotate(self.object_quaternions(), self.data.qvel[self._angvel_index])
-        return np.concatenate([linear, angular], axis=1)
+            velocity = np.zeros((self._linvel_index.shape[0], 6))
+            velocity[:, :3] = qvel[self._linvel_index]
+            velocity[:, 5] = qvel[self._yaw_rate_index]
+            return velocity
+        angular = _rotate(self.object_quaternions(), qvel[self._angvel_index])
+        return np.concatenate([qvel[self._linvel_index], angular], axis=1)
 
     def robot_positions(self) -> np.ndarray:
         """End-effector joint positions (n_robot_dofs,)."""

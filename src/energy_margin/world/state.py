@@ -62,22 +62,22 @@ _PREVIOUS = np.array([2, 0, 1])
 
 
 def relative_rotation_vector(quat_from: np.ndarray, quat_to: np.ndarray) -> np.ndarray:
-    """Rotation vector of ``R_to R_from^T`` (world frame), shape (n, 3), radians.
+    """Rotation vector of ``R_to R_from^T`` (world frame), shape (..., 3), radians.
 
     Args:
-        quat_from: start orientations, shape (n, 4), ``(w, x, y, z)``.
-        quat_to: end orientations, shape (n, 4).
+        quat_from: start orientations, shape (..., 4), ``(w, x, y, z)``.
+        quat_to: end orientations, the same shape.
     """
-    # q_rel = q_to * conj(q_from), written out on columns (this runs once per tree expansion).
-    w_from, v_from = quat_from[:, :1], quat_from[:, 1:]
-    w_to, v_to = quat_to[:, :1], quat_to[:, 1:]
-    w_rel = np.sum(quat_to * quat_from, axis=1)
-    cross = v_to[:, _NEXT] * v_from[:, _PREVIOUS] - v_to[:, _PREVIOUS] * v_from[:, _NEXT]
+    # q_rel = q_to * conj(q_from), written out on columns (the tree costs its nodes in batches).
+    w_from, v_from = quat_from[..., :1], quat_from[..., 1:]
+    w_to, v_to = quat_to[..., :1], quat_to[..., 1:]
+    w_rel = np.sum(quat_to * quat_from, axis=-1)
+    cross = v_to[..., _NEXT] * v_from[..., _PREVIOUS] - v_to[..., _PREVIOUS] * v_from[..., _NEXT]
     v_rel = w_from * v_to - w_to * v_from - cross
     # The shortest rotation has w >= 0.
     sign = np.where(w_rel < 0.0, -1.0, 1.0)
-    sin_half = np.sqrt(np.sum(v_rel * v_rel, axis=1))
+    sin_half = np.sqrt(np.sum(v_rel * v_rel, axis=-1))
     angle = 2.0 * np.arctan2(sin_half, sign * w_rel)
     # angle / sin(angle / 2) -> 2 as the angle -> 0.
     scale = np.divide(angle, sin_half, out=np.full_like(angle, 2.0), where=sin_half > 1e-12) * sign
-    return v_rel * scale[:, None]
+    return v_rel * scale[..., None]
