@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="TOL",
         help="adaptive budget: stop a frame once neither score would move by more than TOL by the end of the "
-        "budget at its rate over the last 50 expansions (0.02 holds AP; the budget stays the upper bound; "
+        "budget at its rate over the last 50 expansions (0.02-0.03 hold AP; the budget stays the upper bound; "
         "default: spend the whole budget)",
     )
     parser.add_argument(
