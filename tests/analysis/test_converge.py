@@ -160,3 +160,13 @@ def test_a_file_from_before_the_rule_existed_resumes_only_under_the_window_rule(
     analyze(tiny_dataset, config, seed=0, progress=False)  # the same run: nothing to redo
     with pytest.raises(EnergyMarginError, match="different analysis"):
         analyze(tiny_dataset, AnalyzerConfig(iterations=60, converge=0.05), seed=0, progress=False)
+
+
+def test_a_full_budget_file_from_before_the_rule_existed_still_resumes(tiny_dataset: Path) -> None:
+    config = AnalyzerConfig(iterations=20)
+    analyze(tiny_dataset, config, seed=0, progress=False)
+    path = tiny_dataset / CONFIG_FILE
+    recorded = json.loads(path.read_text())
+    del recorded["analyzer"]["converge_rule"]
+    path.write_text(json.dumps(recorded))
+    analyze(tiny_dataset, config, seed=0, progress=False)  # no tolerance: the rule never mattered

@@ -9,7 +9,7 @@ import pytest
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, score_field
 from energy_margin.analysis.scores import region_score
 from energy_margin.planning import CostField, TreeBudget, grow_tree
-from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost, WrenchWorkCost
+from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost, Propagation, WrenchWorkCost
 from energy_margin.sim import Simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, Task, TaskConfig, Trajectory, WrenchLimits
@@ -242,6 +242,28 @@ def test_child_costs_are_the_work_of_the_sampled_wrenches() -> None:
     assert steps.min() >= 1
     assert steps.max() <= 10
     assert np.median(steps) >= 6
+
+
+class _OneAtATimeCost:
+    """A cost model of one's own without ``increments``: the tree calls it once per node."""
+
+    name = "one-at-a-time"
+    needs_friction_work = False
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def __call__(self, propagation: Propagation) -> float:
+        self.calls += 1
+        return WrenchWorkCost()(propagation)
+
+
+def test_a_cost_model_without_increments_is_called_once_per_node() -> None:
+    own = _OneAtATimeCost()
+    field, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=40), cost=own)  # type: ignore[arg-type]
+    reference, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=40))
+    assert own.calls == field.nodes - 1 == 40
+    assert field.costs.tolist() == reference.costs.tolist()
 
 
 def test_rejected_states_never_enter_the_tree() -> None:

@@ -71,18 +71,27 @@ _LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent", "
 _EARLIER_BEHAVIOUR = {"converge_rule": "window"}
 
 
+def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:
+    """Analyzer settings with every field present, as they decide the scores.
+
+    ``earlier``: the settings of a file that may predate later fields (they take the defaults, or
+    the behaviour of :data:`_EARLIER_BEHAVIOUR`). The convergence rule only matters with a
+    tolerance: without one it takes the default, so a full-budget run resumes whatever file wrote it.
+    """
+    defaults = AnalyzerConfig().to_dict()
+    filled = {**defaults, **(_EARLIER_BEHAVIOUR if earlier else {}), **analyzer}
+    if filled.get("converge") is None:
+        filled["converge_rule"] = defaults["converge_rule"]
+    return filled
+
+
 def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
+    previous, current = dict(previous), dict(current)
     if isinstance(previous.get("analyzer"), dict):
-        defaults = AnalyzerConfig().to_dict()
-        previous = {
-            **previous,
-            "analyzer": {**{k: defaults[k] for k in _LATER_FIELDS}, **_EARLIER_BEHAVIOUR, **previous["analyzer"]},
-        }
+        previous["analyzer"] = _comparable(previous["analyzer"], earlier=True)
+    if isinstance(current.get("analyzer"), dict):
+        current["analyzer"] = _comparable(current["analyzer"], earlier=False)
     keys = ("analyzer", "seed", "dataset", "task_config")
-    previous = dict(previous)
-    if isinstance(previous.get("analyzer"), dict):
-        # Settings added later (e.g. ``projection``) take their defaults in older files.
-        previous["analyzer"] = {**AnalyzerConfig().to_dict(), **previous["analyzer"]}
     return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
 
 

@@ -69,7 +69,10 @@ class CostModel(Protocol):
         ...
 
     def increments(self, propagations: Propagation) -> np.ndarray:
-        """Incremental costs of k stacked propagations, shape (k,), J (the same values as calls)."""
+        """Incremental costs of k stacked propagations, shape (k,), J (the same values as calls).
+
+        Optional: the tree calls the model once per node when a model does not define it.
+        """
         ...
 
 

@@ -218,18 +218,22 @@ class _Tree:
         if first >= count:
             return
         parents = self.parents[first:count]
-        increments = self.cost_model.increments(
-            Propagation(
-                wrenches=self.wrenches[first:count],
-                pos_before=self.positions[parents],
-                pos_after=self.positions[first:count],
-                quat_before=self.quaternions[parents],
-                quat_after=self.quaternions[first:count],
-                energy_before=self.energies[parents],
-                energy_after=self.energies[first:count],
-                friction_work=self.friction_works[first:count],
-            )
+        stacked = Propagation(
+            wrenches=self.wrenches[first:count],
+            pos_before=self.positions[parents],
+            pos_after=self.positions[first:count],
+            quat_before=self.quaternions[parents],
+            quat_after=self.quaternions[first:count],
+            energy_before=self.energies[parents],
+            energy_after=self.energies[first:count],
+            friction_work=self.friction_works[first:count],
         )
+        batched = getattr(self.cost_model, "increments", None)
+        if batched is not None:
+            increments = np.asarray(batched(stacked), dtype=float)
+        else:
+            # A cost model of one's own that only costs one propagation at a time.
+            increments = np.array([self.cost_model(_one(stacked, j)) for j in range(count - first)], dtype=float)
         costs = self.costs
         # In index order: a parent precedes its children, and may itself be new.
         for node, parent, increment in zip(range(first, count), parents.tolist(), increments.tolist(), strict=True):
@@ -266,6 +270,20 @@ class _Tree:
             physics_s=physics_s,
             total_s=time.perf_counter() - started,
         )
+
+
+def _one(stacked: Propagation, index: int) -> Propagation:
+    """Propagation ``index`` of stacked ones."""
+    return Propagation(
+        wrenches=stacked.wrenches[index],
+        pos_before=stacked.pos_before[index],
+        pos_after=stacked.pos_after[index],
+        quat_before=stacked.quat_before[index],
+        quat_after=stacked.quat_after[index],
+        energy_before=float(np.asarray(stacked.energy_before)[index]),
+        energy_after=float(np.asarray(stacked.energy_after)[index]),
+        friction_work=float(np.asarray(stacked.friction_work)[index]),
+    )
 
 
 class _Controls:
