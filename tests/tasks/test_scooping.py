@@ -10,6 +10,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
+from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import make_simulator
 from energy_margin.tasks import ScoopingTask, command_robot, get_task
 from energy_margin.world.state import FrameState
@@ -90,6 +91,13 @@ def test_servo_targets_drive_the_joints_and_are_restored_with_the_state() -> Non
     simulator.step(100)
     # The restored state holds the frame's pose (targets are part of the state).
     np.testing.assert_allclose(simulator.robot_positions(), frame.robot_q, atol=2e-3)
+
+
+@pytest.mark.parametrize("angle", [-0.1, 1.8])
+def test_scoop_angle_must_be_reachable_by_the_blades(angle: float) -> None:
+    with pytest.raises(EnergyMarginError, match=r"scoop_angle must lie within tip_limits \[0.0, 1.75\] rad"):
+        get_task("scooping", {"scoop_angle": angle})
+    get_task("scooping", {"scoop_angle": 1.75})  # the limit itself is reachable
 
 
 def test_wrench_limits_scale_with_mass_and_true_inertia() -> None:

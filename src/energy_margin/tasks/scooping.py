@@ -204,6 +204,10 @@ class ScoopingConfig(TaskConfig):
             )
         if self.contact_time_constant < 2.0 * self.timestep:
             raise ValueError("contact_time_constant must be at least two time steps")
+        low, high = self.tip_limits
+        if not low <= self.scoop_angle <= high:
+            # The servo could not reach it: the blades would rest on their joint limit instead.
+            raise ValueError(f"scoop_angle must lie within tip_limits [{low}, {high}] rad, got {self.scoop_angle!r}")
 
 
 def _smoothstep(time: float, start: float, end: float) -> float:
