@@ -14,7 +14,6 @@ read, save), and the rest (node selection, sampling, cost, density bookkeeping, 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -23,8 +22,10 @@ import mujoco
 import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.cli.common import task_overrides
 from energy_margin.data.dataset import frame_from_arrays
 from energy_margin.data.generate import record_trajectory
+from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import make_simulator
 from energy_margin.tasks import get_task
 
@@ -56,8 +57,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON")
     args = parser.parse_args()
-    overrides = {key: json.loads(value) for key, value in (pair.split("=", 1) for pair in args.set)}
-    task = get_task(args.task, overrides)
+    try:
+        task = get_task(args.task, task_overrides(args.set))
+    except EnergyMarginError as error:
+        raise SystemExit(f"bench_analysis.py: {error}") from None
     config = AnalyzerConfig(iterations=args.iterations, cost=args.cost)
 
     print(f"machine: {machine()}")

@@ -104,17 +104,6 @@ def run_theirs(python: Path, start: int, count: int, iterations: int, seed: int,
     return rows
 
 
-def key_json(text: str) -> tuple[str, object]:
-    """``KEY=JSON`` as ``(key, value)``; strings need JSON quotes (``contacts='"fast"'``)."""
-    key, separator, value = text.partition("=")
-    if not separator or not key:
-        raise argparse.ArgumentTypeError(f"expected KEY=JSON, got {text!r}")
-    try:
-        return key, json.loads(value)
-    except json.JSONDecodeError:
-        raise argparse.ArgumentTypeError(f"{key}: {value!r} is not JSON (quote strings: {key}='\"{value}\"')") from None
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=20, help="frames to score on each side (default 20)")
@@ -124,12 +113,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--authors-venv", type=Path, default=None)
     parser.add_argument("--json", type=Path, default=None, help="also write every row and the summary here")
-    parser.add_argument(
-        "--set", action="append", type=key_json, default=[], metavar="KEY=JSON", help="our task setting"
-    )
-    parser.add_argument(
-        "--analyzer", action="append", type=key_json, default=[], metavar="KEY=JSON", help="our AnalyzerConfig field"
-    )
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="our task setting")
+    parser.add_argument("--analyzer", action="append", default=[], metavar="KEY=JSON", help="our AnalyzerConfig field")
     args = parser.parse_args()
     if not FRAMES.is_dir() or not (AUTHORS / "time_frames.py").is_file():
         skip(f"the authors' code and frames are not at {SHARED} (../shared/reference from the project root)")
@@ -139,19 +124,25 @@ def main() -> None:
     from bench_analysis import machine
     from energy_margin import AnalyzerConfig, analyze_frame
     from energy_margin.analysis.frame import frame_seeds
+    from energy_margin.cli.common import task_overrides
     from energy_margin.data.reference import import_reference
+    from energy_margin.errors import EnergyMarginError
     from energy_margin.sim import make_simulator
     from energy_margin.tasks import get_task, with_contacts
 
+    try:
+        task_config = task_overrides(args.set)
+        analyzer = task_overrides(args.analyzer, option="--analyzer")
+    except EnergyMarginError as error:
+        raise SystemExit(f"bench_reference.py: {error}") from None
     scratch = Path(tempfile.mkdtemp(prefix="bench-reference-"))
     try:
         dataset = import_reference(FRAMES, scratch / "frames", with_scores=False)
-        task_config = dict(args.set)
-        task = get_task("pushing", {**dataset.task.config.to_dict(), **task_config})
         try:
-            config = AnalyzerConfig(iterations=args.iterations, **dict(args.analyzer))
-        except (TypeError, ValueError) as error:
-            raise SystemExit(f"bench_reference.py: --analyzer: {error}") from None
+            task = get_task("pushing", {**dataset.task.config.to_dict(), **task_config})
+            config = AnalyzerConfig(iterations=args.iterations, **analyzer)  # type: ignore[arg-type]
+        except (EnergyMarginError, TypeError, ValueError) as error:
+            raise SystemExit(f"bench_reference.py: {error}") from None
         total = dataset.n_trajectories * dataset.n_frames
         seeds = frame_seeds(args.seed, total)
         end = min(args.start + args.frames, total)

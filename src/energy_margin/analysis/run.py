@@ -65,9 +65,8 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
     return description
 
 
-# Analyzer settings added after the first release: an analysis.json without them used their defaults.
-_LATER_FIELDS = ("method", "batch", "threads", "rollout_length", "rrt_extent", "contacts")
-#: Settings added later whose behaviour before is not the new default: files without them ran this.
+# Analyzer settings added after the first release take their defaults in an analysis.json without
+# them (:func:`_comparable`), except these, whose behaviour before is not the new default.
 _EARLIER_BEHAVIOUR = {"converge_rule": "window"}
 
 

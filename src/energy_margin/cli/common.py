@@ -69,17 +69,17 @@ def add_seed(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
 
 
-def task_overrides(pairs: list[str]) -> dict[str, object]:
-    """``--set KEY=JSON`` pairs as a dictionary."""
+def task_overrides(pairs: list[str], *, option: str = "--set") -> dict[str, object]:
+    """``KEY=JSON`` pairs of ``option`` (``--set`` by default) as a dictionary."""
     overrides: dict[str, object] = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
         if not sep or not key:
-            raise EnergyMarginError(f"--set expects KEY=JSON, got {pair!r}")
+            raise EnergyMarginError(f"{option} expects KEY=JSON, got {pair!r}")
         try:
             overrides[key] = json.loads(text)
         except json.JSONDecodeError:
-            raise EnergyMarginError(f"--set {key}: {text!r} is not valid JSON") from None
+            raise EnergyMarginError(f"{option} {key}: {text!r} is not valid JSON") from None
     return overrides
 
 
