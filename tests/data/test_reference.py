@@ -10,9 +10,10 @@ import pytest
 
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.reference import import_reference, read_reference
+from energy_margin.data.reference import SCOOP_BLADE_HALF_WIDTH, import_reference, read_reference
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
+from energy_margin.tasks import get_task
 
 ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT.parent / "shared" / "reference" / "energy_margin_workshop"
@@ -79,6 +80,18 @@ def test_scooping_columns_are_x_y_z_despite_the_header(scooping: Path) -> None:
     assert np.array_equal(own, dataset.arrays["captured"])
 
 
+def test_scooping_scene_capture_region_reproduces_their_label(scooping: Path) -> None:
+    # The region the analyzer scores with must say what their label says on every frame: with this
+    # task's default 2 cm blades it rejects 18 of their 59 captured frames (boxes on their wider
+    # blades, up to 2.62 cm off the centre line).
+    dataset = load_dataset(scooping)
+    arrays = dataset.arrays
+    region = dataset.task.capture_region(dataset.frame(0, 0))
+    inside = region.contains(arrays["object_pos"], arrays["object_vel"]).all(axis=-1)
+    assert int(inside.sum()) == 59
+    assert np.array_equal(inside, arrays["captured"])
+
+
 def test_other_score_runs_are_selectable(tmp_path: Path) -> None:
     folder = _reference("planepush-10objects")
     import_reference(folder, tmp_path / "run1", scores="1")
@@ -131,6 +144,43 @@ def test_tiny_folder_imports(tmp_path: Path) -> None:
     assert not (tmp_path / "out" / "scores.csv").exists()
     assert dataset.arrays["captured"].tolist() == [[False, True], [False, True]]
     assert dataset.success_labels().tolist() == [True, False]
+
+
+def _tiny_scooping(folder: Path, box_y: float) -> None:
+    """1 trajectory x 2 frames, 1 box, in the authors' scooping layout (their 10x units)."""
+    box = "xo,zo,yo,thetaxo,thetayo,thetazo,vxo,vyo,vzo,omegaxo,omegayo,omegazo"
+    header = f"num_traj,data_id,{box},j0,j1,j2,j3,zt,jv0,jv1,jv2,jv3,vzt"
+    # Frame 0: the box rests on the table (centre 0.35); frame 1: lifted to 0.45 on a blade.
+    gripper = "0,1.0,0,1.0,1.9,0,0,0,0,0"
+    rows = [f"0,{frame},0.0,{box_y},{0.35 + 0.1 * frame},0,0,0,0,0,0,0,0,0,{gripper}" for frame in (0, 1)]
+    _write(folder, "scripted_movement_viapoints_GripperMulti.csv", header + "\n" + "\n".join(rows) + "\n")
+    labels = "num_traj,data_id,capture_exists_label,capture_all_label,lateral_friction_coef\n0,0,0,0,0.5\n0,1,1,1,0.5\n"
+    _write(folder, "scripted_movement_capture_labels_GripperMulti.csv", labels)
+    _write(
+        folder,
+        "scripted_movement_success_labels_GripperMulti.csv",
+        "num_traj,success_all_label,success_exists_label\n0,0,0\n",
+    )
+
+
+def test_scooping_import_widens_the_blades_to_carry_their_boxes(tmp_path: Path) -> None:
+    # A box their label counts as captured 2.6 cm off the centre line (0.26 in their units) lies
+    # beyond this task's default blades, but on the imported scene's.
+    _tiny_scooping(tmp_path / "ref", box_y=0.26)
+    dataset = import_reference(tmp_path / "ref", tmp_path / "out")
+    config = dataset.task.config
+    assert config.tip_half_width == SCOOP_BLADE_HALF_WIDTH  # type: ignore[attr-defined]
+    assert config.finger_half_extents[1] == SCOOP_BLADE_HALF_WIDTH  # type: ignore[attr-defined]
+    arrays = dataset.arrays
+    region = dataset.task.capture_region(dataset.frame(0, 1))
+    inside = region.contains(arrays["object_pos"], arrays["object_vel"]).all(axis=-1)
+    assert inside.tolist() == arrays["captured"].tolist() == [[False, True]]
+    default = get_task("scooping").capture_region(dataset.frame(0, 1))
+    assert not default.contains(arrays["object_pos"][0, 1], arrays["object_vel"][0, 1]).all()
+    # The scene is built with the wider blades.
+    scene = dataset.task.build_scene(1, float(arrays["friction"][0]), arrays["drive"][0])
+    tips = [geom for link in scene.robot_links for geom in link.geoms if geom.name.endswith("_tip")]
+    assert [geom.size[1] for geom in tips] == [SCOOP_BLADE_HALF_WIDTH] * 2
 
 
 @pytest.mark.parametrize(

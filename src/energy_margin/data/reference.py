@@ -23,7 +23,9 @@ The mapping to this project's dataset (documented in docs/reference.md):
   Gripper ``j0..j3, zt`` and velocities -> ``robot_q = (base z, right finger, right tip, left
   finger, left tip)``: base z is this gripper's blade-on-table height plus the authors' lift above
   their own pressed-on-table height (``zt`` = 1.776, the lowest in their data), fingers at this
-  gripper's closed travel plus their (always 0) prismatic travel, tip angles unchanged.
+  gripper's closed travel plus their (always 0) prismatic travel, tip angles unchanged. The
+  blades and finger plates are widened to ``SCOOP_BLADE_HALF_WIDTH`` (their blades carry boxes
+  further off the centre line than this task's default blades reach).
 * labels: ``captured`` <- ``capture_all_label`` (their k-hat = 0 label of the frame);
   ``in_success`` at the last frame <- ``success_all_label`` (their trajectory label, "ever reached"),
   earlier frames <- their success test applied to the frame.
@@ -85,6 +87,12 @@ SCOOP_CAPTURE_Z = 0.375  # sim units
 SCOOP_CAPTURE_VZ = -0.1  # sim units per second
 SCOOP_FIRST_FRAME = 0.6  # s, frames every 0.15 s after the press phase
 SCOOP_FRAME_PERIOD = 0.15
+# Their blades are wider than this task's default (2 cm half width): boxes their frames count as
+# captured sit up to 2.62 cm off the gripper's centre line, so their blades reach at least that far.
+# The imported scene's blades and finger plates get this half width (m), which carries every such
+# box with its centre over a blade and makes this scene's capture region reproduce their capture
+# label on all 200 frames (docs/reference.md).
+SCOOP_BLADE_HALF_WIDTH = 0.03
 
 
 @dataclass(frozen=True)
@@ -338,6 +346,12 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
         "success_height": (SCOOP_SUCCESS_Z - rest) / scale,
         "capture_margin": (SCOOP_CAPTURE_Z - rest) / scale,
         "fall_speed": -SCOOP_CAPTURE_VZ / scale,
+        "tip_half_width": SCOOP_BLADE_HALF_WIDTH,
+        "finger_half_extents": [
+            cfg.finger_half_extents[0],
+            SCOOP_BLADE_HALF_WIDTH,
+            cfg.finger_half_extents[2],
+        ],
     }
     return arrays, overrides
 
