@@ -183,6 +183,23 @@ def test_scooping_import_widens_the_blades_to_carry_their_boxes(tmp_path: Path) 
     assert [geom.size[1] for geom in tips] == [SCOOP_BLADE_HALF_WIDTH] * 2
 
 
+def test_scooping_import_replays_the_recorded_gripper_motion(tmp_path: Path) -> None:
+    # Their frames start at 0.6 s with the fingers closed; this task's script would still be
+    # closing them then. The imported gripper follows its own recorded joint positions.
+    _tiny_scooping(tmp_path / "ref", box_y=0.0)
+    dataset = import_reference(tmp_path / "ref", tmp_path / "out")
+    assert dataset.metadata["imported_drive"] == "recorded"
+    task = dataset.task
+    assert task.config.recorded_waypoints == dataset.n_frames == 2  # type: ignore[attr-defined]
+    arrays = dataset.arrays
+    zeros = np.zeros(5)
+    for frame in range(dataset.n_frames):
+        time = float(arrays["frame_time"][0, frame])
+        targets = task.robot_targets(arrays["drive"][0], time, zeros, zeros, None)
+        np.testing.assert_allclose(targets, arrays["robot_q"][0, frame])
+    assert load_dataset(tmp_path / "out").task.config == task.config
+
+
 @pytest.mark.parametrize(
     ("damage", "message"),
     [

@@ -183,3 +183,76 @@ def test_generate_and_analyze_are_deterministic(tmp_path) -> None:
     for column in ("capture_score", "success_score", "nodes", "iterations", "seed"):
         np.testing.assert_array_equal(scores_a[column], scores_b[column], err_msg=column)
     assert np.all((scores_a["capture_score"] >= 0) & (scores_a["capture_score"] <= 1 + 1e-9))
+
+
+# ---------------------------------------------------------------- recorded motion
+
+
+def _recorded(times: list[float], positions: np.ndarray) -> np.ndarray:
+    return np.concatenate([[1000.0], times, np.asarray(positions, dtype=float).ravel()])
+
+
+def test_recorded_motion_is_interpolated_held_and_continued() -> None:
+    task = get_task("scooping", {"recorded_waypoints": 3})
+    assert isinstance(task, ScoopingTask)
+    positions = np.array(
+        [
+            [0.08, 0.044, 1.10, 0.044, 1.10],
+            [0.09, 0.044, 1.12, 0.044, 1.11],
+            [0.11, 0.044, 1.13, 0.044, 1.13],
+        ]
+    )
+    drive = _recorded([0.6, 0.75, 0.9], positions)
+    zeros = np.zeros(5)
+
+    def targets(time: float) -> np.ndarray:
+        return task.robot_targets(drive, time, zeros, zeros, None)
+
+    np.testing.assert_allclose(targets(0.0), positions[0])  # held before the first waypoint
+    np.testing.assert_allclose(targets(0.75), positions[1])
+    np.testing.assert_allclose(targets(0.675), 0.5 * (positions[0] + positions[1]))
+    # After the last waypoint the motion goes on at the last segment's rate.
+    np.testing.assert_allclose(targets(1.2), positions[2] + (positions[2] - positions[1]) * 2.0)
+    # The script is not followed: it would open the fingers at 0.6 s.
+    assert task._targets(0.6)[RIGHT_FINGER] < 0.02
+
+
+def test_recorded_motion_drives_the_gripper_in_a_roll_out() -> None:
+    task = get_task("scooping", {"recorded_waypoints": 2})
+    assert isinstance(task, ScoopingTask)
+    start = task._targets(1.2)
+    end = start + np.array([0.02, 0.0, 0.0, 0.0, 0.0])
+    drive = _recorded([1.0, 1.5], np.stack([start, end]))
+    simulator = make_simulator(task.build_scene(1, 0.5, drive))
+    simulator.reset(_frame(task, np.array([[0.0, 0.06]]), robot_q=start))
+    for step in range(400):  # 0.8 s from t = 1.0 s: the base follows the rising waypoints
+        command_robot(task, simulator, drive, 1.0 + step * simulator.timestep, None)
+        simulator.step(1)
+    assert simulator.robot_positions()[BASE] == pytest.approx(start[BASE] + 0.02 * 1.6, abs=3e-3)
+
+
+def test_generated_trajectories_record_the_script_as_waypoints() -> None:
+    task = get_task("scooping", {"recorded_waypoints": 24})
+    assert isinstance(task, ScoopingTask)
+    assert task.drive_size() == 1 + 6 * 24
+    trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
+    times, positions = task.waypoints(trajectory.drive)
+    for time, position in zip(times, positions, strict=True):
+        np.testing.assert_allclose(position, task._targets(float(time)))
+
+
+@pytest.mark.parametrize(
+    ("value", "message"), [(1, "0 or at least 2"), (-2, "0 or at least 2"), (2.5, "must be an integer")]
+)
+def test_recorded_waypoints_must_be_a_count(value: float, message: str) -> None:
+    with pytest.raises(EnergyMarginError, match=message):
+        get_task("scooping", {"recorded_waypoints": value})
+
+
+def test_a_bad_recorded_motion_is_refused_where_the_scene_is_built() -> None:
+    task = get_task("scooping", {"recorded_waypoints": 2})
+    still = task._targets(1.2)  # type: ignore[attr-defined]
+    with pytest.raises(ValueError, match="increase strictly"):
+        task.build_scene(1, 0.5, _recorded([1.0, 1.0], np.stack([still, still])))
+    with pytest.raises(ValueError, match=r"1 \+ 6 x 2 values"):
+        task.build_scene(1, 0.5, np.array([1000.0]))

@@ -25,7 +25,9 @@ The mapping to this project's dataset (documented in docs/reference.md):
   their own pressed-on-table height (``zt`` = 1.776, the lowest in their data), fingers at this
   gripper's closed travel plus their (always 0) prismatic travel, tip angles unchanged. The
   blades and finger plates are widened to ``SCOOP_BLADE_HALF_WIDTH`` (their blades carry boxes
-  further off the centre line than this task's default blades reach).
+  further off the centre line than this task's default blades reach). During analysis the
+  gripper's servos replay its recorded motion (``recorded_waypoints`` = the frames), since their
+  timing is not this task's script.
 * labels: ``captured`` <- ``capture_all_label`` (their k-hat = 0 label of the frame);
   ``in_success`` at the last frame <- ``success_all_label`` (their trajectory label, "ever reached"),
   earlier frames <- their success test applied to the frame.
@@ -328,6 +330,7 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
         axis=-1,
     )
     friction = ref.friction_per_body**2
+    frame_times = np.tile(SCOOP_FIRST_FRAME + SCOOP_FRAME_PERIOD * np.arange(n_frames), (n_traj, 1))
     in_success = np.all(boxes[..., 2] > SCOOP_SUCCESS_Z, axis=-1)
     rest = SCOOP_TABLE_TOP + cfg.box_half_edge * scale
     arrays = {
@@ -336,9 +339,19 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
         "object_vel": object_vel,
         "robot_q": robot_q,
         "robot_v": robot_v,
-        "frame_time": np.tile(SCOOP_FIRST_FRAME + SCOOP_FRAME_PERIOD * np.arange(n_frames), (n_traj, 1)),
+        "frame_time": frame_times,
         "friction": friction,
-        "drive": np.full((n_traj, 1), task.finger_stiffness(None)),
+        # The gripper replays its recorded motion during analysis: their frames' timing is not
+        # this task's script (which would reopen the fingers at their first frames and hold the
+        # base on the table while theirs is already lifting).
+        "drive": np.concatenate(
+            [
+                np.full((n_traj, 1), task.finger_stiffness(None)),
+                frame_times,
+                robot_q.reshape(n_traj, n_frames * robot_q.shape[-1]),
+            ],
+            axis=-1,
+        ),
         "in_success": in_success,
     }
     overrides = {
@@ -352,6 +365,7 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
             SCOOP_BLADE_HALF_WIDTH,
             cfg.finger_half_extents[2],
         ],
+        "recorded_waypoints": n_frames,
     }
     return arrays, overrides
 
@@ -415,7 +429,7 @@ def import_reference(
         "n_drive": int(arrays["drive"].shape[-1]),
         "package_version": __version__,
         "imported_from": str(folder),
-        "imported_drive": drive,
+        "imported_drive": drive if ref.task == "pushing" else "recorded",
     }
     arrays = {key: np.ascontiguousarray(value) for key, value in arrays.items()}
     dataset = Dataset(path=out, metadata=metadata, arrays=arrays)

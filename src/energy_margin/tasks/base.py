@@ -192,6 +192,11 @@ class TaskConfig:
                     raise ValueError(f"{field.name} must be a list of {len(default)} numbers, got {value!r}")
                 numbers = tuple(_finite(field.name, item) for item in value)
                 object.__setattr__(self, field.name, numbers)
+            elif field.type in ("int", int):
+                number = _finite(field.name, value)
+                if not number.is_integer():
+                    raise ValueError(f"{field.name} must be an integer, got {value!r}")
+                object.__setattr__(self, field.name, int(number))
             elif isinstance(default, int | float) and not isinstance(default, bool):
                 object.__setattr__(self, field.name, _finite(field.name, value))
         self.check()

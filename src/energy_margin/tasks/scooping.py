@@ -25,7 +25,10 @@ the table. The base servo holds the blade's lower leading edge at the table surf
 Script (times in :class:`ScoopingConfig`): approach (the base lowers the blades onto the table),
 close (the fingers close, the blades slide under the boxes), settle, lift (the base rises), hold.
 The command is a smooth function of time only; during analysis the gripper keeps following it
-(re-evaluated every 5 ms of a propagation) while the boxes are perturbed.
+(re-evaluated every 5 ms of a propagation) while the boxes are perturbed. With
+``recorded_waypoints`` the command is instead a recorded motion carried by each trajectory's
+drive (``[finger stiffness, t_1 .. t_W, q_1 (5) .. q_W (5)]``), for frames recorded with a
+timing of their own (the authors' scooping frames, :mod:`energy_margin.data.reference`).
 """
 
 from __future__ import annotations
@@ -106,6 +109,11 @@ class ScoopingConfig(TaskConfig):
         max_angular_acceleration: perturbation torque bound per axis divided by the box inertia,
             rad/s^2.
         max_speed: reached states with a faster box are rejected, m/s.
+        recorded_waypoints: 0: the servos follow the scripted motion above; W > 0: each
+            trajectory's drive carries W recorded waypoints of the gripper (times, s, then the 5
+            joint positions per waypoint) and the servos follow them, linearly interpolated,
+            held before the first and continued at the last segment's rate after the last (an
+            imported motion whose timing is not this script's).
 
     """
 
@@ -156,6 +164,7 @@ class ScoopingConfig(TaskConfig):
     max_linear_acceleration: float = 2.0
     max_angular_acceleration: float = 3.0
     max_speed: float = 5.0
+    recorded_waypoints: int = 0
 
     def check(self) -> None:
         """Raise ``ValueError`` naming the first setting outside its valid range."""
@@ -202,6 +211,8 @@ class ScoopingConfig(TaskConfig):
             raise ValueError(
                 "script times must satisfy approach_end <= close_end <= lift_start <= lift_end <= duration"
             )
+        if self.recorded_waypoints < 0 or self.recorded_waypoints == 1:
+            raise ValueError(f"recorded_waypoints must be 0 or at least 2, got {self.recorded_waypoints}")
         if self.contact_time_constant < 2.0 * self.timestep:
             raise ValueError("contact_time_constant must be at least two time steps")
         low, high = self.tip_limits
@@ -319,6 +330,22 @@ class ScoopingTask(Task):
         """Centre height of a box resting on the table, m."""
         return self.config.table_top + self.config.box_half_edge
 
+    def waypoints(self, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The recorded motion of a drive: times (W,) s and joint positions (W, 5).
+
+        Raises:
+            ValueError: the drive does not hold ``recorded_waypoints`` waypoints with strictly
+                increasing, finite times and finite positions.
+        """
+        count = self.config.recorded_waypoints
+        drive = np.asarray(drive, dtype=float)
+        if drive.shape != (1 + 6 * count,):
+            raise ValueError(f"drive must hold 1 + 6 x {count} values (stiffness, times, joint positions)")
+        times, positions = drive[1 : 1 + count], drive[1 + count :].reshape(count, 5)
+        if not (np.all(np.isfinite(drive)) and np.all(np.diff(times) > 0)):
+            raise ValueError("drive: recorded waypoint times must increase strictly and all values be finite")
+        return times, positions
+
     def finger_stiffness(self, drive: np.ndarray | None) -> float:
         """Finger drive stiffness of a trajectory (geometric mean of the range without one), N/m."""
         if drive is None:
@@ -330,6 +357,8 @@ class ScoopingTask(Task):
     def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
         """Table, gripper (finger stiffness from ``drive[0]``) and ``n_objects`` boxes."""
         cfg = self.config
+        if cfg.recorded_waypoints and drive is not None:
+            self.waypoints(drive)  # a bad recorded motion fails here, where the scene is built
         half = cfg.box_half_edge
         boxes = tuple(
             RigidObject(f"box{i}", Geom("box", (half, half, half), rgba=_BOX_RGBA), cfg.box_mass)
@@ -443,7 +472,13 @@ class ScoopingTask(Task):
         stiffness = float(np.exp(rng.uniform(log_low, log_high)))
         robot_q = self._targets(0.0)
         initial = FrameState(object_pos, object_quat, np.zeros((n_objects, 6)), robot_q, np.zeros(5))
-        return Trajectory(initial=initial, friction=friction, drive=np.array([stiffness]))
+        drive = np.array([stiffness])
+        if cfg.recorded_waypoints:
+            # The script itself, recorded at evenly spaced times.
+            times = np.linspace(0.0, cfg.duration, cfg.recorded_waypoints)
+            positions = np.array([self._targets(float(time)) for time in times])
+            drive = np.concatenate([drive, times, positions.ravel()])
+        return Trajectory(initial=initial, friction=friction, drive=drive)
 
     def _targets(self, time: float) -> np.ndarray:
         """Scripted joint targets at ``time`` (s), shape (5,)."""
@@ -477,9 +512,15 @@ class ScoopingTask(Task):
         robot_v: np.ndarray,
         rng: np.random.Generator | None,
     ) -> np.ndarray:
-        """Scripted servo targets: a smooth function of time alone, the same in roll-out and analysis."""
-        del drive, robot_q, robot_v, rng
-        return self._targets(time)
+        """Servo targets, the same in roll-out and analysis: the script's, or the recorded motion's."""
+        del robot_q, robot_v, rng
+        if not self.config.recorded_waypoints:
+            return self._targets(time)
+        times, positions = self.waypoints(drive)
+        if time >= times[-1]:
+            rate = (positions[-1] - positions[-2]) / (times[-1] - times[-2])
+            return positions[-1] + rate * (time - times[-1])
+        return np.array([np.interp(time, times, positions[:, joint]) for joint in range(positions.shape[1])])
 
     def capture_region(self, root: FrameState) -> BoxesAboveTable:
         """Boxes on the blades: ``capture_margin`` above the table, in the footprint, not falling."""
