@@ -29,7 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--drive",
         choices=DRIVES,
         default="nominal",
-        help="pusher during analysis: this project's nominal drive (default) or coasting as in the authors' planner",
+        help=(
+            "pusher during analysis: this project's nominal drive (default) or coasting as in the authors' "
+            "planner (the scooping gripper always replays its recorded motion)"
+        ),
     )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory")
 

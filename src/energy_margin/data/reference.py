@@ -391,7 +391,8 @@ def import_reference(
         drive: ``"nominal"``: this project's nominal drive for the trajectory's friction (the
             end-effector keeps following the manipulation during analysis); ``"coast"`` (pushing
             only): no drive force, the pusher coasts from its recorded velocity, as in the
-            authors' planner.
+            authors' planner. Scooping always replays the gripper's recorded motion
+            (``imported_drive`` = ``"recorded"``).
 
     Returns:
         The written dataset.
