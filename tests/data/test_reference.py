@@ -116,6 +116,19 @@ def _write(folder: Path, name: str, text: str) -> None:
     (folder / name).write_text(text)
 
 
+def _write_task_files(
+    folder: Path, suffix: str, header: str, rows: list[str], capture: list[str], success: list[str]
+) -> None:
+    """The three files of a task folder (viapoints, capture labels, success labels) from their rows."""
+    files = {
+        "viapoints": [header, *rows],
+        "capture_labels": ["num_traj,data_id,capture_exists_label,capture_all_label,lateral_friction_coef", *capture],
+        "success_labels": ["num_traj,success_all_label,success_exists_label", *success],
+    }
+    for kind, lines in files.items():
+        _write(folder, f"scripted_movement_{kind}_{suffix}.csv", "\n".join(lines) + "\n")
+
+
 def _tiny_pushing(folder: Path, n_objects: int = 1) -> None:
     """2 trajectories x 2 frames in the authors' pushing layout."""
     header = (
@@ -126,15 +139,8 @@ def _tiny_pushing(folder: Path, n_objects: int = 1) -> None:
         for frame in range(2):
             objects = [f"{1.0 + 0.2 * i},{0.8 + 0.1 * frame},0,0,0.1,0" for i in range(n_objects)]
             rows.append(f"{traj},{frame}," + ",".join(objects) + f",1.0,{0.5 + 0.1 * frame},0,0,0.2,0")
-    _write(folder, "scripted_movement_viapoints_PlanePushMulti.csv", header + "\n" + "\n".join(rows) + "\n")
-    labels = ["num_traj,data_id,capture_exists_label,capture_all_label,lateral_friction_coef"]
-    labels += [f"{t},{f},1,{f},0.4" for t in range(2) for f in range(2)]
-    _write(folder, "scripted_movement_capture_labels_PlanePushMulti.csv", "\n".join(labels) + "\n")
-    _write(
-        folder,
-        "scripted_movement_success_labels_PlanePushMulti.csv",
-        "num_traj,success_all_label,success_exists_label\n0,1,1\n1,0,1\n",
-    )
+    capture = [f"{t},{f},1,{f},0.4" for t in range(2) for f in range(2)]
+    _write_task_files(folder, "PlanePushMulti", header, rows, capture, ["0,1,1", "1,0,1"])
 
 
 def test_tiny_folder_imports(tmp_path: Path) -> None:
@@ -153,14 +159,7 @@ def _tiny_scooping(folder: Path, box_y: float) -> None:
     # Frame 0: the box rests on the table (centre 0.35); frame 1: lifted to 0.45 on a blade.
     gripper = "0,1.0,0,1.0,1.9,0,0,0,0,0"
     rows = [f"0,{frame},0.0,{box_y},{0.35 + 0.1 * frame},0,0,0,0,0,0,0,0,0,{gripper}" for frame in (0, 1)]
-    _write(folder, "scripted_movement_viapoints_GripperMulti.csv", header + "\n" + "\n".join(rows) + "\n")
-    labels = "num_traj,data_id,capture_exists_label,capture_all_label,lateral_friction_coef\n0,0,0,0,0.5\n0,1,1,1,0.5\n"
-    _write(folder, "scripted_movement_capture_labels_GripperMulti.csv", labels)
-    _write(
-        folder,
-        "scripted_movement_success_labels_GripperMulti.csv",
-        "num_traj,success_all_label,success_exists_label\n0,0,0\n",
-    )
+    _write_task_files(folder, "GripperMulti", header, rows, ["0,0,0,0,0.5", "0,1,1,1,0.5"], ["0,0,0"])
 
 
 def test_scooping_import_widens_the_blades_to_carry_their_boxes(tmp_path: Path) -> None:

@@ -341,10 +341,15 @@ class ScoopingTask(Task):
         drive = np.asarray(drive, dtype=float)
         if drive.shape != (1 + 6 * count,):
             raise ValueError(f"drive must hold 1 + 6 x {count} values (stiffness, times, joint positions)")
-        times, positions = drive[1 : 1 + count], drive[1 + count :].reshape(count, 5)
+        times, positions = self._split_waypoints(drive)
         if not (np.all(np.isfinite(drive)) and np.all(np.diff(times) > 0)):
             raise ValueError("drive: recorded waypoint times must increase strictly and all values be finite")
         return times, positions
+
+    def _split_waypoints(self, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Times (W,) and joint positions (W, 5) of a drive, unchecked (:meth:`waypoints` checks)."""
+        count = self.config.recorded_waypoints
+        return drive[1 : 1 + count], drive[1 + count :].reshape(count, 5)
 
     def finger_stiffness(self, drive: np.ndarray | None) -> float:
         """Finger drive stiffness of a trajectory (geometric mean of the range without one), N/m."""
@@ -516,7 +521,8 @@ class ScoopingTask(Task):
         del robot_q, robot_v, rng
         if not self.config.recorded_waypoints:
             return self._targets(time)
-        times, positions = self.waypoints(drive)
+        # Checked once where the scene was built (build_scene), not at every servo update.
+        times, positions = self._split_waypoints(drive)
         if time >= times[-1]:
             rate = (positions[-1] - positions[-2]) / (times[-1] - times[-2])
             return positions[-1] + rate * (time - times[-1])
