@@ -33,7 +33,13 @@ STAGES = (
     "report",
     "cli",
 )
-FOUNDATIONS = ("energy_margin", "energy_margin.errors", "energy_margin._moved", "energy_margin.__main__")
+FOUNDATIONS = (
+    "energy_margin",
+    "energy_margin.errors",
+    "energy_margin._moved",
+    "energy_margin._version",
+    "energy_margin.__main__",
+)
 
 
 def module_names() -> dict[str, Path]:

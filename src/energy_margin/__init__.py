@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
 from typing import TYPE_CHECKING, Any
 
 from energy_margin import _moved
+from energy_margin._version import __version__
 
 _moved.install()
 

@@ -1,40 +1,142 @@
-"""User-facing errors.
+"""User-facing errors and the validators of keyword arguments.
 
 Every problem caused by the user's input (a missing dataset, a bad option, NaN in a frame) raises
 :class:`EnergyMarginError`. The command line prints its message as one line and exits non-zero;
 anything else is a defect in the package.
+
+A bad keyword argument raises :class:`InvalidParameterError`, which is both an
+:class:`EnergyMarginError` and a :class:`ValueError` and carries the argument's name in
+``parameter``; its message starts with that name (``"seed must be a non-negative integer, got -1"``)
+so the command line can say the flag instead (``"--seed must be ..."``). The ``check_*``
+validators below are the one place such checks are written.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Any
 
 
 class EnergyMarginError(Exception):
     """A problem with the user's input, reported as one clear line."""
 
 
-def check_positive_int(name: str, value: int, *, minimum: int = 1) -> int:
-    """Return ``value`` if it is an integer ``>= minimum``, else raise ``ValueError`` naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | _np_integer()):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value}")
-    return int(value)
+class InvalidParameterError(EnergyMarginError, ValueError):
+    """A keyword argument with a bad value; ``parameter`` is its name, which starts the message."""
+
+    def __init__(self, parameter: str, message: str) -> None:
+        super().__init__(f"{parameter} {message}")
+        self.parameter = parameter
+        #: The message without the parameter's name ("must be >= 1, got 0").
+        self.reason = message
 
 
-def check_positive_float(name: str, value: float, *, allow_zero: bool = False) -> float:
-    """Return ``value`` as a float if it is finite and positive (or zero when allowed)."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not number == number or number in (float("inf"), float("-inf")):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    if number < 0 or (number == 0 and not allow_zero):
-        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
+def _is_integer(value: object) -> bool:
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int):
+        return True
+    import numpy as np
+
+    return isinstance(value, np.integer)
+
+
+def check_int(name: str, value: Any, *, minimum: int | None = None, maximum: int | None = None) -> int:
+    """Return ``value`` as an ``int`` if it is an integer (not a bool) within the bounds.
+
+    Args:
+        name: the keyword argument's name, which starts the error message.
+        value: the value given.
+        minimum: smallest value allowed, inclusive; ``None`` for no bound.
+        maximum: largest value allowed, inclusive; ``None`` for no bound.
+
+    Raises:
+        InvalidParameterError: ``value`` is not an integer or out of bounds.
+
+    """
+    if not _is_integer(value):
+        raise InvalidParameterError(name, f"must be {_int_phrase(minimum, maximum)}, got {value!r}")
+    number = int(value)
+    if (minimum is not None and number < minimum) or (maximum is not None and number > maximum):
+        raise InvalidParameterError(name, f"must be {_int_phrase(minimum, maximum)}, got {number}")
     return number
 
 
-def _np_integer() -> type:
-    import numpy as np
+def _int_phrase(minimum: int | None, maximum: int | None) -> str:
+    if minimum == 0 and maximum is None:
+        return "a non-negative integer"
+    if minimum == 1 and maximum is None:
+        return "a positive integer"
+    if minimum is not None and maximum is not None:
+        return f"an integer in [{minimum}, {maximum}]"
+    if minimum is not None:
+        return f"an integer >= {minimum}"
+    if maximum is not None:
+        return f"an integer <= {maximum}"
+    return "an integer"
 
-    return np.integer
+
+def check_seed(value: Any, *, name: str = "seed") -> int:
+    """Return a seed as an ``int``: a non-negative integer (``numpy.random.SeedSequence`` takes it)."""
+    return check_int(name, value, minimum=0)
+
+
+def check_float(
+    name: str,
+    value: Any,
+    *,
+    minimum: float | None = None,
+    maximum: float | None = None,
+    exclusive_minimum: bool = False,
+    exclusive_maximum: bool = False,
+) -> float:
+    """Return ``value`` as a finite ``float`` within the bounds.
+
+    Args:
+        name: the keyword argument's name, which starts the error message.
+        value: the value given (a bool is refused).
+        minimum: lower bound; ``None`` for no bound.
+        maximum: upper bound; ``None`` for no bound.
+        exclusive_minimum: the lower bound itself is refused (``> minimum``).
+        exclusive_maximum: the upper bound itself is refused (``< maximum``).
+
+    Raises:
+        InvalidParameterError: ``value`` is not a finite number or out of bounds.
+
+    """
+    lower = None if minimum is None else f"{'>' if exclusive_minimum else '>='} {minimum:g}"
+    upper = None if maximum is None else f"{'<' if exclusive_maximum else '<='} {maximum:g}"
+    phrase = " and ".join(part for part in (lower, upper) if part)
+    wanted = f"a finite number {phrase}".rstrip() if phrase else "a finite number"
+    if isinstance(value, bool):
+        raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidParameterError(name, f"must be {wanted}, got {value!r}") from None
+    if not math.isfinite(number):
+        raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
+    too_low = minimum is not None and (number <= minimum if exclusive_minimum else number < minimum)
+    too_high = maximum is not None and (number >= maximum if exclusive_maximum else number > maximum)
+    if too_low or too_high:
+        raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
+    return number
+
+
+def check_positive_int(name: str, value: Any, *, minimum: int = 1) -> int:
+    """Return ``value`` if it is an integer ``>= minimum`` (:func:`check_int` with a lower bound)."""
+    return check_int(name, value, minimum=minimum)
+
+
+def check_positive_float(name: str, value: Any, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float if it is finite and positive (or zero when allowed)."""
+    return check_float(name, value, minimum=0.0, exclusive_minimum=not allow_zero)
+
+
+def check_choice(name: str, value: Any, choices: Iterable[str]) -> str:
+    """Return ``value`` if it is one of ``choices``, else raise naming the choices."""
+    options = list(choices)
+    if not isinstance(value, str) or value not in options:
+        raise InvalidParameterError(name, f"must be one of {', '.join(options)}, got {value!r}")
+    return value

@@ -16,7 +16,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset

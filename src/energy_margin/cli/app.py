@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.cli import (
     analyze,
     budget,

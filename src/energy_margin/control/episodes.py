@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.analysis.run import progress_bar

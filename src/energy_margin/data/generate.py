@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.data.dataset import (
     FORMAT,
     METADATA_FILE,

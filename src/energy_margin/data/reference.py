@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory

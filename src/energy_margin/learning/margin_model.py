@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 from energy_margin.analysis.live import LiveScore
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset

@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-from energy_margin import __version__
+from energy_margin._version import __version__
 
 
 def git_commit(directory: Path | None = None) -> str | None:
