@@ -20,6 +20,7 @@ PACKAGE = Path(energy_margin.__file__).parent
 #: The stages in the order data flows. Modules outside them (errors, _moved, the package
 #: ``__init__``) are foundations every stage may import, and they import no stage.
 STAGES = (
+    "runs",
     "world",
     "sim",
     "tasks",

@@ -158,7 +158,7 @@ def test_a_file_from_before_the_rule_existed_resumes_only_under_the_window_rule(
     del recorded["analyzer"]["converge_rule"]  # as written before the setting existed
     path.write_text(json.dumps(recorded))
     analyze(tiny_dataset, config, seed=0, progress=False)  # the same run: nothing to redo
-    with pytest.raises(EnergyMarginError, match="different analysis"):
+    with pytest.raises(EnergyMarginError, match="holds scores of other settings"):
         analyze(tiny_dataset, AnalyzerConfig(iterations=60, converge=0.05), seed=0, progress=False)
 
 

@@ -320,7 +320,7 @@ def test_different_configuration_needs_overwrite(tiny_dataset: Path) -> None:
         (SMALL, 1),
         (AnalyzerConfig(iterations=30, cost="energy"), 0),
     ):
-        with pytest.raises(EnergyMarginError, match=r"holds scores of a different analysis.*--overwrite"):
+        with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*--overwrite"):
             analyze(tiny_dataset, config, seed=seed, progress=False)
         assert {p.name: p.read_bytes() for p in tiny_dataset.iterdir()} == files
     analyze(tiny_dataset, AnalyzerConfig(iterations=20), seed=0, overwrite=True, progress=False)
@@ -331,7 +331,7 @@ def test_different_configuration_needs_overwrite(tiny_dataset: Path) -> None:
 def test_unreadable_configuration_needs_overwrite(tiny_dataset: Path) -> None:
     analyze(tiny_dataset, SMALL, seed=0, progress=False)
     (tiny_dataset / CONFIG_FILE).write_text("{broken")
-    with pytest.raises(EnergyMarginError, match="different analysis"):
+    with pytest.raises(EnergyMarginError, match="holds scores of other settings"):
         analyze(tiny_dataset, SMALL, seed=0, progress=False)
     analyze(tiny_dataset, SMALL, seed=0, overwrite=True, progress=False)
     assert len(load_scores(tiny_dataset)["frame"]) == 6
@@ -421,6 +421,6 @@ def test_an_analysis_json_without_the_method_fields_is_the_same_run(tiny_dataset
     for key in ("method", "batch", "threads", "rollout_length", "rrt_extent"):
         del description["analyzer"][key]
     path.write_text(json.dumps(description))
-    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)  # no "different analysis" error
-    with pytest.raises(EnergyMarginError, match="different analysis"):
+    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)  # no "other settings" error
+    with pytest.raises(EnergyMarginError, match="holds scores of other settings"):
         analyze(tiny_dataset, AnalyzerConfig(iterations=5, method="rrt"), progress=False)

@@ -8,11 +8,9 @@ interrupted run resumes where it stopped. Frame ``i`` (trajectory-major order) u
 
 from __future__ import annotations
 
-import json
-import os
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
@@ -21,17 +19,11 @@ from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
-from energy_margin.data.io import atomic_write_text, read_json, write_json
-from energy_margin.data.scores_file import (
-    CONFIG_FILE,
-    JOURNAL_FILE,
-    SCORES_FILE,
-    format_row,
-    header,
-    read_journal,
-)
+from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, format_row, header, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError
+from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
+from energy_margin.runs.files import atomic_write_text
 from energy_margin.tasks import with_contacts
 
 
@@ -84,14 +76,23 @@ def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:
     return filled
 
 
-def _same_run(previous: dict[str, Any], current: dict[str, Any]) -> bool:
-    previous, current = dict(previous), dict(current)
-    if isinstance(previous.get("analyzer"), dict):
-        previous["analyzer"] = _comparable(previous["analyzer"], earlier=True)
-    if isinstance(current.get("analyzer"), dict):
-        current["analyzer"] = _comparable(current["analyzer"], earlier=False)
-    keys = ("analyzer", "seed", "dataset", "task_config")
-    return all(json.dumps(previous.get(k), sort_keys=True) == json.dumps(current.get(k), sort_keys=True) for k in keys)
+def _normalize(settings: dict[str, Any], earlier: bool) -> dict[str, Any]:
+    if isinstance(settings.get("analyzer"), dict):
+        settings["analyzer"] = _comparable(settings["analyzer"], earlier=earlier)
+    return settings
+
+
+#: An analysis of a dataset: ``analysis.json`` beside the dataset's files, then the journal and
+#: ``scores.csv``. The analyzer, the seed, the dataset and the task settings decide the scores;
+#: the versions recorded beside them do not.
+ANALYSIS_RUN = RunSpec(
+    contents="scores",
+    settings_file=CONFIG_FILE,
+    outputs=(JOURNAL_FILE, SCORES_FILE),
+    compared=("analyzer", "seed", "dataset", "task_config"),
+    shared_directory=True,
+    normalize=_normalize,
+)
 
 
 def analyze(
@@ -138,66 +139,51 @@ def analyze(
     directory = Path(path)
     description = run_description(dataset, config, seed)
     scores_path = directory / SCORES_FILE
-    done = open_run(directory, description, dataset, overwrite=overwrite)
-    if done is None:
-        return scores_path
-    total = dataset.n_trajectories * dataset.n_frames
-    pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
-    if done and progress:
-        print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
+    run, done = open_analysis(directory, description, dataset, overwrite=overwrite)
+    with run:
+        if done is None:
+            return scores_path
+        total = dataset.n_trajectories * dataset.n_frames
+        pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
+        if done and progress:
+            print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
+        bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
+        try:
+            with scores_journal(directory) as journal:
+                for row in runner.run(dataset, config, seed, pending):
+                    journal.append(row)
+                    done[(row["trajectory"], row["frame"])] = row
+                    bar.update(1)
+        finally:
+            bar.close()
+        return write_scores(directory, done)
 
-    bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
-    try:
-        with (directory / JOURNAL_FILE).open("a", encoding="utf-8") as journal:
-            for row in runner.run(dataset, config, seed, pending):
-                append_row(journal, row)
-                done[(row["trajectory"], row["frame"])] = row
-                bar.update(1)
-    finally:
-        bar.close()
-    return write_scores(directory, done)
 
-
-def open_run(
+def open_analysis(
     directory: Path, description: dict[str, Any], dataset: Dataset, *, overwrite: bool
-) -> dict[tuple[int, int], dict[str, Any]] | None:
-    """Start or resume the run ``description`` in ``directory``: its finished rows, or ``None`` when complete.
+) -> tuple[RunDirectory, dict[tuple[int, int], dict[str, Any]] | None]:
+    """Start or resume the analysis ``description`` in ``directory``, locked: the run and its finished rows.
 
-    A directory holding another run's scores is refused unless ``overwrite`` (which discards them).
-    ``analysis.json`` is written and the journal rewritten without torn or duplicate lines, ready
-    for appending.
+    Another analysis's scores are refused unless ``overwrite`` (which discards them), by the rule
+    of :func:`energy_margin.runs.open_run`. The journal is rewritten without torn or duplicate
+    lines, ready for appending; close the run to release its lock.
 
     Returns:
-        Journal rows by (trajectory, frame); ``None`` when ``scores.csv`` of this very run exists.
+        The open run, and the journal rows by (trajectory, frame), ``None`` when ``scores.csv``
+        of this very run exists.
 
     """
-    config_path, journal_path, scores_path = (directory / name for name in (CONFIG_FILE, JOURNAL_FILE, SCORES_FILE))
-    if config_path.exists():
-        try:
-            previous = read_json(config_path, what="analysis configuration")
-        except EnergyMarginError:
-            previous = None
-        if not isinstance(previous, dict) or not _same_run(previous, description):
-            if not overwrite:
-                raise EnergyMarginError(
-                    f"{directory} holds scores of a different analysis ({config_path.name}); "
-                    "pass --overwrite to replace them"
-                )
-            for stale in (journal_path, scores_path):
-                stale.unlink(missing_ok=True)
-        elif scores_path.exists():
-            return None
-    done = {key: row for key, row in read_journal(journal_path).items() if _valid_key(key, dataset)}
-    write_json(config_path, description)
-    atomic_write_text(journal_path, header() + "".join(format_row(done[k]) + "\n" for k in sorted(done)))
-    return done
-
-
-def append_row(journal: TextIO, row: dict[str, Any]) -> None:
-    """Append one scores row to an open journal and make it durable (flushed and synced)."""
-    journal.write(format_row(row) + "\n")
-    journal.flush()
-    os.fsync(journal.fileno())
+    run = open_run(directory, ANALYSIS_RUN, description, overwrite=overwrite)
+    try:
+        if run.resumed and (directory / SCORES_FILE).exists():
+            return run, None
+        journal = scores_journal(directory)
+        done = {key: row for key, row in journal.read().items() if _valid_key(key, dataset)}
+        journal.rewrite(done)
+    except BaseException:
+        run.close()
+        raise
+    return run, done
 
 
 def write_scores(directory: Path, done: dict[tuple[int, int], dict[str, Any]]) -> Path:
@@ -210,20 +196,3 @@ def write_scores(directory: Path, done: dict[tuple[int, int], dict[str, Any]]) -
 
 def _valid_key(key: tuple[int, int], dataset: Dataset) -> bool:
     return 0 <= key[0] < dataset.n_trajectories and 0 <= key[1] < dataset.n_frames
-
-
-class _NoBar:
-    def update(self, count: int) -> None:
-        del count
-
-    def close(self) -> None:
-        pass
-
-
-def progress_bar(total: int, *, desc: str, initial: int = 0, enabled: bool) -> Any:
-    """A per-frame tqdm bar on standard error (``update``, ``close``), or one that shows nothing."""
-    if not enabled:
-        return _NoBar()
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=initial, unit="frame", desc=desc, dynamic_ncols=True)

@@ -25,16 +25,16 @@ import numpy as np
 from energy_margin._version import __version__
 from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
-from energy_margin.analysis.run import progress_bar
 from energy_margin.control.commands import command_space, controllable_tasks
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
 from energy_margin.control.disturbances import Disturbance, draw_plant, get_disturbance, observe, push_wrenches
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
-from energy_margin.data.io import atomic_path, read_json, write_json
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
+from energy_margin.runs import progress_bar
+from energy_margin.runs.files import atomic_path, read_json, write_json
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState

@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.data.io import read_json, staging_directory, write_json
 from energy_margin.errors import EnergyMarginError
+from energy_margin.runs.files import read_json, staging_directory, write_json
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
 

@@ -51,9 +51,9 @@ from energy_margin._version import __version__
 from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
-from energy_margin.data.io import atomic_write_text, write_json
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE
 from energy_margin.errors import EnergyMarginError
+from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.tasks import PushingTask, ScoopingTask, get_task
 
 #: Their task names (file suffixes) and this project's.

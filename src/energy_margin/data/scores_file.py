@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
+from energy_margin.runs.journal import Journal
 
 SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
@@ -52,17 +53,20 @@ def parse_row(line: str) -> dict[str, Any] | None:
     return row
 
 
+def scores_journal(directory: Path, *, path: Path | None = None) -> Journal[tuple[int, int]]:
+    """The journal of scores rows in ``directory`` (or at ``path``), keyed by (trajectory, frame)."""
+    return Journal(
+        Path(path) if path is not None else Path(directory) / JOURNAL_FILE,
+        header=header(),
+        format_row=format_row,
+        parse_row=parse_row,
+        key=lambda row: (row["trajectory"], row["frame"]),
+    )
+
+
 def read_journal(path: Path) -> dict[tuple[int, int], dict[str, Any]]:
     """Completed rows of a journal, keyed by (trajectory, frame); torn or duplicate lines are dropped."""
-    rows: dict[tuple[int, int], dict[str, Any]] = {}
-    if not path.is_file():
-        return rows
-    with path.open(encoding="utf-8", errors="replace") as stream:
-        for line in stream:
-            row = parse_row(line)
-            if row is not None:
-                rows.setdefault((row["trajectory"], row["frame"]), row)
-    return rows
+    return scores_journal(Path(path).parent, path=path).read()
 
 
 def header() -> str:

@@ -29,12 +29,12 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
-from energy_margin.data.io import atomic_write_text, write_json
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.baselines import distance_scores
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.planning.methods import METHODS
+from energy_margin.runs.files import atomic_write_text, write_json
 
 DEFAULT_BUDGETS = (10, 30, 100, 300, 1000)
 WORK_DIR = "budget"

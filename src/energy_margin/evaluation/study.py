@@ -43,11 +43,10 @@ import numpy as np
 
 from energy_margin.analysis.executors import LocalExecutor
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, score_field
-from energy_margin.analysis.run import append_row, open_run, progress_bar, run_description, write_scores
+from energy_margin.analysis.run import open_analysis, run_description, write_scores
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.data.io import atomic_write_text, write_json
-from energy_margin.data.scores_file import JOURNAL_FILE, load_scores
+from energy_margin.data.scores_file import load_scores, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.budget import (
@@ -63,6 +62,8 @@ from energy_margin.evaluation.budget import (
 )
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.planning.methods import METHODS
+from energy_margin.runs import progress_bar
+from energy_margin.runs.files import atomic_write_text, write_json
 
 
 @dataclass(frozen=True)
@@ -237,37 +238,38 @@ def rescore_lambdas(
     dirs.update({float(lam): Path(path) for lam, path in (directories or {}).items() if float(lam) in dirs})
     open_rows: dict[float, dict[tuple[int, int], dict[str, Any]]] = {}
     dataset: Dataset | None = None
-    for lam, work in dirs.items():
-        copy_dataset(source, work)
-        dataset = dataset if dataset is not None else require_valid(work, overlaps=True, scores=False)
-        own = lam == dataset.task.config.likelihood_lambda
-        description = run_description(
-            dataset, dataclasses.replace(config, likelihood_lambda=None if own else lam), seed
-        )
-        done = open_run(work, description, dataset, overwrite=False)
-        if done is not None:
-            open_rows[lam] = done
-    assert dataset is not None
-    if open_rows:
-        n_frames = dataset.n_frames
-        total = dataset.n_trajectories * n_frames
-        pending = [i for i in range(total) if any(divmod(i, n_frames) not in done for done in open_rows.values())]
-        factory = functools.partial(LambdaRescorer, lambdas=values)
-        bar = progress_bar(total, desc="lambda", initial=total - len(pending), enabled=progress)
-        try:
-            with contextlib.ExitStack() as stack:
-                journals = {lam: stack.enter_context((dirs[lam] / JOURNAL_FILE).open("a")) for lam in open_rows}
+    with contextlib.ExitStack() as stack:
+        for lam, work in dirs.items():
+            copy_dataset(source, work)
+            dataset = dataset if dataset is not None else require_valid(work, overlaps=True, scores=False)
+            own = lam == dataset.task.config.likelihood_lambda
+            description = run_description(
+                dataset, dataclasses.replace(config, likelihood_lambda=None if own else lam), seed
+            )
+            run, done = open_analysis(work, description, dataset, overwrite=False)
+            stack.enter_context(run)
+            if done is not None:
+                open_rows[lam] = done
+        assert dataset is not None
+        if open_rows:
+            n_frames = dataset.n_frames
+            total = dataset.n_trajectories * n_frames
+            pending = [i for i in range(total) if any(divmod(i, n_frames) not in done for done in open_rows.values())]
+            factory = functools.partial(LambdaRescorer, lambdas=values)
+            bar = progress_bar(total, desc="lambda", initial=total - len(pending), enabled=progress)
+            try:
+                journals = {lam: stack.enter_context(scores_journal(dirs[lam])) for lam in open_rows}
                 for result in LocalExecutor(workers, analyzer=factory).run(dataset, config, seed, pending):
                     key = (result["trajectory"], result["frame"])
                     for lam, row in zip(values, result["rows"], strict=True):
                         if lam in open_rows and key not in open_rows[lam]:
-                            append_row(journals[lam], row)
+                            journals[lam].append(row)
                             open_rows[lam][key] = row
                     bar.update(1)
-        finally:
-            bar.close()
-        for lam, done in open_rows.items():
-            write_scores(dirs[lam], done)
+            finally:
+                bar.close()
+            for lam, done in open_rows.items():
+                write_scores(dirs[lam], done)
     return {lam: load_scores(work) for lam, work in dirs.items()}
 
 

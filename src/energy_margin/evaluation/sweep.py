@@ -56,11 +56,11 @@ from energy_margin.analysis.run import analyze
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import check_engine, generate_dataset
-from energy_margin.data.io import atomic_write_text, read_json, write_json
 from energy_margin.data.scores_file import SCORES_FILE, load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.statistics import spearman, spearman_rho, wilson_interval
+from energy_margin.runs.files import atomic_write_text, read_json, write_json
 from energy_margin.sim import ENGINES
 from energy_margin.tasks import Task, available_tasks, get_task
 

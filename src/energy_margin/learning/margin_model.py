@@ -30,12 +30,12 @@ from energy_margin._version import __version__
 from energy_margin.analysis.live import LiveScore
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
-from energy_margin.data.io import atomic_path
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import average_precision, score_grid
 from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
+from energy_margin.runs.files import atomic_path
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
 

@@ -62,8 +62,8 @@ class AnalysedTree:
 def analyser_settings(directory: Path) -> dict[str, Any]:
     """The analyzer settings of ``analysis.json`` in a dataset directory, with later fields defaulted."""
     from energy_margin.analysis.frame import AnalyzerConfig
-    from energy_margin.data.io import read_json
     from energy_margin.data.scores_file import CONFIG_FILE
+    from energy_margin.runs.files import read_json
 
     description = read_json(directory / CONFIG_FILE, what="analysis record")
     analyzer = description.get("analyzer") if isinstance(description, dict) else None

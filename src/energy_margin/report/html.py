@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.data.io import atomic_write_text
 from energy_margin.report.config import ReproduceConfig
 from energy_margin.report.paper import PAPER_FIG_2, PAPER_TABLE_I
+from energy_margin.runs.files import atomic_write_text
 
 SECTIONS = (
     ("table-1", "Table I: scores on true and perturbed states"),

@@ -501,7 +501,7 @@ def save_png(pixels: np.ndarray, path: Path | str) -> None:
     """Write an image (H, W, 3) uint8 as PNG, atomically (matplotlib's writer)."""
     import matplotlib.image
 
-    from energy_margin.data.io import atomic_path
+    from energy_margin.runs.files import atomic_path
 
     with atomic_path(Path(path)) as temporary:
         matplotlib.image.imsave(temporary, pixels, format="png")

@@ -20,11 +20,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from energy_margin.data.io import atomic_write_text, write_json
 from energy_margin.errors import EnergyMarginError
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 from energy_margin.report.html import protocol_rows, write_report
 from energy_margin.report.paper import PAPER_FIG_2, PAPER_TABLE_I
+from energy_margin.runs.files import atomic_write_text, write_json
 
 
 def _say(message: str) -> None:

@@ -18,7 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.data.io import staging_directory
+from energy_margin.runs.files import staging_directory
 from energy_margin.tasks.scene_model import compile_spec
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState

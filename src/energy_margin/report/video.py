@@ -228,9 +228,9 @@ def render_video(
 
     """
     from energy_margin.data.generate import replay_trajectory
-    from energy_margin.data.io import atomic_path
     from energy_margin.evaluation.metrics import score_grid
     from energy_margin.report.render import check_trajectory, dataset_renderer, scene_view, warn_once
+    from energy_margin.runs.files import atomic_path
 
     started = time.perf_counter()
     check_trajectory(dataset, trajectory)

@@ -304,7 +304,7 @@ def view_figure(tree: AnalysedTree) -> Any:
 
 def write_view(tree: AnalysedTree, path: Path | str) -> Path:
     """Write the self-contained HTML view of ``tree`` to ``path`` (atomically); return the path."""
-    from energy_margin.data.io import atomic_write_text
+    from energy_margin.runs.files import atomic_write_text
 
     path = Path(path)
     figure = view_figure(tree)

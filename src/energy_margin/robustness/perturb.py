@@ -45,11 +45,11 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.executors import pool_results
-from energy_margin.analysis.run import progress_bar
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.errors import EnergyMarginError
+from energy_margin.runs import progress_bar
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 

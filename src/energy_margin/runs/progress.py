@@ -1,0 +1,34 @@
+"""The one progress bar of every long command: tqdm on standard error, or nothing."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class _NoBar:
+    def update(self, count: int = 1) -> None:
+        del count
+
+    def set_postfix_str(self, text: str) -> None:
+        del text
+
+    def close(self) -> None:
+        pass
+
+
+def progress_bar(total: int, *, desc: str, initial: int = 0, enabled: bool, unit: str = "frame") -> Any:
+    """A tqdm bar on standard error (``update``, ``set_postfix_str``, ``close``), or one that shows nothing.
+
+    Args:
+        total: number of items of the whole run.
+        desc: the label before the bar (the command's name).
+        initial: items already done (a resumed run).
+        enabled: ``False`` gives a bar that prints nothing.
+        unit: what one item is ("frame", "episode", "copy").
+
+    """
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, unit=unit, desc=desc, dynamic_ncols=True)
