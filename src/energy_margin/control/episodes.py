@@ -13,7 +13,6 @@ results do not depend on the number of workers.
 from __future__ import annotations
 
 import json
-import shutil
 import signal
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
@@ -31,10 +30,10 @@ from energy_margin.control.disturbances import Disturbance, draw_plant, get_dist
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_int, check_seed
 from energy_margin.evaluation.statistics import wilson_interval
-from energy_margin.runs import progress_bar
-from energy_margin.runs.files import atomic_path, read_json, write_json
+from energy_margin.runs import RunSpec, progress_bar, run_directory
+from energy_margin.runs.files import atomic_path, write_json
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState
@@ -301,36 +300,50 @@ def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[st
     }
 
 
-def _without_count(settings: dict[str, Any]) -> dict[str, Any]:
-    return {key: value for key, value in settings.items() if key != "episodes"}
+#: A control run: ``control.json`` (the settings, then the summary), one file per episode in
+#: ``episodes/``, and the episodes as a dataset. The number of episodes may change: episode i's
+#: seed does not depend on it, so a run grows (or is summarised over its first E episodes)
+#: without recomputing any.
+CONTROL_RUN = RunSpec(
+    contents="episodes",
+    settings_file=CONTROL_FILE,
+    outputs=(EPISODES_DIR, METADATA_FILE, FRAMES_FILE),
+    may_differ=("episodes",),
+    settings_key="settings",
+)
 
 
-def _check_settings(out: Path, settings: ControlSettings, *, overwrite: bool) -> None:
-    """Refuse a directory holding another run; clear it with ``overwrite``."""
-    control_file = out / CONTROL_FILE
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise EnergyMarginError(f"{out} exists and is not a directory")
-    if overwrite:
-        for name in (EPISODES_DIR,):
-            shutil.rmtree(out / name, ignore_errors=True)
-        for name in (CONTROL_FILE, METADATA_FILE, FRAMES_FILE):
-            (out / name).unlink(missing_ok=True)
-        return
-    if control_file.is_file():
-        previous = read_json(control_file, what="control run file")
-        # The number of episodes may change: episode i's seed does not depend on it, so a run
-        # grows (or is summarised over its first E episodes) without recomputing any.
-        current = json.loads(json.dumps(settings.to_dict()))
-        stored = previous.get("settings") if isinstance(previous, dict) else None
-        if isinstance(stored, dict) and _without_count(stored) == _without_count(current):
-            return
-        raise EnergyMarginError(
-            f"{out} holds episodes of other settings; pass --overwrite to replace them or choose another --out"
-        )
-    if any(out.iterdir()):
-        raise EnergyMarginError(f"{out} already exists; pass --overwrite to replace it")
+def _episodes(
+    task: Task,
+    settings: ControlSettings,
+    model: MarginPredictor | None,
+    out: Path,
+    *,
+    workers: int,
+    progress: bool,
+    on_episode: Callable[[int], None] | None,
+) -> list[dict[str, Any]]:
+    """Every episode of the run in order: the saved ones read back, the others run and saved as they finish."""
+    seeds = np.random.SeedSequence(settings.seed).spawn(settings.episodes)
+    results: dict[int, dict[str, Any]] = {}
+    for index in range(settings.episodes):
+        saved = _load_episode(_episode_path(out, index))
+        if saved is not None:
+            results[index] = saved
+    jobs = [(index, seeds[index]) for index in range(settings.episodes) if index not in results]
+    bar = progress_bar(
+        settings.episodes, desc=f"control {settings.policy}", initial=len(results), enabled=progress, unit="episode"
+    )
+    try:
+        for index, result in _run_jobs(task, settings, model, jobs, workers):
+            _save_episode(_episode_path(out, index), result)
+            results[index] = result
+            bar.update(1)
+            if on_episode is not None:
+                on_episode(index)
+    finally:
+        bar.close()
+    return [results[index] for index in range(settings.episodes)]
 
 
 def run_control(
@@ -380,16 +393,12 @@ def run_control(
         The summary (:func:`summarize`) and the dataset.
 
     """
-    for name, value, minimum in (
-        ("objects", n_objects, 1),
-        ("episodes", episodes, 1),
-        ("seed", seed, 0),
-        ("frames", n_frames, 2),
-        ("score expansions", score_expansions, 0),
-        ("workers", workers, 1),
-    ):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-            raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    check_int("n_objects", n_objects, minimum=1)
+    check_int("episodes", episodes, minimum=1)
+    check_seed(seed)
+    check_int("n_frames", n_frames, minimum=2)
+    check_int("score_expansions", score_expansions, minimum=0)
+    check_int("workers", workers, minimum=1)
     if policy not in POLICIES:
         raise EnergyMarginError(f"unknown policy {policy!r}; choose one of {', '.join(POLICIES)}")
     if policy == "learned" and model is None:
@@ -420,37 +429,20 @@ def run_control(
         model=model_info,
     )
     out = Path(out)
-    _check_settings(out, settings, overwrite=overwrite)
-    (out / EPISODES_DIR).mkdir(parents=True, exist_ok=True)
-    write_json(out / CONTROL_FILE, {"settings": settings.to_dict(), "package_version": __version__})
-    seeds = np.random.SeedSequence(seed).spawn(episodes)
-    results: dict[int, dict[str, Any]] = {}
-    for index in range(episodes):
-        saved = _load_episode(_episode_path(out, index))
-        if saved is not None:
-            results[index] = saved
-    jobs = [(index, seeds[index]) for index in range(episodes) if index not in results]
-    bar = progress_bar(episodes, desc=f"control {policy}", initial=len(results), enabled=progress)
-    try:
-        for index, result in _run_jobs(task, settings, model, jobs, workers):
-            _save_episode(_episode_path(out, index), result)
-            results[index] = result
-            bar.update(1)
-            if on_episode is not None:
-                on_episode(index)
-    finally:
-        bar.close()
-    ordered = [results[index] for index in range(episodes)]
-    summary = summarize(settings, [result["info"] for result in ordered])
-    dataset = records_dataset(
-        task,
-        [result["record"] for result in ordered],
-        out,
-        engine="mujoco",
-        extra={"control": {"settings": settings.to_dict(), "summary": summary}},
-    )
-    with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
-        np.savez_compressed(stream, allow_pickle=False, **dataset.arrays)
-    write_json(out / METADATA_FILE, dataset.metadata)
-    write_json(out / CONTROL_FILE, {"settings": settings.to_dict(), "summary": summary, "package_version": __version__})
+    with run_directory(out, CONTROL_RUN, settings.to_dict(), overwrite=overwrite) as run:
+        run.write_settings({"package_version": __version__})
+        (out / EPISODES_DIR).mkdir(exist_ok=True)
+        ordered = _episodes(task, settings, model, out, workers=workers, progress=progress, on_episode=on_episode)
+        summary = summarize(settings, [result["info"] for result in ordered])
+        dataset = records_dataset(
+            task,
+            [result["record"] for result in ordered],
+            out,
+            engine="mujoco",
+            extra={"control": {"settings": settings.to_dict(), "summary": summary}},
+        )
+        with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
+            np.savez_compressed(stream, allow_pickle=False, **dataset.arrays)
+        write_json(out / METADATA_FILE, dataset.metadata)
+        run.write_settings({"summary": summary, "package_version": __version__})
     return summary, load_dataset(out)

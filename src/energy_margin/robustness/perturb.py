@@ -36,8 +36,10 @@ Layout: ``out/1`` ... ``out/R``, each a dataset directory like any other (format
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import signal
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,8 +50,8 @@ from energy_margin.analysis.executors import pool_results
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
-from energy_margin.errors import EnergyMarginError
-from energy_margin.runs import progress_bar
+from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_int, check_seed
+from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 
@@ -258,20 +260,17 @@ def perturb_dataset(
         The paths of the copies. A copy already written with the same settings is kept as is.
 
     """
-    for name, value, minimum in (("repeats", repeats, 1), ("seed", seed, 0), ("workers", workers, 1)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-            raise EnergyMarginError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    if protocol not in PROTOCOLS:
-        raise EnergyMarginError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+    check_int("repeats", repeats, minimum=1)
+    check_seed(seed)
+    check_int("workers", workers, minimum=1)
+    check_choice("protocol", protocol, PROTOCOLS)
     if tolerance is not None and protocol != "valid":
         raise EnergyMarginError(
             f"tolerance applies to the valid protocol only (protocol {protocol!r} checks no overlaps)"
         )
-    tolerance = 5e-4 if tolerance is None else tolerance
-    if not (np.isfinite(tolerance) and tolerance >= 0):
-        raise EnergyMarginError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
-    if min_thickness is not None and not (np.isfinite(min_thickness) and min_thickness > 0):
-        raise EnergyMarginError(f"min thickness must be a finite number > 0, got {min_thickness!r}")
+    tolerance = check_float("tolerance", 5e-4 if tolerance is None else tolerance, minimum=0.0)
+    if min_thickness is not None:
+        check_float("min_thickness", min_thickness, minimum=0.0, exclusive_minimum=True)
     source = load_dataset(path)
     out = Path(out)
     if out.resolve() == Path(path).resolve() or Path(path).resolve() in out.resolve().parents:
@@ -280,6 +279,45 @@ def perturb_dataset(
         raise EnergyMarginError(f"{out} exists and is not a directory")
     thickness = float(min_thickness) if min_thickness is not None else _object_size(source)
     planar = _planar(source)
+    settings = _copy_settings(protocol, planar=planar, thickness=thickness, keep_orientation=keep_orientation)
+    if protocol == "valid":
+        settings.update(tolerance_m=float(tolerance))
+    run_settings = {"source": str(Path(path)), "seed": int(seed), "repeats": int(repeats), **settings}
+    targets = [out / str(r + 1) for r in range(repeats)]
+    spec = dataclasses.replace(PERTURB_RUN, outputs=tuple(target.name for target in targets))
+    with run_directory(out, spec, run_settings, overwrite=overwrite):
+        pending = []
+        for target in targets:
+            if not _existing(target, source, seed, settings):
+                _check_target(target, overwrite=overwrite)
+                pending.append(target)
+        if pending:
+            options = {
+                "planar": planar,
+                "min_thickness": thickness,
+                "tolerance": tolerance,
+                "keep_orientation": keep_orientation,
+                "protocol": protocol,
+            }
+            copy = functools.partial(
+                _write_copy, source, path, settings, seed=seed, repeats=repeats, overwrite=overwrite
+            )
+            _perturb_copies(
+                source, options, targets, pending, seed=seed, workers=workers, progress=progress, write=copy
+            )
+    return targets
+
+
+#: A directory of perturbed copies: ``perturb.json`` (the settings) and the copies ``1`` ... ``R``.
+#: The number of copies may grow: copy r's draws do not depend on it. Copies of an earlier release
+#: (without ``perturb.json``) are checked one by one, so the directory may hold them.
+PERTURB_RUN = RunSpec(
+    contents="perturbed copies", settings_file="perturb.json", may_differ=("repeats",), shared_directory=True
+)
+
+
+def _copy_settings(protocol: str, *, planar: bool, thickness: float, keep_orientation: bool) -> dict[str, Any]:
+    """The perturbation settings every copy records (``perturbation`` in its ``dataset.json``)."""
     settings: dict[str, Any] = {
         "protocol": protocol,
         "method": PROTOCOL_METHODS[protocol],
@@ -289,76 +327,87 @@ def perturb_dataset(
         "velocities": "zero",
     }
     if protocol == "valid":
-        settings.update(tolerance_m=float(tolerance), max_attempts=500, max_restarts=3, growth_per_restart=1.1)
-    targets = [out / str(r + 1) for r in range(repeats)]
-    pending = []
-    for target in targets:
-        existing = _existing(target, source, seed, settings)
-        if existing:
-            continue
-        _check_target(target, overwrite=overwrite)
-        pending.append(target)
-    if not pending:
-        return targets
+        settings.update(max_attempts=500, max_restarts=3, growth_per_restart=1.1)
+    return settings
+
+
+def _perturb_copies(
+    source: Dataset,
+    options: dict[str, Any],
+    targets: list[Path],
+    pending: list[Path],
+    *,
+    seed: int,
+    workers: int,
+    progress: bool,
+    write: Callable[[int, Path, dict[int, list[FramePerturbation]]], None],
+) -> None:
+    """Perturb the copies ``pending`` (trajectories on workers); each is written as soon as it is complete."""
     total = source.n_trajectories * source.n_frames
-    repeat_seeds = np.random.SeedSequence(seed).spawn(repeats)
+    repeat_seeds = np.random.SeedSequence(seed).spawn(len(targets))
     jobs = [
         (r, trajectory, repeat_seeds[r].spawn(total)[trajectory * source.n_frames : (trajectory + 1) * source.n_frames])
         for r, target in enumerate(targets)
         if target in pending
         for trajectory in range(source.n_trajectories)
     ]
-    options = {
-        "planar": planar,
-        "min_thickness": thickness,
-        "tolerance": tolerance,
-        "keep_orientation": keep_orientation,
-        "protocol": protocol,
-    }
-    results: dict[tuple[int, int], list[FramePerturbation]] = {}
+    results: dict[int, dict[int, list[FramePerturbation]]] = {}
     bar = progress_bar(len(jobs) * source.n_frames, desc="perturb", enabled=progress)
     try:
-        for key, frames in _run_jobs(source, options, jobs, workers):
-            results[key] = frames
+        for (r, trajectory), frames in _run_jobs(source, options, jobs, workers):
+            results.setdefault(r, {})[trajectory] = frames
             bar.update(len(frames))
+            if len(results[r]) == source.n_trajectories:
+                write(r, targets[r], results.pop(r))
     finally:
         bar.close()
-    for r, target in enumerate(targets):
-        if target not in pending:
-            continue
-        arrays = {key: value.copy() for key, value in source.arrays.items()}
-        candidates = restarts = grown = overlapping = 0
-        growths, depths = [], []
-        for trajectory in range(source.n_trajectories):
-            for index, result in enumerate(results[(r, trajectory)]):
-                arrays["object_pos"][trajectory, index] = result.frame.object_pos
-                arrays["object_quat"][trajectory, index] = result.frame.object_quat
-                arrays["object_vel"][trajectory, index] = 0.0
-                candidates += result.candidates
-                restarts += result.restarts
-                grown += result.growth > 1.0
-                growths.append(result.growth)
-                overlapping += result.penetration > _OVERLAP
-                depths.append(result.penetration)
-        metadata = dict(source.metadata)
-        metadata["perturbation"] = {
-            **settings,
-            "source": str(Path(path)),
-            "source_seed": source.metadata.get("seed"),
-            "repeat": r + 1,
-            "repeats": repeats,
-            "seed": int(seed),
-            "candidates": int(candidates),
-            "restarts": int(restarts),
-            "frames_with_grown_ellipsoid": int(grown),
-            "largest_growth": float(max(growths)),
-            "frames_with_overlaps": int(overlapping),
-            "deepest_penetration_m": float(max(depths)),
-        }
-        dataset = Dataset(path=target, metadata=metadata, arrays=arrays)
-        validate(dataset)
-        _write_directory(target, metadata, arrays, overwrite=overwrite)
-    return targets
+
+
+def _write_copy(
+    source: Dataset,
+    path: Path | str,
+    settings: dict[str, Any],
+    r: int,
+    target: Path,
+    results: dict[int, list[FramePerturbation]],
+    *,
+    seed: int,
+    repeats: int,
+    overwrite: bool,
+) -> None:
+    """Write copy ``r`` (``target``) from its trajectories' perturbed frames, with its counts."""
+    arrays = {key: value.copy() for key, value in source.arrays.items()}
+    candidates = restarts = grown = overlapping = 0
+    growths, depths = [], []
+    for trajectory in range(source.n_trajectories):
+        for index, result in enumerate(results[trajectory]):
+            arrays["object_pos"][trajectory, index] = result.frame.object_pos
+            arrays["object_quat"][trajectory, index] = result.frame.object_quat
+            arrays["object_vel"][trajectory, index] = 0.0
+            candidates += result.candidates
+            restarts += result.restarts
+            grown += result.growth > 1.0
+            growths.append(result.growth)
+            overlapping += result.penetration > _OVERLAP
+            depths.append(result.penetration)
+    metadata = dict(source.metadata)
+    metadata["perturbation"] = {
+        **settings,
+        "source": str(Path(path)),
+        "source_seed": source.metadata.get("seed"),
+        "repeat": r + 1,
+        "repeats": repeats,
+        "seed": int(seed),
+        "candidates": int(candidates),
+        "restarts": int(restarts),
+        "frames_with_grown_ellipsoid": int(grown),
+        "largest_growth": float(max(growths)),
+        "frames_with_overlaps": int(overlapping),
+        "deepest_penetration_m": float(max(depths)),
+    }
+    dataset = Dataset(path=target, metadata=metadata, arrays=arrays)
+    validate(dataset)
+    _write_directory(target, metadata, arrays, overwrite=overwrite)
 
 
 _Job = tuple[int, int, list[np.random.SeedSequence]]
