@@ -127,3 +127,8 @@ def require_matplotlib() -> None:
 def one_line(message: str) -> str:
     """Collapse whitespace so an error is always reported on a single line."""
     return " ".join(message.split())
+
+
+def add_overwrite(parser: argparse.ArgumentParser, what: str = "a run of other settings in --out") -> None:
+    """``--overwrite``: the one rule of every run directory (energy_margin.runs): replace ``what``."""
+    parser.add_argument("--overwrite", action="store_true", help=f"replace {what} (only the run's own files)")

@@ -7,7 +7,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from energy_margin.cli.common import add_engine, add_seed, positive_int, require_matplotlib
+from energy_margin.cli.common import add_engine, add_overwrite, add_seed, positive_int, require_matplotlib
 
 NAME = "reproduce"
 SUMMARY = "reproduce the paper: Table I, the number-of-objects ablation and an HTML report"
@@ -21,6 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=positive_int, default=2, help="parallel workers (default 2)")
     add_engine(parser)
     add_seed(parser)
+    add_overwrite(parser, "a reproduction of other settings in --out")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     # The command as typed when run from the shell; the equivalent command otherwise.
     invoked = Path(sys.argv[0]).name in ("energy-margin", "__main__.py") and sys.argv[1:2] == ["reproduce"]
     command = shlex.join(["energy-margin", *sys.argv[1:]]) if invoked else None
-    index = reproduce(out, plan, command=command)
+    index = reproduce(out, plan, command=command, overwrite=args.overwrite)
     print(f"report: {index}")
     print(f"tables: {index.parent.parent / 'table1.md'}, {index.parent.parent / 'ablation.md'}")
     return 0

@@ -20,10 +20,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import check_int
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 from energy_margin.report.html import protocol_rows, write_report
 from energy_margin.report.paper import PAPER_FIG_2, PAPER_TABLE_I
+from energy_margin.runs import RunSpec, run_directory
 from energy_margin.runs.files import atomic_write_text, write_json
 
 
@@ -260,34 +261,36 @@ def command_line(out: Path, config: ReproduceConfig) -> str:
     )
 
 
-def reproduce(out: Path | str, config: ReproduceConfig, *, command: str | None = None) -> Path:
+def reproduce(out: Path | str, config: ReproduceConfig, *, command: str | None = None, overwrite: bool = False) -> Path:
     """Run every stage into ``out`` and return the path of the report's ``index.html``.
 
     Args:
-        out: output directory.
+        out: output directory (locked while it runs; resumed when it holds this reproduction).
         config: what to run.
         command: the command line shown in the report's provenance (default: the equivalent
             ``energy-margin reproduce`` command).
+        overwrite: replace a reproduction of other settings in ``out`` instead of refusing.
 
     """
+    check_int("workers", config.workers, minimum=1)
+    out = Path(out)
+    with run_directory(out, REPRODUCE_RUN, dataclasses.asdict(config), overwrite=overwrite):
+        return _reproduce(out, config, command=command)
+
+
+#: A reproduction: ``reproduce.json`` (the resolved configuration), the datasets under ``data/``,
+#: the tables and the report. The number of workers does not change a result.
+REPRODUCE_RUN = RunSpec(
+    contents="a reproduction",
+    settings_file="reproduce.json",
+    outputs=("data", "report", "table1.json", "table1.md", "ablation.json", "ablation.md", "stages.json"),
+    may_differ=("workers",),
+)
+
+
+def _reproduce(out: Path, config: ReproduceConfig, *, command: str | None) -> Path:
     from energy_margin.report.provenance import provenance
 
-    if config.workers < 1:
-        raise EnergyMarginError(f"workers must be >= 1, got {config.workers}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    previous = out / "reproduce.json"
-    resolved = dataclasses.asdict(config)
-    if previous.is_file():
-        try:
-            stored = json.loads(previous.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            stored = None
-        if stored != json.loads(json.dumps(resolved)):
-            raise EnergyMarginError(
-                f"{out} holds a reproduction with other settings ({previous.name}); choose another --out"
-            )
-    write_json(previous, resolved)
     stages = 2 * (2 + len(TABLE_ONE_PROTOCOLS) * (1 + config.repeats)) + 2 * len(config.ablation_objects) + 1
     started = time.monotonic()
     timings: list[dict[str, Any]] = []
