@@ -98,3 +98,71 @@ def test_record_reads_an_hdf5_file_with_a_group_per_rollout(tiny_scene: Path, tm
     assert main(["record", "--scene", str(tiny_scene), str(path), "--frames", "3", "--out", str(tmp_path / "bad")]) == 2
     assert f"{path}:/run1: qvel: has shape (80, 3), expected (80, 12)" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def _log_turned_pusher(scene: Path, path: Path, *, steps: int = 40, mocap: bool = True) -> dict[str, np.ndarray]:
+    """A user's loop that holds the pusher still at its start, turned half a revolution about z.
+
+    The scene file declares a pusher that moves along +y unturned, so the declared motion's
+    capture region (0.02-0.22 m in front of the pusher) holds both boxes while the recorded
+    pusher's region lies behind it, away from them.
+    """
+    model = load_scene(scene).model
+    data = mujoco.MjData(model)
+    data.qpos[0:3] = [-0.06, 0.05, 0.03]
+    data.qpos[7:10] = [0.06, 0.05, 0.03]
+    names = ("time", "qpos", "qvel", "mocap_pos", "mocap_quat")
+    log: dict[str, list[np.ndarray]] = {name: [] for name in names}
+    for _ in range(steps):
+        data.mocap_pos[0] = [0.0, -0.15, 0.03]
+        data.mocap_quat[0] = [0.0, 0.0, 0.0, 1.0]
+        log["time"].append(np.array(data.time))
+        log["qpos"].append(data.qpos.copy())
+        log["qvel"].append(data.qvel.copy())
+        log["mocap_pos"].append(data.mocap_pos.copy())
+        log["mocap_quat"].append(data.mocap_quat.copy())
+        mujoco.mj_step(model, data)
+    arrays = {key: np.stack(values) for key, values in log.items()}
+    np.savez(path, **(arrays if mocap else {key: arrays[key] for key in ("time", "qpos", "qvel")}))
+    return arrays
+
+
+def test_recorded_mocap_arrays_override_the_declared_motion(tiny_scene: Path, tmp_path: Path) -> None:
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.record import record_dataset
+    from energy_margin.data.validation import check_dataset
+
+    arrays = _log_turned_pusher(tiny_scene, tmp_path / "turned.npz")
+    _log_turned_pusher(tiny_scene, tmp_path / "declared.npz", mocap=False)
+    turned = record_dataset(tiny_scene, [tmp_path / "turned.npz"], n_frames=4, out=tmp_path / "with_mocap")
+    declared = record_dataset(tiny_scene, [tmp_path / "declared.npz"], n_frames=4, out=tmp_path / "without")
+    assert check_dataset(tmp_path / "with_mocap") == []
+    rows = [0, 13, 26, 39]  # nearest to 0, 1/3, 2/3 and 1 of the roll-out's span
+    np.testing.assert_allclose(turned.arrays["frame_time"][0], arrays["time"][rows])
+    # robot_q: the mocap position (3) then quaternion (4), as recorded, not as declared.
+    robot_q = turned.arrays["robot_q"][0]
+    np.testing.assert_allclose(robot_q[:, :3], arrays["mocap_pos"][rows, 0])
+    np.testing.assert_allclose(robot_q[:, 3:], arrays["mocap_quat"][rows, 0])
+    times = declared.arrays["frame_time"][0]
+    np.testing.assert_allclose(declared.arrays["robot_q"][0, :, 1], -0.15 + 0.3 * times)
+    np.testing.assert_allclose(declared.arrays["robot_q"][0, :, 3:], np.tile([1.0, 0, 0, 0], (4, 1)), atol=1e-12)
+    np.testing.assert_array_equal(turned.arrays["object_pos"], declared.arrays["object_pos"])
+    # The labels are those of the recorded pusher: its capture region is behind it.
+    assert declared.arrays["captured"].all()
+    assert not turned.arrays["captured"].any()
+    # The analysis starts from the recorded pusher and scores against its capture region.
+    simulator = turned.task.make_simulator(
+        turned.n_objects, float(turned.arrays["friction"][0]), turned.arrays["drive"][0]
+    )
+    for frame, row in enumerate(rows):
+        simulator.reset(turned.frame(0, frame))
+        np.testing.assert_allclose(simulator.data.mocap_pos[0], arrays["mocap_pos"][row, 0])  # type: ignore[attr-defined]
+        np.testing.assert_allclose(simulator.data.mocap_quat[0], arrays["mocap_quat"][row, 0])  # type: ignore[attr-defined]
+    config = AnalyzerConfig(iterations=15)
+    analyze(tmp_path / "with_mocap", config, seed=0, progress=False)
+    analyze(tmp_path / "without", config, seed=0, progress=False)
+    turned_capture = load_scores(tmp_path / "with_mocap")["capture_score"]
+    declared_capture = load_scores(tmp_path / "without")["capture_score"]
+    assert turned_capture.max() <= 0.01
+    assert declared_capture.min() >= 0.5

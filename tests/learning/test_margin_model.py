@@ -234,3 +234,87 @@ def test_same_seed_same_model(fitted: tuple[MarginModel, dict], dataset: Dataset
     for ours, theirs in zip(model.predict(dataset.task, frames), again.predict(dataset.task, frames), strict=True):
         np.testing.assert_array_equal(ours, theirs)
     assert report_again["r2"] == report["r2"] and report_again["ap"] == report["ap"]
+
+
+def _read_scores_csv(path: Path, n_trajectories: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Capture and success scores of scores.csv as (T, K) grids, read with the csv module."""
+    import csv
+
+    capture, success = np.full((n_trajectories, n_frames), np.nan), np.full((n_trajectories, n_frames), np.nan)
+    with (path / "scores.csv").open(newline="") as stream:
+        for row in csv.DictReader(stream):
+            t, k = int(row["trajectory"]), int(row["frame"])
+            capture[t, k], success[t, k] = float(row["capture_score"]), float(row["success_score"])
+    assert np.isfinite(capture).all() and np.isfinite(success).all()
+    return capture, success
+
+
+def test_held_out_r2_and_ap_match_an_independent_computation(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from sklearn.metrics import average_precision_score, r2_score
+
+    from energy_margin.learning import margin_model
+
+    # Ten objects: about half the frames captured, half the trajectories successful (seed 2).
+    out = tmp_path / "push10"
+    generate_dataset("pushing", out=out, n_objects=10, n_trajectories=8, n_frames=4, seed=2)
+    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    dataset = load_dataset(out)
+    fitted_on: list[tuple[np.ndarray, np.ndarray]] = []
+    original = margin_model.fit_regressor
+
+    def spy(kind: str, features: np.ndarray, targets: np.ndarray, **options: object):
+        fitted_on.append((features.copy(), targets.copy()))
+        return original(kind, features, targets, **options)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(margin_model, "fit_regressor", spy)
+    model, report = fit_margin_model([dataset], seed=0, kind="mlp", holdout=0.5, hidden=(16,), max_iter=200)
+    model.save(tmp_path / "model.npz")
+    loaded = load_margin_model(tmp_path / "model.npz", task_name="pushing")
+    ((train_x, train_y),) = fitted_on
+    n_traj, n_frames = dataset.n_trajectories, dataset.n_frames
+    capture, success = _read_scores_csv(out, n_traj, n_frames)
+    # The split is by trajectory: each trajectory's frames are all in the fit or none is.
+    features = FrameFeatures(dataset.task)
+    fitted_rows = {row.tobytes() for row in train_x}
+    held, kept = [], []
+    for t in range(n_traj):
+        rows = features([dataset.frame(t, k) for k in range(n_frames)])
+        inside = [row.tobytes() in fitted_rows for row in rows]
+        assert all(inside) or not any(inside), f"trajectory {t} is split"
+        (kept if all(inside) else held).append(t)
+    assert len(held) == report["n_trajectories"]["held_out"] == 4 and len(kept) == 4
+    assert train_x.shape[0] == len(kept) * n_frames == report["n_frames"]["train"]
+    # The fit's targets are the kept trajectories' scores, frame by frame.
+    np.testing.assert_array_equal(train_y, np.stack([capture[kept].ravel(), success[kept].ravel()], axis=1))
+    # Held-out predictions of the saved model, and the report's figures computed from them.
+    predicted_capture, predicted_success = loaded.predict(
+        dataset.task, [dataset.frame(t, k) for t in held for k in range(n_frames)]
+    )
+    predicted_capture, predicted_success = (
+        predicted_capture.reshape(len(held), n_frames),
+        predicted_success.reshape(len(held), n_frames),
+    )
+    assert np.ptp(predicted_capture) > 0.01  # the predictions rank the frames (not one constant)
+    assert report["r2"]["capture"] == pytest.approx(
+        r2_score(capture[held].ravel(), predicted_capture.ravel()), abs=1e-9
+    )
+    assert report["r2"]["success"] == pytest.approx(
+        r2_score(success[held].ravel(), predicted_success.ravel()), abs=1e-9
+    )
+    captured = dataset.arrays["captured"][held].astype(bool)
+    stays = captured.copy()  # captured at k, k+1 and k+2 (the frames that exist)
+    stays[:, :-1] &= captured[:, 1:]
+    stays[:, :-2] &= captured[:, 2:]
+    succeeded = dataset.arrays["in_success"][held, -1].astype(bool)
+    last3 = np.array([0.0, 1.0, 2.0, 3.0]) / 6.0  # linear weights of the last 3 of 4 frames
+    first_half = np.array([1.0, 2.0]) / 3.0  # the first 2 frames, linear weights
+    expected = {
+        "capture": (captured.ravel(), predicted_capture.ravel(), capture[held].ravel()),
+        "capture_window2": (stays.ravel(), predicted_capture.ravel(), capture[held].ravel()),
+        "success": (succeeded, predicted_success @ last3, success[held] @ last3),
+        "success_first_half": (succeeded, predicted_success[:, :2] @ first_half, success[held][:, :2] @ first_half),
+    }
+    for question, (labels, learned, tree) in expected.items():
+        assert 0 < labels.sum() < labels.size, question  # both classes: the AP is defined
+        assert report["ap"][question]["learned"] == pytest.approx(average_precision_score(labels, learned), abs=1e-9)
+        assert report["ap"][question]["tree"] == pytest.approx(average_precision_score(labels, tree), abs=1e-9)
