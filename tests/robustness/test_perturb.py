@@ -173,7 +173,7 @@ def test_copies_do_not_change_with_a_rounding_level_change_of_the_fit(
     plain = min_volume_ellipsoid(coordinates, min_thickness=0.005)
     nudged = _nudged_fit(1e-12)(coordinates, min_thickness=0.005)
     assert not np.array_equal(plain.sample(np.random.default_rng(0), 5), nudged.sample(np.random.default_rng(0), 5))
-    monkeypatch.setattr("energy_margin.robustness.perturb.min_volume_ellipsoid", _nudged_fit(1e-12))
+    monkeypatch.setattr("energy_margin.robustness.resample.min_volume_ellipsoid", _nudged_fit(1e-12))
     again = perturb_dataset(source, repeats=2, seed=1, out=tmp_path / "nudged")
     for first, second in zip(exact, again, strict=True):
         assert np.array_equal(load_dataset(first).arrays["object_pos"], load_dataset(second).arrays["object_pos"])
