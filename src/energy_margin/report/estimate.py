@@ -11,7 +11,6 @@ costs next to nothing) and the pictures of the report.
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import time
 from dataclasses import dataclass
@@ -33,7 +32,6 @@ _REPORT_FPS = 30.0
 _REPORT_OVERHEAD_S = 25.0
 
 
-@functools.cache
 def calibration_objects(task_name: str) -> int:
     """Objects of a task's calibration scene: its :attr:`~energy_margin.tasks.base.Task.default_objects`."""
     from energy_margin.tasks import get_task
@@ -41,7 +39,6 @@ def calibration_objects(task_name: str) -> int:
     return get_task(task_name).default_objects
 
 
-@functools.cache
 def _report_pictures(task_name: str) -> int:
     """Pictures the report draws of a task: the stills and one video of a roll-out at ``_REPORT_FPS``."""
     from energy_margin.report.video import video_steps

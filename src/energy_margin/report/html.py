@@ -481,11 +481,10 @@ def write_report(
         "tree node's object positions coloured by likelihood (hover for node, parent, cost) and, on demand, the "
         "edges to the parents.</p><ul>" + "".join(per_task[task]["view"] for task in per_task) + "</ul>",
         "perturbed": "".join(per_task[task]["perturbed"] for task in per_task),
-        "pushing-frames": per_task["pushing"]["frames"],
-        "scooping-frames": per_task["scooping"]["frames"],
-        "cost-field": per_task["pushing"]["cost_field"] + per_task["scooping"]["cost_field"],
-        "trajectories": per_task["pushing"]["trajectories"] + per_task["scooping"]["trajectories"],
-        "precision-recall": per_task["pushing"]["precision_recall"] + per_task["scooping"]["precision_recall"],
+        **{f"{task}-frames": per_task[task]["frames"] for task in per_task},
+        "cost-field": "".join(per_task[task]["cost_field"] for task in per_task),
+        "trajectories": "".join(per_task[task]["trajectories"] for task in per_task),
+        "precision-recall": "".join(per_task[task]["precision_recall"] for task in per_task),
     }
     sections = "".join(
         f'<section id="{key}"><h2>{html.escape(title)}</h2>{body[key]}</section>' for key, title in SECTIONS
