@@ -166,6 +166,14 @@ def test_the_layout_says_which_drives_a_task_accepts(shoving: str, tmp_path: Pat
     assert import_reference(folder, tmp_path / "out", task=Steady.name).metadata["imported_drive"] == "nominal"
     # Two tasks declare the layout: the files import by default as the first by name.
     assert reference_tasks()["PlanePushMulti"] == "pushing"
+
+    @register_task
+    class Misread(ScoopingTask):
+        name = "scooping-misread"
+        reference_layout = ReferenceLayout("PlanePushMulti", 6, 6)
+
+    with pytest.raises(EnergyMarginError, match="task 'scooping-misread' cannot hold their PlanePushMulti frames"):
+        import_reference(folder, tmp_path / "wrong", task=Misread.name)
     layout = ScoopingTask.reference_layout
     assert layout is not None and layout.drives == ("nominal",) and layout.replays_recorded
 

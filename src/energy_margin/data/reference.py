@@ -297,7 +297,8 @@ def _euler_xyz_quat(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.
 
 def _pushing_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     task = get_task(ref.task)
-    assert isinstance(task, PushingTask)
+    if not isinstance(task, PushingTask):
+        raise EnergyMarginError(f"{task.label} cannot hold their {ref.suffix} frames: it is no PushingTask subclass")
     cfg = task.config
     states = ref.states
     n_traj, n_frames = states.shape[:2]
@@ -331,7 +332,8 @@ def _pushing_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nda
 
 def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     task = get_task(ref.task)
-    assert isinstance(task, ScoopingTask)
+    if not isinstance(task, ScoopingTask):
+        raise EnergyMarginError(f"{task.label} cannot hold their {ref.suffix} frames: it is no ScoopingTask subclass")
     cfg = task.config
     states = ref.states
     n_traj, n_frames = states.shape[:2]
