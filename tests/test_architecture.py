@@ -248,6 +248,121 @@ def test_the_public_api_is_where_it_was() -> None:
     assert callable(register_task)
 
 
+#: Built-in task names that code outside ``tasks/`` may still spell out, as (module path under the
+#: package, top-level name that holds the spelling), each with its reason. Everything else asks the
+#: task through its hooks (:class:`~energy_margin.tasks.base.Task`), so a task registered from
+#: another package gets the same behaviour.
+TASK_NAME_ALLOWED = {
+    # The paper's published Table I, keyed by the paper's two tasks: data, not a branch (reproduce
+    # runs the paper's tasks by iterating it).
+    ("report/paper.py", "PAPER_TABLE_I"),
+    # The command-space registry's built-in entries; register_command_space adds other tasks'.
+    ("control/commands.py", "_COMMAND_SPACES"),
+}
+
+
+def builtin_task_names() -> set[str]:
+    """The names of the tasks the package registers itself."""
+    from energy_margin.tasks import PushingTask, SceneTask, ScoopingTask
+
+    return {PushingTask.name, ScoopingTask.name, SceneTask.name}
+
+
+def task_name_uses(tree: ast.Module, names: set[str]) -> list[tuple[int, str, str]]:
+    """(line, top-level name, what) of every branch on a task name in a module.
+
+    Found: comparisons with a name (``==``, ``!=``, ``in``, ``is``, also against a literal tuple,
+    list or set of names), dictionary keys, set members, subscripts (``table["pushing"]``),
+    ``case`` patterns, and loops over a literal collection of names.
+    """
+
+    def spelled(node: ast.AST | None) -> list[str]:
+        if isinstance(node, ast.Constant) and node.value in names:
+            return [str(node.value)]
+        if isinstance(node, ast.Tuple | ast.List | ast.Set):
+            return [str(e.value) for e in node.elts if isinstance(e, ast.Constant) and e.value in names]
+        return []
+
+    found: list[tuple[int, str, str]] = []
+    for statement in tree.body:
+        if isinstance(statement, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            scope = statement.name
+        elif isinstance(statement, ast.Assign) and isinstance(statement.targets[0], ast.Name):
+            scope = statement.targets[0].id
+        elif isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name):
+            scope = statement.target.id
+        else:
+            scope = "<module>"
+        for node in ast.walk(statement):
+            hits: list[tuple[str, list[str]]] = []
+            if isinstance(node, ast.Compare):
+                hits = [("comparison", spelled(operand)) for operand in (node.left, *node.comparators)]
+            elif isinstance(node, ast.Dict):
+                hits = [("dictionary key", spelled(key)) for key in node.keys if isinstance(key, ast.Constant)]
+            elif isinstance(node, ast.Set):
+                hits = [("set member", spelled(node))]
+            elif isinstance(node, ast.Subscript):
+                hits = [("subscript", spelled(node.slice))]
+            elif isinstance(node, ast.MatchValue):
+                hits = [("case pattern", spelled(node.value))]
+            elif isinstance(node, ast.For | ast.AsyncFor | ast.comprehension):
+                hits = [("loop", spelled(node.iter))]
+            for what, spellings in hits:
+                found.extend((getattr(node, "lineno", statement.lineno), scope, f"{what} {s!r}") for s in spellings)
+    return sorted(found)
+
+
+def task_name_branches() -> list[str]:
+    """``path:line (scope): what`` of every branch on a built-in task name outside ``tasks/``."""
+    names = builtin_task_names()
+    branches = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        relative = path.relative_to(PACKAGE).as_posix()
+        if relative.startswith("tasks/"):
+            continue
+        for line, scope, what in task_name_uses(ast.parse(path.read_text(encoding="utf-8")), names):
+            branches.append((relative, scope, f"{relative}:{line} ({scope}): {what}"))
+    return [text for relative, scope, text in branches if (relative, scope) not in TASK_NAME_ALLOWED] + [
+        f"allowed but unused: {entry}"
+        for entry in sorted(TASK_NAME_ALLOWED - {(relative, scope) for relative, scope, _ in branches})
+    ]
+
+
+def test_no_code_outside_the_tasks_branches_on_a_built_in_task_name() -> None:
+    assert task_name_branches() == []
+
+
+def test_the_task_name_scan_finds_every_kind_of_branch() -> None:
+    source = (
+        "def f(task, d):\n"
+        "    a = task == 'pushing'\n"
+        "    b = task.name in ('scooping', 'other')\n"
+        "    c = {'pushing': 1, 'x': 2}\n"
+        "    e = {'scooping'}\n"
+        "    g = d['scene']\n"
+        "    for t in ('pushing', 'scooping'):\n"
+        "        pass\n"
+        "    match task:\n"
+        "        case 'scene':\n"
+        "            pass\n"
+        "    return d.get('x') == 'other', f'{task}-pushing', 'pushing'.upper()\n"
+        "TABLE = {'pushing': 1}\n"
+    )
+    uses = task_name_uses(ast.parse(source), builtin_task_names())
+    assert [(line, what) for line, _, what in uses] == [
+        (2, "comparison 'pushing'"),
+        (3, "comparison 'scooping'"),
+        (4, "dictionary key 'pushing'"),
+        (5, "set member 'scooping'"),
+        (6, "subscript 'scene'"),
+        (7, "loop 'pushing'"),
+        (7, "loop 'scooping'"),
+        (10, "case pattern 'scene'"),
+        (13, "dictionary key 'pushing'"),
+    ]
+    assert {scope for _, scope, _ in uses} == {"f", "TABLE"}
+
+
 if __name__ == "__main__":
     graph = import_graph()
     print(f"{len(graph)} modules, {sum(len(t) for t in graph.values())} imports")

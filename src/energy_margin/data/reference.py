@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,10 +55,8 @@ from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import atomic_write_text, write_json
-from energy_margin.tasks import PushingTask, ScoopingTask, get_task
+from energy_margin.tasks import PushingTask, ReferenceLayout, ScoopingTask, available_tasks, get_task, task_class
 
-#: Their task names (file suffixes) and this project's.
-TASKS = {"PlanePushMulti": "pushing", "GripperMulti": "scooping"}
 #: Sub-folders holding the true-state scores, in order of preference.
 DEFAULT_SCORES = ("original", "original-data", ".")
 SCORES_NAME = "ao_est.csv"
@@ -144,17 +143,48 @@ def _read_csv(path: Path, expected_header: tuple[str, ...] | None = None) -> tup
     return header, values
 
 
-def detect_task(folder: Path) -> tuple[str, str]:
-    """(their suffix, this project's task) of a reference folder, from its file names."""
+def reference_tasks() -> dict[str, str]:
+    """Their task names (file suffixes) -> the registered task that declares that layout.
+
+    A task that inherits its layout (a variant of a task) imports their files when asked for by
+    name (``import_reference(..., task=NAME)``); the one that declares it is the default.
+    """
+    found: dict[str, str] = {}
+    for name in available_tasks():
+        layout = vars(task_class(name)).get("reference_layout")
+        if isinstance(layout, ReferenceLayout) and layout.suffix in _CONVERTERS:
+            found.setdefault(layout.suffix, name)
+    return found
+
+
+def _layout(task: str) -> ReferenceLayout:
+    """The reference layout of the registered task ``task``."""
+    layout = task_class(task).reference_layout
+    if layout is None or layout.suffix not in _CONVERTERS:
+        raise EnergyMarginError(f"task {task!r} has no import of the authors' files")
+    return layout
+
+
+def detect_task(folder: Path, task: str | None = None) -> tuple[str, str]:
+    """(their suffix, this project's task) of a reference folder, from its file names.
+
+    Args:
+        folder: the reference folder.
+        task: the task to import their files as (it must read their layout); ``None``: the task
+            that declares the layout of the files found.
+
+    """
     if not folder.is_dir():
         raise EnergyMarginError(f"{folder} does not exist or is not a directory")
-    found = [suffix for suffix in TASKS if (folder / f"scripted_movement_viapoints_{suffix}.csv").is_file()]
+    tasks = reference_tasks()
+    suffixes = [_layout(task).suffix] if task is not None else list(tasks)
+    found = [suffix for suffix in suffixes if (folder / f"scripted_movement_viapoints_{suffix}.csv").is_file()]
     if len(found) != 1:
         raise EnergyMarginError(
             f"{folder} is not a reference folder: expected one scripted_movement_viapoints_<Task>.csv "
-            f"with Task in {', '.join(TASKS)}"
+            f"with Task in {', '.join(suffixes)}"
         )
-    return found[0], TASKS[found[0]]
+    return found[0], task if task is not None else tasks[found[0]]
 
 
 def _scores_path(folder: Path, scores: str | None) -> Path | None:
@@ -187,16 +217,22 @@ def _grid(path: Path, values: np.ndarray, trajectories: np.ndarray, frames: np.n
     return n_traj, n_frames
 
 
-def read_reference(folder: Path | str, *, scores: str | None = None, with_scores: bool = True) -> ReferenceSet:
-    """Parse a reference folder; every problem raises :class:`EnergyMarginError`."""
+def read_reference(
+    folder: Path | str, *, scores: str | None = None, with_scores: bool = True, task: str | None = None
+) -> ReferenceSet:
+    """Parse a reference folder as ``task`` (default: the task its files name).
+
+    Every problem raises :class:`EnergyMarginError`.
+    """
     folder = Path(folder)
-    suffix, task = detect_task(folder)
+    suffix, task = detect_task(folder, task)
     via_path = folder / f"scripted_movement_viapoints_{suffix}.csv"
     header, via = _read_csv(via_path)
     if header[:2] != ["num_traj", "data_id"]:
         raise _fail(via_path, "the first two columns must be num_traj, data_id")
     width = len(header) - 2
-    per_object, robot = (6, 6) if task == "pushing" else (12, 10)
+    layout = _layout(task)
+    per_object, robot = layout.object_columns, layout.robot_columns
     if width <= robot or (width - robot) % per_object:
         raise _fail(via_path, f"{width} state columns do not fit n objects x {per_object} + {robot} robot columns")
     n_traj, n_frames = _grid(via_path, via, via[:, 0], via[:, 1])
@@ -260,8 +296,9 @@ def _euler_xyz_quat(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.
 
 
 def _pushing_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    task = get_task("pushing")
-    assert isinstance(task, PushingTask)
+    task = get_task(ref.task)
+    if not isinstance(task, PushingTask):
+        raise EnergyMarginError(f"{task.label} cannot hold their {ref.suffix} frames: it is no PushingTask subclass")
     cfg = task.config
     states = ref.states
     n_traj, n_frames = states.shape[:2]
@@ -294,8 +331,9 @@ def _pushing_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nda
 
 
 def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    task = get_task("scooping")
-    assert isinstance(task, ScoopingTask)
+    task = get_task(ref.task)
+    if not isinstance(task, ScoopingTask):
+        raise EnergyMarginError(f"{task.label} cannot hold their {ref.suffix} frames: it is no ScoopingTask subclass")
     cfg = task.config
     states = ref.states
     n_traj, n_frames = states.shape[:2]
@@ -370,6 +408,13 @@ def _scooping_arrays(ref: ReferenceSet, n_objects: int) -> tuple[dict[str, np.nd
     return arrays, overrides
 
 
+#: The mapping of their columns onto this project's frames, by their task name (file suffix).
+_CONVERTERS: dict[str, Callable[[ReferenceSet, int], tuple[dict[str, np.ndarray], dict[str, Any]]]] = {
+    "PlanePushMulti": _pushing_arrays,
+    "GripperMulti": _scooping_arrays,
+}
+
+
 def import_reference(
     folder: Path | str,
     out: Path | str,
@@ -378,6 +423,7 @@ def import_reference(
     with_scores: bool = True,
     overwrite: bool = False,
     drive: str = "nominal",
+    task: str | None = None,
 ) -> Dataset:
     """Convert a reference folder into a dataset directory (plus ``scores.csv`` from their scores).
 
@@ -393,6 +439,8 @@ def import_reference(
             only): no drive force, the pusher coasts from its recorded velocity, as in the
             authors' planner. Scooping always replays the gripper's recorded motion
             (``imported_drive`` = ``"recorded"``).
+        task: the task to import their files as (one that reads their layout, such as a variant
+            of the task they name); ``None``: the task their file names map to.
 
     Returns:
         The written dataset.
@@ -400,27 +448,27 @@ def import_reference(
     folder, out = Path(folder), Path(out)
     if drive not in DRIVES:
         raise EnergyMarginError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
-    ref = read_reference(folder, scores=scores, with_scores=with_scores)
-    if drive == "coast" and ref.task != "pushing":
-        raise EnergyMarginError("--drive coast applies to pushing only (the scooping gripper follows its servos)")
-    per_object, robot = (6, 6) if ref.task == "pushing" else (12, 10)
-    n_objects = (ref.states.shape[-1] - robot) // per_object
-    if ref.task == "pushing":
-        arrays, overrides = _pushing_arrays(ref, n_objects)
-    else:
-        arrays, overrides = _scooping_arrays(ref, n_objects)
+    ref = read_reference(folder, scores=scores, with_scores=with_scores, task=task)
+    layout = _layout(ref.task)
+    if drive not in layout.drives:
+        following = " (its end-effector replays its recorded motion)" if layout.replays_recorded else ""
+        raise EnergyMarginError(
+            f"--drive {drive} does not apply to {ref.task}{following}; its drives: {', '.join(layout.drives)}"
+        )
+    n_objects = (ref.states.shape[-1] - layout.robot_columns) // layout.object_columns
+    arrays, overrides = _CONVERTERS[layout.suffix](ref, n_objects)
     if drive == "coast":
         arrays["drive"] = np.zeros_like(arrays["drive"])
     arrays["in_success"][:, -1] = ref.success_label
     arrays["captured"] = ref.capture_label.copy()
     arrays["in_success"] = arrays["in_success"].astype(bool)
-    task = get_task(ref.task, overrides)
+    imported = get_task(ref.task, overrides)
     n_traj, n_frames = ref.states.shape[:2]
     metadata = {
         "format": FORMAT,
         "schema_version": SCHEMA_VERSION,
         "task": ref.task,
-        "task_config": task.config.to_dict(),
+        "task_config": imported.config.to_dict(),
         "engine": "pybullet",
         "seed": 0,
         "n_trajectories": n_traj,
@@ -430,7 +478,7 @@ def import_reference(
         "n_drive": int(arrays["drive"].shape[-1]),
         "package_version": __version__,
         "imported_from": str(folder),
-        "imported_drive": drive if ref.task == "pushing" else "recorded",
+        "imported_drive": "recorded" if layout.replays_recorded else drive,
     }
     arrays = {key: np.ascontiguousarray(value) for key, value in arrays.items()}
     dataset = Dataset(path=out, metadata=metadata, arrays=arrays)

@@ -64,6 +64,7 @@ from energy_margin.evaluation.metrics import score_grid
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import progress_bar
 from energy_margin.runs.files import atomic_write_text, write_json
+from energy_margin.tasks import PushingTask, ScoopingTask
 
 
 @dataclass(frozen=True)
@@ -80,9 +81,11 @@ class StudyTask:
     seed: int
 
 
-#: The study's tasks and datasets (seed 0 gives positive rates in [0.2, 0.8] for every question at
-#: 100 trajectories x 10 frames: docs/evidence.md).
-TASKS: dict[str, StudyTask] = {"pushing": StudyTask(objects=10, seed=0), "scooping": StudyTask(objects=5, seed=0)}
+#: The study's tasks, each with its typical objects per scene, and datasets (seed 0 gives positive
+#: rates in [0.2, 0.8] for every question at 100 trajectories x 10 frames: docs/evidence.md).
+TASKS: dict[str, StudyTask] = {
+    task.name: StudyTask(objects=task.typical_objects, seed=0) for task in (PushingTask, ScoopingTask)
+}
 DEFAULT_BUDGETS = (30, 100, 300)
 #: Capture questions: name -> k-hat.
 CAPTURE_WINDOWS = {"capture_k0": 0, "capture_k2": 2, "capture_k4": 4}

@@ -79,57 +79,6 @@ MARGIN_LABELS = {
 
 
 @dataclass(frozen=True)
-class DesignAlias:
-    """A design parameter that is not a configuration field itself but sets one.
-
-    Attributes:
-        name: the parameter's name on the command line.
-        field: the configuration field it sets.
-        doc: what the parameter is, with its unit.
-        to_field: the field's value for a parameter value, given the field's current value.
-
-    """
-
-    name: str
-    field: str
-    doc: str
-    to_field: Callable[[Any, Any], Any]
-
-
-def _single_stiffness(value: Any, current: Any) -> Any:
-    del current
-    return [value, value]
-
-
-def _pusher_width(value: Any, current: Any) -> Any:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"pusher_width must be a number, got {value!r}")
-    return [value / 2.0, current[1], current[2]]
-
-
-#: Friendly design parameters per task (every configuration field can be swept by its own name too).
-DESIGN_ALIASES: dict[str, tuple[DesignAlias, ...]] = {
-    "scooping": (
-        DesignAlias(
-            "finger_stiffness",
-            "stiffness_range",
-            "finger drive stiffness, N/m: every trajectory uses this one value (stiffness_range = [v, v]) "
-            "instead of a log-uniform draw",
-            _single_stiffness,
-        ),
-    ),
-    "pushing": (
-        DesignAlias(
-            "pusher_width",
-            "pusher_half_extents",
-            "full pusher width along x, m (pusher_half_extents[0] = v / 2; depth and height unchanged)",
-            _pusher_width,
-        ),
-    ),
-}
-
-
-@dataclass(frozen=True)
 class Design:
     """One point of the grid.
 
@@ -188,7 +137,7 @@ def _design_names(task_name: str) -> set[str] | None:
         task = get_task(task_name)
     except EnergyMarginError:
         return None
-    return set(_config_fields(task)) | {alias.name for alias in DESIGN_ALIASES.get(task_name, ())}
+    return set(_config_fields(task)) | {alias.name for alias in task.design_aliases()}
 
 
 def _unknown_parameter(task_name: str, name: str, known: set[str]) -> EnergyMarginError:
@@ -197,7 +146,7 @@ def _unknown_parameter(task_name: str, name: str, known: set[str]) -> EnergyMarg
         return EnergyMarginError(
             f"--param {name} is a setting of task {owners[0]!r}, not of {task_name!r} (sweep --task {owners[0]})"
         )
-    aliases = [alias.name for alias in DESIGN_ALIASES.get(task_name, ())]
+    aliases = [alias.name for alias in get_task(task_name).design_aliases()]
     hint = f"{', '.join(aliases)} or a {task_name} setting" if aliases else f"a {task_name} setting"
     return EnergyMarginError(
         f"unknown {task_name} parameter {name!r}; sweepable: {hint} ({', '.join(sorted(known - set(aliases)))})"
@@ -212,7 +161,7 @@ def design_grid(
     Args:
         task_name: a registered task.
         params: ``(name, values)`` per swept parameter: a configuration field or an alias of
-            :data:`DESIGN_ALIASES`.
+            :meth:`~energy_margin.tasks.base.Task.design_aliases`.
         fixed: configuration overrides shared by every design (``--set``).
 
     Raises:
@@ -223,7 +172,7 @@ def design_grid(
     fixed = dict(fixed or {})
     base = get_task(task_name, fixed)
     fields = _config_fields(base)
-    aliases = {alias.name: alias for alias in DESIGN_ALIASES.get(task_name, ())}
+    aliases = {alias.name: alias for alias in base.design_aliases()}
     known = set(fields) | set(aliases)
     if not params:
         raise EnergyMarginError("a sweep needs at least one --param NAME=V1,V2,...")
@@ -546,7 +495,7 @@ def design_sweep(
     )
     _check_directory(out, settings)
     settings["params"] = [{"name": name, "values": list(values)} for name, values in params]
-    settings["aliases"] = {alias.name: alias.doc for alias in DESIGN_ALIASES.get(task, ())}
+    settings["aliases"] = {alias.name: alias.doc for alias in get_task(task).design_aliases()}
     settings["designs"] = [{"design": d.slug, "values": d.values, "task_config": d.overrides} for d in designs]
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / SETTINGS_FILE, settings)

@@ -20,16 +20,32 @@ import numpy as np
 
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 
-#: Objects of the calibration scenes (the paper's Table I sizes).
-CALIBRATION_OBJECTS = {"pushing": 10, "scooping": 5}
 #: Most iterations a calibration tree grows (its time is scaled to the run's iterations). A tree's
 #: later iterations cost more than its first (more nodes, more contacts), so the calibration grows
 #: the run's own number up to this.
 CALIBRATION_ITERATIONS = 300
-#: Pictures the report draws per task (rendered frames, perturbed examples, one video at 30 fps).
-_REPORT_PICTURES = {"pushing": 11 + 61, "scooping": 11 + 70}
+#: Pictures the report draws per task besides its video (rendered frames, perturbed examples).
+_REPORT_STILLS = 11
+#: Pictures per second of the report's videos.
+_REPORT_FPS = 30.0
 #: Matplotlib figures, views and encoding of the report, s (measured: docs/report.md).
 _REPORT_OVERHEAD_S = 25.0
+
+
+def calibration_objects(task_name: str) -> int:
+    """Objects of a task's calibration scene: its :attr:`~energy_margin.tasks.base.Task.default_objects`."""
+    from energy_margin.tasks import get_task
+
+    return get_task(task_name).default_objects
+
+
+def _report_pictures(task_name: str) -> int:
+    """Pictures the report draws of a task: the stills and one video of a roll-out at ``_REPORT_FPS``."""
+    from energy_margin.report.video import video_steps
+    from energy_margin.tasks import get_task
+
+    config = get_task(task_name).config
+    return _REPORT_STILLS + len(video_steps(config.duration, config.timestep, _REPORT_FPS))
 
 
 @dataclass(frozen=True)
@@ -124,7 +140,7 @@ def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
     iterations = max(1, min(config.iterations, CALIBRATION_ITERATIONS))
     for name in tasks:
         task = get_task(name)
-        n_objects = CALIBRATION_OBJECTS.get(name, 5)
+        n_objects = calibration_objects(name)
         rng = np.random.default_rng(config.seed)
         tick = time.perf_counter()
         record = record_trajectory(task, n_objects, 3, rng, engine=config.engine)
@@ -197,7 +213,7 @@ def estimate_seconds(
     parallel = max(1, min(workers, cores))
 
     def per_object(table: dict[str, float], entry: PlannedAnalysis) -> float:
-        reference = CALIBRATION_OBJECTS.get(entry.task, 5)
+        reference = calibration_objects(entry.task)
         return table[entry.task] * entry.n_objects / reference
 
     analysis = sum(count * per_object(calibration.frame_s, entry) for entry, count in frames.items())
@@ -208,6 +224,6 @@ def estimate_seconds(
         for entry in to_write
         if entry.generated or entry.protocol != "paper"
     )
-    pictures = sum(_REPORT_PICTURES.get(task, 80) for task in {entry.task for entry in frames})
+    pictures = sum(_report_pictures(task) for task in {entry.task for entry in frames})
     report_s = pictures * calibration.picture_s + _REPORT_OVERHEAD_S if report else 0.0
     return analysis / parallel + generation + report_s

@@ -49,20 +49,6 @@ _EXPLANATIONS = {
 }
 #: A reproduced value this far from the paper's gets a sentence.
 _DIFFERENCE = 0.05
-#: Region captions by task: what the drawn regions are and when their shape changes.
-REGION_CAPTIONS = {
-    "pushing": (
-        "Blue: the capture region, built from the frame's pusher pose and velocity: a disc of radius "
-        "capture_disc_radius around the pusher while it moves slower than capture_speed_threshold, otherwise the "
-        "annular sector it sweeps in the next capture_horizon seconds (so its shape depends on the state). "
-        "Purple: the success band along the wall. Both are drawn as footprints on the ground."
-    ),
-    "scooping": (
-        "Blue: the capture region (box centres above the table in the gripper's footprint, not falling), the same "
-        "for every frame. Purple: the success region, success_height above the table. Both are open upwards and "
-        "drawn up to the lift's height."
-    ),
-}
 
 
 def _fmt(value: Any) -> str:
@@ -169,8 +155,7 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
                 name = f"{task}-render-{trajectory}-{frame_index}.png"
                 save_png(renderer.render(frame, field=field, likelihoods=likelihoods), figures / name)
                 time_s = float(dataset.arrays["frame_time"][trajectory, frame_index])
-                region = dataset.task.capture_region(frame)
-                shape = "disc" if getattr(region, "is_disc", False) else "sector" if task == "pushing" else "box"
+                shape = dataset.task.capture_region_shape(frame)
                 caption = (
                     f"{outcome} trajectory {trajectory}, frame {frame_index} (t = {time_s:.2f} s), "
                     f"capture score {capture[trajectory, frame_index]:.2f}; capture region: {shape}; "
@@ -181,7 +166,7 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
         backend = renderer.backend
     drawn_by = "MuJoCo's offscreen renderer" if backend == "mujoco" else "matplotlib (no OpenGL context)"
     parts["renders"] = (
-        f"<h3>{html.escape(task)}</h3><p>{html.escape(REGION_CAPTIONS.get(task, ''))} Drawn by {drawn_by}.</p>"
+        f"<h3>{html.escape(task)}</h3><p>{html.escape(dataset.task.region_caption)} Drawn by {drawn_by}.</p>"
         + _grid(render_cells)
     )
 
@@ -496,11 +481,10 @@ def write_report(
         "tree node's object positions coloured by likelihood (hover for node, parent, cost) and, on demand, the "
         "edges to the parents.</p><ul>" + "".join(per_task[task]["view"] for task in per_task) + "</ul>",
         "perturbed": "".join(per_task[task]["perturbed"] for task in per_task),
-        "pushing-frames": per_task["pushing"]["frames"],
-        "scooping-frames": per_task["scooping"]["frames"],
-        "cost-field": per_task["pushing"]["cost_field"] + per_task["scooping"]["cost_field"],
-        "trajectories": per_task["pushing"]["trajectories"] + per_task["scooping"]["trajectories"],
-        "precision-recall": per_task["pushing"]["precision_recall"] + per_task["scooping"]["precision_recall"],
+        **{f"{task}-frames": per_task[task]["frames"] for task in per_task},
+        "cost-field": "".join(per_task[task]["cost_field"] for task in per_task),
+        "trajectories": "".join(per_task[task]["trajectories"] for task in per_task),
+        "precision-recall": "".join(per_task[task]["precision_recall"] for task in per_task),
     }
     sections = "".join(
         f'<section id="{key}"><h2>{html.escape(title)}</h2>{body[key]}</section>' for key, title in SECTIONS

@@ -149,7 +149,7 @@ def frame_figure(
 
     plt = _pyplot()
     task = get_recorded_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
-    planar = dataset.metadata["task"] == "pushing"
+    planar = task.planar
     view = "top" if planar else "side"
     arrays = dataset.arrays
     friction = float(arrays["friction"][trajectory])
@@ -207,7 +207,7 @@ def cost_field_figure(
 
     plt = _pyplot()
     task = get_recorded_task(dataset.metadata["task"], dataset.metadata.get("task_config"))
-    planar = dataset.metadata["task"] == "pushing"
+    planar = task.planar
     view = "top" if planar else "side"
     arrays = dataset.arrays
     friction = float(arrays["friction"][trajectory])

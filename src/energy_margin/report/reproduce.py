@@ -198,7 +198,7 @@ def _announce(out: Path, config: ReproduceConfig) -> None:
     """Say how long the work left will take on this machine (a short calibration), or that none is left."""
     from energy_margin.report.estimate import calibrate, estimate_seconds, planned_analyses, work_left
 
-    table_objects = {task: int(PAPER_TABLE_I[task]["n_objects"]) for task in ("pushing", "scooping")}
+    table_objects = {task: int(row["n_objects"]) for task, row in PAPER_TABLE_I.items()}
     plan = planned_analyses(config, table_objects)
     frames, to_write = work_left(out, plan)
     report_done = (out / "report" / "index.html").is_file()
@@ -308,8 +308,7 @@ def _reproduce(out: Path, config: ReproduceConfig, *, command: str | None) -> Pa
 
     _announce(out, config)
     table_one = {
-        task: _table_one_row(out, task, int(PAPER_TABLE_I[task]["n_objects"]), config, step)
-        for task in ("pushing", "scooping")
+        task: _table_one_row(out, task, int(row["n_objects"]), config, step) for task, row in PAPER_TABLE_I.items()
     }
     ablation = [_ablation_row(out, n, config, step) for n in config.ablation_objects]
     write_json(out / "table1.json", _strip(table_one))

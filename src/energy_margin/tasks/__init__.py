@@ -14,6 +14,8 @@ from typing import Any
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.base import (
+    DesignAlias,
+    ReferenceLayout,
     Region,
     Task,
     TaskConfig,
@@ -69,15 +71,21 @@ def available_tasks() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
-    """Build the registered task ``name`` with optional configuration overrides."""
+def task_class(name: str) -> type[Task]:
+    """The registered :class:`Task` subclass ``name`` (for its class-level hooks, without building it)."""
     load_plugin_tasks()
     if name in _BROKEN and name not in _REGISTRY:
         raise EnergyMarginError(f"task {name!r} comes from an entry point that cannot be loaded: {_BROKEN[name]}")
     if name not in _REGISTRY:
         raise EnergyMarginError(f"unknown task {name!r}; available: {', '.join(available_tasks())}")
+    return _REGISTRY[name]
+
+
+def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
+    """Build the registered task ``name`` with optional configuration overrides."""
+    cls = task_class(name)
     try:
-        return _REGISTRY[name].from_dict(config)
+        return cls.from_dict(config)
     except (TypeError, ValueError) as error:
         raise EnergyMarginError(f"bad configuration for task {name!r}: {error}") from None
 
@@ -102,8 +110,10 @@ register_task(ScoopingTask)
 register_task(SceneTask)
 
 __all__ = [
+    "DesignAlias",
     "PushingConfig",
     "PushingTask",
+    "ReferenceLayout",
     "Region",
     "SceneTask",
     "SceneTaskConfig",
@@ -120,5 +130,6 @@ __all__ = [
     "get_task",
     "load_plugin_tasks",
     "register_task",
+    "task_class",
     "with_contacts",
 ]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -213,6 +214,46 @@ class TaskConfig:
         return dataclasses.asdict(self)
 
 
+@dataclass(frozen=True)
+class DesignAlias:
+    """A design parameter that is not a configuration field itself but sets one (``sweep --param``).
+
+    Attributes:
+        name: the parameter's name on the command line.
+        field: the configuration field it sets.
+        doc: what the parameter is, with its unit.
+        to_field: the field's value for a parameter value, given the field's current value.
+
+    """
+
+    name: str
+    field: str
+    doc: str
+    to_field: Callable[[Any, Any], Any]
+
+
+@dataclass(frozen=True)
+class ReferenceLayout:
+    """How the authors' published CSV files of a task read (:mod:`energy_margin.data.reference`).
+
+    Attributes:
+        suffix: their task name, the suffix of their file names (e.g. ``"PlanePushMulti"``); it
+            selects the mapping of their columns onto this project's frames.
+        object_columns: frame-state columns per object.
+        robot_columns: frame-state columns of the end-effector, after the objects'.
+        drives: the ``import-reference --drive`` values the task accepts.
+        replays_recorded: whether analysis of the imported frames replays the end-effector's
+            recorded motion whatever the drive (recorded as ``imported_drive = "recorded"``).
+
+    """
+
+    suffix: str
+    object_columns: int
+    robot_columns: int
+    drives: tuple[str, ...] = ("nominal",)
+    replays_recorded: bool = False
+
+
 CONTACT_MODELS = ("recorded", "fast")
 
 
@@ -359,6 +400,40 @@ class Task(ABC):
     #: Objects of every scene of the task, when the task fixes them (a scene file does); ``None``
     #: lets ``generate --objects`` choose.
     fixed_objects: int | None = None
+
+    #: Objects per scene of the task's usual dataset (a study's, a timing calibration's) when the
+    #: task does not fix them.
+    typical_objects: ClassVar[int] = 5
+
+    #: What the report's pictures of the task draw as its regions (one paragraph; empty: nothing said).
+    region_caption: ClassVar[str] = ""
+
+    #: How the authors' published files of the task read (``import-reference``); ``None``: they published none.
+    reference_layout: ClassVar[ReferenceLayout | None] = None
+
+    @property
+    def default_objects(self) -> int:
+        """Objects per scene when a caller does not choose: :attr:`fixed_objects`, else :attr:`typical_objects`."""
+        return self.fixed_objects or self.typical_objects
+
+    @property
+    def planar(self) -> bool:
+        """Whether the objects stay upright on the floor (pictures draw the task from the top), from its scene."""
+        return self.build_scene(self.fixed_objects or 1, 0.5).object_motion == "upright"
+
+    @classmethod
+    def design_aliases(cls) -> tuple[DesignAlias, ...]:
+        """Friendly ``sweep --param`` names of the task besides its configuration fields (none by default)."""
+        return ()
+
+    def capture_region_shape(self, root: FrameState) -> str:
+        """A word for the capture region built from ``root`` in captions: its drawn solids' kinds, else ``"region"``."""
+        region = self.capture_region(root)
+        if isinstance(region, DrawableRegion):
+            kinds = sorted({shape.kind for shape in region.shapes()})
+            if kinds:
+                return " and ".join(kinds)
+        return "region"
 
     def make_simulator(
         self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"

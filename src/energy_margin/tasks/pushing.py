@@ -16,6 +16,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from energy_margin.tasks.base import (
+    DesignAlias,
+    ReferenceLayout,
     RegionShape,
     Task,
     TaskConfig,
@@ -336,12 +338,27 @@ def _inside_workspace(xy: np.ndarray, config: PushingConfig) -> np.ndarray:
     return np.all((xy >= low) & (xy <= high), axis=-1)
 
 
+def _pusher_width(value: Any, current: Any) -> Any:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"pusher_width must be a number, got {value!r}")
+    return [value / 2.0, current[1], current[2]]
+
+
 class PushingTask(Task):
     """Push n_o cylinders into the band along a wall."""
 
     name = "pushing"
     config_class = PushingConfig
     config: PushingConfig
+    typical_objects = 10
+    region_caption = (
+        "Blue: the capture region, built from the frame's pusher pose and velocity: a disc of radius "
+        "capture_disc_radius around the pusher while it moves slower than capture_speed_threshold, otherwise the "
+        "annular sector it sweeps in the next capture_horizon seconds (so its shape depends on the state). "
+        "Purple: the success band along the wall. Both are drawn as footprints on the ground."
+    )
+    #: The authors' PlanePushMulti files: per object x, y, theta, vx, vy, omega; the pusher's six.
+    reference_layout = ReferenceLayout("PlanePushMulti", 6, 6, drives=("nominal", "coast"))
 
     def __init__(self, config: PushingConfig | None = None) -> None:
         super().__init__(config if config is not None else PushingConfig(likelihood_lambda=5.0))
@@ -432,6 +449,22 @@ class PushingTask(Task):
     def capture_region(self, root: FrameState) -> SweptRegion:
         """Swept annular sector (disc at low speed) from the pusher's pose and velocity."""
         return SweptRegion(self.config, root.robot_q[:2], root.robot_v[[0, 1, 3]])
+
+    def capture_region_shape(self, root: FrameState) -> str:
+        """``"disc"`` while the pusher is slower than ``capture_speed_threshold``, else ``"sector"``."""
+        return "disc" if self.capture_region(root).is_disc else "sector"
+
+    @classmethod
+    def design_aliases(cls) -> tuple[DesignAlias, ...]:
+        """``pusher_width``: the full pusher width, which sets ``pusher_half_extents[0]``."""
+        return (
+            DesignAlias(
+                "pusher_width",
+                "pusher_half_extents",
+                "full pusher width along x, m (pusher_half_extents[0] = v / 2; depth and height unchanged)",
+                _pusher_width,
+            ),
+        )
 
     def success_region(self) -> WallBand:
         """Band of half width ``success_half_width`` around the line where cylinders touch the wall."""

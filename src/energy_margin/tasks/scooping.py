@@ -34,10 +34,13 @@ timing of their own (the authors' scooping frames, :mod:`energy_margin.data.refe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from energy_margin.tasks.base import (
+    DesignAlias,
+    ReferenceLayout,
     RegionShape,
     Task,
     TaskConfig,
@@ -286,6 +289,11 @@ class BoxesAboveTable:
         return (RegionShape("box", (0.0, 0.0, self.min_z + half_z), (self.half_x, self.half_y, half_z)),)
 
 
+def _single_stiffness(value: Any, current: Any) -> Any:
+    del current
+    return [value, value]
+
+
 class ScoopingTask(Task):
     """Scoop n_o boxes (default 5) from a table and lift them."""
 
@@ -293,6 +301,28 @@ class ScoopingTask(Task):
     config_class = ScoopingConfig
     config: ScoopingConfig
     control_period = 0.005
+    typical_objects = 5
+    region_caption = (
+        "Blue: the capture region (box centres above the table in the gripper's footprint, not falling), the same "
+        "for every frame. Purple: the success region, success_height above the table. Both are open upwards and "
+        "drawn up to the lift's height."
+    )
+    #: The authors' GripperMulti files: 12 columns per box, the gripper's ten; their gripper's
+    #: timing is not this task's script, so analysis replays its recorded motion.
+    reference_layout = ReferenceLayout("GripperMulti", 12, 10, replays_recorded=True)
+
+    @classmethod
+    def design_aliases(cls) -> tuple[DesignAlias, ...]:
+        """``finger_stiffness``: one drive stiffness for every trajectory, which sets ``stiffness_range``."""
+        return (
+            DesignAlias(
+                "finger_stiffness",
+                "stiffness_range",
+                "finger drive stiffness, N/m: every trajectory uses this one value (stiffness_range = [v, v]) "
+                "instead of a log-uniform draw",
+                _single_stiffness,
+            ),
+        )
 
     def __init__(self, config: ScoopingConfig | None = None) -> None:
         super().__init__(config if config is not None else ScoopingConfig())
