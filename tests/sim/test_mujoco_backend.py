@@ -9,7 +9,8 @@ import pytest
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import Simulator, make_simulator
-from energy_margin.sim.mujoco_backend import MujocoSimulator, build_mjcf
+from energy_margin.sim.mujoco_backend import MujocoSimulator
+from energy_margin.sim.mujoco_spec import build_model
 from energy_margin.tasks import PushingTask
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
@@ -55,22 +56,22 @@ def _snapshot(simulator: MujocoSimulator) -> list[np.ndarray]:
 # ---------------------------------------------------------------- model construction
 
 
-def test_build_mjcf_bodies_and_joints(make_block_scene: Callable[..., Scene]) -> None:
-    free = mujoco.MjModel.from_xml_string(build_mjcf(make_block_scene(3, motion="free")))
+def test_build_model_bodies_and_joints(make_block_scene: Callable[..., Scene]) -> None:
+    free = build_model(make_block_scene(3, motion="free"))
     assert free.nbody == 1 + 3  # world + objects
     assert free.njnt == 3
     assert free.nq == 3 * 7
     assert free.nv == 3 * 6
-    upright = mujoco.MjModel.from_xml_string(build_mjcf(make_block_scene(2, motion="upright")))
+    upright = build_model(make_block_scene(2, motion="upright"))
     assert upright.nbody == 1 + 2
     assert upright.nq == upright.nv == 2 * 4  # x, y, z, yaw
     assert upright.opt.timestep == pytest.approx(1 / 120)
     assert upright.geom_friction[0, 0] == pytest.approx(0.3)
 
 
-def test_build_mjcf_of_the_pushing_scene() -> None:
+def test_build_model_of_the_pushing_scene() -> None:
     scene = PushingTask().build_scene(4, 0.2)
-    model = mujoco.MjModel.from_xml_string(build_mjcf(scene))
+    model = build_model(scene)
     assert model.nbody == 1 + 1 + 4  # world, pusher, objects
     assert model.nq == 4 + 4 * 4
     assert model.ngeom == 2 + 1 + 4  # ground and wall, pusher, objects
@@ -80,7 +81,7 @@ def test_build_mjcf_of_the_pushing_scene() -> None:
     np.testing.assert_allclose(model.geom_friction[:, 0], 0.2)
 
 
-def test_build_mjcf_nested_robot_links() -> None:
+def test_build_model_nested_robot_links() -> None:
     tip = Link("tip", (Geom("sphere", (0.01,)),), 0.05, pos=(0.1, 0, 0), joints=(Joint("t", "hinge", (0, 0, 1)),))
     arm = Link(
         "arm",
@@ -91,7 +92,7 @@ def test_build_mjcf_nested_robot_links() -> None:
         children=(tip,),
     )
     scene = Scene(objects=(RigidObject("box", Geom("box", (0.1, 0.1, 0.1)), 1.0),), robot=arm, statics=(), friction=0.5)
-    model = mujoco.MjModel.from_xml_string(build_mjcf(scene))
+    model = build_model(scene)
     assert model.nbody == 4
     assert model.nq == 2 + 7
     joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "a")
@@ -99,7 +100,7 @@ def test_build_mjcf_nested_robot_links() -> None:
     assert model.dof_damping[model.jnt_dofadr[joint]] == pytest.approx(0.1)
 
 
-def test_build_mjcf_rejects_offset_object_geoms() -> None:
+def test_build_model_rejects_offset_object_geoms() -> None:
     scene = Scene(
         objects=(RigidObject("o", Geom("sphere", (0.1,), pos=(0.1, 0.0, 0.0)), 1.0),),
         robot=None,
@@ -107,7 +108,7 @@ def test_build_mjcf_rejects_offset_object_geoms() -> None:
         friction=0.5,
     )
     with pytest.raises(ValueError, match="centred at the body origin"):
-        build_mjcf(scene)
+        build_model(scene)
 
 
 def test_make_simulator(make_block_scene: Callable[..., Scene]) -> None:
@@ -493,5 +494,5 @@ def test_roll_commands_matches_stepping_the_simulator() -> None:
         np.testing.assert_allclose(robot_q[sample], simulator.robot_positions(), atol=1e-5)
         np.testing.assert_allclose(pos[sample], simulator.object_positions(), atol=1e-5)
     # The first sequence pushed forward, the second sideways.
-    assert robot_q[0, 1] > start[1 + simulator._robot_qpos[1]] + 0.01
+    assert robot_q[0, 1] > start[1 + simulator.index.robot_qpos[1]] + 0.01
     assert robot_q[1, 0] < robot_q[0, 0]

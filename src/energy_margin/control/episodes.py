@@ -176,7 +176,7 @@ def run_episode(
             if inputs.targets is not None:
                 plant.set_robot_targets(inputs.targets[0, offset])
             if inputs.ctrl is not None:
-                plant.set_model_command(ModelCommand(ctrl=inputs.ctrl[0, offset]))  # type: ignore[attr-defined]
+                ModelCommand(ctrl=inputs.ctrl[0, offset]).apply_to(plant, purpose="a controller's actuator controls")
         plant.step(1)
     drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
     record = trajectory_record(task, frames, times, friction, drive)

@@ -21,6 +21,7 @@ import numpy as np
 
 from energy_margin.control.commands import CommandSpace
 from energy_margin.control.costs import CostContext, CostFunction, Predictions
+from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.world.state import FrameState
 
@@ -103,10 +104,7 @@ class Controller:
         )
         n_objects = trajectory.initial.n_objects
         self.model = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, "mujoco")
-        propagator_of = getattr(self.model, "rollout_propagator", None)
-        if propagator_of is None:
-            raise ValueError("the controller needs a MuJoCo model (mujoco.rollout)")
-        self.propagator = propagator_of(1)
+        self.propagator = require(self.model, BatchedRollout, purpose="the controller").rollout_propagator(1)
         self.dt = self.model.timestep
         self.period_steps = max(1, round(config.period / self.dt))
         # The plan: deviation of each period's command from the script's, shape (H, m).

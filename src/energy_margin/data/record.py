@@ -25,6 +25,7 @@ import numpy as np
 from energy_margin.data.dataset import Dataset, check_target
 from energy_margin.data.generate import trajectory_record, write_records
 from energy_margin.errors import EnergyMarginError
+from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
@@ -146,7 +147,8 @@ def record_dataset(
     friction = task.default_friction()
     drive = np.ones(task.drive_size())
     simulator = task.make_simulator(loaded.n_objects, friction, drive)
-    model, data = simulator.model, simulator.data  # type: ignore[attr-defined]
+    compiled = require(simulator, CompiledModel, purpose="record")
+    model, data = compiled.model, compiled.data
     loaded_rollouts: list[tuple[str, dict[str, np.ndarray]]] = []
     sources: list[dict[str, Any]] = []
     for item in rollouts:

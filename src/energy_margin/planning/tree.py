@@ -7,7 +7,7 @@ Carlo roll-outs, RRT). Every method shares:
   its duration (``max_duration * u**(1/d)``, d the number of perturbed wrench components) from
   blocks of 256 iterations, so the controls are a fixed function of the seed, the method (which
   draws its own uniforms in the same blocks) and the iteration number, whatever the batch size;
-* the propagation (:func:`_propagate_one`, or :class:`~energy_margin.sim.mujoco_backend.RolloutPropagator`
+* the propagation (:func:`_propagate_one`, or :class:`~energy_margin.sim.mujoco_rollout.RolloutPropagator`
   for a batch) and the acceptance test: a reached state outside the task's state box, or not
   finite, is rejected but still consumes the iteration;
 * the incremental cost Q of the cost model; a child's cost is its parent's plus Q (costed in
@@ -34,7 +34,7 @@ import numpy as np
 
 from energy_margin.planning.costs import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions
-from energy_margin.sim.base import Simulator
+from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
 from energy_margin.tasks.base import Task, command_robot
 from energy_margin.world.state import FrameState
 
@@ -399,16 +399,13 @@ def grow(
     control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
 
     simulator.reset(root)
-    propagator = None
+    propagator: Propagator | None = None
     if batch > 1:
         if needs_friction:
             raise ValueError(
                 f"batched expansion does not integrate friction work: use cost 'wrench', not {cost_model.name!r}"
             )
-        factory = getattr(simulator, "rollout_propagator", None)
-        if factory is None:
-            raise ValueError("batched expansion needs a simulator with mujoco.rollout (engine 'mujoco')")
-        propagator = factory(threads)
+        propagator = require(simulator, BatchedRollout, purpose="batched expansion").rollout_propagator(threads)
     tree = _Tree(
         budget.node_capacity,
         propagator.state_size if propagator is not None else simulator.state_size,

@@ -86,7 +86,7 @@ def draw_scene(ax: Any, simulator: Any, *, view: str = "top") -> None:
 
     model, data = simulator.model, simulator.data
     axes = _VIEWS[view]
-    objects = set(int(b) for b in simulator._object_bodies)
+    objects = set(int(b) for b in simulator.index.object_bodies)
     for geom in range(model.ngeom):
         body = int(model.geom_bodyid[geom])
         role = "object" if body in objects else ("static" if body == 0 else "robot")

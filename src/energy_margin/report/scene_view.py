@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.runs.files import staging_directory
+from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks.scene_model import compile_spec
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
@@ -209,9 +210,10 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     simulator = task.make_simulator(loaded.n_objects, task.default_friction(), np.ones(2))
     simulator.reset(frame)
     data = mujoco.MjData(model)
-    data.qpos[:] = simulator.data.qpos  # type: ignore[attr-defined]
-    data.mocap_pos[:] = simulator.data.mocap_pos  # type: ignore[attr-defined]
-    data.mocap_quat[:] = simulator.data.mocap_quat  # type: ignore[attr-defined]
+    posed = require(simulator, CompiledModel, purpose="the scene view").data
+    data.qpos[:] = posed.qpos
+    data.mocap_pos[:] = posed.mocap_pos
+    data.mocap_quat[:] = posed.mocap_quat
     mujoco.mj_forward(model, data)
     camera = mujoco.MjvCamera()
     spread = float(np.max(np.linalg.norm(frame.object_pos - centre, axis=1))) + float(np.max(loaded.object_radius))

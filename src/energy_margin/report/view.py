@@ -129,7 +129,7 @@ def scene_meshes(simulator: Any, bounds: np.ndarray) -> dict[str, list[tuple[np.
     import mujoco
 
     model, data = simulator.model, simulator.data
-    objects = {int(b) for b in simulator._object_bodies}
+    objects = {int(b) for b in simulator.index.object_bodies}
     meshes: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {"object": [], "robot": [], "static": []}
     for geom in range(model.ngeom):
         body = int(model.geom_bodyid[geom])

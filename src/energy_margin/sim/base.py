@@ -1,14 +1,32 @@
-"""The Simulator protocol: everything the analyzer and the data generator need from an engine."""
+"""The Simulator protocol and the optional capabilities an engine may add to it.
+
+:class:`Simulator` is everything the analyzer and the data generator need from an engine. Some
+callers need more, which only some engines provide; each such capability is a small
+runtime-checkable protocol here, and :func:`require` checks one once and returns the simulator
+typed as it (or says clearly which capability is missing):
+
+* :class:`BatchedRollout`: many propagations at once (``mujoco.rollout``), for the EST's batched
+  expansion and the MPPI controller;
+* :class:`ModelCommands`: the actuator controls and mocap poses of a MuJoCo model
+  (:class:`ModelCommand`);
+* :class:`CompiledModel`: the compiled ``mujoco.MjModel`` and its ``mujoco.MjData``;
+* :class:`ReleasableStates`: engine memory behind saved states, freed by :func:`release_states`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast, runtime_checkable
 
 import numpy as np
 
+from energy_margin.errors import EnergyMarginError
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
+
+if TYPE_CHECKING:
+    import mujoco
 
 
 @dataclass(frozen=True)
@@ -27,6 +45,19 @@ class ModelCommand:
     ctrl: np.ndarray | None = None
     mocap_pos: np.ndarray | None = None
     mocap_quat: np.ndarray | None = None
+
+    def apply_to(self, simulator: object, *, purpose: str = "a model command") -> None:
+        """Hold this command on ``simulator``, which must provide :class:`ModelCommands`.
+
+        Args:
+            simulator: the simulator.
+            purpose: what sends the command, which starts the error message.
+
+        Raises:
+            MissingCapabilityError: the simulator takes no model commands.
+
+        """
+        require(simulator, ModelCommands, purpose=purpose).set_model_command(self)
 
 
 @runtime_checkable
@@ -135,14 +166,155 @@ class Simulator(Protocol):
         ...
 
 
+class Propagator(Protocol):
+    """Batched propagations of one simulator's model (see :class:`BatchedRollout`).
+
+    States are the propagator's own vectors (``state_size`` long), not :meth:`Simulator.get_state`'s.
+    """
+
+    state_size: int
+
+    def current_state(self) -> np.ndarray:
+        """The simulator's current state, shape (state_size,)."""
+        ...
+
+    def propagate(
+        self,
+        task: Any,
+        drive: np.ndarray,
+        states: np.ndarray,
+        start_times: np.ndarray,
+        wrenches: np.ndarray,
+        n_steps: np.ndarray,
+        control_steps: int | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Propagate states (k, state_size) with object wrenches (k, n_objects, 6) and the task's script.
+
+        Returns:
+            Object positions (k, n_objects, 3), velocities (k, n_objects, 6), quaternions
+            (k, n_objects, 4) and end states (k, state_size).
+
+        """
+        ...
+
+    def roll_commands(
+        self,
+        state: np.ndarray,
+        forces: np.ndarray,
+        targets: np.ndarray | None = None,
+        ctrl: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Roll ``k`` end-effector command sequences (k, steps, ...) out from one state.
+
+        Returns:
+            The states after every step (k, steps, state_size) and the end states (k, state_size).
+
+        """
+        ...
+
+    def object_states(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Object positions, quaternions, velocities, robot positions and velocities of states (k, state_size)."""
+        ...
+
+
+@runtime_checkable
+class BatchedRollout(Protocol):
+    """Capability: batched propagations of the simulator's model on worker threads."""
+
+    def rollout_propagator(self, threads: int = 1) -> Propagator:
+        """A propagator on ``threads`` threads (the same object for the same count)."""
+        ...
+
+
+@runtime_checkable
+class ModelCommands(Protocol):
+    """Capability: a MuJoCo model's actuator controls and mocap poses (:class:`ModelCommand`)."""
+
+    def set_model_command(self, command: ModelCommand) -> None:
+        """Hold a model command until changed."""
+        ...
+
+
+@runtime_checkable
+class CompiledModel(Protocol):
+    """Capability: the compiled MuJoCo model and its live data (read them; step through the simulator)."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+
+
+@runtime_checkable
+class ReleasableStates(Protocol):
+    """Capability: :meth:`Simulator.get_state` vectors refer to engine-side snapshots to free."""
+
+    def release_states(self) -> None:
+        """Free them; the states returned before are invalid afterwards."""
+        ...
+
+
+_MUJOCO = ": use the 'mujoco' engine"
+#: What each capability gives, its members and a hint, for :func:`require`'s message.
+_CAPABILITIES: dict[type, tuple[str, tuple[str, ...], str]] = {
+    BatchedRollout: ("batched roll-outs", ("rollout_propagator",), _MUJOCO),
+    ModelCommands: ("MuJoCo model commands", ("set_model_command",), _MUJOCO),
+    CompiledModel: ("a compiled MuJoCo model", ("model", "data"), _MUJOCO),
+    ReleasableStates: ("releasable states", ("release_states",), ""),
+}
+
+C = TypeVar("C")
+
+
+class MissingCapabilityError(EnergyMarginError, ValueError):
+    """A simulator lacks an optional capability a caller needs (see :func:`require`).
+
+    Attributes:
+        capability: the capability protocol.
+        missing: the names of its members the simulator lacks.
+
+    """
+
+    def __init__(self, message: str, capability: type, missing: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.capability = capability
+        self.missing = missing
+
+
+def require(simulator: object, capability: Callable[..., C], *, purpose: str) -> C:
+    """Return ``simulator`` typed as ``capability`` after checking that it provides it.
+
+    Args:
+        simulator: the simulator.
+        capability: one of this module's capability protocols (:class:`BatchedRollout`,
+            :class:`ModelCommands`, :class:`CompiledModel`, :class:`ReleasableStates`).
+        purpose: what needs it, which starts the error message ("batched expansion").
+
+    Raises:
+        MissingCapabilityError: the simulator does not provide ``capability`` (an
+            :class:`~energy_margin.errors.EnergyMarginError` naming the missing members).
+
+    """
+    protocol = cast(type, capability)
+    if protocol not in _CAPABILITIES:
+        raise TypeError(f"{protocol!r} is not a simulator capability")
+    if isinstance(simulator, protocol):
+        return cast(C, simulator)
+    what, members, hint = _CAPABILITIES[protocol]
+    missing = tuple(name for name in members if not hasattr(simulator, name))
+    raise MissingCapabilityError(
+        f"{purpose} needs a simulator with {what} ({protocol.__name__}); {type(simulator).__name__} has no "
+        f"{', '.join(missing)}{hint}",
+        protocol,
+        missing,
+    )
+
+
 def release_states(simulator: object) -> None:
     """Free the engine memory behind the states a simulator has returned, when it keeps any.
 
-    An optional hook of the protocol: a backend whose :meth:`Simulator.get_state` vectors refer to
-    engine-side snapshots (PyBullet's ``saveState``) defines ``release_states()``; the states it
-    returned before are invalid afterwards. The EST calls this when a tree is done. Backends whose
-    states are self-contained vectors (MuJoCo) need not define it.
+    A backend whose :meth:`Simulator.get_state` vectors refer to engine-side snapshots (PyBullet's
+    ``saveState``) provides :class:`ReleasableStates`; the states it returned before are invalid
+    afterwards. The EST calls this when a tree is done. Backends whose states are self-contained
+    vectors (MuJoCo) need not provide it; for them this does nothing.
     """
-    release = getattr(simulator, "release_states", None)
-    if callable(release):
-        release()
+    if isinstance(simulator, ReleasableStates):
+        simulator.release_states()

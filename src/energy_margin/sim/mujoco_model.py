@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.sim.mujoco_backend import MujocoSimulator
+from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
 
 
@@ -25,34 +26,29 @@ class MujocoModelSimulator(MujocoSimulator):
     def __init__(
         self, model: mujoco.MjModel, scene: Scene, *, object_joints: list[int], robot_joints: list[int]
     ) -> None:
-        """Bind ``model``.
+        """Simulate ``model``.
 
         Args:
             model: the compiled model (not copied: one simulator per model).
             scene: the objects' description; ``scene.objects[i].name`` is object i's body.
             object_joints: joint id of each object's free joint (or first upright joint).
-            robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
+            robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order (none
+                is servoed: the model's own actuators drive the robot).
 
         """
-        self._bind(
-            scene,
-            model,
-            object_joints=object_joints,
-            robot_joints=robot_joints,
-            servoed=[False] * len(robot_joints),
-            servo_actuators=[],
-        )
+        index = ModelIndex.of(model, scene, object_joints=object_joints, robot_joints=robot_joints)
+        super().__init__(scene, model=model, index=index)
         self._n_mocap = int(model.nmocap)
 
     @property
     def n_robot_dofs(self) -> int:
         """Robot joints plus seven coordinates per mocap body."""
-        return int(self._robot_qpos.size) + 7 * self._n_mocap
+        return int(self.index.robot_qpos.size) + 7 * self._n_mocap
 
     def _set_robot_state(self, robot_q: np.ndarray, robot_v: np.ndarray) -> None:
-        joints = self._robot_qpos.size
-        self.data.qpos[self._robot_qpos] = robot_q[:joints]
-        self.data.qvel[self._robot_qvel] = robot_v[:joints]
+        joints = self.index.robot_qpos.size
+        self.data.qpos[self.index.robot_qpos] = robot_q[:joints]
+        self.data.qvel[self.index.robot_qvel] = robot_v[:joints]
         if self._n_mocap:
             mocap = np.asarray(robot_q[joints:], dtype=float)
             self.data.mocap_pos[:] = mocap[: 3 * self._n_mocap].reshape(-1, 3)
@@ -62,13 +58,14 @@ class MujocoModelSimulator(MujocoSimulator):
     def robot_positions(self) -> np.ndarray:
         """Robot joint positions, then mocap positions and quaternions, shape (n_robot_dofs,)."""
         return np.concatenate(
-            [self.data.qpos[self._robot_qpos], self.data.mocap_pos.ravel(), self.data.mocap_quat.ravel()]
+            [self.data.qpos[self.index.robot_qpos], self.data.mocap_pos.ravel(), self.data.mocap_quat.ravel()]
         )
 
     def robot_velocities(self) -> np.ndarray:
         """Robot joint velocities, then zeros for the mocap coordinates, shape (n_robot_dofs,)."""
-        return np.concatenate([self.data.qvel[self._robot_qvel], np.zeros(7 * self._n_mocap)])
+        return np.concatenate([self.data.qvel[self.index.robot_qvel], np.zeros(7 * self._n_mocap)])
 
     def set_robot_force(self, force: np.ndarray) -> None:
         """Hold generalized forces on the robot joints (the first entries of ``force``)."""
-        self.data.qfrc_applied[self._robot_qvel] = np.asarray(force)[: self._robot_qvel.size]
+        robot_qvel = self.index.robot_qvel
+        self.data.qfrc_applied[robot_qvel] = np.asarray(force)[: robot_qvel.size]

@@ -520,10 +520,7 @@ def command_robot(
         simulator.set_robot_targets(targets)
     command = task.model_command(drive, time)
     if command is not None:
-        set_command = getattr(simulator, "set_model_command", None)
-        if set_command is None:
-            raise ValueError(f"task {task.name!r} commands a MuJoCo model: it needs the 'mujoco' engine")
-        set_command(command)
+        command.apply_to(simulator, purpose=f"task {task.name!r}")
 
 
 def sample_separated(

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.sim.base import ModelCommand, Simulator
+from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
@@ -293,8 +293,9 @@ class SceneTask(Task):
     def _apply_start_command(self, simulator: Simulator, drive: np.ndarray) -> None:
         command = self.model_command(drive, 0.0)
         if command is not None:
-            simulator.set_model_command(command)  # type: ignore[attr-defined]
-        mujoco.mj_forward(simulator.model, simulator.data)  # type: ignore[attr-defined]
+            require(simulator, ModelCommands, purpose="a scene file's motion").set_model_command(command)
+        compiled = require(simulator, CompiledModel, purpose="a scene file's start layout")
+        mujoco.mj_forward(compiled.model, compiled.data)
 
     def _draw_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation."""

@@ -1,0 +1,213 @@
+"""Batched propagations of a MuJoCo simulator through ``mujoco.rollout``.
+
+The propagator behind :class:`~energy_margin.sim.base.BatchedRollout` (``rollout_propagator``
+of :class:`~energy_margin.sim.mujoco_backend.MujocoSimulator`): the EST's batched expansion and the
+MPPI controller roll many command sequences out together, multithreaded and outside the GIL.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import check_int
+from energy_margin.sim.base import ModelCommand
+from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command
+
+_FULL_PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
+_CONTROL_SPEC = (
+    mujoco.mjtState.mjSTATE_CTRL
+    | mujoco.mjtState.mjSTATE_QFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_XFRC_APPLIED
+    | mujoco.mjtState.mjSTATE_MOCAP_POS
+    | mujoco.mjtState.mjSTATE_MOCAP_QUAT
+)
+
+
+class RolloutPropagator:
+    """Batched propagations of one simulator's model through ``mujoco.rollout``.
+
+    States are ``mjSTATE_FULLPHYSICS`` vectors (time, qpos, qvel, act, ...): ``mujoco.rollout``
+    starts from and returns these. Every propagation starts with a zero warm start of the
+    constraint solver (``mjSTATE_INTEGRATION`` states of the one-at-a-time path carry the previous
+    step's), so its result depends on nothing but its own inputs: the same on 1 or 2 threads and
+    in any batch. The object wrenches, the end-effector's generalized forces and servo targets go
+    in as per-step controls (``mjSTATE_XFRC_APPLIED | QFRC_APPLIED | CTRL``); the scripted command
+    is evaluated from the propagation's start state (robot joint positions and velocities) at the
+    times the one-at-a-time path evaluates it.
+
+    Args:
+        model: the simulator's compiled model.
+        data: the simulator's data: its current state starts :meth:`current_state`, its held
+            controls the sequences of :meth:`roll_commands` without targets.
+        index: the objects' and the robot's addresses in ``model``.
+        threads: worker threads (1 runs on the calling thread).
+
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index: ModelIndex, threads: int) -> None:
+        from mujoco import rollout
+
+        self.threads = check_int("threads", threads, minimum=1)
+        self.model, self.data, self.index = model, data, index
+        self._rollout = rollout.Rollout(nthread=threads if threads > 1 else 0)
+        self._datas = [mujoco.MjData(model) for _ in range(threads)]
+        self._scratch = mujoco.MjData(model)
+        self.state_size = int(mujoco.mj_stateSize(model, _FULL_PHYSICS))
+        self.control_size = int(mujoco.mj_stateSize(model, _CONTROL_SPEC))
+        self._nq, self._nv = int(model.nq), int(model.nv)
+        self._warmstart = np.zeros((0, self._nv))
+
+    def close(self) -> None:
+        """Stop the thread pool."""
+        self._rollout.close()
+
+    def current_state(self) -> np.ndarray:
+        """The simulator's current state as a ``mjSTATE_FULLPHYSICS`` vector."""
+        state = np.empty(self.state_size)
+        mujoco.mj_getState(self.model, self.data, state, _FULL_PHYSICS)
+        return state
+
+    def qpos_qvel(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions and velocities of states (..., state_size)."""
+        nq, nv = self._nq, self._nv
+        return states[..., 1 : 1 + nq], states[..., 1 + nq : 1 + nq + nv]
+
+    def _control(
+        self, wrenches: np.ndarray, force: np.ndarray, targets: np.ndarray | None, command: ModelCommand | None
+    ) -> np.ndarray:
+        index, scratch = self.index, self._scratch
+        scratch.xfrc_applied[index.object_bodies] = wrenches
+        scratch.qfrc_applied[index.robot_qvel] = np.asarray(force)[: index.robot_qvel.size]
+        if targets is not None and index.servo_actuators.size:
+            scratch.ctrl[index.servo_actuators] = np.asarray(targets, dtype=float)[index.servoed]
+        if command is not None:
+            apply_model_command(scratch, command)
+        row = np.empty(self.control_size)
+        mujoco.mj_getState(self.model, scratch, row, _CONTROL_SPEC)
+        return row
+
+    def roll_commands(
+        self,
+        state: np.ndarray,
+        forces: np.ndarray,
+        targets: np.ndarray | None = None,
+        ctrl: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Roll ``k`` end-effector command sequences out from one state, without object wrenches.
+
+        Args:
+            state: start state, a ``mjSTATE_FULLPHYSICS`` vector (:meth:`current_state`).
+            forces: end-effector generalized forces of every step, shape (k, steps, n_robot_dofs),
+                N or N m.
+            targets: servo targets of every step, shape (k, steps, n_robot_dofs), m or rad;
+                ``None`` keeps the targets held in ``state``'s model (none for a task without servos).
+            ctrl: every actuator's control of every step, shape (k, steps, nu) (a user's model);
+                ``None`` leaves the controls to ``targets``.
+
+        Returns:
+            The states after every step, shape (k, steps, state_size), and the end states
+            (k, state_size).
+
+        """
+        index, model = self.index, self.model
+        forces = np.asarray(forces, dtype=float)
+        k, steps = forces.shape[:2]
+        base = self._control(np.zeros((index.object_bodies.size, 6)), np.zeros(index.robot_qvel.size), None, None)
+        if targets is None and index.servo_actuators.size:
+            base[: model.nu] = self.data.ctrl
+        controls = np.broadcast_to(base, (k, steps, self.control_size)).copy()
+        # mjSTATE_CTRL comes first in the control vector, then mjSTATE_QFRC_APPLIED (nu + nv).
+        controls[..., model.nu + index.robot_qvel] = forces
+        if targets is not None and index.servo_actuators.size:
+            controls[..., index.servo_actuators] = np.asarray(targets, dtype=float)[..., index.servoed]
+        if ctrl is not None:
+            controls[..., : model.nu] = ctrl
+        initial = np.broadcast_to(state, (k, self.state_size)).copy()
+        warmstart = np.zeros((k, self._nv))
+        out, _ = self._rollout.rollout(
+            model,
+            self._datas,
+            initial,
+            controls,
+            control_spec=int(_CONTROL_SPEC),
+            nstep=steps,
+            initial_warmstart=warmstart,
+        )
+        return out, out[:, -1]
+
+    def object_states(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Object positions, quaternions, velocities and robot coordinates of states (k, state_size).
+
+        Returns:
+            Positions (k, n_objects, 3), quaternions (k, n_objects, 4), velocities (k, n_objects, 6),
+            robot joint positions (k, n_robot_dofs) and velocities (k, n_robot_dofs).
+
+        """
+        index = self.index
+        qpos, qvel = self.qpos_qvel(states)
+        pos, quat, vel = index.objects_of(qpos, qvel)
+        return pos, quat, vel, qpos[:, index.robot_qpos], qvel[:, index.robot_qvel]
+
+    def propagate(
+        self,
+        task: Any,
+        drive: np.ndarray,
+        states: np.ndarray,
+        start_times: np.ndarray,
+        wrenches: np.ndarray,
+        n_steps: np.ndarray,
+        control_steps: int | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Propagate every state with its wrenches for its number of steps.
+
+        Args:
+            task: the task (its scripted ``robot_force`` and ``robot_targets``, without variation).
+            drive: the trajectory's drive parameters.
+            states: start states, shape (k, state_size).
+            start_times: script time at each start, shape (k,), s.
+            wrenches: object wrenches, shape (k, n_objects, 6).
+            n_steps: steps of each propagation, shape (k,), >= 1; shorter ones are padded to the
+                longest and read at their own last step.
+            control_steps: the command is re-evaluated every this many steps (``None``: once).
+
+        Returns:
+            Object positions (k, n_objects, 3), velocities (k, n_objects, 6), quaternions
+            (k, n_objects, 4) and end states (k, state_size).
+
+        """
+        index = self.index
+        k = states.shape[0]
+        longest = int(n_steps.max())
+        dt = float(self.model.opt.timestep)
+        qpos, qvel = self.qpos_qvel(states)
+        controls = np.empty((k, longest, self.control_size))
+        for j in range(k):
+            robot_q, robot_v = qpos[j, index.robot_qpos], qvel[j, index.robot_qvel]
+            done, steps = 0, int(n_steps[j])
+            row = controls[j, 0]
+            while done < steps:
+                chunk = steps - done if control_steps is None else min(control_steps, steps - done)
+                time = float(start_times[j]) + done * dt
+                force = task.robot_force(drive, time, robot_q, robot_v, None)
+                targets = task.robot_targets(drive, time, robot_q, robot_v, None)
+                row = self._control(wrenches[j], force, targets, task.model_command(drive, time))
+                controls[j, done : done + chunk] = row
+                done += chunk
+            controls[j, steps:] = row
+        if self._warmstart.shape[0] != k:
+            self._warmstart = np.zeros((k, self._nv))
+        out, _ = self._rollout.rollout(
+            self.model,
+            self._datas,
+            states,
+            controls,
+            control_spec=int(_CONTROL_SPEC),
+            nstep=longest,
+            initial_warmstart=self._warmstart,
+        )
+        final = out[np.arange(k), n_steps - 1]
+        pos, quat, vel = index.objects_of(*self.qpos_qvel(final))
+        return pos, vel, quat, final
