@@ -154,11 +154,39 @@ def _settings(
     return settings
 
 
-def _trajectory_counts(trajectory_counts: Sequence[int] | None, n_trajectories: int) -> list[int]:
-    """The t of the convergence table, each an integer in [1, T]."""
-    if trajectory_counts is None:
+def _check_numbers(
+    *,
+    n_trajectories: int,
+    n_frames: int,
+    seed: int,
+    workers: int,
+    bootstrap: int,
+    subsets: int,
+    counts: Sequence[int] | None,
+) -> list[int]:
+    """Check the counts of a sweep; the t of the convergence table, each an integer in [1, T]."""
+    check_int("n_trajectories", n_trajectories, minimum=2)
+    check_int("n_frames", n_frames, minimum=1)
+    check_seed(seed)
+    check_int("workers", workers, minimum=1)
+    check_int("bootstrap", bootstrap, minimum=1)
+    check_int("subsets", subsets, minimum=1)
+    if counts is None:
         return default_trajectory_counts(n_trajectories)
-    return [check_int("trajectory_counts", count, minimum=1, maximum=n_trajectories) for count in trajectory_counts]
+    return [check_int("trajectory_counts", count, minimum=1, maximum=n_trajectories) for count in counts]
+
+
+def _task_settings(
+    task: Task, n_objects: int | None, engine: str, analyzer: AnalyzerConfig | None
+) -> tuple[int, AnalyzerConfig]:
+    """The objects per scene and the analysis settings of a sweep of ``task`` on ``engine``, checked."""
+    n_objects = _objects(task, n_objects)
+    check_choice("engine", engine, ENGINES)
+    check_engine(task, engine)
+    try:
+        return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
+    except ValueError as error:
+        raise EnergyMarginError(str(error)) from None
 
 
 def _objects(task: Task, n_objects: int | None) -> int:
@@ -317,33 +345,13 @@ def design_sweep(
             ``out`` being written by another live process.
 
     """
-    check_int("n_trajectories", n_trajectories, minimum=2)
-    check_int("n_frames", n_frames, minimum=1)
-    check_seed(seed)
-    check_int("workers", workers, minimum=1)
-    check_int("bootstrap", bootstrap, minimum=1)
-    check_int("subsets", subsets, minimum=1)
-    counts = _trajectory_counts(trajectory_counts, n_trajectories)
+    numbers = {"n_trajectories": n_trajectories, "n_frames": n_frames, "seed": seed}
+    counts = _check_numbers(**numbers, workers=workers, bootstrap=bootstrap, subsets=subsets, counts=trajectory_counts)
     fixed = dict(fixed or {})
     designs = design_grid(task, params, fixed=fixed)
-    n_objects = _objects(get_task(task, fixed), n_objects)
-    check_choice("engine", engine, ENGINES)
-    check_engine(get_task(task, fixed), engine)
-    try:
-        analyzer = dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    n_objects, analyzer = _task_settings(get_task(task, fixed), n_objects, engine, analyzer)
     settings = _settings(
-        task,
-        params,
-        designs,
-        n_objects=n_objects,
-        n_trajectories=n_trajectories,
-        n_frames=n_frames,
-        seed=seed,
-        engine=engine,
-        fixed=fixed,
-        analyzer=analyzer,
+        task, params, designs, n_objects=n_objects, **numbers, engine=engine, fixed=fixed, analyzer=analyzer
     )
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     sweep = _Sweep(task, designs, settings, analyzer, counts, seed, workers, bootstrap, subsets, progress, say)
