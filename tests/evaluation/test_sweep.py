@@ -3,6 +3,9 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +20,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.evaluation.sweep import (
     DESIGNS_DIR,
+    SweepDisplay,
     design_grid,
     design_sweep,
     format_table,
@@ -24,6 +28,7 @@ from energy_margin.evaluation.sweep import (
     rank_convergence,
     rank_correlations,
 )
+from energy_margin.runs.lock import LOCK_FILE
 
 # The smallest sweep: 2 pusher widths, 2 trajectories of 2 frames, 2 cylinders, 8 expansions a frame.
 TINY = {"n_trajectories": 2, "n_frames": 2, "n_objects": 2, "seed": 3, "bootstrap": 20, "subsets": 5}
@@ -208,7 +213,7 @@ def test_sweep_resumes_and_is_deterministic(tiny_sweep: tuple[Path, dict, list[s
         assert [r[name] for r in fresh["rows"]] == [r[name] for r in results["rows"]]
     assert fresh["correlations"] == results["correlations"]
     # Other settings in the same directory are refused.
-    with pytest.raises(EnergyMarginError, match=r"holds a sweep with other settings .*n_trajectories"):
+    with pytest.raises(EnergyMarginError, match=r"holds a sweep of other settings .*n_trajectories"):
         design_sweep("pushing", PARAMS, out=copy, **{**TINY, "n_trajectories": 3})
 
 
@@ -251,3 +256,110 @@ def test_a_design_that_cannot_be_generated_is_reported_and_skipped(tmp_path: Pat
         table = list(csv.DictReader(stream))
     assert [r["error"] != "" for r in table] == [False, True]
     assert "not analysed" in format_table(results)
+
+
+# A process that holds the writer's lock of a directory until it is killed.
+HOLD = """
+import sys, time
+from energy_margin.runs.lock import RunLock
+lock = RunLock(sys.argv[1]).acquire()
+print("held", flush=True)
+time.sleep(60)
+"""
+# A process that tries to take the lock and says whether it could.
+PROBE = """
+import sys
+from energy_margin.runs.lock import RunLock, RunLockedError
+try:
+    RunLock(sys.argv[1]).acquire()
+except RunLockedError as error:
+    print("refused:", error)
+else:
+    print("taken")
+"""
+CLI_TINY = ["--trajectories", "2", "--frames", "2", "--objects", "2", "--seed", "3", "--iterations", "8"]
+
+
+def _cli(out: Path, *extra: str) -> int:
+    argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", *CLI_TINY, "--bootstrap", "20"]
+    return main([*argv, "--out", str(out), *extra])
+
+
+def test_a_second_writer_is_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "sweep"
+    out.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        code = _cli(out)
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"is being written by process {holder.pid} on {socket.gethostname()}" in err
+        assert sorted(path.name for path in out.iterdir()) == [LOCK_FILE]  # nothing written
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_the_sweep_holds_its_lock_until_it_returns(tmp_path: Path) -> None:
+    out = tmp_path / "sweep"
+    probes: list[str] = []
+
+    def probe(line: str) -> None:
+        del line
+        result = subprocess.run([sys.executable, "-c", PROBE, str(out)], capture_output=True, text=True, check=True)
+        probes.append(result.stdout.strip())
+
+    design_sweep(
+        "pushing", PARAMS, out=out, analyzer=AnalyzerConfig(iterations=4), log=probe, **{**TINY, "n_frames": 1}
+    )
+    assert len(probes) == 2 and all(p.startswith("refused:") and "is being written by" in p for p in probes), probes
+    assert not (out / LOCK_FILE).exists()  # released at the end
+    probe("after the sweep")
+    assert probes[-1] == "taken"
+
+
+def test_overwrite_replaces_a_sweep_of_other_settings_and_nothing_else(
+    tiny_sweep: tuple[Path, dict, list[str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, results, _ = tiny_sweep
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / "notes.txt").write_text("mine")
+    stale = copy / DESIGNS_DIR / "pusher_width-1.5"
+    stale.mkdir()
+    argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", "--trajectories", "2", "--frames", "1"]
+    argv += ["--objects", "2", "--seed", "3", "--iterations", "4", "--bootstrap", "20", "--out", str(copy)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds a sweep of other settings (n_frames: 2 there, 1 now)" in err
+    assert "--overwrite" in err
+    assert main([*argv, "--overwrite"]) == 0, capsys.readouterr().err
+    assert (copy / "notes.txt").read_text() == "mine"  # not the sweep's: kept
+    assert not stale.exists()  # the old designs went with the old sweep
+    settings = json.loads((copy / "sweep.json").read_text())
+    assert settings["n_frames"] == 1 and settings["analyzer"]["iterations"] == 4
+    for row in results["rows"]:
+        assert load_dataset(copy / DESIGNS_DIR / row["design"]).n_frames == 1
+    again = json.loads((copy / "results.json").read_text())
+    assert [row["design"] for row in again["rows"]] == [row["design"] for row in results["rows"]]
+    assert again["settings"]["n_frames"] == 1
+
+
+def test_the_display_draws_from_a_result(
+    tiny_sweep: tuple[Path, dict, list[str]], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, results, _ = tiny_sweep
+    display = SweepDisplay.from_result(json.loads(json.dumps(results)))
+    assert display.names == ["pusher_width"] and display.n_trajectories == 2 and len(display.rows) == 2
+    assert display.plot().figure_ is not None
+    left, right = display.figure_.axes
+    assert left.get_title().startswith("Spearman rho = ") and "(2 designs)" in left.get_title()
+    assert [int(tick) for tick in right.get_xticks()] == [1, 2]
+    assert len(right.get_lines()) == 4  # three margins and the success rate of t trajectories
+    assert display.save(tmp_path / "figure.png") == tmp_path / "figure.png"
+    assert (tmp_path / "figure.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    monkeypatch.setattr("energy_margin.runs.display.pyplot", lambda: None)
+    assert display.save(tmp_path / "none.png") is None and not (tmp_path / "none.png").exists()
+    with pytest.raises(EnergyMarginError, match="at least two analysed designs"):
+        SweepDisplay.from_result({key: value for key, value in results.items() if key != "correlations"})

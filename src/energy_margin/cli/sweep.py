@@ -41,6 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--objects", type=positive_int, help="objects per scene")
     add_seed(parser)
     parser.add_argument("--out", required=True, help="sweep directory (a rerun resumes it)")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a sweep of other settings in --out (its sweep.json, designs/ and results only)",
+    )
     parser.add_argument("--workers", type=positive_int, default=1, help="analysis worker processes (default 1)")
     add_engine(parser)
     parser.add_argument(
@@ -102,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         analyzer=analyzer,
         trajectory_counts=args.counts,
         bootstrap=args.bootstrap,
+        overwrite=args.overwrite,
         progress=progress,
     )
     print(format_table(results))

@@ -1,0 +1,166 @@
+"""The designs of a sweep: the ``--param NAME=V1,V2,...`` grammar and the grid of task configurations.
+
+A design is one setting of a task's configuration. :func:`parse_param` reads one swept parameter
+and its values from the command line; :func:`design_grid` makes the Cartesian product of the
+swept values, each point a :class:`Design` with the task configuration overrides it stands for
+(a parameter is a configuration field, or an alias the task declares (``Task.design_aliases``) that sets one), and
+checks every design's configuration before anything runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.tasks import Task, available_tasks, get_task
+
+
+@dataclass(frozen=True)
+class Design:
+    """One point of the grid.
+
+    Attributes:
+        values: the swept parameters' values, in the order of the parameters.
+        overrides: the task configuration overrides of this design (fixed settings included).
+        slug: the design's directory name under ``DIR/designs``.
+
+    """
+
+    values: dict[str, Any]
+    overrides: dict[str, Any]
+    slug: str
+
+    @property
+    def label(self) -> str:
+        """The design as people read it, e.g. ``scoop_angle=1.31, open_gap=0.09``."""
+        return _label(self.values)
+
+
+def parse_param(text: str) -> tuple[str, list[Any]]:
+    """``NAME=V1,V2,...`` as the name and its list of values (each value JSON: a number or a list).
+
+    Raises:
+        EnergyMarginError: no ``=``, an empty name, values that are not comma-separated JSON, an
+            empty list or a value given twice.
+
+    """
+    name, sep, values_text = text.partition("=")
+    name = name.strip()
+    if not sep or not name:
+        raise EnergyMarginError(f"--param expects NAME=V1,V2,..., got {text!r}")
+    try:
+        values = json.loads(f"[{values_text}]")
+    except json.JSONDecodeError:
+        raise EnergyMarginError(
+            f"--param {name}: {values_text!r} is not a comma-separated list of values (numbers, or JSON lists)"
+        ) from None
+    if not values:
+        raise EnergyMarginError(f"--param {name}: no values given")
+    seen: list[Any] = []
+    for value in values:
+        if value in seen:
+            raise EnergyMarginError(f"--param {name}: value {json.dumps(value)} is listed twice")
+        seen.append(value)
+    return name, values
+
+
+def _config_fields(task: Task) -> dict[str, Any]:
+    return {field.name: getattr(task.config, field.name) for field in dataclasses.fields(task.config)}
+
+
+def _design_names(task_name: str) -> set[str] | None:
+    """Every parameter name a sweep of ``task_name`` accepts; ``None`` when its default cannot be built."""
+    try:
+        task = get_task(task_name)
+    except EnergyMarginError:
+        return None
+    return set(_config_fields(task)) | {alias.name for alias in task.design_aliases()}
+
+
+def _unknown_parameter(task_name: str, name: str, known: set[str]) -> EnergyMarginError:
+    owners = [other for other in available_tasks() if other != task_name and name in (_design_names(other) or set())]
+    if owners:
+        return EnergyMarginError(
+            f"--param {name} is a setting of task {owners[0]!r}, not of {task_name!r} (sweep --task {owners[0]})"
+        )
+    aliases = [alias.name for alias in get_task(task_name).design_aliases()]
+    hint = f"{', '.join(aliases)} or a {task_name} setting" if aliases else f"a {task_name} setting"
+    return EnergyMarginError(
+        f"unknown {task_name} parameter {name!r}; sweepable: {hint} ({', '.join(sorted(known - set(aliases)))})"
+    )
+
+
+def design_grid(
+    task_name: str, params: Sequence[tuple[str, Sequence[Any]]], *, fixed: dict[str, Any] | None = None
+) -> list[Design]:
+    """Every design of the Cartesian product of ``params``, validated against the task's configuration.
+
+    Args:
+        task_name: a registered task.
+        params: ``(name, values)`` per swept parameter: a configuration field or an alias of
+            :meth:`~energy_margin.tasks.base.Task.design_aliases`.
+        fixed: configuration overrides shared by every design (``--set``).
+
+    Raises:
+        EnergyMarginError: an unknown task or parameter, a parameter of another task, a parameter
+            given twice or also fixed, or a design whose configuration is invalid (named).
+
+    """
+    fixed = dict(fixed or {})
+    base = get_task(task_name, fixed)
+    fields = _config_fields(base)
+    aliases = {alias.name: alias for alias in base.design_aliases()}
+    known = set(fields) | set(aliases)
+    if not params:
+        raise EnergyMarginError("a sweep needs at least one --param NAME=V1,V2,...")
+    targets: dict[str, str] = {}
+    for name, values in params:
+        if name not in known:
+            raise _unknown_parameter(task_name, name, known)
+        field = aliases[name].field if name in aliases else name
+        if field in targets:
+            raise EnergyMarginError(f"--param {name} sets {field}, as --param {targets[field]} does")
+        if field in fixed:
+            raise EnergyMarginError(f"--param {name} sets {field}, which --set fixes for every design")
+        if not values:
+            raise EnergyMarginError(f"--param {name}: no values given")
+        targets[field] = name
+    designs: list[Design] = []
+    slugs: dict[str, str] = {}
+    for combination in itertools.product(*(values for _, values in params)):
+        chosen = {name: value for (name, _), value in zip(params, combination, strict=True)}
+        label = _label(chosen)
+        overrides = dict(fixed)
+        for name, value in chosen.items():
+            if name in aliases:
+                alias = aliases[name]
+                try:
+                    overrides[alias.field] = alias.to_field(value, fields[alias.field])
+                except ValueError as error:
+                    raise EnergyMarginError(f"design {label}: {error}") from None
+            else:
+                overrides[name] = value
+        try:
+            get_task(task_name, overrides)
+        except EnergyMarginError as error:
+            raise EnergyMarginError(f"design {label}: {error}") from None
+        slug = "__".join(f"{name}-{_token(value)}" for name, value in chosen.items())
+        if slug in slugs:
+            raise EnergyMarginError(f"designs {slugs[slug]} and {label} share the directory name {slug}")
+        slugs[slug] = label
+        designs.append(Design(values=chosen, overrides=overrides, slug=slug))
+    return designs
+
+
+def _label(values: dict[str, Any]) -> str:
+    return ", ".join(f"{name}={json.dumps(value)}" for name, value in values.items())
+
+
+def _token(value: Any) -> str:
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", json.dumps(value)).strip("_") or "_"
