@@ -402,79 +402,9 @@ def write_report(
     per_task = {task: _task_figures(out, report, task, row, config) for task, row in table_one.items()}
     plots.runtime_figure(ablation, figures / "runtime.png", paper=PAPER_FIG_2)
     described = describe() if describe is not None else None
-    notes = differences(table_one, ablation, quick=config.quick)
-    difference_html = (
-        "<p><b>Where the numbers differ from the paper's.</b> " + " ".join(html.escape(n) for n in notes) + "</p>"
-        if notes
-        else "<p>Every reproduced AP is within 0.05 of the paper's.</p>"
-    )
-
-    table_rows = []
-    for task, row in table_one.items():
-        paper = PAPER_TABLE_I[task]
-        keys = (
-            "capture_ap",
-            "capture_ap_perturbed",
-            "capture_score_error",
-            "success_ap",
-            "success_ap_perturbed",
-            "success_score_error",
-        )
-        for position, (label, perturbed) in enumerate(protocol_rows(row)):
-            values = {**row, **{key: perturbed.get(key) for key in keys if key.endswith(("_perturbed", "_error"))}}
-            name = task if position == 0 else ""
-            table_rows.append([name, row["n_objects"], label, *(values.get(key) for key in keys)])
-        table_rows.append(["", paper["n_objects"], "paper", *(paper[key] for key in keys)])
-    ablation_rows = []
-    for row in ablation:
-        paper_row = PAPER_FIG_2.get(row["n_objects"], {})
-        ablation_rows.append(
-            [
-                row["n_objects"],
-                row["capture_ap"],
-                row["success_ap"],
-                (row["runtime_per_frame_s"], row["runtime_per_frame_std_s"]),
-                paper_row.get("capture_ap"),
-                paper_row.get("success_ap"),
-                paper_row.get("runtime"),
-            ]
-        )
     body = {
-        "table-1": _table(
-            [
-                "task",
-                "n_o",
-                "",
-                "capture AP true",
-                "capture AP perturbed",
-                "capture score error",
-                "success AP true",
-                "success AP perturbed",
-                "success score error",
-            ],
-            table_rows,
-        )
-        + f"<p>{config.repeats} perturbed copies per task and protocol: object centres resampled inside the "
-        "minimum-volume ellipse(oid) of the true centres, velocities zeroed, labels those of the true states. "
-        "Valid protocol: objects placed one at a time, overlaps rejected (physically valid states). Paper "
-        "protocol: the authors' draw, every centre at once, overlaps allowed. Perturbed AP: mean ± std over the "
-        "copies; score error: perturbed − true over all frames and copies (docs/robustness.md).</p>" + difference_html,
-        "ablation": _table(
-            [
-                "n_o",
-                "capture AP",
-                "success AP",
-                "runtime per frame [s]",
-                "paper capture AP",
-                "paper success AP",
-                "paper runtime [s]",
-            ],
-            ablation_rows,
-        )
-        + _figure(
-            "runtime.png",
-            "runtime per frame (mean ± std) against the number of objects, pushing: this project beside the paper",
-        ),
+        "table-1": _table_one_html(table_one, ablation, config),
+        "ablation": _ablation_html(ablation),
         "renders": "".join(per_task[task]["renders"] for task in per_task),
         "videos": _grid([per_task[task]["video"] for task in per_task]),
         "views": "<p>Each view is one HTML file with plotly.js inside: the scene's bodies, the regions, every "
@@ -486,12 +416,98 @@ def write_report(
         "trajectories": "".join(per_task[task]["trajectories"] for task in per_task),
         "precision-recall": "".join(per_task[task]["precision_recall"] for task in per_task),
     }
+    page = _page(body, config, described)
+    index = report / "index.html"
+    atomic_write_text(index, page)
+    return index
+
+
+def _table_one_html(
+    table_one: dict[str, dict[str, Any]], ablation: list[dict[str, Any]], config: ReproduceConfig
+) -> str:
+    """Table I (each protocol's row, then the paper's) with its explanation and the differences."""
+    notes = differences(table_one, ablation, quick=config.quick)
+    difference_html = (
+        "<p><b>Where the numbers differ from the paper's.</b> " + " ".join(html.escape(n) for n in notes) + "</p>"
+        if notes
+        else "<p>Every reproduced AP is within 0.05 of the paper's.</p>"
+    )
+    keys = (
+        "capture_ap",
+        "capture_ap_perturbed",
+        "capture_score_error",
+        "success_ap",
+        "success_ap_perturbed",
+        "success_score_error",
+    )
+    table_rows = []
+    for task, row in table_one.items():
+        paper = PAPER_TABLE_I[task]
+        for position, (label, perturbed) in enumerate(protocol_rows(row)):
+            values = {**row, **{key: perturbed.get(key) for key in keys if key.endswith(("_perturbed", "_error"))}}
+            name = task if position == 0 else ""
+            table_rows.append([name, row["n_objects"], label, *(values.get(key) for key in keys)])
+        table_rows.append(["", paper["n_objects"], "paper", *(paper[key] for key in keys)])
+    headers = [
+        "task",
+        "n_o",
+        "",
+        "capture AP true",
+        "capture AP perturbed",
+        "capture score error",
+        "success AP true",
+        "success AP perturbed",
+        "success score error",
+    ]
+    return (
+        _table(headers, table_rows)
+        + f"<p>{config.repeats} perturbed copies per task and protocol: object centres resampled inside the "
+        "minimum-volume ellipse(oid) of the true centres, velocities zeroed, labels those of the true states. "
+        "Valid protocol: objects placed one at a time, overlaps rejected (physically valid states). Paper "
+        "protocol: the authors' draw, every centre at once, overlaps allowed. Perturbed AP: mean ± std over the "
+        "copies; score error: perturbed − true over all frames and copies (docs/robustness.md).</p>" + difference_html
+    )
+
+
+def _ablation_html(ablation: list[dict[str, Any]]) -> str:
+    """The number-of-objects ablation beside the paper's Fig. 2, and the runtime figure."""
+    rows = []
+    for row in ablation:
+        paper_row = PAPER_FIG_2.get(row["n_objects"], {})
+        rows.append(
+            [
+                row["n_objects"],
+                row["capture_ap"],
+                row["success_ap"],
+                (row["runtime_per_frame_s"], row["runtime_per_frame_std_s"]),
+                paper_row.get("capture_ap"),
+                paper_row.get("success_ap"),
+                paper_row.get("runtime"),
+            ]
+        )
+    headers = [
+        "n_o",
+        "capture AP",
+        "success AP",
+        "runtime per frame [s]",
+        "paper capture AP",
+        "paper success AP",
+        "paper runtime [s]",
+    ]
+    return _table(headers, rows) + _figure(
+        "runtime.png",
+        "runtime per frame (mean ± std) against the number of objects, pushing: this project beside the paper",
+    )
+
+
+def _page(body: dict[str, str], config: ReproduceConfig, described: dict[str, Any] | None) -> str:
+    """The whole page: the heading, the provenance, the navigation and every section of ``body``."""
     sections = "".join(
         f'<section id="{key}"><h2>{html.escape(title)}</h2>{body[key]}</section>' for key, title in SECTIONS
     )
     mode = "quick" if config.quick else "full"
     navigation = "".join(f'<li><a href="#{key}">{html.escape(title)}</a></li>' for key, title in SECTIONS)
-    page = (
+    return (
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>energy-margin report</title>'
         "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
         "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:4px 8px;text-align:right}"
@@ -506,6 +522,3 @@ def write_report(
         f"<nav><ul>{navigation}</ul></nav>"
         f"{sections}</body></html>\n"
     )
-    index = report / "index.html"
-    atomic_write_text(index, page)
-    return index
