@@ -1,6 +1,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +12,15 @@ from sklearn.metrics import average_precision_score
 
 from energy_margin.cli import main
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.budget import average_precision, budget_sweep
+from energy_margin.evaluation.budget import (
+    QUESTION_LABELS,
+    QUESTIONS,
+    SETTINGS_FILE,
+    average_precision,
+    budget_sweep,
+    plot,
+)
+from energy_margin.evaluation.budget_display import BudgetDisplay
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -62,3 +73,58 @@ def test_budget_bad_input_is_one_line(tiny_dataset: Path, tmp_path: Path, capsys
     assert code == 2 and err.count("\n") == 1
     with pytest.raises(EnergyMarginError, match="methods"):
         budget_sweep(tiny_dataset, methods=["prm"])
+
+
+def test_budget_overwrite_replaces_only_the_sweep(tiny_dataset: Path) -> None:
+    work = tiny_dataset / "budget"
+    quick = {"budgets": [3], "methods": ["est"], "bootstrap": 5, "log": lambda line: None}
+    budget_sweep(tiny_dataset, seed=0, **quick)
+    assert json.loads((work / SETTINGS_FILE).read_text())["seed"] == 0
+    (work / "notes.txt").write_text("mine")
+    budget_sweep(tiny_dataset, seed=0, **{**quick, "budgets": [2], "bootstrap": 3})  # the same sweep: resumes
+    assert (work / "est-2").is_dir() and (work / "est-3").is_dir()
+    with pytest.raises(EnergyMarginError, match=r"holds a budget sweep of other settings \(seed: 0 there, 1 now\)"):
+        budget_sweep(tiny_dataset, seed=1, **quick)
+    budget_sweep(tiny_dataset, seed=1, overwrite=True, **quick)
+    assert json.loads((work / SETTINGS_FILE).read_text())["seed"] == 1
+    assert json.loads((work / "est-3" / "analysis.json").read_text())["seed"] == 1
+    assert not (work / "est-2").exists()  # the earlier sweep's analyses went
+    assert (work / "notes.txt").read_text() == "mine"  # a file of no sweep stays
+
+
+def test_a_second_writer_is_refused_while_a_sweep_runs(tiny_dataset: Path) -> None:
+    seen: list[str] = []
+    script = "import sys\nfrom energy_margin.runs.lock import RunLock\nRunLock(sys.argv[1]).acquire()\n"
+
+    def log(line: str) -> None:
+        other = subprocess.run(
+            [sys.executable, "-c", script, str(tiny_dataset / "budget")], capture_output=True, text=True
+        )
+        seen.append(other.stderr.strip().splitlines()[-1])
+
+    budget_sweep(tiny_dataset, budgets=[3], methods=["est"], bootstrap=5, log=log)
+    assert "RunLockedError" in seen[0] and f"is being written by process {os.getpid()}" in seen[0]
+
+
+def test_the_budget_figure_is_a_display_built_from_the_rows(tmp_path: Path) -> None:
+    rows = [
+        {"method": "current_state", "budget": 0, "capture_ap": 0.5, "capture_ap_window2": 0.4},
+        {
+            "method": "est",
+            "budget": 10,
+            "capture_ap": 0.8,
+            "capture_ap_low": 0.7,
+            "capture_ap_high": 0.9,
+            "success_ap_first_half": 0.6,
+            "success_ap_first_half_low": None,
+            "success_ap_first_half_high": None,
+        },
+        {"method": "est", "budget": 30, "capture_ap": 0.9, "capture_ap_low": 0.8, "capture_ap_high": 1.0},
+    ]
+    display = BudgetDisplay.from_result(rows, questions=QUESTIONS, labels=QUESTION_LABELS, title="tiny")
+    assert display.rows == rows and display.rows is not rows
+    pytest.importorskip("matplotlib")
+    figure = display.plot().figure_
+    assert [axis.get_title() for axis in figure.axes] == [QUESTION_LABELS[q] for q in QUESTIONS]
+    assert plot(rows, tmp_path / "budget.png", title="tiny") == tmp_path / "budget.png"
+    assert (tmp_path / "budget.png").stat().st_size > 0

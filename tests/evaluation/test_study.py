@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +15,7 @@ import numpy as np
 import pytest
 
 import energy_margin.analysis.frame as frame_module
+import energy_margin.runs.display as display_module
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
@@ -19,12 +23,17 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.budget_display import BudgetDisplay
 from energy_margin.evaluation.study import (
     DIFFERENCE_FIELDS,
     FIELDS,
     LAMBDA_FIELDS,
     QUESTION_NAMES,
+    SETTINGS_FILE,
+    LambdaDisplay,
+    StudyResult,
     StudyTask,
+    draw_study,
     paired_difference,
     rescore_lambdas,
     run_study,
@@ -198,3 +207,108 @@ def test_study_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert code == 2 and err.count("\n") == 1 and "trajectories" in err
     with pytest.raises(EnergyMarginError, match="budgets"):
         run_study(tmp_path / "s", **{**SMALL, "budgets": [3, 3]})
+
+
+TRY_LOCK = """
+import sys
+from energy_margin.runs.lock import RunLock, RunLockedError
+try:
+    RunLock(sys.argv[1]).acquire()
+except RunLockedError as error:
+    print(error)
+else:
+    print("acquired")
+"""
+
+
+def _second_writer(directory: Path) -> str:
+    """What a second process trying to lock ``directory`` gets (one line)."""
+    return subprocess.run(
+        [sys.executable, "-c", TRY_LOCK, str(directory)], capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def test_a_second_writer_is_refused_while_a_study_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "study"
+    seen: list[str] = []
+
+    def log(line: str) -> None:
+        if not seen:  # the first line: the study has opened OUT and its task
+            seen.append(_second_writer(out))
+
+    run_study(out, log=log, **{**SMALL, "methods": ["est"], "lambdas": []})
+    assert seen[0].startswith(f"{out} is being written by process {os.getpid()} ")
+    assert "\n" not in seen[0]
+    assert _second_writer(out) == "acquired"  # released at the end
+    # A study started while another process holds OUT is refused in one line, writing nothing.
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        before = sorted(p.name for p in out.iterdir())
+        code = main(["study", str(out), "--tasks", "pushing", "--trajectories", "3", "--frames", "3"])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and f"being written by process {holder.pid}" in err
+        assert sorted(p.name for p in out.iterdir()) == before
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+HOLD = """
+import sys, time
+from energy_margin.runs.lock import RunLock
+lock = RunLock(sys.argv[1]).acquire()
+print("held", flush=True)
+time.sleep(60)
+"""
+
+
+def test_overwrite_replaces_a_study_of_another_seed(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+    quick = {**SMALL, "methods": ["est"], "lambdas": []}
+    first = run_study(out, log=lambda line: None, **quick)
+    settings = json.loads((out / SETTINGS_FILE).read_text())
+    assert settings["tasks"]["pushing"] == {"objects": 3, "dataset_seed": 3, "trajectories": 3, "frames": 3, "seed": 2}
+    # Other budgets, methods or lambdas are the same study: it resumes.
+    run_study(out, log=lambda line: None, **{**quick, "bootstrap": 10})
+    with pytest.raises(
+        EnergyMarginError, match=r"holds a study of other settings \(tasks\.pushing\.seed: 2 there, 4 now\)"
+    ):
+        run_study(out, log=lambda line: None, **{**quick, "seed": 4})
+    assert json.loads((out / "study.json").read_text())["seed"] == 2  # refused before any output
+    replaced = run_study(out, log=lambda line: None, overwrite=True, **{**quick, "seed": 4})
+    assert json.loads((out / SETTINGS_FILE).read_text())["tasks"]["pushing"]["seed"] == 4
+    assert json.loads((out / "study.json").read_text())["seed"] == 4
+    analysis = json.loads((out / "pushing" / "runs" / "est-3" / "analysis.json").read_text())
+    assert analysis["seed"] == 4
+    assert [r["method"] for r in replaced.rows] == [r["method"] for r in first.rows]
+
+
+def test_the_study_figures_are_displays_built_from_its_result(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    rows = [
+        {"task": "pushing", "method": "distance", "budget": 0, **dict.fromkeys(_INTERVAL_KEYS, 0.5)},
+        {"task": "pushing", "method": "est", "budget": 10, **dict.fromkeys(_INTERVAL_KEYS, 0.7)},
+        {"task": "pushing", "method": "est", "budget": 30, **dict.fromkeys(_INTERVAL_KEYS, 0.8)},
+    ]
+    lambdas = [{"task": "pushing", "lambda": lam, **dict.fromkeys(_INTERVAL_KEYS, 0.6)} for lam in (0.0, 1.0, 10.0)]
+    display = LambdaDisplay.from_result(lambdas, default=1.0, title="pushing")
+    assert [r["lambda"] for r in display.rows] == [1.0, 10.0]  # no lambda 0 on the log axis
+    budget = BudgetDisplay.from_result(rows, questions=QUESTION_NAMES, title="pushing")
+    pytest.importorskip("matplotlib")
+    assert len([a for a in budget.plot().figure_.axes if a.get_visible()]) == len(QUESTION_NAMES)
+    assert len(display.plot().figure_.axes[0].get_lines()) == len(QUESTION_NAMES) + 1  # and the task's lambda
+    result = StudyResult(rows, [], lambdas, {"trajectories": 3, "frames": 2, "tasks": {"pushing": _TASK_META}})
+    (tmp_path / "pushing").mkdir()  # a study has made it
+    written = draw_study(result, tmp_path)
+    assert sorted(p.relative_to(tmp_path).as_posix() for p in written) == [
+        "pushing/study_lambda_pushing.png",
+        "pushing/study_pushing.png",
+        "study_lambda_pushing.png",
+        "study_pushing.png",
+    ]
+    monkeypatch.setattr(display_module, "pyplot", lambda: None)
+    assert display.save(tmp_path / "x.png") is None and not (tmp_path / "x.png").exists()
+
+
+_INTERVAL_KEYS = [f"{q}{s}" for q in QUESTION_NAMES for s in ("", "_low", "_high")]
+_TASK_META = {"objects": 3, "likelihood_lambda": 1.0}

@@ -28,6 +28,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None, help="summary CSV (default DIR/budget/budget.csv; JSON, PNG beside)")
     parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round")
     parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a sweep of another dataset, seed or analyzer settings in the work directory",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         bootstrap=args.bootstrap,
         out=args.out,
         base=base,
+        overwrite=args.overwrite,
     )
     print(format_table(rows))
     return 0

@@ -50,16 +50,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=positive_int, default=1, help="local worker processes")
     add_seed(parser)
     parser.add_argument("--bootstrap", type=positive_int, default=1000, help="trajectory resamples (default 1000)")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a study in OUT whose datasets or seed differ for one of --tasks (all of its outputs)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run or resume the study and print its tables."""
+    """Run or resume the study (its tables, then its figures) and print its tables."""
     from energy_margin.evaluation.study import format_study, run_study
 
-    if args.trajectories < 2:
-        from energy_margin.errors import EnergyMarginError
-
-        raise EnergyMarginError(f"--trajectories must be >= 2, got {args.trajectories}")
     result = run_study(
         args.out,
         tasks=args.tasks,
@@ -73,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         bootstrap=args.bootstrap,
+        overwrite=args.overwrite,
     )
     print(format_study(result))
     return 0
