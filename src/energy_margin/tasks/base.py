@@ -15,6 +15,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from energy_margin.errors import check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.world.scene import Scene
@@ -228,9 +229,7 @@ def with_contacts(task: Task, contacts: str) -> Task:
         ValueError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
 
     """
-    if contacts not in CONTACT_MODELS:
-        raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {contacts!r}")
-    if contacts == "recorded":
+    if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
         return task
     fast = type(task.config).fast_contacts
     if not fast:

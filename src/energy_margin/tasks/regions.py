@@ -42,6 +42,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_positive_int
+
 
 class FrameLookup(Protocol):
     """The pose of a named body, site or geom at the frame a region is built from.
@@ -284,9 +286,7 @@ class AtLeast:
 
     def __init__(self, count: int, region: Any) -> None:
         """Build it (``count`` >= 1)."""
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-            raise ValueError(f"at_least must be an integer >= 1, got {count!r}")
-        self.count = count
+        self.count = check_positive_int("count", count)
         self.region = region
         self.uses_orientation = bool(getattr(region, "uses_orientation", False))
 
