@@ -66,10 +66,8 @@ def trajectory_weights(n_frames: int, *, last: int, scheme: str = "linear") -> n
     weights = np.zeros(n_frames)
     if scheme == "linear":
         weights[n_frames - window :] = np.arange(1, window + 1, dtype=float)
-    elif scheme == "uniform":
-        weights[n_frames - window :] = 1.0
     else:
-        raise ValueError(f"scheme must be 'linear' or 'uniform', got {scheme!r}")
+        weights[n_frames - window :] = 1.0
     return weights / weights.sum()
 
 

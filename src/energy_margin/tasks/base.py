@@ -68,8 +68,7 @@ class RegionShape:
     yaw: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("box", "cylinder"):
-            raise ValueError(f"kind must be 'box' or 'cylinder', got {self.kind!r}")
+        check_choice("kind", self.kind, ("box", "cylinder"))
 
     def contains(self, positions: np.ndarray) -> np.ndarray:
         """Whether each position (..., 3), m, lies in the solid; shape (...)."""

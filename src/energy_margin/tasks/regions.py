@@ -42,7 +42,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from energy_margin.errors import check_positive_int
+from energy_margin.errors import check_float, check_positive_float, check_positive_int
 
 
 class FrameLookup(Protocol):
@@ -138,8 +138,8 @@ class CylinderRegion:
         rotation: np.ndarray | None = None,
     ) -> None:
         """Build the cylinder: centre (3,) m in the frame, radius m, half height m."""
-        if radius <= 0 or half_height <= 0:
-            raise ValueError(f"radius and half_height must be > 0, got {radius!r} and {half_height!r}")
+        check_positive_float("radius", radius)
+        check_positive_float("half_height", half_height)
         self.center = np.asarray(center, dtype=float)
         self.radius = float(radius)
         self.half_height = float(half_height)
@@ -328,8 +328,7 @@ class ContactRegion:
         """
         import mujoco
 
-        if margin < 0:
-            raise ValueError(f"margin must be >= 0, got {margin!r}")
+        check_float("margin", margin, minimum=0.0)
         self._mujoco = mujoco
         self.model = lookup.model
         self.data = mujoco.MjData(self.model)
