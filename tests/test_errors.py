@@ -42,7 +42,7 @@ def test_check_int_bounds_and_numpy_integers() -> None:
         check_seed(-1)
 
 
-@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, "x", None, True, 10**400])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, "x", "1.5", None, True, 10**400])
 def test_check_float_refuses_non_finite_and_non_numbers(value: object) -> None:
     with pytest.raises(InvalidParameterError, match=r"^x must be a finite number"):
         check_float("x", value)

@@ -95,7 +95,7 @@ def check_float(
 
     Args:
         name: the keyword argument's name, which starts the error message.
-        value: the value given (a bool is refused).
+        value: the value given (a bool or a string is refused, even ``"1.5"``).
         minimum: lower bound; ``None`` for no bound.
         maximum: upper bound; ``None`` for no bound.
         exclusive_minimum: the lower bound itself is refused (``> minimum``).
@@ -109,7 +109,7 @@ def check_float(
     upper = None if maximum is None else f"{'<' if exclusive_maximum else '<='} {maximum:g}"
     phrase = " and ".join(part for part in (lower, upper) if part)
     wanted = f"a finite number {phrase}".rstrip() if phrase else "a finite number"
-    if isinstance(value, bool):
+    if isinstance(value, bool | str | bytes):
         raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
     try:
         number = float(value)

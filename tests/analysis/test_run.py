@@ -109,10 +109,10 @@ def test_analyze_frame_scores_are_likelihood_masses(tiny_dataset: Path) -> None:
         ({"nodes": -3}, "nodes must be a non-negative integer"),
         ({"iterations": None, "nodes": None}, "cannot both be None"),
         ({"cost": "heat"}, "cost must be one of"),
-        ({"likelihood_lambda": -1.0}, "likelihood_lambda must be finite and >= 0"),
-        ({"likelihood_lambda": float("nan")}, "likelihood_lambda must be finite and >= 0"),
-        ({"n_projections": 0}, "n_projections must be an integer >= 1"),
-        ({"cell_size": 0.0}, "cell_size must be > 0"),
+        ({"likelihood_lambda": -1.0}, "likelihood_lambda must be a finite number >= 0, got -1.0"),
+        ({"likelihood_lambda": float("nan")}, "likelihood_lambda must be a finite number >= 0, got nan"),
+        ({"n_projections": 0}, "n_projections must be a positive integer, got 0"),
+        ({"cell_size": 0.0}, "cell_size must be a finite number > 0, got 0.0"),
         ({"engine": "bullet"}, "engine must be one of"),
     ],
 )
@@ -345,8 +345,8 @@ def test_unreadable_configuration_needs_overwrite(tiny_dataset: Path) -> None:
     [
         ({"seed": -1}, "seed must be a non-negative integer"),
         ({"seed": 1.5}, "seed must be a non-negative integer"),
-        ({"workers": 0}, "workers must be an integer >= 1"),
-        ({"workers": True}, "workers must be an integer >= 1"),
+        ({"workers": 0}, "workers must be a positive integer, got 0"),
+        ({"workers": True}, "workers must be a positive integer, got True"),
     ],
 )
 def test_bad_arguments_write_nothing(tiny_dataset: Path, kwargs: dict[str, Any], message: str) -> None:

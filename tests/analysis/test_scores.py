@@ -51,9 +51,9 @@ def test_zero_lambda_is_uniform() -> None:
         (np.zeros((2, 2)), 1.0, "non-empty 1-D"),
         (np.array([0.0, np.nan]), 1.0, "costs must be finite"),
         (np.array([0.0, np.inf]), 1.0, "costs must be finite"),
-        (np.array([0.0, 1.0]), -1.0, "lam must be finite and >= 0"),
-        (np.array([0.0, 1.0]), float("nan"), "lam must be finite and >= 0"),
-        (np.array([0.0, 1.0]), float("inf"), "lam must be finite and >= 0"),
+        (np.array([0.0, 1.0]), -1.0, "lam must be a finite number >= 0, got -1.0"),
+        (np.array([0.0, 1.0]), float("nan"), "lam must be a finite number >= 0, got nan"),
+        (np.array([0.0, 1.0]), float("inf"), "lam must be a finite number >= 0, got inf"),
     ],
 )
 def test_likelihood_rejects_bad_input(costs: np.ndarray, lam: float, message: str) -> None:
@@ -95,7 +95,7 @@ def test_uniform_weights_by_hand() -> None:
 
 
 def test_trajectory_weights_reject_bad_input() -> None:
-    with pytest.raises(ValueError, match="last must be >= 1"):
+    with pytest.raises(ValueError, match="last must be a positive integer, got 0"):
         trajectory_weights(5, last=0)
     with pytest.raises(ValueError, match="scheme must be"):
         trajectory_weights(5, last=2, scheme="exponential")

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -174,11 +175,15 @@ def _nan_frame(directory: Path) -> None:
         (["evaluate", "{scored}", "--compare", "{scored}"], None, "compares the dataset with itself"),
         (["evaluate", "{data}", "--success-frames", "0"], None, "expected an integer >= 1"),
         ([*GENERATE[:2], "nope", *GENERATE[3:], "--out", "{tmp}/new"], None, "invalid choice: 'nope'"),
-        (["generate", "--task", "pushing", "--objects", "0", "--out", "{tmp}/new"], None, "objects must be >= 1"),
+        (
+            ["generate", "--task", "pushing", "--objects", "0", "--out", "{tmp}/new"],
+            None,
+            "--objects must be a positive integer, got 0",
+        ),
         (
             ["generate", "--task", "pushing", "--objects", "1", "--trajectories", "0", "--out", "{tmp}/new"],
             None,
-            ">= 1",
+            "--trajectories must be a positive integer, got 0",
         ),
         (["generate", "--task", "pushing", "--objects", "1", "--out", "{tmp}/new", "--set", "bogus=1"], None, "bogus"),
         (
@@ -217,6 +222,84 @@ def test_bad_input_is_one_line_and_writes_nothing(
     assert message in err
     assert out == ""
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ["generate", "--task", "pushing", "--objects", "0", "--out", "{tmp}/new"],
+            "--objects must be a positive integer, got 0",
+        ),
+        (
+            ["generate", "--task", "pushing", "--objects", "1", "--frames", "0", "--out", "{tmp}/new"],
+            "--frames must be a positive integer, got 0",
+        ),
+        (
+            ["generate", "--task", "pushing", "--objects", "1", "--trajectories", "-2", "--out", "{tmp}/new"],
+            "--trajectories must be a positive integer, got -2",
+        ),
+        (
+            ["analyze", "{data}", "--converge", "1.5", "--no-progress"],
+            "--converge must be a finite number > 0 and < 1, got 1.5",
+        ),
+        (
+            ["analyze", "{data}", "--converge", "0", "--no-progress"],
+            "--converge must be a finite number > 0 and < 1, got 0.0",
+        ),
+        (["control", "--period", "0", "--out", "{tmp}/run"], "--period must be a finite number > 0, got 0.0"),
+        (["control", "--period", "nan", "--out", "{tmp}/run"], "--period must be a finite number > 0, got nan"),
+        (["control", "--period", "-0.1", "--out", "{tmp}/run"], "--period must be a finite number > 0, got -0.1"),
+    ],
+)
+def test_an_argument_the_library_refuses_is_named_by_its_flag(
+    tmp_path: Path, tiny_dataset: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    # argparse takes these values; the library refuses them naming its keyword argument
+    # (n_objects, converge, period), and the error line names the command's flag instead.
+    before, data_before = snapshot(tmp_path), snapshot(tiny_dataset)
+    argv = [a.replace("{tmp}", str(tmp_path)).replace("{data}", str(tiny_dataset)) for a in args]
+    code, out, err = run_cli(argv, capsys)
+    assert code == 2
+    assert err.splitlines() == [f"energy-margin: error: {message}"]
+    assert out == ""
+    assert snapshot(tmp_path) == before and snapshot(tiny_dataset) == data_before
+
+
+def test_a_parameter_without_a_flag_keeps_its_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from energy_margin.errors import InvalidParameterError
+
+    def refuse(name: str) -> Callable[..., None]:
+        def generate_dataset(*args: object, **kwargs: object) -> None:
+            raise InvalidParameterError(name, "must be a positive integer, got 0")
+
+        return generate_dataset
+
+    argv = ["generate", "--task", "pushing", "--objects", "1", "--out", str(tmp_path / "new")]
+    # A name that is no keyword argument of the command is reported as the library wrote it.
+    monkeypatch.setattr("energy_margin.data.generate.generate_dataset", refuse("count"))
+    code, _, err = run_cli(argv, capsys)
+    assert code == 2 and err.splitlines() == ["energy-margin: error: count must be a positive integer, got 0"]
+    # A dest maps to its option; the command's table maps the names that differ.
+    for name, flag in (("seed", "--seed"), ("engine", "--engine"), ("n_trajectories", "--trajectories")):
+        monkeypatch.setattr("energy_margin.data.generate.generate_dataset", refuse(name))
+        code, _, err = run_cli(argv, capsys)
+        assert code == 2 and err.splitlines() == [f"energy-margin: error: {flag} must be a positive integer, got 0"]
+
+
+def test_every_flag_table_names_options_of_its_command() -> None:
+    from energy_margin.cli.app import COMMANDS, build_parser
+
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for command in COMMANDS:
+        options = {o for a in subparsers.choices[command.NAME]._actions for o in a.option_strings}
+        assert set(getattr(command, "PARAMETER_FLAGS", {}).values()) <= options, command.NAME
+    analyze = subparsers.choices["analyze"].get_default("parameter_flags")
+    assert analyze["likelihood_lambda"] == "--lambda" and analyze["workers"] == "--workers"
+    assert "dataset" not in analyze and "help" not in analyze
 
 
 def test_engine_errors_are_reported_on_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -286,7 +369,7 @@ def test_module_entry_point_in_a_subprocess(tmp_path: Path) -> None:
     data = tmp_path / "push"
     bad = cli("generate", "--task", "pushing", "--objects", "0", "--out", str(data))
     assert bad.returncode == 2
-    assert bad.stderr.splitlines() == ["energy-margin: error: objects must be >= 1, got 0"]
+    assert bad.stderr.splitlines() == ["energy-margin: error: --objects must be a positive integer, got 0"]
     assert not data.exists()
 
     assert cli(*GENERATE[:4], "1", *GENERATE[5:], "--out", str(data)).returncode == 0

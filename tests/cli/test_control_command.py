@@ -75,7 +75,7 @@ def test_control_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
         (["--policy", "task", "--model", "m.npz"], "--model is only for --policy learned"),
         (["--task", "scene"], "pass --scene SCENE.toml"),
         (["--task", "nosuch"], "cannot be controlled"),
-        (["--period", "0"], "period must be a finite number > 0"),
+        (["--period", "0"], "--period must be a finite number > 0, got 0.0"),
     ],
 )
 def test_control_errors_are_one_line(

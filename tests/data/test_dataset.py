@@ -154,7 +154,7 @@ def test_capture_labels_window_truncates_at_the_end() -> None:
     # frame only needs itself.
     np.testing.assert_array_equal(dataset.capture_labels(10), [[f, f, f, t, t], [t] * 5, [f, f, f, f, f]])
     assert not np.shares_memory(dataset.capture_labels(0), dataset.arrays["captured"])
-    with pytest.raises(ValueError, match="window must be >= 0"):
+    with pytest.raises(ValueError, match="window must be a non-negative integer, got -1"):
         dataset.capture_labels(-1)
 
 
@@ -183,12 +183,12 @@ def test_generated_labels_follow_the_rules(tiny_dataset: Path) -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"n_objects": 0}, "objects must be >= 1"),
-        ({"n_trajectories": 0}, "trajectories must be >= 1"),
-        ({"n_frames": 0}, "frames must be >= 1"),
-        ({"seed": -1}, "seed must be >= 0"),
-        ({"n_objects": True}, "objects must be an integer"),
-        ({"n_frames": 2.5}, "frames must be an integer"),
+        ({"n_objects": 0}, "n_objects must be a positive integer, got 0"),
+        ({"n_trajectories": 0}, "n_trajectories must be a positive integer, got 0"),
+        ({"n_frames": 0}, "n_frames must be a positive integer, got 0"),
+        ({"seed": -1}, "seed must be a non-negative integer, got -1"),
+        ({"n_objects": True}, "n_objects must be a positive integer, got True"),
+        ({"n_frames": 2.5}, "n_frames must be a positive integer, got 2.5"),
         ({"task_name": "stacking"}, "unknown task 'stacking'"),
         ({"engine": "bullet"}, "unknown engine 'bullet'"),
         ({"task_config": {"bogus": 1}}, "unknown pushing configuration keys: bogus"),

@@ -201,10 +201,10 @@ def test_capture_window_and_success_frames(labelled: Path) -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"capture_window": -1}, "capture window must be an integer >= 0"),
-        ({"capture_window": 1.5}, "capture window must be an integer >= 0"),
-        ({"success_frames": 0}, "success frames must be an integer >= 1"),
-        ({"weights": "exponential"}, "weights must be 'linear' or 'uniform'"),
+        ({"capture_window": -1}, "capture_window must be a non-negative integer, got -1"),
+        ({"capture_window": 1.5}, "capture_window must be a non-negative integer, got 1.5"),
+        ({"success_frames": 0}, "success_frames must be a positive integer, got 0"),
+        ({"weights": "exponential"}, "weights must be one of linear, uniform, got 'exponential'"),
     ],
 )
 def test_evaluate_rejects_bad_options(labelled: Path, kwargs: dict[str, object], message: str) -> None:

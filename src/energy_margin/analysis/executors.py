@@ -20,7 +20,7 @@ from typing import Any, Protocol, TypeVar
 
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_positive_int
 
 EXECUTORS = ("local", "ray")
 
@@ -47,8 +47,7 @@ def make_executor(kind: str = "local", *, workers: int = 1, address: str | None 
         address: Ray cluster address (``"auto"`` or ``"host:port"``); ``None`` starts a local
             Ray instance. Only for ``"ray"``.
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise EnergyMarginError(f"workers must be an integer >= 1, got {workers!r}")
+    check_positive_int("workers", workers)
     if kind == "local":
         if address is not None:
             raise EnergyMarginError("--address is only for --executor ray")

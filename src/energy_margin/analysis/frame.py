@@ -17,6 +17,7 @@ import numpy as np
 
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
+from energy_margin.errors import check_choice, check_float, check_int, check_positive_float, check_positive_int
 from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
@@ -92,48 +93,33 @@ class AnalyzerConfig:
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
             value = getattr(self, name)
-            if value is not None and (isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0):
-                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+            if value is not None:
+                check_int(name, value, minimum=0)
         if self.iterations is None and self.nodes is None:
             raise ValueError("iterations and nodes cannot both be None")
-        if self.cost not in COST_MODELS:
-            raise ValueError(f"cost must be one of {', '.join(COST_MODELS)}, got {self.cost!r}")
-        if self.likelihood_lambda is not None and not (
-            np.isfinite(self.likelihood_lambda) and self.likelihood_lambda >= 0
-        ):
-            raise ValueError(f"likelihood_lambda must be finite and >= 0, got {self.likelihood_lambda!r}")
-        if isinstance(self.n_projections, bool) or not isinstance(self.n_projections, int) or self.n_projections < 1:
-            raise ValueError(f"n_projections must be an integer >= 1, got {self.n_projections!r}")
-        if not (np.isfinite(self.cell_size) and self.cell_size > 0):
-            raise ValueError(f"cell_size must be > 0, got {self.cell_size!r}")
-        if self.engine not in ENGINES:
-            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        check_choice("cost", self.cost, COST_MODELS)
+        if self.likelihood_lambda is not None:
+            check_float("likelihood_lambda", self.likelihood_lambda, minimum=0.0)
+        check_positive_int("n_projections", self.n_projections)
+        check_positive_float("cell_size", self.cell_size)
+        check_choice("engine", self.engine, ENGINES)
+        check_choice("method", self.method, METHODS)
         for name in ("batch", "threads", "rollout_length"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+            check_positive_int(name, getattr(self, name))
         if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
             raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
-        if not (np.isfinite(self.rrt_extent) and self.rrt_extent > 0):
-            raise ValueError(f"rrt_extent must be > 0, got {self.rrt_extent!r}")
-        if self.projection not in PROJECTIONS:
-            raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
-        if self.converge is not None and not (
-            not isinstance(self.converge, bool) and np.isfinite(self.converge) and 0 < self.converge < 1
-        ):
-            raise ValueError(f"converge must be a score tolerance in (0, 1), got {self.converge!r}")
-        if self.converge_rule not in CONVERGE_RULES:
-            raise ValueError(f"converge_rule must be one of {', '.join(CONVERGE_RULES)}, got {self.converge_rule!r}")
-        if self.contacts not in CONTACT_MODELS:
-            raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {self.contacts!r}")
+        check_positive_float("rrt_extent", self.rrt_extent)
+        check_choice("projection", self.projection, PROJECTIONS)
+        if self.converge is not None:
+            check_float(
+                "converge", self.converge, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True
+            )
+        check_choice("converge_rule", self.converge_rule, CONVERGE_RULES)
+        check_choice("contacts", self.contacts, CONTACT_MODELS)
         if self.contacts == "fast" and self.engine != "mujoco":
             raise ValueError(f"contacts 'fast' is a MuJoCo contact model, not available with engine {self.engine!r}")
         for name in ("converge_window", "converge_every"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+            check_positive_int(name, getattr(self, name))
 
     @property
     def budget(self) -> TreeBudget:
@@ -206,8 +192,7 @@ class ScoresConverged:
         rule: str = "projected",
         budget: TreeBudget | None = None,
     ) -> None:
-        if rule not in CONVERGE_RULES:
-            raise ValueError(f"rule must be one of {', '.join(CONVERGE_RULES)}, got {rule!r}")
+        check_choice("rule", rule, CONVERGE_RULES)
         self.task, self.root, self.lam = task, root, lam
         self.tolerance, self.window, self.rule = tolerance, window, rule
         self.budget = budget if budget is not None else TreeBudget()

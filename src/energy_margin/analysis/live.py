@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.errors import check_positive_float, check_positive_int
 from energy_margin.planning import CostField
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
@@ -115,12 +116,9 @@ def score_state(
 
     """
     started = time.perf_counter()
-    if budget_s is not None and not (
-        not isinstance(budget_s, bool) and isinstance(budget_s, int | float) and np.isfinite(budget_s) and budget_s > 0
-    ):
-        raise ValueError(f"budget_s must be a number of seconds > 0 or None, got {budget_s!r}")
-    if isinstance(max_expansions, bool) or not isinstance(max_expansions, int | np.integer) or max_expansions < 1:
-        raise ValueError(f"max_expansions must be an integer >= 1, got {max_expansions!r}")
+    if budget_s is not None:
+        check_positive_float("budget_s", budget_s)
+    check_positive_int("max_expansions", max_expansions)
     base = config if config is not None else AnalyzerConfig()
     settings = dataclasses.replace(base, iterations=int(max_expansions), nodes=None, engine=engine)
     deadline = Deadline(started + budget_s) if budget_s is not None else None

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from energy_margin.errors import check_choice, check_float, check_positive_int
+
 
 def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
     """Softmax likelihood ``L_m = exp(-lam (c_m - c_min)) / sum_j exp(-lam (c_j - c_min))`` (eq. 1).
@@ -23,8 +25,7 @@ def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
         raise ValueError(f"costs must be a non-empty 1-D array, got shape {costs.shape}")
     if not np.all(np.isfinite(costs)):
         raise ValueError("costs must be finite")
-    if not np.isfinite(lam) or lam < 0:
-        raise ValueError(f"lam must be finite and >= 0, got {lam}")
+    check_float("lam", lam, minimum=0.0)
     logits = -lam * (costs - costs.min())
     logits -= logits.max()
     weights = np.exp(logits)
@@ -59,16 +60,14 @@ def trajectory_weights(n_frames: int, *, last: int, scheme: str = "linear") -> n
         Weights, shape (n_frames,), zero before the window, summing to 1.
 
     """
-    if last < 1:
-        raise ValueError(f"last must be >= 1, got {last}")
+    check_positive_int("last", last)
+    check_choice("scheme", scheme, ("linear", "uniform"))
     window = min(last, n_frames)
     weights = np.zeros(n_frames)
     if scheme == "linear":
         weights[n_frames - window :] = np.arange(1, window + 1, dtype=float)
-    elif scheme == "uniform":
-        weights[n_frames - window :] = 1.0
     else:
-        raise ValueError(f"scheme must be 'linear' or 'uniform', got {scheme!r}")
+        weights[n_frames - window :] = 1.0
     return weights / weights.sum()
 
 

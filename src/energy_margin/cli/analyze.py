@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import CONVERGE_RULES
 from energy_margin.cli.common import add_engine, add_seed, non_negative_float, non_negative_int, positive_int
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
@@ -116,6 +116,8 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
             converge_rule=args.converge_rule,
             contacts=args.contacts,
         )
+    except InvalidParameterError:
+        raise
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
 

@@ -3,6 +3,13 @@
 Every command module under :mod:`energy_margin.cli` has ``NAME``, a one-line ``SUMMARY``,
 ``EXAMPLES``, ``add_arguments(parser)`` and ``run(args) -> int``. Adding a command is adding a
 module and naming it in :data:`COMMANDS`; no other command changes.
+
+A library function refuses a bad keyword argument with
+:class:`~energy_margin.errors.InvalidParameterError`, whose message starts with the argument's
+name; the error line names the command's flag instead (``--objects must be a positive integer,
+got 0``). The flag of an argument is the option whose argparse ``dest`` is its name (``workers``
+is ``--workers``), or the one a command module's optional ``PARAMETER_FLAGS`` table gives for a
+name that differs (``{"n_objects": "--objects"}``).
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from energy_margin.cli import (
     view,
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 
 #: The commands in the order ``--help`` lists them (the order data flows).
 COMMANDS: tuple[ModuleType, ...] = (
@@ -76,8 +83,31 @@ def build_parser() -> argparse.ArgumentParser:
             formatter_class=HelpFormatter,
         )
         command.add_arguments(sub)
-        sub.set_defaults(run=command.run)
+        sub.set_defaults(run=command.run, parameter_flags=parameter_flags(sub, command))
     return parser
+
+
+def parameter_flags(parser: argparse.ArgumentParser, command: ModuleType) -> dict[str, str]:
+    """The flag of each keyword argument a command passes on: ``dest`` -> ``--option``, then its table.
+
+    Each option's ``dest`` maps to its first long option string (``likelihood_lambda`` ->
+    ``--lambda``); the command module's ``PARAMETER_FLAGS``, when it has one, adds or overrides
+    the names that differ from a ``dest`` (``n_objects`` -> ``--objects``).
+    """
+    flags: dict[str, str] = {}
+    for action in parser._actions:
+        long = [option for option in action.option_strings if option.startswith("--")]
+        if long and action.dest not in (argparse.SUPPRESS, "help"):
+            flags.setdefault(action.dest, long[0])
+    flags.update(getattr(command, "PARAMETER_FLAGS", {}))
+    return flags
+
+
+def error_message(error: EnergyMarginError, flags: dict[str, str]) -> str:
+    """The one line of ``error``: an argument's name becomes the command's flag for it."""
+    if isinstance(error, InvalidParameterError) and error.parameter in flags:
+        return one_line(f"{flags[error.parameter]} {error.reason}")
+    return one_line(str(error))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -86,7 +116,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.run(args))
     except EnergyMarginError as error:
-        print(f"{PROG}: error: {one_line(str(error))}", file=sys.stderr)
+        print(f"{PROG}: error: {error_message(error, getattr(args, 'parameter_flags', {}))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         if argv is None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.methods import METHODS
 
 NAME = "budget"
@@ -42,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         base = AnalyzerConfig(batch=args.batch, threads=args.threads)
+    except InvalidParameterError:
+        raise
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
     rows = budget_sweep(

@@ -15,7 +15,7 @@ from energy_margin.cli.common import (
     scene_task_config,
     task_overrides,
 )
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 
 NAME = "control"
 SUMMARY = "closed-loop episodes (MPPI with task, heuristic or margin costs) under disturbances"
@@ -25,6 +25,8 @@ EXAMPLES = (
     "energy-margin control --task pushing --objects 10 --episodes 100 --policy learned "
     "--model runs/push10.margin --disturbance hard --out runs/control-learned --json",
 )
+#: Keyword arguments of :func:`~energy_margin.control.episodes.run_control` named otherwise here.
+PARAMETER_FLAGS = {"n_objects": "--objects", "n_frames": "--frames"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -125,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
             margin_expansions=args.margin_expansions,
             margin_samples=args.margin_samples,
         )
+    except InvalidParameterError:
+        raise
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
     if args.scene:

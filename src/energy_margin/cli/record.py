@@ -9,6 +9,8 @@ from energy_margin.cli.common import ProgressBar, positive_int
 NAME = "record"
 SUMMARY = "turn recorded MuJoCo roll-outs (time, qpos, qvel per .npz) of a scene file's model into a dataset"
 EXAMPLES = ("energy-margin record --scene my_scene.toml logs/run*.npz --frames 10 --out runs/recorded",)
+#: Keyword arguments of :func:`~energy_margin.data.record.record_dataset` named otherwise here.
+PARAMETER_FLAGS = {"n_frames": "--frames"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

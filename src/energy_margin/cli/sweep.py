@@ -7,7 +7,7 @@ import os
 import sys
 
 from energy_margin.cli.common import add_engine, add_seed, positive_int, task_overrides
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks import available_tasks
@@ -22,6 +22,13 @@ EXAMPLES = (
     "energy-margin sweep --task scooping --param finger_stiffness=100,400,2000 --trajectories 20 --objects 5 "
     "--out runs/sweep-stiffness",
 )
+#: Keyword arguments of :func:`~energy_margin.evaluation.sweep.design_sweep` named otherwise here.
+PARAMETER_FLAGS = {
+    "n_trajectories": "--trajectories",
+    "n_frames": "--frames",
+    "n_objects": "--objects",
+    "trajectory_counts": "--counts",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -90,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
             threads=args.threads,
             engine=args.engine,
         )
+    except InvalidParameterError:
+        raise
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
     progress = not args.no_progress and (sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1")

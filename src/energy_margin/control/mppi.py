@@ -21,6 +21,7 @@ import numpy as np
 
 from energy_margin.control.commands import CommandSpace
 from energy_margin.control.costs import CostContext, CostFunction, Predictions
+from energy_margin.errors import check_float, check_positive_float, check_positive_int
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.world.state import FrameState
@@ -55,15 +56,10 @@ class ControllerConfig:
 
     def __post_init__(self) -> None:
         for name in ("samples", "horizon", "margin_expansions", "margin_samples"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not (isinstance(self.correlation, int | float) and 0.0 <= self.correlation < 1.0):
-            raise ValueError(f"correlation must be in [0, 1), got {self.correlation!r}")
+            check_positive_int(name, getattr(self, name))
+        check_float("correlation", self.correlation, minimum=0.0, maximum=1.0, exclusive_maximum=True)
         for name in ("period", "noise", "temperature"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+            check_positive_float(name, getattr(self, name))
 
     def to_dict(self) -> dict[str, Any]:
         """The settings as a JSON-ready dict."""

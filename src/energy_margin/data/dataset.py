@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_int
 from energy_margin.runs.files import read_json, staging_directory, write_json
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
@@ -99,8 +99,7 @@ class Dataset:
         A frame is captured when every object lies in the capture region at frames
         k .. k + ``window`` (k-hat), each tested against the region built from that frame.
         """
-        if window < 0:
-            raise ValueError(f"window must be >= 0, got {window}")
+        check_int("window", window, minimum=0)
         captured = self.arrays["captured"]
         labels = captured.copy()
         for shift in range(1, window + 1):

@@ -20,23 +20,17 @@ from energy_margin.data.dataset import (
     validate,
     write_directory,
 )
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
 
 
 def _check_inputs(n_objects: int, n_trajectories: int, n_frames: int, seed: int) -> None:
-    for name, value, minimum in (
-        ("objects", n_objects, 1),
-        ("trajectories", n_trajectories, 1),
-        ("frames", n_frames, 1),
-        ("seed", seed, 0),
-    ):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer):
-            raise EnergyMarginError(f"{name} must be an integer, got {value!r}")
-        if value < minimum:
-            raise EnergyMarginError(f"{name} must be >= {minimum}, got {value}")
+    check_positive_int("n_objects", n_objects)
+    check_positive_int("n_trajectories", n_trajectories)
+    check_positive_int("n_frames", n_frames)
+    check_seed(seed)
 
 
 def check_engine(task: Task, engine: str) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 
 from energy_margin.data.dataset import Dataset, check_target
 from energy_margin.data.generate import trajectory_record, write_records
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_positive_int
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
@@ -135,8 +135,7 @@ def record_dataset(
         progress: called with 1 after each roll-out.
 
     """
-    if isinstance(n_frames, bool) or not isinstance(n_frames, int) or n_frames < 1:
-        raise EnergyMarginError(f"frames must be an integer >= 1, got {n_frames!r}")
+    check_positive_int("n_frames", n_frames)
     if not rollouts:
         raise EnergyMarginError("record needs at least one roll-out file")
     task = get_task("scene", {"scene_file": str(Path(scene_file).resolve())})

@@ -53,7 +53,7 @@ from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.tasks import PushingTask, ReferenceLayout, ScoopingTask, available_tasks, get_task, task_class
 
@@ -446,8 +446,7 @@ def import_reference(
         The written dataset.
     """
     folder, out = Path(folder), Path(out)
-    if drive not in DRIVES:
-        raise EnergyMarginError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
+    check_choice("drive", drive, DRIVES)
     ref = read_reference(folder, scores=scores, with_scores=with_scores, task=task)
     layout = _layout(ref.task)
     if drive not in layout.drives:

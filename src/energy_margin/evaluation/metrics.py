@@ -24,7 +24,7 @@ from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_positive_int
 from energy_margin.evaluation.baselines import distance_scores
 
 
@@ -121,12 +121,9 @@ def evaluate(
         A JSON-compatible dictionary (keys documented in ``docs/evaluation.md``).
 
     """
-    if isinstance(capture_window, bool) or not isinstance(capture_window, int) or capture_window < 0:
-        raise EnergyMarginError(f"capture window must be an integer >= 0, got {capture_window!r}")
-    if isinstance(success_frames, bool) or not isinstance(success_frames, int) or success_frames < 1:
-        raise EnergyMarginError(f"success frames must be an integer >= 1, got {success_frames!r}")
-    if weights not in ("linear", "uniform"):
-        raise EnergyMarginError(f"weights must be 'linear' or 'uniform', got {weights!r}")
+    check_int("capture_window", capture_window, minimum=0)
+    check_positive_int("success_frames", success_frames)
+    check_choice("weights", weights, ("linear", "uniform"))
     dataset = require_valid(path, overlaps=True, scores=None)
     check_options(dataset, capture_window=capture_window, success_frames=success_frames)
     scores = load_scores(path)

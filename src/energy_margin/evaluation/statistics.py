@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from energy_margin.errors import check_int, check_positive_float, check_positive_int
+
 #: Two-sided 95 % standard normal quantile.
 Z_95 = 1.959963984540054
 #: Up to this many items the permutation p-value enumerates every permutation (8! = 40 320).
@@ -32,15 +34,13 @@ def wilson_interval(successes: int, trials: int, *, z: float = Z_95) -> tuple[fl
         ``(low, high)``, both in [0, 1].
 
     Raises:
-        ValueError: ``trials`` < 1, ``successes`` outside [0, trials] or ``z`` <= 0.
+        InvalidParameterError: (a ``ValueError``) ``trials`` < 1, ``successes`` outside [0, trials] or
+            ``z`` <= 0.
 
     """
-    if isinstance(trials, bool) or int(trials) != trials or trials < 1:
-        raise ValueError(f"trials must be an integer >= 1, got {trials!r}")
-    if isinstance(successes, bool) or int(successes) != successes or not 0 <= successes <= trials:
-        raise ValueError(f"successes must be an integer in [0, trials], got {successes!r}")
-    if not z > 0:
-        raise ValueError(f"z must be > 0, got {z!r}")
+    check_positive_int("trials", trials)
+    check_int("successes", successes, minimum=0, maximum=trials)
+    check_positive_float("z", z)
     n = float(trials)
     p = successes / n
     denominator = 1.0 + z * z / n
@@ -115,8 +115,7 @@ def spearman(x: np.ndarray, y: np.ndarray, *, permutations: int = 20000, seed: i
         seed: seed of those random permutations.
 
     """
-    if isinstance(permutations, bool) or not isinstance(permutations, int) or permutations < 1:
-        raise ValueError(f"permutations must be an integer >= 1, got {permutations!r}")
+    check_positive_int("permutations", permutations)
     rho = spearman_rho(x, y)
     n = int(np.asarray(x).size)
     exact = n <= EXACT_PERMUTATIONS_UP_TO

@@ -31,7 +31,7 @@ from energy_margin.analysis.live import LiveScore
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_positive_int
 from energy_margin.evaluation.metrics import average_precision, score_grid
 from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
@@ -344,12 +344,9 @@ def fit_margin_model(
         EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
         ValueError: a bad ``kind``, ``holdout`` or ``success_frames``.
     """
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    if not (isinstance(holdout, float | int) and not isinstance(holdout, bool) and 0.0 < holdout < 1.0):
-        raise ValueError(f"holdout must be a fraction in (0, 1), got {holdout!r}")
-    if isinstance(success_frames, bool) or not isinstance(success_frames, int) or success_frames < 1:
-        raise ValueError(f"success_frames must be an integer >= 1, got {success_frames!r}")
+    check_choice("kind", kind, KINDS)
+    check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
+    check_positive_int("success_frames", success_frames)
     frames = training_frames(datasets)
     groups = [(d, t) for d, item in enumerate(frames) for t in range(item.dataset.n_trajectories)]
     if len(groups) < 2:

@@ -18,6 +18,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_choice
+
 #: Targets predicted together: the capture and the success score.
 N_OUTPUTS = 2
 
@@ -266,6 +268,7 @@ def fit_regressor(kind: str, features: np.ndarray, targets: np.ndarray, *, seed:
     """
     from threadpoolctl import threadpool_limits
 
+    check_choice("kind", kind, ("mlp", "boosting"))
     with threadpool_limits(limits=1):
         return _fit(kind, features, targets, seed=seed, **options)
 
@@ -308,4 +311,4 @@ def _fit(kind: str, features: np.ndarray, targets: np.ndarray, *, seed: int, **o
             for output in range(N_OUTPUTS)
         ]
         return BoostingRegressor.from_sklearn(models)
-    raise ValueError(f"kind must be 'mlp' or 'boosting', got {kind!r}")
+    raise AssertionError(kind)  # fit_regressor checked the kind

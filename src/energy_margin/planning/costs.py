@@ -22,6 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_choice
 from energy_margin.world.state import relative_rotation_vector
 
 #: Smallest incremental cost, so every edge costs something (as the reference).
@@ -127,6 +128,4 @@ COST_MODELS: dict[str, type[WrenchWorkCost] | type[EnergyBalanceCost]] = {
 
 def make_cost_model(name: str) -> CostModel:
     """The cost model called ``name`` (``"wrench"`` or ``"energy"``)."""
-    if name not in COST_MODELS:
-        raise ValueError(f"cost must be one of {', '.join(COST_MODELS)}, got {name!r}")
-    return COST_MODELS[name]()
+    return COST_MODELS[check_choice("cost", name, COST_MODELS)]()

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_choice, check_positive_float, check_positive_int
+
 if TYPE_CHECKING:
     from energy_margin.world.scene import Scene
 
@@ -103,12 +105,10 @@ class EllipsoidFeatures:
 
 def make_features(projection: str, scene: Scene) -> Features:
     """The density features named ``projection`` (one of :data:`PROJECTIONS`) for ``scene``."""
-    if projection == "objects":
+    if check_choice("projection", projection, PROJECTIONS) == "objects":
         return ObjectPositions()
-    if projection == "ellipsoid":
-        size = min(obj.geom.size[0] for obj in scene.objects)
-        return EllipsoidFeatures(planar=scene.object_motion == "upright", min_thickness=min(size, 0.01))
-    raise ValueError(f"projection must be one of {', '.join(PROJECTIONS)}, got {projection!r}")
+    size = min(obj.geom.size[0] for obj in scene.objects)
+    return EllipsoidFeatures(planar=scene.object_motion == "upright", min_thickness=min(size, 0.01))
 
 
 class ProjectedGridDensity:
@@ -132,10 +132,8 @@ class ProjectedGridDensity:
         projection_dim: int = 2,
         cell_size: float = 0.01,
     ) -> None:
-        if n_projections < 1:
-            raise ValueError(f"n_projections must be >= 1, got {n_projections}")
-        if cell_size <= 0:
-            raise ValueError(f"cell_size must be > 0, got {cell_size}")
+        check_positive_int("n_projections", n_projections)
+        check_positive_float("cell_size", cell_size)
         directions = rng.standard_normal((n_projections, dimension, projection_dim))
         # Unit columns: a projected coordinate has the scale of one object's displacement.
         self.directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)

@@ -27,6 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from energy_margin.errors import check_choice, check_positive_float, check_positive_int
 from energy_margin.planning.density import Features, ProjectedGridDensity
 from energy_margin.planning.tree import Expansion
 
@@ -68,8 +69,7 @@ class MonteCarloExpansion:
     uniforms = 0
 
     def __init__(self, total: int, rollout_length: int) -> None:
-        if rollout_length < 1:
-            raise ValueError(f"rollout_length must be >= 1, got {rollout_length}")
+        check_positive_int("rollout_length", rollout_length)
         self.n_rollouts = max(1, -(-total // rollout_length))
         self.tips = np.zeros(self.n_rollouts, dtype=np.int64)
         # The iteration whose outcome a roll-out waits for, or -1.
@@ -115,8 +115,7 @@ class RrtExpansion:
     """
 
     def __init__(self, dimension: int, capacity: int, extent: float) -> None:
-        if not (np.isfinite(extent) and extent > 0):
-            raise ValueError(f"rrt extent must be > 0, got {extent!r}")
+        check_positive_float("extent", extent)
         self.uniforms = dimension
         self.extent = extent
         self.points = np.empty((capacity, dimension))
@@ -167,8 +166,7 @@ def expansion_factory(
         rrt_extent: RRT target box half width, m.
 
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    check_choice("method", method, METHODS)
 
     def make(rng: np.random.Generator, root_pos: np.ndarray, features: Features) -> Expansion:
         del root_pos

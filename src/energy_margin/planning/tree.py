@@ -32,6 +32,7 @@ from typing import Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_int, check_positive_int
 from energy_margin.planning.costs import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
@@ -59,8 +60,8 @@ class TreeBudget:
             raise ValueError("give iterations, nodes or both")
         for name in ("iterations", "nodes"):
             value = getattr(self, name)
-            if value is not None and (not isinstance(value, int | np.integer) or value < 0):
-                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+            if value is not None:
+                check_int(name, value, minimum=0)
 
     @property
     def iteration_limit(self) -> int:
@@ -387,10 +388,9 @@ def grow(
 
     """
     started = time.perf_counter()
-    if batch < 1 or threads < 1:
-        raise ValueError(f"batch and threads must be >= 1, got {batch} and {threads}")
-    if check_every < 1:
-        raise ValueError(f"check_every must be >= 1, got {check_every}")
+    check_positive_int("batch", batch)
+    check_positive_int("threads", threads)
+    check_positive_int("check_every", check_every)
     features = features if features is not None else ObjectPositions()
     limits = task.wrench_limits(simulator.scene)
     max_wrench = limits.max_wrench

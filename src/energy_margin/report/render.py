@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_choice, check_int
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
@@ -332,11 +332,9 @@ class FrameRenderer:
         max_geom: int = 20000,
         backend: str = "auto",
     ) -> None:
-        if backend not in ("auto", "mujoco", "matplotlib"):
-            raise ValueError(f"backend must be 'auto', 'mujoco' or 'matplotlib', got {backend!r}")
-        for name, value in (("width", width), ("height", height)):
-            if not isinstance(value, int) or not 16 <= value <= 4096:
-                raise ValueError(f"{name} must be an integer in [16, 4096], got {value!r}")
+        check_choice("backend", backend, ("auto", "mujoco", "matplotlib"))
+        check_int("width", width, minimum=16, maximum=4096)
+        check_int("height", height, minimum=16, maximum=4096)
         self.simulator = simulator
         self.task = task
         self.width, self.height = width, height

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_positive_float
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
@@ -64,8 +64,7 @@ class VideoResult:
 
 def video_steps(duration: float, timestep: float, fps: float) -> np.ndarray:
     """Physics steps drawn at ``fps`` over a roll-out of ``duration`` s with time step ``timestep`` s."""
-    if not (np.isfinite(fps) and fps > 0):
-        raise ValueError(f"fps must be > 0, got {fps!r}")
+    check_positive_float("fps", fps)
     n_steps = round(duration / timestep)
     times = np.arange(0.0, duration + 0.5 / fps, 1.0 / fps)
     return np.unique(np.clip(np.round(times / timestep).astype(int), 0, n_steps))

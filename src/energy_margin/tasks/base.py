@@ -16,6 +16,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from energy_margin.errors import check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.world.scene import Scene
@@ -68,8 +69,7 @@ class RegionShape:
     yaw: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("box", "cylinder"):
-            raise ValueError(f"kind must be 'box' or 'cylinder', got {self.kind!r}")
+        check_choice("kind", self.kind, ("box", "cylinder"))
 
     def contains(self, positions: np.ndarray) -> np.ndarray:
         """Whether each position (..., 3), m, lies in the solid; shape (...)."""
@@ -269,9 +269,7 @@ def with_contacts(task: Task, contacts: str) -> Task:
         ValueError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
 
     """
-    if contacts not in CONTACT_MODELS:
-        raise ValueError(f"contacts must be one of {', '.join(CONTACT_MODELS)}, got {contacts!r}")
-    if contacts == "recorded":
+    if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
         return task
     fast = type(task.config).fast_contacts
     if not fast:

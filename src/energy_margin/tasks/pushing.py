@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from energy_margin.errors import check_choice
 from energy_margin.tasks.base import (
     DesignAlias,
     ReferenceLayout,
@@ -134,10 +135,8 @@ class PushingConfig(TaskConfig):
     def check(self) -> None:
         """Raise ``ValueError`` naming the first setting outside its valid range."""
         super().check()
-        if self.ground_contact not in ("geometry", "footprint"):
-            raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
-        if self.lateral_contact not in ("geometry", "sphere"):
-            raise ValueError(f"lateral_contact must be 'geometry' or 'sphere', got {self.lateral_contact!r}")
+        check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
+        check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
         require_positive(
             self,
             "object_radius",

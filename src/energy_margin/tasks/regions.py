@@ -42,6 +42,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from energy_margin.errors import check_float, check_positive_float, check_positive_int
+
 
 class FrameLookup(Protocol):
     """The pose of a named body, site or geom at the frame a region is built from.
@@ -136,8 +138,8 @@ class CylinderRegion:
         rotation: np.ndarray | None = None,
     ) -> None:
         """Build the cylinder: centre (3,) m in the frame, radius m, half height m."""
-        if radius <= 0 or half_height <= 0:
-            raise ValueError(f"radius and half_height must be > 0, got {radius!r} and {half_height!r}")
+        check_positive_float("radius", radius)
+        check_positive_float("half_height", half_height)
         self.center = np.asarray(center, dtype=float)
         self.radius = float(radius)
         self.half_height = float(half_height)
@@ -284,9 +286,7 @@ class AtLeast:
 
     def __init__(self, count: int, region: Any) -> None:
         """Build it (``count`` >= 1)."""
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-            raise ValueError(f"at_least must be an integer >= 1, got {count!r}")
-        self.count = count
+        self.count = check_positive_int("count", count)
         self.region = region
         self.uses_orientation = bool(getattr(region, "uses_orientation", False))
 
@@ -328,8 +328,7 @@ class ContactRegion:
         """
         import mujoco
 
-        if margin < 0:
-            raise ValueError(f"margin must be >= 0, got {margin!r}")
+        check_float("margin", margin, minimum=0.0)
         self._mujoco = mujoco
         self.model = lookup.model
         self.data = mujoco.MjData(self.model)

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from energy_margin.errors import check_float, check_int, check_positive_float, check_positive_int
+
 #: Relative singular value below which a direction of the point set counts as flat.
 RANK_TOLERANCE = 1e-9
 #: Steps between exact recomputations of M (the rank-one updates drift slowly).
@@ -82,8 +84,7 @@ class Ellipsoid:
         Args:
             step: the grid, > 0 (metres for centre and radii; the rotation's entries are unitless).
         """
-        if not (np.isfinite(step) and step > 0):
-            raise ValueError(f"step must be finite and > 0, got {step!r}")
+        check_positive_float("step", step)
         return Ellipsoid(
             np.round(self.center / step) * step,
             np.maximum(np.round(self.radii / step) * step, step),
@@ -121,8 +122,7 @@ class Ellipsoid:
 
     def contains(self, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """Whether each point (..., d) lies inside, with relative tolerance ``tol`` on the norm."""
-        if not (np.isfinite(tol) and tol >= 0):
-            raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
+        check_float("tol", tol, minimum=0.0)
         points = np.asarray(points, dtype=float)
         if points.shape[-1:] != (self.dimension,):
             raise ValueError(f"points must have shape (..., {self.dimension}), got {points.shape}")
@@ -136,8 +136,7 @@ class Ellipsoid:
         direction and radius U^(1/d). The unit-ball points are scaled by the radii, rotated and
         translated.
         """
-        if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 0:
-            raise ValueError(f"count must be a non-negative integer, got {count!r}")
+        check_int("count", count, minimum=0)
         d = self.dimension
         if d == 2:
             angle = rng.uniform(0.0, 2.0 * np.pi, count)
@@ -200,16 +199,9 @@ def min_volume_ellipsoid(
 
     """
     array = _check_points(points)
-    if isinstance(tol, bool) or not isinstance(tol, int | float | np.floating) or not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a finite number > 0, got {tol!r}")
-    if isinstance(max_iterations, bool) or not isinstance(max_iterations, int | np.integer) or max_iterations < 1:
-        raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
-    if (
-        isinstance(min_thickness, bool)
-        or not isinstance(min_thickness, int | float | np.floating)
-        or not (np.isfinite(min_thickness) and min_thickness > 0)
-    ):
-        raise ValueError(f"min_thickness must be a finite number > 0, got {min_thickness!r}")
+    check_positive_float("tol", tol)
+    check_positive_int("max_iterations", max_iterations)
+    check_positive_float("min_thickness", min_thickness)
     n, d = array.shape
     start = None
     if initial_weights is not None:

@@ -16,6 +16,8 @@ from typing import Literal
 
 import numpy as np
 
+from energy_margin.errors import check_choice, check_float, check_positive_float
+
 ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
 JointKind = Literal["slide", "hinge"]
 ObjectMotion = Literal["free", "upright"]
@@ -50,8 +52,7 @@ class Geom:
     rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.6, 1.0)
 
     def __post_init__(self) -> None:
-        if self.shape not in _SIZE_LENGTH:
-            raise ValueError(f"shape must be one of {sorted(_SIZE_LENGTH)}, got {self.shape!r}")
+        check_choice("shape", self.shape, sorted(_SIZE_LENGTH))
         if len(self.size) != _SIZE_LENGTH[self.shape]:
             raise ValueError(f"size of a {self.shape} must have {_SIZE_LENGTH[self.shape]} values, got {self.size}")
         if any(not np.isfinite(s) or s <= 0 for s in self.size):
@@ -241,14 +242,10 @@ class Scene:
     def __post_init__(self) -> None:
         if not self.objects:
             raise ValueError("a scene needs at least one object")
-        if not np.isfinite(self.friction) or self.friction < 0:
-            raise ValueError(f"friction must be finite and >= 0, got {self.friction}")
-        if not np.isfinite(self.timestep) or self.timestep <= 0:
-            raise ValueError(f"timestep must be positive, got {self.timestep}")
-        if self.object_motion not in ("free", "upright"):
-            raise ValueError(f"object_motion must be 'free' or 'upright', got {self.object_motion!r}")
-        if self.integrator not in ("Euler", "implicitfast"):
-            raise ValueError(f"integrator must be 'Euler' or 'implicitfast', got {self.integrator!r}")
+        check_float("friction", self.friction, minimum=0.0)
+        check_positive_float("timestep", self.timestep)
+        check_choice("object_motion", self.object_motion, ("free", "upright"))
+        check_choice("integrator", self.integrator, ("Euler", "implicitfast"))
         if self.contact_time_constant is not None and not (
             np.isfinite(self.contact_time_constant) and self.contact_time_constant >= 2.0 * self.timestep
         ):
@@ -256,12 +253,10 @@ class Scene:
                 f"contact_time_constant must be at least two time steps ({2.0 * self.timestep} s), "
                 f"got {self.contact_time_constant}"
             )
-        if self.ground_contact not in ("geometry", "footprint"):
-            raise ValueError(f"ground_contact must be 'geometry' or 'footprint', got {self.ground_contact!r}")
+        check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
         if self.ground_contact == "footprint" and self.object_motion != "upright":
             raise ValueError("ground_contact 'footprint' needs object_motion 'upright'")
-        if self.lateral_contact not in ("geometry", "sphere"):
-            raise ValueError(f"lateral_contact must be 'geometry' or 'sphere', got {self.lateral_contact!r}")
+        check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
         if self.lateral_contact == "sphere" and self.object_motion != "upright":
             raise ValueError("lateral_contact 'sphere' needs object_motion 'upright'")
         names = [joint.name for link in self.robot_links for joint in link.joints]
