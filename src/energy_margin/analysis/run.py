@@ -21,7 +21,7 @@ from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, format_row, header, scores_journal
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.tasks import with_contacts
@@ -127,8 +127,7 @@ def analyze(
 
     """
     config = config if config is not None else AnalyzerConfig()
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise EnergyMarginError(f"seed must be a non-negative integer, got {seed!r}")
+    check_seed(seed)
     runner = make_executor(executor, workers=workers, address=address)
     dataset = require_valid(path, overlaps=True, scores=False)
     check_engine(dataset.task, config.engine)

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from energy_margin.errors import check_choice
+from energy_margin.errors import check_choice, check_float
 from energy_margin.tasks.base import (
     DesignAlias,
     ReferenceLayout,
@@ -338,9 +338,7 @@ def _inside_workspace(xy: np.ndarray, config: PushingConfig) -> np.ndarray:
 
 
 def _pusher_width(value: Any, current: Any) -> Any:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"pusher_width must be a number, got {value!r}")
-    return [value / 2.0, current[1], current[2]]
+    return [check_float("pusher_width", value) / 2.0, current[1], current[2]]
 
 
 class PushingTask(Task):
