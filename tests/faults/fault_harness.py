@@ -231,16 +231,20 @@ def kill_and_resume(
 
     Each attempt is SIGKILLed (its whole process group) after a time drawn uniformly from
     ``[earliest, duration]`` by ``numpy.random.default_rng(seed)``, unless it ended first, in
-    which case it must have exited 0 (a rerun of a finished run is a rerun like any other). Once
+    which case it must have exited 0 (a rerun of a finished run is a rerun like any other: it
+    opens, checks and rewrites the run's files, and is killed in turn). After an attempt ended
+    by itself, later times are drawn up to the time it took (what a rerun takes now). Once
     ``kills`` kills landed on a live process, a last rerun runs to its end and must exit 0.
     """
     prepare(command, workdir)
     rng = np.random.default_rng(seed)
     report = KillReport()
+    span = duration
     while report.kills < kills:
         assert report.attempts < max_attempts, f"only {report.kills} kills landed in {max_attempts} attempts"
         report.attempts += 1
-        delay = float(rng.uniform(earliest, max(duration, earliest + 0.1)))
+        delay = float(rng.uniform(earliest, max(span, earliest + 0.1)))
+        started = time.monotonic()
         proc = processes.start(command, workdir)
         try:
             proc.wait(timeout=delay)
@@ -257,6 +261,8 @@ def kill_and_resume(
             # Ended before its kill: after a kill, a rerun must resume or finish, never refuse.
             assert proc.returncode == 0, f"attempt {report.attempts} exited {proc.returncode}: {err}"
             report.completed_before_kill += 1
+            # The run is complete: a rerun now takes this long; later kills fall inside it.
+            span = min(span, time.monotonic() - started)
     started = time.monotonic()
     proc = processes.start(command, workdir)
     try:
