@@ -65,3 +65,28 @@ def test_analyze_removes_what_a_killed_analyze_left_in_the_dataset(
     capsys.readouterr()
     hidden = sorted(p.name for p in tiny_dataset.iterdir() if p.name.startswith("."))
     assert hidden == [".frames.npz.abcdefgh.npz"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "temporary"),
+    [
+        (
+            ["sweep", "--task", "pushing", "--param", "pusher_width=0.6", "--trajectories", "2", "--objects", "2"],
+            "sweep.json",
+        ),
+        (
+            ["control", "--episodes", "1", "--objects", "1", "--score-expansions", "0", "--set", "duration=0.1"],
+            "control.json",
+        ),
+    ],
+)
+def test_a_command_killed_inside_its_first_settings_write_runs_again(
+    argv: list[str], temporary: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / f".{temporary}.abcdefgh.tmp").write_text("{")
+    extra = ["--iterations", "2", "--frames", "1", "--bootstrap", "5"] if argv[0] == "sweep" else ["--frames", "2"]
+    code = main([*argv, *extra, "--out", str(out), "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    assert not [p for p in out.rglob(".*")]

@@ -34,7 +34,7 @@ from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs import progress_bar
-from energy_margin.runs.files import atomic_path, read_json, write_json
+from energy_margin.runs.files import atomic_path, leftovers, read_json, remove_leftovers, write_json
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, command_robot, get_task
 from energy_margin.world.state import FrameState
@@ -312,6 +312,9 @@ def _check_settings(out: Path, settings: ControlSettings, *, overwrite: bool) ->
         return
     if not out.is_dir():
         raise EnergyMarginError(f"{out} exists and is not a directory")
+    # What a run killed inside an atomic write left (a temporary file) is removed, not kept forever.
+    remove_leftovers([p for name in (CONTROL_FILE, METADATA_FILE, FRAMES_FILE) for p in leftovers(out, name)])
+    remove_leftovers(leftovers(out / EPISODES_DIR))
     if overwrite:
         for name in (EPISODES_DIR,):
             shutil.rmtree(out / name, ignore_errors=True)

@@ -60,7 +60,7 @@ from energy_margin.data.scores_file import SCORES_FILE, load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.statistics import spearman, spearman_rho, wilson_interval
-from energy_margin.runs.files import atomic_write_text, read_json, write_json
+from energy_margin.runs.files import atomic_write_text, leftovers, read_json, remove_leftovers, write_json
 from energy_margin.sim import ENGINES
 from energy_margin.tasks import Task, available_tasks, get_task
 
@@ -450,6 +450,10 @@ _RESUME_KEYS = ("task", "n_objects", "n_trajectories", "n_frames", "seed", "engi
 def _check_directory(out: Path, settings: dict[str, Any]) -> None:
     """Refuse a directory that holds something else, or a sweep with other settings."""
     path = out / SETTINGS_FILE
+    # What a sweep killed inside an atomic write left (a temporary file) is removed, not taken
+    # for another directory's contents.
+    names = (SETTINGS_FILE, RESULTS_FILE, "results.json", "results.png")
+    remove_leftovers([p for name in names for p in leftovers(out, name)])
     if path.is_file():
         previous = read_json(path, what="sweep settings")
         if not isinstance(previous, dict):
