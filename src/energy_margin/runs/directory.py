@@ -14,6 +14,10 @@ Every long command (``analyze``, ``perturb``, ``budget``, ``study``, ``sweep``, 
    (:attr:`RunSpec.shared_directory`: the analysis of a dataset writes into the dataset's folder);
    ``overwrite`` removes the run's outputs there too, and nothing else.
 4. The new settings are written (atomically) before any result, so a killed run resumes under them.
+
+A writer killed during an atomic write leaves its temporary file (or staging folder) behind;
+the next writer, holding the lock, removes those of the run's own files first (:func:`remove_stale`),
+so they neither accumulate nor make a fresh directory look foreign.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.runs.files import read_json, write_json
+from energy_margin.runs.files import leftovers, read_json, remove_leftovers, write_json
 from energy_margin.runs.lock import LOCK_FILE, RunLock
 
 
@@ -163,6 +167,22 @@ def remove_outputs(path: Path, spec: RunSpec) -> None:
             target.unlink(missing_ok=True)
 
 
+def remove_stale(path: Path, spec: RunSpec) -> list[Path]:
+    """Remove what a killed writer of the run in ``path`` left half-written; the paths removed.
+
+    Temporary files and staging folders of the settings file and of the outputs, and those
+    inside output folders (the run's own). Only the lock's holder may call this.
+    """
+    found: list[Path] = []
+    for name in (spec.settings_file, *spec.outputs):
+        found += leftovers(path, name)
+        target = path / name
+        if target.is_dir() and not target.is_symlink():
+            found += leftovers(target)
+    remove_leftovers(found)
+    return found
+
+
 def _foreign(path: Path) -> list[str]:
     return sorted(entry.name for entry in path.iterdir() if entry.name != LOCK_FILE)
 
@@ -194,6 +214,7 @@ def open_run(path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overw
         raise EnergyMarginError(f"cannot create {path}: {error.strerror}") from None
     lock = RunLock(path).acquire()
     try:
+        remove_stale(path, spec)
         resumed = _check(path, spec, settings, overwrite=overwrite)
         run = RunDirectory(path, spec, _plain(settings), resumed, lock)
         if spec.settings_key is None or not run.settings_path.exists() or not resumed:

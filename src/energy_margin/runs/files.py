@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -87,6 +89,34 @@ def atomic_path(path: Path) -> Iterator[Path]:
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+
+
+def leftovers(directory: Path, name: str | None = None) -> list[Path]:
+    """What writers killed mid-way left in ``directory``: temporary files and staging folders.
+
+    Those of :func:`atomic_write_text`, :func:`atomic_path` and :func:`staging_directory` for
+    ``directory / name`` (``.NAME.XXXXXXXX.tmp``, ``.NAME.XXXXXXXX.SUFFIX``, ``.NAME.XXXXXXXX``,
+    tempfile's eight random characters); of any name when ``name`` is ``None``.
+    """
+    if name is None:
+        pattern = re.compile(r"\..+\.[a-z0-9_]{8}(?:\.[A-Za-z0-9]+)?")
+    else:
+        suffix = re.escape(Path(name).suffix)
+        pattern = re.compile(rf"\.{re.escape(name)}\.[a-z0-9_]{{8}}(?:\.tmp|{suffix})?")
+    try:
+        entries = list(Path(directory).iterdir())
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+    return sorted(entry for entry in entries if pattern.fullmatch(entry.name))
+
+
+def remove_leftovers(paths: list[Path]) -> None:
+    """Remove temporary files and staging folders found by :func:`leftovers`."""
+    for path in paths:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def write_json(path: Path, value: Any) -> None:
