@@ -17,10 +17,10 @@ from typing import Any, TextIO
 import pytest
 from fault_harness import LOCK_FILE, compare_trees, hidden_entries
 
-import energy_margin.evaluation.sweep as sweep_module
 import energy_margin.runs.journal as journal_module
 from energy_margin.cli import main
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE
+from energy_margin.evaluation.sweep_display import SweepDisplay
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.journal import Journal
 
@@ -219,8 +219,8 @@ def test_a_journal_rewrite_on_a_full_disk_keeps_the_old_journal(
 
 
 def _one_line_full_disk(code: int, err: str, *, log: bool = False) -> None:
-    """What the user sees of a full disk: one line (after a command's log lines), a non-zero exit, no traceback."""
-    assert code != 0
+    """What the user sees of a full disk: one line (after a command's log lines), exit status 2, no traceback."""
+    assert code == 2
     assert "Traceback" not in err
     lines = err.splitlines()
     if not log:
@@ -228,6 +228,7 @@ def _one_line_full_disk(code: int, err: str, *, log: bool = False) -> None:
     assert [line for line in lines if line.startswith("energy-margin")] == lines[-1:], err
     assert lines[-1].startswith("energy-margin: error: "), err
     assert "no space left on device" in lines[-1].lower(), err
+    assert lines[-1].endswith("make room and run the same command again to resume"), err
 
 
 def _analyzed(directory: Path, capsys: pytest.CaptureFixture[str]) -> Path:
@@ -299,7 +300,7 @@ def test_a_rerun_with_the_disk_full_leaves_the_run_as_it_was(
 def test_a_sweep_with_the_disk_full_at_its_results_keeps_the_previous_results(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(sweep_module, "plot", lambda results, path: None)  # the tables are the point
+    monkeypatch.setattr(SweepDisplay, "save", lambda self, path, **options: None)  # the tables are the point
     out = tmp_path / "sweep"
     argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", "--trajectories", "2", "--frames", "2"]
     argv += ["--objects", "2", "--seed", "3", "--iterations", "8", "--bootstrap", "20", "--out", str(out)]

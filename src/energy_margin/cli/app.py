@@ -15,6 +15,7 @@ name that differs (``{"n_objects": "--objects"}``).
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import signal
 import sys
@@ -127,9 +128,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
         print(f"{PROG}: interrupted; run the same command again to resume", file=sys.stderr)
         return 130
+    except OSError as error:
+        if error.errno not in _ENVIRONMENT_ERRORS or os.environ.get("ENERGY_MARGIN_DEBUG"):
+            return _unexpected(error)
+        # A full disk or quota is the machine's state, not a defect: what finished is on disk.
+        where = f" writing {error.filename}" if error.filename else ""
+        reason = os.strerror(error.errno).lower()
+        print(f"{PROG}: error: {reason}{where}; make room and run the same command again to resume", file=sys.stderr)
+        return 2
     except Exception as error:
-        if os.environ.get("ENERGY_MARGIN_DEBUG"):
-            raise
-        message = one_line(f"{type(error).__name__}: {error}")
-        print(f"{PROG}: error: {message} (set ENERGY_MARGIN_DEBUG=1 for details)", file=sys.stderr)
-        return 1
+        return _unexpected(error)
+
+
+#: OSError numbers that say the machine cannot take the results now (one line, exit status 2).
+_ENVIRONMENT_ERRORS = {errno.ENOSPC, errno.EDQUOT}
+
+
+def _unexpected(error: Exception) -> int:
+    """Report a defect in one line, exit status 1; re-raise it when ENERGY_MARGIN_DEBUG is set."""
+    if os.environ.get("ENERGY_MARGIN_DEBUG"):
+        raise error
+    message = one_line(f"{type(error).__name__}: {error}")
+    print(f"{PROG}: error: {message} (set ENERGY_MARGIN_DEBUG=1 for details)", file=sys.stderr)
+    return 1
