@@ -205,6 +205,44 @@ def test_control_keyframes_interpolate_linearly_or_hold(make_scene) -> None:
     np.testing.assert_allclose(after.ctrl, [0.4])
 
 
+def _mocap_quat_midpoint(make_scene, first: list[float], second: list[float]) -> np.ndarray:
+    """The pusher's interpolated quaternion halfway between keyframes with quaternions ``first`` and ``second``."""
+    replace = {
+        line: f"{line}mocap.pusher.quat = {quat}\n"
+        for line, quat in (
+            ("mocap.pusher.pos = [0.0, -0.15, 0.03]\n", first),
+            ("mocap.pusher.pos = [0.0, 0.3, 0.03]\n", second),
+        )
+    }
+    motion = load_scene(make_scene(replace=replace)).motion
+    poses = motion.mocap_at(0.75)
+    assert poses is not None
+    return poses[1][0]
+
+
+def test_opposite_keyframe_quaternions_are_one_orientation(make_scene) -> None:
+    # q and -q are the same orientation: halfway between them is that orientation, not NaN.
+    q = np.array([0.5, 0.5, -0.5, 0.5])
+    for other in (-q, q):
+        halfway = _mocap_quat_midpoint(make_scene, q.tolist(), other.tolist())
+        assert np.all(np.isfinite(halfway))
+        np.testing.assert_allclose(abs(float(np.dot(halfway, q))), 1.0, rtol=0, atol=1e-12)
+
+
+def test_keyframe_quaternions_follow_the_shortest_arc(make_scene) -> None:
+    # 0 and 120 degrees about z: halfway is 60 degrees (slerp), whichever sign the second has.
+    def about_z(degrees: float) -> np.ndarray:
+        half = np.radians(degrees) / 2
+        return np.array([np.cos(half), 0.0, 0.0, np.sin(half)])
+
+    for sign in (1.0, -1.0):
+        halfway = _mocap_quat_midpoint(make_scene, about_z(0).tolist(), (sign * about_z(120)).tolist())
+        np.testing.assert_allclose(halfway, about_z(60), rtol=0, atol=1e-12)
+    # Past 180 degrees the shorter way round is the other direction: 0 and 300 give -30.
+    halfway = _mocap_quat_midpoint(make_scene, about_z(0).tolist(), about_z(300).tolist())
+    np.testing.assert_allclose(halfway * np.sign(halfway[0]), about_z(-30), rtol=0, atol=1e-12)
+
+
 def test_control_file_and_its_errors(make_scene, tmp_path: Path) -> None:
     replace = {
         "[[motion.keyframes]]\ntime = 0.0\nmocap.pusher.pos = [0.0, -0.15, 0.03]\n\n": "",

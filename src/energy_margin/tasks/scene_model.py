@@ -59,7 +59,7 @@ class Motion:
         if self.mocap_times.size == 0:
             return None
         pos = _interpolate(self.mocap_times, self.mocap_pos, time, hold=self.hold)
-        quat = _interpolate(self.mocap_times, self.mocap_quat, time, hold=self.hold)
+        quat = _interpolate_quat(self.mocap_times, self.mocap_quat, time, hold=self.hold)
         return pos, quat / np.linalg.norm(quat, axis=-1, keepdims=True)
 
 
@@ -75,6 +75,38 @@ def _interpolate(times: np.ndarray, values: np.ndarray, time: float, *, hold: bo
         return values[lower].copy()
     weight = (time - times[lower]) / (times[upper] - times[lower])
     result: np.ndarray = (1.0 - weight) * values[lower] + weight * values[upper]
+    return result
+
+
+#: Quaternions whose dot product exceeds this are interpolated linearly (then normalised): slerp's
+#: weights divide by the sine of an angle that is then below about 1e-3 rad.
+_NEARLY_EQUAL = 1.0 - 1e-6
+
+
+def _interpolate_quat(times: np.ndarray, quats: np.ndarray, time: float, *, hold: bool) -> np.ndarray:
+    """Unit quaternions (n, 4) at ``time`` between rows (n_rows, n, 4) at ``times``, along the shortest arc.
+
+    q and -q are the same orientation: the row after is negated where its dot product with the row
+    before is negative, so the interpolation never passes through zero. Nearly equal quaternions
+    are interpolated linearly (normalised by the caller); the others by spherical linear
+    interpolation.
+    """
+    if hold or time <= times[0] or time >= times[-1]:
+        return _interpolate(times, quats, time, hold=hold)
+    upper = int(np.searchsorted(times, time, side="right"))
+    lower = upper - 1
+    weight = (time - times[lower]) / (times[upper] - times[lower])
+    start, end = quats[lower], quats[upper].copy()
+    dot = np.sum(start * end, axis=-1)
+    flip = dot < 0
+    end[flip] = -end[flip]
+    dot = np.clip(np.abs(dot), 0.0, 1.0)
+    result: np.ndarray = (1.0 - weight) * start + weight * end
+    arc = dot <= _NEARLY_EQUAL
+    if np.any(arc):
+        angle = np.arccos(dot[arc])[:, None]
+        sine = np.sin(angle)
+        result[arc] = (np.sin((1.0 - weight) * angle) * start[arc] + np.sin(weight * angle) * end[arc]) / sine
     return result
 
 
