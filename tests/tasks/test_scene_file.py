@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from energy_margin.cli import main
+from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_file import Locator, read_scene_file
 from energy_margin.tasks.scene_model import load_scene
@@ -127,6 +129,19 @@ BAD_INPUTS = [
     ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
     ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
     ({"max_duration = 0.1": "max_duration = -0.1"}, {}, "perturbation.max_duration:", "must be > 0"),
+    # Found by fuzzing (tests/tasks/test_fuzz_scene_file.py): each escaped as another exception or was accepted.
+    ({"schema_version = 1": "schema_version = true"}, {}, ":1: schema_version:", "True is not supported"),
+    ({'mjcf = "model.xml"': 'mjcf = "model\\u0000.xml"'}, {}, ":2: mjcf:", "without NUL characters"),
+    ({'mjcf = "model.xml"': 'mjcf = "' + "m" * 300 + '.xml"'}, {}, ":2: mjcf:", "cannot be read"),
+    ({'mjcf = "model.xml"': 'mjcf = "."'}, {}, ":2: mjcf:", "is not a file"),
+    (
+        {'type = "box", body = "pusher"': 'type = ["box"], body = "pusher"'},
+        {},
+        "capture.region.type:",
+        "unknown region",
+    ),
+    ({"[objects]\n": "[objects]\n" + "x = " + "[" * 70 + "]" * 70 + "\n"}, {}, "", "nested more than 64 levels"),
+    ({"[objects]\n": "[objects]\n" + "x = " + "[" * 5000 + "]" * 5000 + "\n"}, {}, "", "nested too deeply"),
 ]
 
 
@@ -176,6 +191,20 @@ def test_template_copies_are_added_without_overlap(make_scene) -> None:
     assert len(set(np.round(start, 6))) == 4
     task = get_task("scene", {"scene_file": str(scene)})
     assert task.fixed_objects == 4
+
+
+@pytest.mark.parametrize(
+    ("objects", "fragment"),
+    [
+        ('template = "world"\ncount = 2', "objects.template: body 'world' must be a child of the worldbody"),
+        ('template = "box_a"\ncount = 1001', "objects.count: must be at most 1000, got 1001"),
+    ],
+)
+def test_template_that_cannot_be_copied_is_one_line(make_scene, objects: str, fragment: str) -> None:
+    scene = make_scene(replace={'bodies = ["box_*"]': objects})
+    with pytest.raises(EnergyMarginError, match=re.escape(fragment)) as error:
+        load_scene(scene)
+    assert "\n" not in str(error.value)
 
 
 ROBOT_MODEL_EDIT = {

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
+from energy_margin.world.npz import NpzError, read_npz
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
@@ -164,21 +165,20 @@ def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
 
 def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
     """Load the scene's MJCF with ``MjSpec``, add the template copies and compile it."""
-    if not spec.mjcf.is_file():
-        raise spec.error("mjcf", f"model file {spec.mjcf} does not exist")
+    _check_file(spec, "mjcf", spec.mjcf, "model file ")
     try:
         model_spec = mujoco.MjSpec.from_file(str(spec.mjcf))
-    except ValueError as error:
+    except (ValueError, mujoco.FatalError) as error:
         raise spec.error("mjcf", f"{spec.mjcf.name} cannot be loaded: {_one_line(error)}") from None
     if spec.template is not None:
         template = model_spec.body(spec.template)
         if template is None:
             raise spec.error("objects.template", f"no body {spec.template!r} in {spec.mjcf.name}")
-        if template.parent.name != model_spec.worldbody.name:
+        if template.parent is None or template.parent.name != model_spec.worldbody.name:
             raise spec.error("objects.template", f"body {spec.template!r} must be a child of the worldbody")
         try:
             probe = model_spec.compile()
-        except ValueError as error:
+        except (ValueError, mujoco.FatalError) as error:
             raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
         body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, spec.template)
         geoms = np.flatnonzero(probe.geom_bodyid == body)
@@ -191,15 +191,29 @@ def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
         # (their slide joints measure world positions from it) and take their places from the start draw.
         spacing = 2.0 * radius + 0.01 if spec.object_joints == "free" else 0.0
         model_spec.copy_during_attach = True
-        for index in range(spec.count or 0):
-            frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
-            frame.attach_body(template, "", f"_{index}")
-        model_spec.delete(template)
+        try:
+            for index in range(spec.count or 0):
+                frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
+                frame.attach_body(template, "", f"_{index}")
+            model_spec.delete(template)
+        except (ValueError, mujoco.FatalError) as error:
+            raise spec.error("objects.template", f"cannot copy body {spec.template!r}: {_one_line(error)}") from None
     try:
         model = model_spec.compile()
-    except ValueError as error:
+    except (ValueError, mujoco.FatalError) as error:
         raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
     return model_spec, model
+
+
+def _check_file(spec: SceneSpec, key: str, path: Path, what: str = "") -> None:
+    """Refuse a ``path`` (named by ``key``) that is not a readable regular file."""
+    try:
+        if path.is_file():
+            return
+        problem = "is not a file" if path.exists() else "does not exist"
+    except OSError as error:
+        problem = f"cannot be read ({error.strerror})"
+    raise spec.error(key, f"{what}{path} {problem}")
 
 
 def _object_bodies(spec: SceneSpec, model: mujoco.MjModel) -> list[int]:
@@ -309,17 +323,19 @@ def _read_ctrl_file(spec: SceneSpec, nu: int, what: str) -> tuple[np.ndarray, np
     path = spec.motion.ctrl_file
     assert path is not None
     key = "motion.ctrl_file"
-    if not path.is_file():
-        raise spec.error(key, f"{path} does not exist")
+    _check_file(spec, key, path)
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            missing = [name for name in ("time", "ctrl") if name not in archive.files]
-            if missing:
-                raise spec.error(key, f"{path.name} has no array {missing[0]!r} (it needs time (n,) and ctrl (n, nu))")
-            times = np.asarray(archive["time"], dtype=float)
-            ctrl = np.asarray(archive["ctrl"], dtype=float)
-    except (OSError, ValueError) as error:
-        raise spec.error(key, f"{path.name} is not a readable .npz file ({_one_line(error)})") from None
+        archive = read_npz(path)
+    except NpzError as error:
+        raise spec.error(key, f"{path.name} is not a readable .npz file ({error})") from None
+    missing = [name for name in ("time", "ctrl") if name not in archive]
+    if missing:
+        raise spec.error(key, f"{path.name} has no array {missing[0]!r} (it needs time (n,) and ctrl (n, nu))")
+    for name in ("time", "ctrl"):
+        if archive[name].dtype.kind not in "fiu":
+            raise spec.error(key, f"{path.name}: {name} must hold numbers, got {archive[name].dtype}")
+    times = archive["time"].astype(float)
+    ctrl = archive["ctrl"].astype(float)
     if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
         raise spec.error(key, f"{path.name}: time must be a non-empty 1-d array of finite seconds")
     if np.any(np.diff(times) <= 0):
