@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from energy_margin.cli import main
+from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_file import Locator, read_scene_file
 from energy_margin.tasks.scene_model import load_scene
@@ -127,6 +129,19 @@ BAD_INPUTS = [
     ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
     ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
     ({"max_duration = 0.1": "max_duration = -0.1"}, {}, "perturbation.max_duration:", "must be > 0"),
+    # Found by fuzzing (tests/tasks/test_fuzz_scene_file.py): each escaped as another exception or was accepted.
+    ({"schema_version = 1": "schema_version = true"}, {}, ":1: schema_version:", "True is not supported"),
+    ({'mjcf = "model.xml"': 'mjcf = "model\\u0000.xml"'}, {}, ":2: mjcf:", "without NUL characters"),
+    ({'mjcf = "model.xml"': 'mjcf = "' + "m" * 300 + '.xml"'}, {}, ":2: mjcf:", "cannot be read"),
+    ({'mjcf = "model.xml"': 'mjcf = "."'}, {}, ":2: mjcf:", "is not a file"),
+    (
+        {'type = "box", body = "pusher"': 'type = ["box"], body = "pusher"'},
+        {},
+        "capture.region.type:",
+        "unknown region",
+    ),
+    ({"[objects]\n": "[objects]\n" + "x = " + "[" * 70 + "]" * 70 + "\n"}, {}, "", "nested more than 64 levels"),
+    ({"[objects]\n": "[objects]\n" + "x = " + "[" * 5000 + "]" * 5000 + "\n"}, {}, "", "nested too deeply"),
 ]
 
 
@@ -178,6 +193,20 @@ def test_template_copies_are_added_without_overlap(make_scene) -> None:
     assert task.fixed_objects == 4
 
 
+@pytest.mark.parametrize(
+    ("objects", "fragment"),
+    [
+        ('template = "world"\ncount = 2', "objects.template: body 'world' must be a child of the worldbody"),
+        ('template = "box_a"\ncount = 1001', "objects.count: must be at most 1000, got 1001"),
+    ],
+)
+def test_template_that_cannot_be_copied_is_one_line(make_scene, objects: str, fragment: str) -> None:
+    scene = make_scene(replace={'bodies = ["box_*"]': objects})
+    with pytest.raises(EnergyMarginError, match=re.escape(fragment)) as error:
+        load_scene(scene)
+    assert "\n" not in str(error.value)
+
+
 ROBOT_MODEL_EDIT = {
     '<body name="box_a"': '<body name="slider" pos="0 -0.5 0.03"><joint name="slide" type="slide" axis="1 0 0"/>'
     '<geom type="box" size="0.02 0.02 0.02" mass="1"/></body>\n    <body name="box_a"',
@@ -203,6 +232,44 @@ def test_control_keyframes_interpolate_linearly_or_hold(make_scene) -> None:
     after = held.model_command(np.ones(2), 1.2)
     assert after is not None and after.ctrl is not None
     np.testing.assert_allclose(after.ctrl, [0.4])
+
+
+def _mocap_quat_midpoint(make_scene, first: list[float], second: list[float]) -> np.ndarray:
+    """The pusher's interpolated quaternion halfway between keyframes with quaternions ``first`` and ``second``."""
+    replace = {
+        line: f"{line}mocap.pusher.quat = {quat}\n"
+        for line, quat in (
+            ("mocap.pusher.pos = [0.0, -0.15, 0.03]\n", first),
+            ("mocap.pusher.pos = [0.0, 0.3, 0.03]\n", second),
+        )
+    }
+    motion = load_scene(make_scene(replace=replace)).motion
+    poses = motion.mocap_at(0.75)
+    assert poses is not None
+    return poses[1][0]
+
+
+def test_opposite_keyframe_quaternions_are_one_orientation(make_scene) -> None:
+    # q and -q are the same orientation: halfway between them is that orientation, not NaN.
+    q = np.array([0.5, 0.5, -0.5, 0.5])
+    for other in (-q, q):
+        halfway = _mocap_quat_midpoint(make_scene, q.tolist(), other.tolist())
+        assert np.all(np.isfinite(halfway))
+        np.testing.assert_allclose(abs(float(np.dot(halfway, q))), 1.0, rtol=0, atol=1e-12)
+
+
+def test_keyframe_quaternions_follow_the_shortest_arc(make_scene) -> None:
+    # 0 and 120 degrees about z: halfway is 60 degrees (slerp), whichever sign the second has.
+    def about_z(degrees: float) -> np.ndarray:
+        half = np.radians(degrees) / 2
+        return np.array([np.cos(half), 0.0, 0.0, np.sin(half)])
+
+    for sign in (1.0, -1.0):
+        halfway = _mocap_quat_midpoint(make_scene, about_z(0).tolist(), (sign * about_z(120)).tolist())
+        np.testing.assert_allclose(halfway, about_z(60), rtol=0, atol=1e-12)
+    # Past 180 degrees the shorter way round is the other direction: 0 and 300 give -30.
+    halfway = _mocap_quat_midpoint(make_scene, about_z(0).tolist(), about_z(300).tolist())
+    np.testing.assert_allclose(halfway * np.sign(halfway[0]), about_z(-30), rtol=0, atol=1e-12)
 
 
 def test_control_file_and_its_errors(make_scene, tmp_path: Path) -> None:

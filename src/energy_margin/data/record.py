@@ -28,44 +28,89 @@ from energy_margin.errors import EnergyMarginError, check_positive_int
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
+from energy_margin.world.npz import NpzError, read_npz
 from energy_margin.world.state import FrameState
 
 _HDF5_SUFFIXES = (".h5", ".hdf5")
 
 
+#: What h5py raises for a file, group or dataset it cannot read.
+_HDF5_ERRORS = (OSError, RuntimeError, ValueError, KeyError, TypeError)
+
+
 def _load_arrays(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
     """The roll-outs in one file: ``(name, arrays)``; an ``.npz`` holds one, an HDF5 file one per group."""
-    if not path.is_file():
-        raise EnergyMarginError(f"{path}: roll-out file does not exist")
-    if path.suffix.lower() in _HDF5_SUFFIXES:
-        try:
-            import h5py
-        except ImportError:
-            raise EnergyMarginError(
-                f"{path}: reading HDF5 roll-outs needs h5py: pip install 'energy-margin[hdf5]'"
-            ) from None
-        try:
-            with h5py.File(path, "r") as handle:
-                rollouts = []
-                for group_name in sorted(handle):
-                    group = handle[group_name]
-                    if not isinstance(group, h5py.Group):
-                        raise EnergyMarginError(
-                            f"{path}: /{group_name}: expected a group per roll-out, found a dataset"
-                        )
-                    arrays = {key: np.asarray(group[key]) for key in group if isinstance(group[key], h5py.Dataset)}
-                    rollouts.append((f"{path}:/{group_name}", arrays))
-        except OSError as error:
-            raise EnergyMarginError(f"{path}: not a readable HDF5 file ({' '.join(str(error).split())})") from None
-        if not rollouts:
-            raise EnergyMarginError(f"{path}: holds no roll-out group")
-        return rollouts
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            arrays = {name: np.asarray(archive[name]) for name in archive.files}
-    except (OSError, ValueError, EOFError) as error:
-        raise EnergyMarginError(f"{path}: not a readable .npz roll-out ({' '.join(str(error).split())})") from None
+        is_file = path.is_file()
+    except OSError as error:
+        raise EnergyMarginError(f"{path}: roll-out file cannot be read ({error.strerror})") from None
+    if not is_file:
+        problem = "is not a file" if path.exists() else "does not exist"
+        raise EnergyMarginError(f"{path}: roll-out file {problem}")
+    if path.suffix.lower() in _HDF5_SUFFIXES:
+        return _load_hdf5(path)
+    try:
+        arrays = read_npz(path)
+    except NpzError as error:
+        raise EnergyMarginError(f"{path}: not a readable .npz roll-out ({error})") from None
     return [(str(path), arrays)]
+
+
+def _load_hdf5(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
+    """One roll-out per group of the HDF5 file at ``path``, in the order of the group names."""
+    try:
+        import h5py
+    except ImportError:
+        raise EnergyMarginError(
+            f"{path}: reading HDF5 roll-outs needs h5py: pip install 'energy-margin[hdf5]'"
+        ) from None
+    rollouts = []
+    try:
+        with h5py.File(path, "r") as handle:
+            for group_name in sorted(handle):
+                where = f"{path}:/{group_name}"
+                try:
+                    group = handle[group_name]
+                except _HDF5_ERRORS as error:
+                    raise EnergyMarginError(f"{where}: cannot be read ({_one_line(error)})") from None
+                if not isinstance(group, h5py.Group):
+                    raise EnergyMarginError(f"{where}: expected a group per roll-out, found a dataset")
+                arrays = {}
+                for key in sorted(group):
+                    try:
+                        item = group[key]
+                        if not isinstance(item, h5py.Dataset):
+                            continue
+                        if item.shape is None:
+                            raise EnergyMarginError(f"{where}: {key}: holds no data (an empty dataset)")
+                        if item.dtype.kind not in "fiu":
+                            raise EnergyMarginError(f"{where}: {key}: must hold numbers, got {item.dtype}")
+                        arrays[key] = np.asarray(item[()])
+                    except _HDF5_ERRORS as error:
+                        raise EnergyMarginError(f"{where}: {key}: cannot be read ({_one_line(error)})") from None
+                rollouts.append((where, arrays))
+    except _HDF5_ERRORS as error:
+        raise EnergyMarginError(f"{path}: not a readable HDF5 file ({_one_line(error)})") from None
+    if not rollouts:
+        raise EnergyMarginError(f"{path}: holds no roll-out group")
+    return rollouts
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def read_rollout_file(path: Path | str, model: mujoco.MjModel) -> list[tuple[str, dict[str, np.ndarray]]]:
+    """The checked roll-outs of one file for the scene's compiled ``model``, as ``(name, arrays)``.
+
+    An ``.npz`` file holds one roll-out (named by the file), an HDF5 file one per group (named
+    ``FILE:/GROUP``); every array is returned as float.
+
+    Raises:
+        EnergyMarginError: an unreadable file, a missing array, a width that does not fit
+            ``model``, a NaN or a ``time`` that does not increase (one line naming file and array).
+    """
+    return [(name, _check_rollout(name, raw, model)) for name, raw in _load_arrays(Path(path))]
 
 
 def _check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjModel) -> dict[str, np.ndarray]:
@@ -152,8 +197,7 @@ def record_dataset(
     sources: list[dict[str, Any]] = []
     for item in rollouts:
         path = Path(item)
-        for name, raw in _load_arrays(path):
-            loaded_rollouts.append((name, _check_rollout(name, raw, model)))
+        loaded_rollouts.extend(read_rollout_file(path, model))
         sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
     records = []
     for name, arrays in loaded_rollouts:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import time
-import zipfile
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +37,7 @@ from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
 from energy_margin.runs.files import atomic_path
 from energy_margin.tasks import Task, get_recorded_task
+from energy_margin.world.npz import NpzError, read_npz
 from energy_margin.world.state import FrameState
 
 #: ``format`` of a saved model's header.
@@ -171,25 +172,41 @@ def load_margin_model(path: Path | str, *, task_name: str | None = None) -> Marg
             package version or of another feature definition (one line each).
     """
     path = Path(path)
-    if not path.is_file():
-        raise EnergyMarginError(f"margin model {path} does not exist")
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            contents = {name: archive[name] for name in archive.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as error:
-        raise EnergyMarginError(f"margin model {path}: not a margin model file ({_one_line(error)})") from None
+        if not path.is_file():
+            raise EnergyMarginError(f"margin model {path} {'is not a file' if path.exists() else 'does not exist'}")
+    except OSError as error:
+        raise EnergyMarginError(f"margin model {path} cannot be read ({error.strerror})") from None
+    try:
+        contents = read_npz(path)
+    except NpzError as error:
+        raise EnergyMarginError(f"margin model {path}: not a margin model file ({error})") from None
     if _HEADER not in contents:
         raise EnergyMarginError(f"margin model {path}: not a margin model file (no header)")
+    raw = contents[_HEADER]
+    if raw.dtype != np.uint8 or raw.ndim != 1:
+        raise EnergyMarginError(
+            f"margin model {path}: the header is not a 1-d array of bytes ({raw.dtype} {raw.shape})"
+        )
     try:
-        header = json.loads(contents[_HEADER].astype(np.uint8).tobytes().decode("utf-8"))
-    except (ValueError, UnicodeDecodeError):
+        header = json.loads(raw.tobytes().decode("utf-8"))
+    except (ValueError, RecursionError):
         raise EnergyMarginError(f"margin model {path}: the header is not valid JSON") from None
     _check_header(path, header, task_name)
     arrays = {name[len(_PREFIX) :]: value for name, value in contents.items() if name.startswith(_PREFIX)}
+    bad = next((name for name, value in arrays.items() if value.dtype.kind not in "biuf"), None)
+    if bad is not None:
+        raise EnergyMarginError(
+            f"margin model {path}: corrupt parameters ({bad} holds {arrays[bad].dtype}, not numbers)"
+        )
     try:
-        regressor = regressor_from_arrays(header["kind"], arrays)
-    except (ValueError, TypeError) as error:
-        raise EnergyMarginError(f"margin model {path}: corrupt {header['kind']} parameters ({error})") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # int() of a 1-element array
+            regressor = regressor_from_arrays(header["kind"], arrays)
+    except (ValueError, TypeError, OverflowError) as error:
+        raise EnergyMarginError(
+            f"margin model {path}: corrupt {header['kind']} parameters ({_one_line(error)})"
+        ) from None
     width = len(header["feature_names"])
     if regressor.n_features != width:
         raise EnergyMarginError(f"margin model {path}: corrupt parameters (they do not fit {width} features)")
@@ -224,6 +241,10 @@ def _check_header(path: Path, header: Any, task_name: str | None) -> None:
     for key, kind in required.items():
         if not isinstance(header.get(key), kind):
             raise EnergyMarginError(f"{where}: header field {key!r} is missing or not a {kind.__name__}")
+    if "report" in header and not isinstance(header["report"], dict):
+        raise EnergyMarginError(f"{where}: header field 'report' is not a dict")
+    if not all(isinstance(name, str) for name in header["feature_names"]):
+        raise EnergyMarginError(f"{where}: header field 'feature_names' holds a value that is not a str")
     if task_name is not None and header["task"] != task_name:
         raise EnergyMarginError(f"{where} is a model of task {header['task']!r}, not {task_name!r}")
     if header["feature_set"] != f"{FrameFeatures.name}/{FrameFeatures.version}":

@@ -140,12 +140,15 @@ class BoostingRegressor:
         for name, array in (("threshold", threshold), ("left", left), ("right", right), ("value", value)):
             if array.shape != shape:
                 raise ValueError(f"{name} has shape {array.shape}, expected {shape}")
+        for name, array in (("feature", feature), ("left", left), ("right", right)):
+            if array.dtype.kind not in "iu":
+                raise ValueError(f"{name} must hold integers, got {array.dtype}")
         if shape[2] and (left.min() < 0 or right.min() < 0 or left.max() >= shape[2] or right.max() >= shape[2]):
             raise ValueError("child indices point outside the node arrays")
         if feature.min(initial=0) < 0 or feature.max(initial=0) >= n_features:
             raise ValueError(f"split features must lie in [0, {n_features})")
-        if depth < 0:
-            raise ValueError(f"depth must be >= 0, got {depth}")
+        if depth < 0 or depth > max(shape[2] - 1, 0):
+            raise ValueError(f"depth must be in [0, {max(shape[2] - 1, 0)}] for trees of {shape[2]} nodes, got {depth}")
         self.baseline = baseline
         self.feature = feature.astype(np.int64)
         self.threshold, self.value = threshold, value

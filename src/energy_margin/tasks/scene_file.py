@@ -24,6 +24,10 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.regions import REGION_TYPES
 
 SCHEMA_VERSION = 1
+#: Most copies of a template body (``objects.count``).
+MAX_COPIES = 1000
+#: Deepest nesting of arrays and tables in a scene file (regions nest through ``of`` and ``region``).
+MAX_DEPTH = 64
 
 Interpolation = Literal["linear", "hold"]
 ObjectJoints = Literal["free", "upright"]
@@ -251,6 +255,16 @@ class _Reader:
             raise self.fail(key, f"must be a non-empty string, got {value!r}")
         return value
 
+    def file(self, value: Any, key: str, directory: Path) -> Path:
+        """The absolute path of a file named by ``value``, relative to ``directory``."""
+        name = self.string(value, key)
+        if "\0" in name:
+            raise self.fail(key, f"must be a file name without NUL characters, got {name!r}")
+        try:
+            return (directory / name).resolve()
+        except (OSError, RuntimeError) as error:
+            raise self.fail(key, f"{name!r} is not a usable file name ({error})") from None
+
     def vector(
         self, value: Any, key: str, length: int | None = 3, *, minimum: float | None = None
     ) -> tuple[float, ...]:
@@ -269,6 +283,22 @@ class _Reader:
         if value not in choices:
             raise self.fail(key, f"must be one of {', '.join(repr(c) for c in choices)}, got {value!r}")
         return str(value)
+
+
+def _depth(document: Any) -> int:
+    """How deep arrays and tables nest in ``document`` (a scalar is 0), without recursion."""
+    deepest = 0
+    pending = [(document, 0)]
+    while pending:
+        value, depth = pending.pop()
+        children = value.values() if isinstance(value, dict) else value if isinstance(value, list) else None
+        if children is None:
+            continue
+        deepest = max(deepest, depth + 1)
+        if deepest > MAX_DEPTH:
+            break
+        pending.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def _kind(value: Any) -> str:
@@ -305,17 +335,21 @@ def read_scene_file(path: Path | str) -> SceneSpec:
         raise EnergyMarginError(f"{path}: the scene file is not UTF-8 text") from None
     except tomllib.TOMLDecodeError as error:
         raise EnergyMarginError(f"{path}: not valid TOML ({error})") from None
+    except RecursionError:
+        raise EnergyMarginError(f"{path}: not valid TOML (arrays or tables nested too deeply)") from None
+    if _depth(document) > MAX_DEPTH:
+        raise EnergyMarginError(f"{path}: arrays or tables are nested more than {MAX_DEPTH} levels deep")
     locator = Locator(text)
     read = _Reader(path, locator)
     read.only(document, "", _TOP_KEYS)
     version = document.get("schema_version")
     if version is None:
         raise read.fail("schema_version", f"is missing (this version reads schema_version = {SCHEMA_VERSION})")
-    if version != SCHEMA_VERSION:
+    if isinstance(version, bool) or not isinstance(version, int) or version != SCHEMA_VERSION:
         raise read.fail("schema_version", f"{version!r} is not supported (this version reads {SCHEMA_VERSION})")
     if "mjcf" not in document:
         raise read.fail("mjcf", "is missing: the path of the MuJoCo model, relative to the scene file")
-    mjcf = (path.parent / read.string(document["mjcf"], "mjcf")).resolve()
+    mjcf = read.file(document["mjcf"], "mjcf", path.parent)
 
     objects = read.table(document, "objects", "", {"bodies", "template", "count", "joints"})
     bodies: tuple[str, ...] | None = None
@@ -328,6 +362,8 @@ def read_scene_file(path: Path | str) -> SceneSpec:
         if "count" not in objects:
             raise read.fail("objects.template", "needs objects.count, the number of copies")
         count = read.integer(objects["count"], "objects.count", minimum=1)
+        if count > MAX_COPIES:
+            raise read.fail("objects.count", f"must be at most {MAX_COPIES}, got {count}")
     elif "bodies" in objects:
         value = objects["bodies"]
         if isinstance(value, str):
@@ -457,11 +493,7 @@ _MOTION_KEYS = {
 def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> MotionSpec:
     motion = read.table(document, "motion", "", _MOTION_KEYS)
     interpolation = read.choice(motion.get("interpolation", "linear"), "motion.interpolation", ("linear", "hold"))
-    ctrl_file = (
-        (path.parent / read.string(motion["ctrl_file"], "motion.ctrl_file")).resolve()
-        if "ctrl_file" in motion
-        else None
-    )
+    ctrl_file = read.file(motion["ctrl_file"], "motion.ctrl_file", path.parent) if "ctrl_file" in motion else None
     raw_keyframes = motion.get("keyframes", [])
     if not isinstance(raw_keyframes, list) or not all(isinstance(k, dict) for k in raw_keyframes):
         raise read.fail("motion.keyframes", "must be a list of tables ([[motion.keyframes]])")
@@ -536,7 +568,7 @@ def _check_region(read: _Reader, table: Any, key: str) -> dict[str, Any]:
     if "type" not in table:
         raise read.fail(key, f"needs a type ({', '.join(sorted(REGION_TYPES))})")
     kind = table["type"]
-    if kind not in REGION_TYPES:
+    if not isinstance(kind, str) or kind not in REGION_TYPES:
         raise read.fail(f"{key}.type", f"unknown region type {kind!r} (known: {', '.join(sorted(REGION_TYPES))})")
     region_type = REGION_TYPES[kind]
     read.only(table, key, {"type", *region_type.keys})

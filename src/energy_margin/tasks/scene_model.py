@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
+from energy_margin.world.npz import NpzError, read_npz
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
@@ -59,7 +60,7 @@ class Motion:
         if self.mocap_times.size == 0:
             return None
         pos = _interpolate(self.mocap_times, self.mocap_pos, time, hold=self.hold)
-        quat = _interpolate(self.mocap_times, self.mocap_quat, time, hold=self.hold)
+        quat = _interpolate_quat(self.mocap_times, self.mocap_quat, time, hold=self.hold)
         return pos, quat / np.linalg.norm(quat, axis=-1, keepdims=True)
 
 
@@ -75,6 +76,38 @@ def _interpolate(times: np.ndarray, values: np.ndarray, time: float, *, hold: bo
         return values[lower].copy()
     weight = (time - times[lower]) / (times[upper] - times[lower])
     result: np.ndarray = (1.0 - weight) * values[lower] + weight * values[upper]
+    return result
+
+
+#: Quaternions whose dot product exceeds this are interpolated linearly (then normalised): slerp's
+#: weights divide by the sine of an angle that is then below about 1e-3 rad.
+_NEARLY_EQUAL = 1.0 - 1e-6
+
+
+def _interpolate_quat(times: np.ndarray, quats: np.ndarray, time: float, *, hold: bool) -> np.ndarray:
+    """Unit quaternions (n, 4) at ``time`` between rows (n_rows, n, 4) at ``times``, along the shortest arc.
+
+    q and -q are the same orientation: the row after is negated where its dot product with the row
+    before is negative, so the interpolation never passes through zero. Nearly equal quaternions
+    are interpolated linearly (normalised by the caller); the others by spherical linear
+    interpolation.
+    """
+    if hold or time <= times[0] or time >= times[-1]:
+        return _interpolate(times, quats, time, hold=hold)
+    upper = int(np.searchsorted(times, time, side="right"))
+    lower = upper - 1
+    weight = (time - times[lower]) / (times[upper] - times[lower])
+    start, end = quats[lower], quats[upper].copy()
+    dot = np.sum(start * end, axis=-1)
+    flip = dot < 0
+    end[flip] = -end[flip]
+    dot = np.clip(np.abs(dot), 0.0, 1.0)
+    result: np.ndarray = (1.0 - weight) * start + weight * end
+    arc = dot <= _NEARLY_EQUAL
+    if np.any(arc):
+        angle = np.arccos(dot[arc])[:, None]
+        sine = np.sin(angle)
+        result[arc] = (np.sin((1.0 - weight) * angle) * start[arc] + np.sin(weight * angle) * end[arc]) / sine
     return result
 
 
@@ -132,21 +165,20 @@ def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
 
 def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
     """Load the scene's MJCF with ``MjSpec``, add the template copies and compile it."""
-    if not spec.mjcf.is_file():
-        raise spec.error("mjcf", f"model file {spec.mjcf} does not exist")
+    _check_file(spec, "mjcf", spec.mjcf, "model file ")
     try:
         model_spec = mujoco.MjSpec.from_file(str(spec.mjcf))
-    except ValueError as error:
+    except (ValueError, mujoco.FatalError) as error:
         raise spec.error("mjcf", f"{spec.mjcf.name} cannot be loaded: {_one_line(error)}") from None
     if spec.template is not None:
         template = model_spec.body(spec.template)
         if template is None:
             raise spec.error("objects.template", f"no body {spec.template!r} in {spec.mjcf.name}")
-        if template.parent.name != model_spec.worldbody.name:
+        if template.parent is None or template.parent.name != model_spec.worldbody.name:
             raise spec.error("objects.template", f"body {spec.template!r} must be a child of the worldbody")
         try:
             probe = model_spec.compile()
-        except ValueError as error:
+        except (ValueError, mujoco.FatalError) as error:
             raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
         body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, spec.template)
         geoms = np.flatnonzero(probe.geom_bodyid == body)
@@ -159,15 +191,29 @@ def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
         # (their slide joints measure world positions from it) and take their places from the start draw.
         spacing = 2.0 * radius + 0.01 if spec.object_joints == "free" else 0.0
         model_spec.copy_during_attach = True
-        for index in range(spec.count or 0):
-            frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
-            frame.attach_body(template, "", f"_{index}")
-        model_spec.delete(template)
+        try:
+            for index in range(spec.count or 0):
+                frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
+                frame.attach_body(template, "", f"_{index}")
+            model_spec.delete(template)
+        except (ValueError, mujoco.FatalError) as error:
+            raise spec.error("objects.template", f"cannot copy body {spec.template!r}: {_one_line(error)}") from None
     try:
         model = model_spec.compile()
-    except ValueError as error:
+    except (ValueError, mujoco.FatalError) as error:
         raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
     return model_spec, model
+
+
+def _check_file(spec: SceneSpec, key: str, path: Path, what: str = "") -> None:
+    """Refuse a ``path`` (named by ``key``) that is not a readable regular file."""
+    try:
+        if path.is_file():
+            return
+        problem = "is not a file" if path.exists() else "does not exist"
+    except OSError as error:
+        problem = f"cannot be read ({error.strerror})"
+    raise spec.error(key, f"{what}{path} {problem}")
 
 
 def _object_bodies(spec: SceneSpec, model: mujoco.MjModel) -> list[int]:
@@ -277,17 +323,19 @@ def _read_ctrl_file(spec: SceneSpec, nu: int, what: str) -> tuple[np.ndarray, np
     path = spec.motion.ctrl_file
     assert path is not None
     key = "motion.ctrl_file"
-    if not path.is_file():
-        raise spec.error(key, f"{path} does not exist")
+    _check_file(spec, key, path)
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            missing = [name for name in ("time", "ctrl") if name not in archive.files]
-            if missing:
-                raise spec.error(key, f"{path.name} has no array {missing[0]!r} (it needs time (n,) and ctrl (n, nu))")
-            times = np.asarray(archive["time"], dtype=float)
-            ctrl = np.asarray(archive["ctrl"], dtype=float)
-    except (OSError, ValueError) as error:
-        raise spec.error(key, f"{path.name} is not a readable .npz file ({_one_line(error)})") from None
+        archive = read_npz(path)
+    except NpzError as error:
+        raise spec.error(key, f"{path.name} is not a readable .npz file ({error})") from None
+    missing = [name for name in ("time", "ctrl") if name not in archive]
+    if missing:
+        raise spec.error(key, f"{path.name} has no array {missing[0]!r} (it needs time (n,) and ctrl (n, nu))")
+    for name in ("time", "ctrl"):
+        if archive[name].dtype.kind not in "fiu":
+            raise spec.error(key, f"{path.name}: {name} must hold numbers, got {archive[name].dtype}")
+    times = archive["time"].astype(float)
+    ctrl = archive["ctrl"].astype(float)
     if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)):
         raise spec.error(key, f"{path.name}: time must be a non-empty 1-d array of finite seconds")
     if np.any(np.diff(times) <= 0):
