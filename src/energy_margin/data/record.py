@@ -25,10 +25,10 @@ import numpy as np
 from energy_margin.data.dataset import Dataset, check_target
 from energy_margin.data.generate import trajectory_record, write_records
 from energy_margin.errors import EnergyMarginError, check_positive_int
+from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
-from energy_margin.world.npz import NpzError, read_npz
 from energy_margin.world.state import FrameState
 
 _HDF5_SUFFIXES = (".h5", ".hdf5")

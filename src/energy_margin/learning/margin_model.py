@@ -36,8 +36,8 @@ from energy_margin.evaluation.metrics import average_precision, score_grid
 from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
 from energy_margin.runs.files import atomic_path
+from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.tasks import Task, get_recorded_task
-from energy_margin.world.npz import NpzError, read_npz
 from energy_margin.world.state import FrameState
 
 #: ``format`` of a saved model's header.

@@ -17,8 +17,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
-from energy_margin.world.npz import NpzError, read_npz
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
