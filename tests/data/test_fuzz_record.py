@@ -27,10 +27,10 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from conftest import write_tiny_scene
 from energy_margin.data.record import read_rollout_file, record_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.scene_model import load_scene
+from tiny_scene import write_tiny_scene
 
 h5py = pytest.importorskip("h5py")
 

@@ -27,9 +27,9 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from conftest import TINY_MODEL, TINY_SCENE
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.scene_model import load_scene
+from tiny_scene import TINY_MODEL, TINY_SCENE
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
 TALLY: Counter[str] = Counter()

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Hashable, Iterable
 from pathlib import Path
-from typing import Any, Generic, TextIO, TypeVar
+from typing import Any, Generic, TextIO, TypeVar, cast
 
 from energy_margin.runs.files import atomic_write_text
 
@@ -61,7 +61,8 @@ class Journal(Generic[Key]):
 
     def rewrite(self, rows: dict[Key, dict[str, Any]], *, order: Iterable[Key] | None = None) -> None:
         """Replace the journal atomically by ``rows`` (in ``order``, sorted keys by default)."""
-        keys = list(order) if order is not None else sorted(rows)  # type: ignore[type-var]
+        # Keys are hashable; the default order needs them comparable too (tuples of ints, say).
+        keys = list(order) if order is not None else sorted(cast("list[Any]", list(rows)))
         atomic_write_text(self.path, self.header + "".join(self.format_row(rows[k]) + "\n" for k in keys))
 
     def append(self, row: dict[str, Any]) -> None:

@@ -1,0 +1,74 @@
+"""The tiny user scene of the tests: a MuJoCo model of two free boxes and a mocap pusher, and its scene file.
+
+A module of its own (not ``conftest``) so test modules can import it by a name no other folder's
+``conftest`` shadows.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+# A tiny user scene: two free boxes on the ground and a mocap pusher that moves them along +y.
+TINY_MODEL = """<mujoco model="two_boxes">
+  <option timestep="0.01"/>
+  <default><geom friction="0.4"/></default>
+  <worldbody>
+    <geom name="ground" type="plane" size="2 2 0.1"/>
+    <site name="goal" pos="0 0.4 0.03"/>
+    <body name="pusher" mocap="true" pos="0 -0.15 0.03">
+      <geom name="pusher" type="box" size="0.15 0.02 0.03"/>
+    </body>
+    <body name="box_a" pos="-0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>
+    <body name="box_b" pos="0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+TINY_SCENE = """schema_version = 1
+mjcf = "model.xml"
+
+[objects]
+bodies = ["box_*"]
+
+[motion]
+duration = 1.5
+
+[[motion.keyframes]]
+time = 0.0
+mocap.pusher.pos = [0.0, -0.15, 0.03]
+
+[[motion.keyframes]]
+time = 1.5
+mocap.pusher.pos = [0.0, 0.3, 0.03]
+
+[randomize]
+friction = [0.3, 0.6]
+
+[randomize.start]
+x = [-0.12, 0.12]
+y = [-0.02, 0.08]
+yaw = [-0.3, 0.3]
+
+[perturbation]
+linear_acceleration = [2.0, 2.0, 0.0]
+angular_acceleration = [0.0, 0.0, 5.0]
+max_duration = 0.1
+
+[capture]
+region = { type = "box", body = "pusher", center = [0.0, 0.12, 0.0], half_size = [0.2, 0.1, 0.1] }
+
+[success]
+region = { type = "all", of = [
+  { type = "distance", site = "goal", max = 0.16 },
+  { type = "height", max = 0.1 },
+] }
+"""
+
+
+def write_tiny_scene(directory: Path, scene: str = TINY_SCENE, model: str = TINY_MODEL) -> Path:
+    """Write the tiny model and scene file into ``directory``; return the scene file's path."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "model.xml").write_text(model)
+    path = directory / "scene.toml"
+    path.write_text(scene)
+    return path
