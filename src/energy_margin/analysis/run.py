@@ -34,13 +34,7 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
     description: dict[str, Any] = {
         "analyzer": config.to_dict(),
         "seed": int(seed),
-        "dataset": {
-            "task": dataset.metadata["task"],
-            "seed": dataset.metadata.get("seed"),
-            "n_trajectories": dataset.n_trajectories,
-            "n_frames": dataset.n_frames,
-            "n_objects": dataset.n_objects,
-        },
+        "dataset": dataset.identity(),
         "task_config": dataset.task.config.to_dict(),
         "likelihood_lambda": config.likelihood_lambda
         if config.likelihood_lambda is not None

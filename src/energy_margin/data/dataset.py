@@ -20,10 +20,8 @@ the end of the trajectory).
 
 from __future__ import annotations
 
-import lzma
 import shutil
 import zipfile
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +30,7 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError, check_int
 from energy_margin.runs.files import read_json, staging_directory, write_json
+from energy_margin.runs.npz import READ_ERRORS
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
 
@@ -88,6 +87,16 @@ class Dataset:
     def n_objects(self) -> int:
         """N."""
         return int(self.metadata["n_objects"])
+
+    def identity(self) -> dict[str, Any]:
+        """What a run's settings record of the dataset it read: task, generation seed and sizes."""
+        return {
+            "task": self.metadata["task"],
+            "seed": self.metadata.get("seed"),
+            "n_trajectories": self.n_trajectories,
+            "n_frames": self.n_frames,
+            "n_objects": self.n_objects,
+        }
 
     def frame(self, trajectory: int, index: int) -> FrameState:
         """The recorded state of frame ``index`` of ``trajectory``."""
@@ -342,17 +351,7 @@ def _read_frames(frames_path: Path, shapes: dict[str, tuple[int, ...]]) -> tuple
                         continue
                 with archive.open(info) as stream:
                     value = np.lib.format.read_array(stream, allow_pickle=False)
-            except (
-                OSError,
-                ValueError,
-                EOFError,
-                zipfile.BadZipFile,
-                zlib.error,
-                lzma.LZMAError,
-                RuntimeError,
-                MemoryError,
-                NotImplementedError,
-            ) as error:
+            except READ_ERRORS as error:
                 problems.append(Problem(FRAMES_FILE, name, "", f"is corrupt ({error})"))
                 continue
             arrays[name] = value

@@ -135,13 +135,7 @@ def sweep_settings(
 ) -> dict[str, Any]:
     """What ``budget_settings.json`` records of a sweep."""
     return {
-        "dataset": {
-            "task": dataset.metadata["task"],
-            "seed": dataset.metadata.get("seed"),
-            "n_trajectories": dataset.n_trajectories,
-            "n_frames": dataset.n_frames,
-            "n_objects": dataset.n_objects,
-        },
+        "dataset": dataset.identity(),
         "seed": seed,
         "analyzer": base.to_dict(),
         "budgets": list(budgets),

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 #: Everything reading a damaged archive or ``.npy`` member raises.
-_READ_ERRORS = (
+READ_ERRORS = (
     OSError,
     ValueError,
     EOFError,
@@ -50,7 +50,7 @@ def read_npz(path: Path | str) -> dict[str, np.ndarray]:
     """
     try:
         archive = zipfile.ZipFile(path)
-    except _READ_ERRORS as error:
+    except READ_ERRORS as error:
         raise NpzError(f"not an .npz archive ({_one_line(error)})") from None
     arrays: dict[str, np.ndarray] = {}
     with archive:
@@ -62,7 +62,7 @@ def read_npz(path: Path | str) -> dict[str, np.ndarray]:
                 arrays[name] = _read_member(archive, info)
             except NpzError as error:
                 raise NpzError(f"array {name!r} {error}") from None
-            except _READ_ERRORS as error:
+            except READ_ERRORS as error:
                 raise NpzError(f"array {name!r} is corrupt ({_one_line(error)})") from None
     return arrays
 
