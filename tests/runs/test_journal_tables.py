@@ -78,3 +78,14 @@ def test_a_display_draws_only_when_asked_and_saves_atomically(tmp_path: Path) ->
     path = display.save(tmp_path / "line.png")
     assert path is not None and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert [p.name for p in tmp_path.iterdir()] == ["line.png"]
+
+
+def test_close_all_ends_the_line_of_a_bar_left_open(capsys: pytest.CaptureFixture[str]) -> None:
+    from energy_margin.runs.progress import close_all, progress_bar
+
+    bar = progress_bar(4, desc="analyze", enabled=True)
+    bar.update(1)
+    close_all()  # as the command line does before its last line, whatever was interrupted
+    assert bar.disable
+    assert capsys.readouterr().err.endswith("\n")
+    close_all()  # nothing open: nothing happens

@@ -43,6 +43,7 @@ from energy_margin.cli import (
 )
 from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.runs.progress import close_all
 
 #: The commands in the order ``--help`` lists them (the order data flows).
 COMMANDS: tuple[ModuleType, ...] = (
@@ -117,6 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.run(args))
     except EnergyMarginError as error:
+        close_all()
         print(f"{PROG}: error: {error_message(error, getattr(args, 'parameter_flags', {}))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -126,12 +128,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             # down at exit. The user has been heard; later ones are ignored. (Not when main() is
             # called from Python with arguments: children would inherit the ignored SIGINT.)
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+        close_all()
         print(f"{PROG}: interrupted; run the same command again to resume", file=sys.stderr)
         return 130
     except OSError as error:
         if error.errno not in _ENVIRONMENT_ERRORS or os.environ.get("ENERGY_MARGIN_DEBUG"):
             return _unexpected(error)
         # A full disk or quota is the machine's state, not a defect: what finished is on disk.
+        close_all()
         where = f" writing {error.filename}" if error.filename else ""
         reason = os.strerror(error.errno).lower()
         print(f"{PROG}: error: {reason}{where}; make room and run the same command again to resume", file=sys.stderr)
@@ -148,6 +152,7 @@ def _unexpected(error: Exception) -> int:
     """Report a defect in one line, exit status 1; re-raise it when ENERGY_MARGIN_DEBUG is set."""
     if os.environ.get("ENERGY_MARGIN_DEBUG"):
         raise error
+    close_all()
     message = one_line(f"{type(error).__name__}: {error}")
     print(f"{PROG}: error: {message} (set ENERGY_MARGIN_DEBUG=1 for details)", file=sys.stderr)
     return 1

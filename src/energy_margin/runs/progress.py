@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 
@@ -32,3 +33,16 @@ def progress_bar(total: int, *, desc: str, initial: int = 0, enabled: bool, unit
     from tqdm import tqdm
 
     return tqdm(total=total, initial=initial, unit=unit, desc=desc, dynamic_ncols=True)
+
+
+def close_all() -> None:
+    """Close every progress bar still open (an interrupt or an error arrived while one was drawn).
+
+    A command's last line (an error, "interrupted") then starts on a line of its own, even when
+    the interrupt landed while a bar was being created, before any ``finally`` could close it.
+    """
+    tqdm_module = sys.modules.get("tqdm")
+    if tqdm_module is None:
+        return
+    for bar in list(getattr(tqdm_module.tqdm, "_instances", ())):
+        bar.close()
