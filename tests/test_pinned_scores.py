@@ -2,8 +2,11 @@
 
 A refactor that changes what is computed (a different random stream, another order of physics
 calls, a changed label) changes these exact floats. They are exact for one MuJoCo build on one
-CPU architecture, which is what CI runs. Pushing is pinned with the rim ground contacts of that
-release (``ground_contact="geometry"``, still the default), whatever the default becomes.
+CPU architecture. One pushing score differs in its last bit between the x86-64 machines the tests
+have run on (the second list below was measured on an AMD EPYC with AVX2 and no AVX-512); each is
+pinned exactly, and a change of the computation moves the scores off both. Pushing is pinned with
+the rim ground contacts of that release (``ground_contact="geometry"``, still the default),
+whatever the default becomes.
 """
 
 from __future__ import annotations
@@ -46,6 +49,8 @@ PUSHING_SEEDS = [
     9048968709368590896,
     8740338556333592717,
 ]
+#: The same scores on an AMD EPYC (AVX2, no AVX-512): the first differs in its last bit.
+PUSHING_CAPTURE_EPYC = [0.9990319675841872, *PUSHING_CAPTURE[1:]]
 SCOOPING_CAPTURE = [0.0, 0.04012926724378537, 0.0, 0.0]
 
 
@@ -63,7 +68,7 @@ def test_pushing_scores_are_pinned(tmp_path: Path) -> None:
     )
     energy_margin.analyze(out, AnalyzerConfig(iterations=30, cost="energy"), seed=2, progress=False)
     scores = load_scores(out)
-    assert [float(v) for v in scores["capture_score"]] == PUSHING_CAPTURE
+    assert [float(v) for v in scores["capture_score"]] in (PUSHING_CAPTURE, PUSHING_CAPTURE_EPYC)
     assert [float(v) for v in scores["success_score"]] == PUSHING_SUCCESS
     assert [int(v) for v in scores["seed"]] == PUSHING_SEEDS
     assert set(scores["nodes"].tolist()) == {31}
