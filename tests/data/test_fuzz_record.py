@@ -10,68 +10,43 @@ from __future__ import annotations
 
 import contextlib
 import io
-import json
-import os
 import shutil
 import tempfile
 import warnings
-from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from energy_margin.data.record import read_rollout_file, record_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.scene_model import load_scene
+from fuzzing import Tally, fuzz, scratch_folder
 from tiny_scene import write_tiny_scene
 
 h5py = pytest.importorskip("h5py")
 
-TALLY: Counter[str] = Counter()
+TALLY = Tally("recording")
 ROWS = 6
 NAMES = ("time", "qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat")
 
 
-def fuzz(examples: int) -> Callable[[Any], Any]:
-    """Deterministic hypothesis settings with ``examples`` generated inputs."""
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        database=None,
-        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
-
-
 @pytest.fixture(scope="module", autouse=True)
 def _scratch_folder(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    # MuJoCo writes the warnings of a damaged model to MUJOCO_LOG.TXT in the working folder.
-    with pytest.MonkeyPatch.context() as patch:
-        patch.chdir(tmp_path_factory.mktemp("mujoco-log"))
+    with scratch_folder(tmp_path_factory):
         yield
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _tally() -> Iterator[None]:
     yield
-    target = os.environ.get("ENERGY_MARGIN_FUZZ_TALLY")
-    if target:
-        with open(target, "a", encoding="utf-8") as stream:
-            stream.write(json.dumps({"reader": "recording", **TALLY}) + "\n")
-
-
-def _refused(error: EnergyMarginError) -> EnergyMarginError:
-    message = str(error)
-    assert message and "\n" not in message and "\r" not in message, message
-    TALLY["refused"] += 1
-    return error
+    TALLY.report()
 
 
 class Base:
@@ -101,7 +76,7 @@ class Base:
         try:
             rollouts = read_rollout_file(path, self.model)
         except EnergyMarginError as error:
-            return _refused(error)
+            return TALLY.refused(error)
         finally:
             shutil.rmtree(path.parent)
         assert rollouts and all(value.dtype == float for _, arrays in rollouts for value in arrays.values())
@@ -116,7 +91,7 @@ class Base:
             record_dataset(self.scene, [path], n_frames=frames, out=out)
         except EnergyMarginError as error:
             assert not out.exists()
-            return _refused(error)
+            return TALLY.refused(error)
         finally:
             shutil.rmtree(path.parent)
         TALLY["accepted"] += 1

@@ -11,18 +11,16 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import os
 import shutil
 import tempfile
 import warnings
-from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -34,29 +32,16 @@ from energy_margin.learning.margin_model import MarginModel, load_margin_model
 from energy_margin.learning.regressors import N_OUTPUTS, BoostingRegressor, MlpRegressor
 from energy_margin.tasks import Task, get_task
 from energy_margin.world.state import FrameState
+from fuzzing import Tally, fuzz
 
-TALLY: Counter[str] = Counter()
+TALLY = Tally("margin model")
 KINDS = ("mlp", "boosting")
-
-
-def fuzz(examples: int) -> Callable[[Any], Any]:
-    """Deterministic hypothesis settings with ``examples`` generated inputs."""
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        database=None,
-        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _tally() -> Iterator[None]:
     yield
-    target = os.environ.get("ENERGY_MARGIN_FUZZ_TALLY")
-    if target:
-        with open(target, "a", encoding="utf-8") as stream:
-            stream.write(json.dumps({"reader": "margin model", **TALLY}) + "\n")
+    TALLY.report()
 
 
 def _model(task: Task, kind: str) -> MarginModel:
@@ -126,10 +111,7 @@ class Base:
             capture, success = model.predict(self.task, [self.frame])
             assert capture.shape == success.shape == (1,)
         except EnergyMarginError as error:
-            message = str(error)
-            assert message and "\n" not in message and "\r" not in message, message
-            TALLY["refused"] += 1
-            return error
+            return TALLY.refused(error)
         finally:
             shutil.rmtree(folder)
         TALLY["accepted"] += 1

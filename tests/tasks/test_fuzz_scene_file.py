@@ -12,55 +12,38 @@ import datetime
 import io
 import json
 import math
-import os
 import re
 import shutil
 import tempfile
 import tomllib
-from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.scene_model import load_scene
+from fuzzing import Tally, fuzz, scratch_folder
 from tiny_scene import TINY_MODEL, TINY_SCENE
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
-TALLY: Counter[str] = Counter()
-
-
-def fuzz(examples: int) -> Callable[[Any], Any]:
-    """Deterministic hypothesis settings with ``examples`` generated inputs."""
-    return settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        database=None,
-        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow, HealthCheck.data_too_large],
-    )
+TALLY = Tally("scene file")
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _scratch_folder(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    # MuJoCo writes the warnings of a damaged model to MUJOCO_LOG.TXT in the working folder.
-    with pytest.MonkeyPatch.context() as patch:
-        patch.chdir(tmp_path_factory.mktemp("mujoco-log"))
+    with scratch_folder(tmp_path_factory):
         yield
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _tally() -> Iterator[None]:
     yield
-    target = os.environ.get("ENERGY_MARGIN_FUZZ_TALLY")
-    if target:
-        with open(target, "a", encoding="utf-8") as stream:
-            stream.write(json.dumps({"reader": "scene file", **TALLY}) + "\n")
+    TALLY.report()
 
 
 def attempt(path: Path) -> EnergyMarginError | None:
@@ -69,10 +52,7 @@ def attempt(path: Path) -> EnergyMarginError | None:
     try:
         load_scene(path)
     except EnergyMarginError as error:
-        message = str(error)
-        assert message and "\n" not in message and "\r" not in message, message
-        TALLY["refused"] += 1
-        return error
+        return TALLY.refused(error)
     TALLY["accepted"] += 1
     return None
 
