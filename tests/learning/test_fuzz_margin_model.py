@@ -218,7 +218,11 @@ def mutate_members(members: dict[str, np.ndarray], data: st.DataObject) -> dict[
                 members[name] = value.astype(dtype)
         elif value.size and value.dtype.kind in "fi":
             flat = value.reshape(-1)
-            special = [np.nan, np.inf, -1, 10**6] if value.dtype.kind == "f" else [-1, 10**6, 2**62]
+            if value.dtype.kind == "f":
+                special = [np.nan, np.inf, -1, 10**6]
+            else:  # the largest values the member's integer type holds (a retyped int8 holds no 10**6)
+                largest = int(np.iinfo(value.dtype).max)
+                special = [-1, min(10**6, largest), largest]
             flat[data.draw(st.integers(0, flat.size - 1))] = data.draw(st.sampled_from(special))
     return members
 
