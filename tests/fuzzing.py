@@ -52,6 +52,19 @@ class Tally(Counter[str]):
                 stream.write(json.dumps({"reader": self.reader, **self}) + "\n")
 
 
+def damaged(content: bytes, edit: str, position: float, value: int, *, width: int) -> bytes:
+    """``content`` cut at ``position`` (a fraction of its length), a byte there set, or ``width`` bytes overwritten."""
+    damaged = bytearray(content)
+    index = int(position * len(damaged))
+    if edit == "truncate":
+        damaged = damaged[:index]
+    elif edit == "byte":
+        damaged[index] = value if damaged[index] != value else value ^ 0xFF
+    else:
+        damaged[index : index + width] = bytes([value]) * len(damaged[index : index + width])
+    return bytes(damaged)
+
+
 @contextmanager
 def scratch_folder(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """Work in a fresh folder: MuJoCo writes the warnings of a damaged model to MUJOCO_LOG.TXT there."""

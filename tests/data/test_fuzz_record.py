@@ -27,7 +27,7 @@ from hypothesis.extra import numpy as hnp
 from energy_margin.data.record import read_rollout_file, record_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.scene_model import load_scene
-from fuzzing import Tally, fuzz, scratch_folder
+from fuzzing import Tally, damaged, fuzz, scratch_folder
 from tiny_scene import write_tiny_scene
 
 h5py = pytest.importorskip("h5py")
@@ -340,16 +340,9 @@ def _stored(arrays: dict[str, np.ndarray], kind: str) -> bytes:
     value=st.integers(0, 255),
 )
 def test_truncated_or_damaged_rollout(base: Base, kind: str, edit: str, position: float, value: int) -> None:
-    content = bytearray(_stored(base.arrays, kind))
-    index = int(position * len(content))
-    if edit == "truncate":
-        content = content[:index]
-    elif edit == "byte":
-        content[index] = value if content[index] != value else value ^ 0xFF
-    else:
-        content[index : index + 64] = bytes([value]) * len(content[index : index + 64])
+    content = damaged(_stored(base.arrays, kind), edit, position, value, width=64)
     path = base.path(".h5" if kind == "h5" else ".npz")
-    path.write_bytes(bytes(content))
+    path.write_bytes(content)
     base.read(path)
 
 

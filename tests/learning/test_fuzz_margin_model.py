@@ -32,7 +32,7 @@ from energy_margin.learning.margin_model import MarginModel, load_margin_model
 from energy_margin.learning.regressors import N_OUTPUTS, BoostingRegressor, MlpRegressor
 from energy_margin.tasks import Task, get_task
 from energy_margin.world.state import FrameState
-from fuzzing import Tally, fuzz
+from fuzzing import Tally, damaged, fuzz
 
 TALLY = Tally("margin model")
 KINDS = ("mlp", "boosting")
@@ -164,15 +164,8 @@ def test_random_bytes_as_model(base: Base, content: bytes) -> None:
 def test_truncated_or_damaged_model(
     base: Base, kind: str, stored: bool, edit: str, position: float, value: int
 ) -> None:
-    content = bytearray(archive(base.members[kind]) if stored else base.files[kind])
-    index = int(position * len(content))
-    if edit == "truncate":
-        content = content[:index]
-    elif edit == "byte":
-        content[index] = value if content[index] != value else value ^ 0xFF
-    else:
-        content[index : index + 32] = bytes([value]) * len(content[index : index + 32])
-    base.load(bytes(content))
+    content = archive(base.members[kind]) if stored else base.files[kind]
+    base.load(damaged(content, edit, position, value, width=32))
 
 
 # ---------------------------------------------------------------- mutated members
