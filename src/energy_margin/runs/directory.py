@@ -146,15 +146,19 @@ def _short(value: Any, limit: int = 80) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _stored_settings(spec: RunSpec, path: Path) -> dict[str, Any] | None:
-    """The settings of the file at ``path``, or ``None`` when it cannot be read as such."""
+def _stored(spec: RunSpec, path: Path) -> tuple[dict[str, Any] | None, dict[str, Any]]:
+    """The settings of the file at ``path`` (``None`` when it cannot be read as such) and what sits beside them."""
     try:
         document = read_json(path, what=f"{spec.contents} settings")
     except EnergyMarginError:
-        return None
-    if spec.settings_key is not None:
-        document = document.get(spec.settings_key) if isinstance(document, dict) else None
-    return document if isinstance(document, dict) else None
+        return None, {}
+    if not isinstance(document, dict):
+        return None, {}
+    if spec.settings_key is None:
+        return document, {}
+    settings = document.get(spec.settings_key)
+    beside = {key: value for key, value in document.items() if key != spec.settings_key}
+    return (settings if isinstance(settings, dict) else None), beside
 
 
 def remove_outputs(path: Path, spec: RunSpec) -> None:
@@ -215,35 +219,34 @@ def open_run(path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overw
     lock = RunLock(path).acquire()
     try:
         remove_stale(path, spec)
-        resumed = _check(path, spec, settings, overwrite=overwrite)
+        resumed, beside = _check(path, spec, settings, overwrite=overwrite)
         run = RunDirectory(path, spec, _plain(settings), resumed, lock)
-        if spec.settings_key is None or not run.settings_path.exists() or not resumed:
-            run.write_settings()
-        else:
-            # Keep what sits beside the settings (a summary) while the settings themselves update.
-            stored = read_json(run.settings_path, what=f"{spec.contents} settings")
-            run.write_settings({k: v for k, v in stored.items() if k != spec.settings_key})
+        # A resumed run keeps what sits beside its settings (a summary) while the settings update.
+        run.write_settings(beside)
     except BaseException:
         lock.release()
         raise
     return run
 
 
-def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool) -> bool:
-    """Whether ``path`` holds this very run; clears it (``overwrite``) or refuses otherwise."""
+def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool) -> tuple[bool, dict[str, Any]]:
+    """Whether ``path`` holds this very run (and what its settings file holds beside the settings).
+
+    Clears another run (``overwrite``) or refuses it.
+    """
     settings_path = path / spec.settings_file
     if settings_path.exists():
-        previous = _stored_settings(spec, settings_path)
+        previous, beside = _stored(spec, settings_path)
         reason = "its settings file cannot be read" if previous is None else difference(spec, previous, settings)
         if reason is None:
-            return True
+            return True, beside
         if not overwrite:
             raise EnergyMarginError(
                 f"{path} holds {spec.contents} of other settings ({reason}); "
                 "pass --overwrite to replace them or choose another --out"
             )
         remove_outputs(path, spec)
-        return False
+        return False, {}
     if overwrite:
         remove_outputs(path, spec)
     foreign = _foreign(path)
@@ -252,7 +255,7 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
             f"{path} already exists and is not a directory of {spec.contents} (no {spec.settings_file}; "
             f"it holds {', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}); choose another --out"
         )
-    return False
+    return False, {}
 
 
 @contextmanager
