@@ -31,6 +31,7 @@ STAGES = (
     "robustness",
     "learning",
     "control",
+    "integrations",
     "report",
     "cli",
 )

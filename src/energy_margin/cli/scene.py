@@ -10,12 +10,23 @@ from energy_margin.cli.common import add_seed, require_matplotlib
 
 NAME = "scene"
 SUMMARY = "print what a scene file declares and write a picture of it at t = 0 with the capture and success sets"
-EXAMPLES = ("energy-margin scene my_scene.toml --picture my_scene.png",)
+EXAMPLES = (
+    "energy-margin scene my_scene.toml --picture my_scene.png",
+    "energy-margin scene --from-gym Pusher-v5 --objects object --out pusher.toml",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``scene``."""
-    parser.add_argument("scene", metavar="SCENE.toml", help="the scene file (docs/scenes.md)")
+    parser.add_argument("scene", nargs="?", metavar="SCENE.toml", help="the scene file (docs/scenes.md)")
+    parser.add_argument(
+        "--from-gym",
+        metavar="ENV_ID",
+        help="write a starter scene file for this Gymnasium MuJoCo environment (needs --objects and --out)",
+    )
+    parser.add_argument("--objects", help="with --from-gym: object body names or glob patterns, comma separated")
+    parser.add_argument("--out", metavar="SCENE.toml", help="with --from-gym: the scene file to write")
+    parser.add_argument("--capture-radius", type=float, help="with --from-gym: radius of the starter capture region, m")
     parser.add_argument("--picture", help="PNG to write (default: SCENE.png beside the scene file)")
     parser.add_argument("--no-picture", action="store_true", help="only print the summary")
     add_seed(parser)
@@ -23,9 +34,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the summary, then render the picture with MuJoCo's renderer."""
+    from energy_margin.errors import EnergyMarginError
     from energy_margin.tasks import get_task
     from energy_margin.tasks.scene_task import SceneTask
 
+    if args.from_gym is not None:
+        args.scene = _from_gym(args)
+    elif args.scene is None:
+        raise EnergyMarginError("give a scene file, or --from-gym ENV_ID --objects PATTERN --out SCENE.toml")
     task = get_task("scene", {"scene_file": os.path.abspath(args.scene)})
     assert isinstance(task, SceneTask)
     from energy_margin.report.scene_view import describe_scene, render_scene
@@ -44,3 +60,44 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"wrote {picture}")
     return 0
+
+
+def _from_gym(args: argparse.Namespace) -> str:
+    """Write the starter scene of ``--from-gym`` and print what was guessed; returns its path."""
+    from energy_margin.errors import EnergyMarginError
+
+    if args.scene is not None:
+        raise EnergyMarginError("give either a scene file or --from-gym, not both")
+    if not args.objects or not args.out:
+        raise EnergyMarginError("--from-gym needs --objects PATTERN and --out SCENE.toml")
+    if args.capture_radius is not None and not args.capture_radius > 0:
+        raise EnergyMarginError(f"--capture-radius must be > 0, got {args.capture_radius}")
+    try:
+        import gymnasium
+    except ImportError:
+        raise EnergyMarginError("--from-gym needs Gymnasium: pip install 'energy-margin[gymnasium]'") from None
+    from energy_margin.integrations.gym_scene import scene_from_environment
+
+    try:
+        env = gymnasium.make(args.from_gym)
+    except Exception as error:  # Gymnasium raises several types for an unknown or broken id.
+        raise EnergyMarginError(f"--from-gym {args.from_gym}: {' '.join(str(error).split())}") from None
+    try:
+        written = scene_from_environment(
+            env, objects=args.objects.split(","), out=args.out, capture_radius=args.capture_radius
+        )
+    finally:
+        env.close()
+    print(f"wrote {written.scene_file} and its model {written.model_file}")
+    print(f"objects: {', '.join(written.objects)}")
+    print(
+        f"capture (a guess, edit it): within {written.capture_radius} m of "
+        f"{written.end_effector[0]} {written.end_effector[1]!r}"
+    )
+    if written.goal is not None:
+        print(f"success (a guess, edit it): near {written.goal[0]} {written.goal[1]!r}")
+    else:
+        print("success (a guess, edit it): objects stay up (no goal body or site found)")
+    if not written.same_model:
+        print(f"note: the saved model differs from the one {args.from_gym} compiled at run time")
+    return str(written.scene_file)

@@ -64,7 +64,10 @@ class MujocoSimulator:
         self._state_buffer = np.empty(mujoco.mj_stateSize(model, _STATE_SPEC))
         self._spin_dof = np.zeros(model.nv, dtype=bool)
         if index.upright:
-            self._spin_dof[index.yaw_rate_index] = model.dof_frictionloss[index.yaw_rate_index] > 0
+            spinning = model.dof_frictionloss[index.yaw_rate_index] > 0
+            if index.axis_mask is not None:
+                spinning &= index.axis_mask[:, 3]
+            self._spin_dof[index.yaw_rate_index] = spinning
         self._has_spin_friction = bool(self._spin_dof.any())
         self._pyramid = np.arange(4)
 
@@ -98,13 +101,19 @@ class MujocoSimulator:
         mujoco.mj_resetData(model, data)
         quat = np.asarray(frame.object_quat, dtype=float)
         quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
-        data.qpos[index.pos_index] = frame.object_pos
-        data.qvel[index.linvel_index] = frame.object_vel[:, :3]
         if index.upright:
             # Upright objects keep only the rotation about z and the z angular velocity.
-            data.qpos[index.yaw_index] = yaw_from_quat(quat)
-            data.qvel[index.yaw_rate_index] = frame.object_vel[:, 5]
+            index.write_objects(
+                data.qpos,
+                data.qvel,
+                frame.object_pos,
+                frame.object_vel[:, :3],
+                yaw_from_quat(quat),
+                frame.object_vel[:, 5],
+            )
         else:
+            data.qpos[index.pos_index] = frame.object_pos
+            data.qvel[index.linvel_index] = frame.object_vel[:, :3]
             data.qpos[index.quat_index] = quat
             # Free-joint angular velocity is expressed in the body frame.
             data.qvel[index.angvel_index] = rotate_inverse(quat, np.asarray(frame.object_vel[:, 3:], float))
@@ -214,7 +223,7 @@ class MujocoSimulator:
 
     def object_positions(self) -> np.ndarray:
         """Centre-of-mass positions (n_objects, 3), metres."""
-        return self.data.qpos[self.index.pos_index]
+        return self.index.object_positions(self.data.qpos)
 
     def object_quaternions(self) -> np.ndarray:
         """Orientations (n_objects, 4), (w, x, y, z)."""
@@ -225,8 +234,8 @@ class MujocoSimulator:
         qvel, index = self.data.qvel, self.index
         if index.upright:
             velocity = np.zeros((index.linvel_index.shape[0], 6))
-            velocity[:, :3] = qvel[index.linvel_index]
-            velocity[:, 5] = qvel[index.yaw_rate_index]
+            velocity[:, :3] = index.linear_velocities(qvel)
+            velocity[:, 5] = index.yaw_rates(qvel)
             return velocity
         angular = rotate(self.object_quaternions(), qvel[index.angvel_index])
         return np.concatenate([qvel[index.linvel_index], angular], axis=1)
@@ -242,15 +251,15 @@ class MujocoSimulator:
     def mechanical_energy(self) -> float:
         """Kinetic plus potential energy of the objects, joules."""
         data, index = self.data, self.index
-        linear = data.qvel[index.linvel_index]
+        linear = index.linear_velocities(data.qvel)
         kinetic = 0.5 * float(np.sum(self._masses * np.sum(linear * linear, axis=1)))
         if index.upright:
-            yaw_rate = data.qvel[index.yaw_rate_index]
+            yaw_rate = index.yaw_rates(data.qvel)
             kinetic += 0.5 * float(np.sum(self._inertias[:, 2] * yaw_rate * yaw_rate))
         else:
             angular_local = data.qvel[index.angvel_index]
             kinetic += 0.5 * float(np.sum(self._inertias * angular_local * angular_local))
-        potential = -float(np.sum(self._masses * (data.qpos[index.pos_index] @ self._gravity)))
+        potential = -float(np.sum(self._masses * (index.object_positions(data.qpos) @ self._gravity)))
         return kinetic + potential
 
     def objects_of(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -66,6 +66,12 @@ class ModelIndex:
         robot_qvel: qvel address of each robot joint, in ``robot_v`` order.
         servoed: which robot coordinates a servo drives, shape (n_robot_joints,).
         servo_actuators: the actuator of each servoed coordinate, in the same order.
+        axis_mask: for upright objects with only some of the four joints (e.g. a puck on slide x
+            and slide y, as in Gymnasium's Pusher), which of x, y, z, yaw each object has, shape
+            (n_objects, 4); ``None`` when every object has all four (or is free). The addresses
+            of a missing axis point at coordinate 0 and are masked out.
+        pos_offset: world position of each partially jointed object's body at zero joint
+            positions, shape (n_objects, 3), m; ``None`` with ``axis_mask``.
 
     """
 
@@ -81,6 +87,13 @@ class ModelIndex:
     robot_qvel: np.ndarray
     servoed: np.ndarray
     servo_actuators: np.ndarray
+    axis_mask: np.ndarray | None = None
+    pos_offset: np.ndarray | None = None
+
+    @property
+    def partial(self) -> bool:
+        """Whether some upright object lacks one of the four joints (or sits away from the origin)."""
+        return self.axis_mask is not None
 
     @classmethod
     def of(
@@ -109,6 +122,25 @@ class ModelIndex:
         qvel_adr = np.asarray(model.jnt_dofadr[list(object_joints)], dtype=int)
         upright = scene.object_motion == "upright"
         none = np.zeros(0, dtype=int)
+        if upright:
+            axes = [_upright_axes(model, int(body)) for body in bodies]
+            if not all(np.all(mask) and np.all(offset == 0) for _, _, mask, offset in axes):
+                return cls(
+                    object_bodies=bodies,
+                    upright=True,
+                    pos_index=np.array([qpos[:3] for qpos, _, _, _ in axes], dtype=int).reshape(-1, 3),
+                    linvel_index=np.array([qvel[:3] for _, qvel, _, _ in axes], dtype=int).reshape(-1, 3),
+                    yaw_index=np.array([qpos[3] for qpos, _, _, _ in axes], dtype=int),
+                    yaw_rate_index=np.array([qvel[3] for _, qvel, _, _ in axes], dtype=int),
+                    quat_index=none.reshape(0, 4),
+                    angvel_index=none.reshape(0, 3),
+                    robot_qpos=np.array(model.jnt_qposadr[list(robot_joints)], dtype=int),
+                    robot_qvel=np.array(model.jnt_dofadr[list(robot_joints)], dtype=int),
+                    servoed=np.array([False] * len(robot_joints) if servoed is None else servoed, dtype=bool),
+                    servo_actuators=np.array(servo_actuators, dtype=int),
+                    axis_mask=np.array([mask for _, _, mask, _ in axes], dtype=bool).reshape(-1, 4),
+                    pos_offset=np.array([offset for _, _, _, offset in axes], dtype=float).reshape(-1, 3),
+                )
         return cls(
             object_bodies=bodies,
             upright=upright,
@@ -124,23 +156,113 @@ class ModelIndex:
             servo_actuators=np.array(servo_actuators, dtype=int),
         )
 
+    def object_positions(self, qpos: np.ndarray) -> np.ndarray:
+        """World positions (..., n_objects, 3), m, of joint positions (..., nq)."""
+        if self.axis_mask is None or self.pos_offset is None:
+            return qpos[..., self.pos_index]
+        return np.where(self.axis_mask[:, :3], qpos[..., self.pos_index], 0.0) + self.pos_offset
+
+    def linear_velocities(self, qvel: np.ndarray) -> np.ndarray:
+        """World linear velocities (..., n_objects, 3), m/s, of joint velocities (..., nv)."""
+        if self.axis_mask is None:
+            return qvel[..., self.linvel_index]
+        return np.where(self.axis_mask[:, :3], qvel[..., self.linvel_index], 0.0)
+
+    def yaw_rates(self, qvel: np.ndarray) -> np.ndarray:
+        """Upright objects' yaw rates (..., n_objects), rad/s, of joint velocities (..., nv)."""
+        if self.axis_mask is None:
+            return qvel[..., self.yaw_rate_index]
+        return np.where(self.axis_mask[:, 3], qvel[..., self.yaw_rate_index], 0.0)
+
+    def write_objects(
+        self,
+        qpos: np.ndarray,
+        qvel: np.ndarray,
+        pos: np.ndarray,
+        linear: np.ndarray,
+        yaw: np.ndarray,
+        yaw_rate: np.ndarray,
+    ) -> None:
+        """Write upright objects' positions (n, 3), linear velocities (n, 3), yaws and yaw rates (n,).
+
+        A partially jointed object keeps only the coordinates it has (its others are fixed).
+        """
+        if self.axis_mask is None or self.pos_offset is None:
+            qpos[self.pos_index] = pos
+            qvel[self.linvel_index] = linear
+            qpos[self.yaw_index] = yaw
+            qvel[self.yaw_rate_index] = yaw_rate
+            return
+        mask = self.axis_mask
+        qpos[self.pos_index[mask[:, :3]]] = (np.asarray(pos) - self.pos_offset)[mask[:, :3]]
+        qvel[self.linvel_index[mask[:, :3]]] = np.asarray(linear)[mask[:, :3]]
+        qpos[self.yaw_index[mask[:, 3]]] = np.asarray(yaw)[mask[:, 3]]
+        qvel[self.yaw_rate_index[mask[:, 3]]] = np.asarray(yaw_rate)[mask[:, 3]]
+
     def object_quaternions(self, qpos: np.ndarray) -> np.ndarray:
         """Orientations (..., n_objects, 4), (w, x, y, z), of joint positions (..., nq)."""
         if self.upright:
-            half_yaw = 0.5 * qpos[..., self.yaw_index]
+            yaw = qpos[..., self.yaw_index]
+            if self.axis_mask is not None:
+                yaw = np.where(self.axis_mask[:, 3], yaw, 0.0)
+            half_yaw = 0.5 * yaw
             zeros = np.zeros_like(half_yaw)
             return np.stack([np.cos(half_yaw), zeros, zeros, np.sin(half_yaw)], axis=-1)
         return qpos[..., self.quat_index]
 
     def objects_of(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Object positions (k, n, 3), quaternions (k, n, 4), velocities (k, n, 6) of qpos (k, nq), qvel (k, nv)."""
-        pos = qpos[:, self.pos_index]
-        linear = qvel[:, self.linvel_index]
+        pos = self.object_positions(qpos)
+        linear = self.linear_velocities(qvel)
         quat = self.object_quaternions(qpos)
         if self.upright:
             angular = np.zeros_like(linear)
-            angular[..., 2] = qvel[:, self.yaw_rate_index]
+            angular[..., 2] = self.yaw_rates(qvel)
         else:
             local = qvel[:, self.angvel_index]
             angular = rotate(quat.reshape(-1, 4), local.reshape(-1, 3)).reshape(local.shape)
         return pos, quat, np.concatenate([linear, angular], axis=-1)
+
+
+#: The joints of an upright object in qpos order: slide x, slide y, slide z, hinge z.
+_UPRIGHT_AXES = (
+    (mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
+    (mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 1.0, 0.0)),
+    (mujoco.mjtJoint.mjJNT_SLIDE, (0.0, 0.0, 1.0)),
+    (mujoco.mjtJoint.mjJNT_HINGE, (0.0, 0.0, 1.0)),
+)
+
+
+def upright_axes(model: mujoco.MjModel, body: int) -> list[int] | None:
+    """Which of slide x, slide y, slide z, hinge z (0..3) each of ``body``'s joints is, or ``None``.
+
+    ``None`` when a joint is of another kind or axis, or two joints move along the same axis. The
+    joints may come in any order (Gymnasium's Pusher declares slide y before slide x).
+    """
+    first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+    axes: list[int] = []
+    for joint in range(first, first + count):
+        kind, axis = int(model.jnt_type[joint]), model.jnt_axis[joint]
+        matches = [
+            position
+            for position, (expected_kind, expected_axis) in enumerate(_UPRIGHT_AXES)
+            if kind == int(expected_kind) and np.allclose(axis, expected_axis)
+        ]
+        if not matches or matches[0] in axes:
+            return None
+        axes.append(matches[0])
+    return axes
+
+
+def _upright_axes(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Qpos and qvel addresses (4,), axis mask (4,) and zero-joint world position (3,) of an upright body."""
+    axes = upright_axes(model, body) or []
+    qpos = np.zeros(4, dtype=int)
+    qvel = np.zeros(4, dtype=int)
+    mask = np.zeros(4, dtype=bool)
+    first = int(model.body_jntadr[body])
+    for offset, axis in enumerate(axes):
+        qpos[axis] = model.jnt_qposadr[first + offset]
+        qvel[axis] = model.jnt_dofadr[first + offset]
+        mask[axis] = True
+    return qpos, qvel, mask, np.array(model.body_pos[body], dtype=float)

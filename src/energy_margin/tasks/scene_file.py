@@ -12,6 +12,7 @@ Every problem raises :class:`~energy_margin.errors.EnergyMarginError` as one lin
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import re
 import tomllib
@@ -339,7 +340,29 @@ def read_scene_file(path: Path | str) -> SceneSpec:
         raise EnergyMarginError(f"{path}: not valid TOML (arrays or tables nested too deeply)") from None
     if _depth(document) > MAX_DEPTH:
         raise EnergyMarginError(f"{path}: arrays or tables are nested more than {MAX_DEPTH} levels deep")
-    locator = Locator(text)
+    return _read_document(document, path, Locator(text), hashlib.sha256(raw).hexdigest())
+
+
+def scene_spec_from_tables(document: Mapping[str, Any], *, origin: str) -> SceneSpec:
+    """Validate a scene file's tables given in memory (e.g. by a Gymnasium wrapper), without a file.
+
+    Args:
+        document: the tables a scene file holds (``schema_version`` and ``mjcf`` may be left out:
+            the model is given beside it, and ``mjcf`` then only names it in messages).
+        origin: what errors name instead of a file, e.g. ``"MarginWrapper(Pusher-v5)"``.
+
+    Raises:
+        EnergyMarginError: the first problem, as one line ``ORIGIN: KEY: message``.
+    """
+    document = {"schema_version": SCHEMA_VERSION, "mjcf": "model", **dict(document)}
+    if _depth(document) > MAX_DEPTH:
+        raise EnergyMarginError(f"{origin}: arrays or tables are nested more than {MAX_DEPTH} levels deep")
+    digest = hashlib.sha256(json.dumps(document, sort_keys=True, default=str).encode("utf-8")).hexdigest()
+    return _read_document(document, Path(origin), Locator(""), digest)
+
+
+def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, digest: str) -> SceneSpec:
+    """Validate a parsed scene document; ``path`` and ``locator`` name its keys in errors."""
     read = _Reader(path, locator)
     read.only(document, "", _TOP_KEYS)
     version = document.get("schema_version")
@@ -414,7 +437,7 @@ def read_scene_file(path: Path | str) -> SceneSpec:
 
     return SceneSpec(
         path=path,
-        text_sha256=hashlib.sha256(raw).hexdigest(),
+        text_sha256=digest,
         mjcf=mjcf,
         bodies=bodies,
         template=template,

@@ -17,11 +17,12 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
+from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
 from energy_margin.world.scene import Geom, RigidObject, Scene
-from energy_margin.world.state import FrameState
+from energy_margin.world.state import FrameState, yaw_from_quat
 
 #: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
 _LAYOUT_ATTEMPTS = 200
@@ -122,11 +123,24 @@ class SceneTask(Task):
     engines = ("mujoco",)
     config: SceneTaskConfig
 
-    def __init__(self, config: SceneTaskConfig | None = None) -> None:
-        if config is None or not config.scene_file:
+    def __init__(self, config: SceneTaskConfig | None = None, *, loaded: LoadedScene | None = None) -> None:
+        """Build from ``config.scene_file`` or, with ``loaded``, from a scene resolved in memory.
+
+        Args:
+            config: the scene file and the hashes it must match.
+            loaded: a scene already resolved against its model (a wrapped environment's model,
+                :func:`~energy_margin.tasks.scene_model.resolve_scene`); ``config`` is then ignored
+                and the task cannot be rebuilt from a dataset.
+
+        """
+        if loaded is not None:
+            path = loaded.spec.path
+            config = SceneTaskConfig(scene_file=str(path))
+        elif config is None or not config.scene_file:
             raise ValueError("the scene task is built from a scene file: pass --scene SCENE.toml")
-        path = Path(config.scene_file).resolve()
-        loaded = _cached_load(path)
+        else:
+            path = Path(config.scene_file).resolve()
+            loaded = _cached_load(path)
         if config.scene_sha256 and config.scene_sha256 != loaded.spec.text_sha256:
             raise ValueError(
                 f"scene file {path} changed since these data were made "
@@ -154,6 +168,13 @@ class SceneTask(Task):
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
         self._object_geoms = [np.flatnonzero(model.geom_bodyid == body) for body in loaded.object_bodies]
+        # The objects' coordinates in the model (partially jointed upright objects included).
+        self._index = ModelIndex.of(
+            model,
+            self.build_scene(loaded.n_objects, 0.5),
+            object_joints=list(loaded.object_joints),
+            robot_joints=list(loaded.robot_joints),
+        )
         self._success: Region | None = None
         self._placement: Simulator | None = None
 
@@ -302,7 +323,7 @@ class SceneTask(Task):
         loaded = self.loaded
         start = loaded.spec.start
         n = loaded.n_objects
-        base_pos = np.array([loaded.initial_qpos[self._qpos_address(i) : self._qpos_address(i) + 3] for i in range(n)])
+        base_pos = self._index.object_positions(loaded.initial_qpos)
         separation = (
             start.min_separation if start.min_separation is not None else 2.0 * float(np.max(loaded.object_radius))
         )
@@ -403,16 +424,14 @@ class SceneTask(Task):
         mujoco.mj_resetData(model, data)
         data.qpos[:] = loaded.initial_qpos
         if frame is not None:
-            for index in range(loaded.n_objects):
-                address = self._qpos_address(index)
-                data.qpos[address : address + 3] = frame.object_pos[index]
-                if loaded.spec.object_joints == "free":
-                    data.qpos[address + 3 : address + 7] = frame.object_quat[index]
-                else:
-                    quat = frame.object_quat[index]
-                    data.qpos[address + 3] = np.arctan2(
-                        2.0 * (quat[0] * quat[3] + quat[1] * quat[2]), 1.0 - 2.0 * (quat[2] ** 2 + quat[3] ** 2)
-                    )
+            index = self._index
+            if index.upright:
+                zeros = np.zeros((loaded.n_objects, 3))
+                yaw = yaw_from_quat(np.asarray(frame.object_quat, dtype=float))
+                index.write_objects(data.qpos, data.qvel, frame.object_pos, zeros, yaw, zeros[:, 0])
+            else:
+                data.qpos[index.pos_index] = frame.object_pos
+                data.qpos[index.quat_index] = frame.object_quat
             joints = len(loaded.robot_joints)
             data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
             nmocap = int(model.nmocap)

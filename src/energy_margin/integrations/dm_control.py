@@ -1,0 +1,157 @@
+"""Energy margins inside dm_control: a ``Physics`` scorer and an environment wrapper.
+
+``PhysicsScorer(physics, objects=..., capture=..., success=...)`` scores the state of a
+``dm_control.mujoco.Physics`` (``physics.model.ptr`` and ``physics.data.ptr`` are the MuJoCo model
+and data it reads, never writes). ``MarginEnvironment(env, ...)`` wraps a ``dm_env`` environment
+with a ``physics`` (``dm_control.suite``, ``dm_control.composer``, ``dm_control.manipulation``):
+its ``step`` returns the environment's ``TimeStep`` unchanged and, every ``every`` steps, keeps the
+scores of the state reached in :attr:`MarginEnvironment.margin` (the same dict as Gymnasium's
+``info["energy_margin"]``) and appends them to :attr:`MarginEnvironment.margins`. The robot holds
+its last action during the tree's propagation (see
+:mod:`energy_margin.integrations.live_model`).
+
+Needs ``pip install 'energy-margin[dm]'``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import mujoco
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.live import MAX_EXPANSIONS
+from energy_margin.errors import EnergyMarginError, check_positive_int
+from energy_margin.integrations.live_model import EpisodeRecorder, Hold, LiveModelScorer, LiveOptions
+
+
+def physics_handles(physics: Any) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The MuJoCo ``MjModel`` and ``MjData`` behind a dm_control ``Physics`` (or an environment's)."""
+    physics = getattr(physics, "physics", physics)
+    model = getattr(getattr(physics, "model", None), "ptr", None)
+    data = getattr(getattr(physics, "data", None), "ptr", None)
+    if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
+        raise EnergyMarginError(
+            f"{type(physics).__name__} has no MuJoCo model: give a dm_control Physics or an environment with "
+            ".physics (physics.model.ptr must be a mujoco.MjModel)"
+        )
+    return model, data
+
+
+class PhysicsScorer(LiveModelScorer):
+    """A :class:`~energy_margin.integrations.live_model.LiveModelScorer` on a dm_control ``Physics``.
+
+    Args:
+        physics: the ``Physics`` (or an environment holding one as ``.physics``).
+        **kwargs: the scorer's arguments (``objects``, ``capture``, ``success``, ``scene``, ...).
+
+    """
+
+    def __init__(self, physics: Any, **kwargs: Any) -> None:
+        model, _ = physics_handles(physics)
+        kwargs.setdefault("origin", type(getattr(physics, "physics", physics)).__name__)
+        super().__init__(model, **kwargs)
+        self.physics = getattr(physics, "physics", physics)
+
+    def score_physics(self) -> dict[str, Any]:
+        """Score the physics' current state."""
+        return self.score(physics_handles(self.physics)[1])
+
+
+class MarginEnvironment:
+    """A ``dm_env`` environment whose steps are scored every ``every`` steps (see the module docstring).
+
+    Args:
+        env: a dm_control environment with ``physics``.
+        objects: object body names or glob patterns.
+        capture: the capture set as a scene file's region table.
+        success: the success set, likewise.
+        scene: a scene file giving objects, perturbation, bounds and both sets instead.
+        every: score after every this many steps (>= 1); 0 turns scoring off.
+        budget_s: wall-clock budget of one tree, s; ``None`` for ``max_expansions`` only.
+        max_expansions: most tree expansions per call.
+        model: a learned margin file to score with instead of the tree.
+        hold: ``"action"`` or ``"still"``.
+        seed: root seed of the trees' perturbations.
+        record: keep the episode's rows for :meth:`save_episode`.
+        perturbation: a scene file's ``[perturbation]`` table.
+        config: further analysis settings.
+
+    """
+
+    def __init__(
+        self,
+        env: Any,
+        *,
+        objects: str | list[str] | None = None,
+        capture: Mapping[str, Any] | None = None,
+        success: Mapping[str, Any] | None = None,
+        scene: str | Path | None = None,
+        every: int = 1,
+        budget_s: float | None = 0.05,
+        max_expansions: int = MAX_EXPANSIONS,
+        model: Any = None,
+        hold: Hold = "action",
+        seed: int = 0,
+        record: bool = False,
+        perturbation: Mapping[str, Any] | None = None,
+        config: AnalyzerConfig | None = None,
+    ) -> None:
+        check_positive_int("every", every, minimum=0)
+        if not hasattr(env, "physics"):
+            raise EnergyMarginError(f"{type(env).__name__} has no physics: give a dm_control environment")
+        self.env = env
+        self.every = every
+        self.scorer = PhysicsScorer(
+            env.physics,
+            objects=objects,
+            capture=capture,
+            success=success,
+            scene=scene,
+            perturbation=perturbation,
+            margin_model=model,
+            options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
+            origin=type(env).__name__,
+        )
+        self.recorder = EpisodeRecorder() if record else None
+        self.margin: dict[str, Any] | None = None
+        self.margins: list[dict[str, Any]] = []
+        self.steps = 0
+
+    def _data(self) -> mujoco.MjData:
+        return physics_handles(self.env.physics)[1]
+
+    def reset(self) -> Any:
+        """Reset the environment; a new episode's margins and rows."""
+        time_step = self.env.reset()
+        self.steps = 0
+        self.margin = None
+        self.margins = []
+        if self.recorder is not None:
+            self.recorder.clear()
+            self.recorder.add(self._data())
+        return time_step
+
+    def step(self, action: Any) -> Any:
+        """Step the environment, then score the state it reached every ``every`` steps."""
+        time_step = self.env.step(action)
+        self.steps += 1
+        data = self._data()
+        if self.recorder is not None:
+            self.recorder.add(data)
+        if self.every and self.steps % self.every == 0:
+            self.margin = self.scorer.score(data)
+            self.margins.append(self.margin)
+        return time_step
+
+    def save_episode(self, path: str | Path) -> Path:
+        """Write the recorded episode as an ``.npz`` roll-out for ``energy-margin record``."""
+        if self.recorder is None:
+            raise EnergyMarginError("the wrapper does not record: create it with record=True")
+        return self.recorder.save(path)
+
+    def __getattr__(self, name: str) -> Any:
+        """Everything else (``action_spec``, ``observation_spec``, ``physics`` ...) is the environment's."""
+        return getattr(self.env, name)

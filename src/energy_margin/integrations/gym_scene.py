@@ -1,0 +1,244 @@
+"""A starter scene file from a Gymnasium environment (``energy-margin scene --from-gym ENV_ID``).
+
+The environment's model is re-saved beside the scene file with ``mujoco.MjSpec`` (loaded from the
+XML the environment names in ``env.unwrapped.fullpath``; mesh, texture and height-field folders
+made absolute so the copy compiles anywhere), and the scene file declares the objects, the
+actuators (every one, in the model's order), a motion as long as one episode without keyframes,
+and a starter capture region around the end effector and a success region around a goal body or
+site when the model has one. The regions are a starting point for the user to edit: what the end
+effector is, and how close counts as captured, are guesses from names and sizes, printed by
+:func:`scene_from_environment`.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.runs.files import atomic_path
+from energy_margin.tasks.scene_model import model_hash, object_joint_kind
+
+#: Name fragments of an end effector's body or site, most specific first.
+END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")
+#: Name fragments of a goal body or site.
+GOAL_WORDS = ("goal", "target")
+
+
+@dataclass(frozen=True)
+class StarterScene:
+    """What :func:`scene_from_environment` wrote and guessed.
+
+    Attributes:
+        scene_file: the scene file.
+        model_file: the model saved beside it.
+        objects: object body names.
+        end_effector: ``(kind, name)`` of the capture region's centre.
+        goal: ``(kind, name)`` of the success region's centre, or ``None`` (then a height region).
+        capture_radius: radius of the starter capture region, m.
+        same_model: whether the saved model compiles to the environment's model (same hash).
+
+    """
+
+    scene_file: Path
+    model_file: Path
+    objects: tuple[str, ...]
+    end_effector: tuple[str, str]
+    goal: tuple[str, str] | None
+    capture_radius: float
+    same_model: bool
+
+
+def _names(model: mujoco.MjModel, kind: mujoco.mjtObj, count: int) -> list[str]:
+    return [mujoco.mj_id2name(model, kind, i) or "" for i in range(count)]
+
+
+def _descendants(model: mujoco.MjModel, roots: set[int]) -> set[int]:
+    found = set(roots)
+    for body in range(1, model.nbody):
+        parent = int(model.body_parentid[body])
+        if parent in found:
+            found.add(body)
+    return found
+
+
+def _robot_bodies(model: mujoco.MjModel, objects: set[int]) -> list[int]:
+    """Bodies moved by a robot joint or a mocap body, children included, objects excluded."""
+    moved = {int(model.jnt_bodyid[j]) for j in range(model.njnt)} | {
+        b for b in range(model.nbody) if model.body_mocapid[b] >= 0
+    }
+    return sorted(_descendants(model, moved - objects) - objects - {0})
+
+
+def _depth(model: mujoco.MjModel, body: int) -> int:
+    depth = 0
+    while body:
+        body = int(model.body_parentid[body])
+        depth += 1
+    return depth
+
+
+def _find(model: mujoco.MjModel, words: tuple[str, ...], bodies: list[int]) -> tuple[str, str] | None:
+    """The deepest body (or a site on one of ``bodies``) whose name holds the earliest of ``words``."""
+    body_names = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
+    site_names = _names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)
+    for word in words:
+        sites = [s for s in range(model.nsite) if word in site_names[s].lower() and int(model.site_bodyid[s]) in bodies]
+        if sites:
+            best = max(sites, key=lambda s: _depth(model, int(model.site_bodyid[s])))
+            return "site", site_names[best]
+        matching = [b for b in bodies if word in body_names[b].lower()]
+        if matching:
+            return "body", body_names[max(matching, key=lambda b: _depth(model, b))]
+    return None
+
+
+def _toml(value: Any) -> str:
+    """A TOML value (strings, numbers, booleans, lists and inline tables)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        number = float(value)
+        if not math.isfinite(number):
+            raise ValueError(f"cannot write {value!r} to a scene file")
+        return repr(int(value)) if isinstance(value, int) else repr(round(number, 6))
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml(item) for item in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{key} = {_toml(item)}" for key, item in value.items()) + " }"
+    raise ValueError(f"cannot write {type(value).__name__} to a scene file")
+
+
+def save_model_xml(source: Path, out: Path) -> mujoco.MjModel:
+    """Re-save the MJCF at ``source`` to ``out`` with ``MjSpec``, asset folders made absolute; compile it."""
+    try:
+        spec = mujoco.MjSpec.from_file(str(source))
+        folder = source.parent
+        for attribute in ("meshdir", "texturedir"):
+            value = getattr(spec, attribute, "") or ""
+            setattr(spec, attribute, str((folder / value).resolve()))
+        model = spec.compile()
+        text = spec.to_xml()
+    except (ValueError, mujoco.FatalError) as error:
+        raise EnergyMarginError(f"{source}: the environment's model cannot be re-saved ({error})") from None
+    with atomic_path(out) as temporary:
+        temporary.write_text(text)
+    return model
+
+
+def scene_from_environment(
+    env: Any,
+    *,
+    objects: str | list[str],
+    out: str | Path,
+    capture_radius: float | None = None,
+) -> StarterScene:
+    """Write a starter scene file for a Gymnasium MuJoCo environment, its model saved beside it.
+
+    Args:
+        env: the environment (``env.unwrapped`` holds ``model``, ``data`` and ``fullpath``).
+        objects: object body names or glob patterns.
+        out: the scene file to write (``.toml``); the model goes to the same name with ``.xml``.
+        capture_radius: radius of the starter capture region, m; ``None``: twice the largest
+            object's bounding radius plus 5 cm.
+
+    Raises:
+        EnergyMarginError: no MuJoCo model, no model file, objects matching nothing.
+
+    """
+    from energy_margin.integrations.gymnasium import environment_name, mujoco_handles
+
+    model, _ = mujoco_handles(env)
+    name = environment_name(env)
+    source = getattr(getattr(env, "unwrapped", env), "fullpath", None)
+    if not source or not Path(str(source)).is_file():
+        raise EnergyMarginError(f"{name} does not name the model file it loaded (env.unwrapped.fullpath)")
+    patterns = [objects] if isinstance(objects, str) else list(objects)
+    body_names = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
+    chosen = [b for b in range(1, model.nbody) if any(fnmatch.fnmatchcase(body_names[b], p) for p in patterns)]
+    if not chosen:
+        raise EnergyMarginError(
+            f"--objects {','.join(patterns)}: no body of {name} matches (bodies: {', '.join(body_names[1:])})"
+        )
+    out = Path(out)
+    model_file = out.with_suffix(".xml")
+    robot = _robot_bodies(model, set(chosen))
+    end_effector = _find(model, END_EFFECTOR_WORDS, robot)
+    if end_effector is None:
+        if not robot:
+            raise EnergyMarginError(
+                f"{name}: no robot body (one moved by a joint or mocap) to centre a capture region on"
+            )
+        end_effector = ("body", body_names[max(robot, key=lambda b: _depth(model, b))])
+    every_body = [b for b in range(1, model.nbody) if b not in chosen]
+    goal = _find(model, GOAL_WORDS, every_body)
+    geoms = np.flatnonzero(np.isin(model.geom_bodyid, chosen))
+    size = (
+        float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms])) if geoms.size else 0.05
+    )
+    radius = capture_radius if capture_radius is not None else round(2.0 * size + 0.05, 3)
+    steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
+    duration = float(steps) * float(getattr(env.unwrapped, "dt", model.opt.timestep))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    saved = save_model_xml(Path(str(source)), model_file)
+    joints = object_joint_kind(model, patterns)
+    capture = {"type": "distance", end_effector[0]: end_effector[1], "max": radius}
+    if goal is not None:
+        success = {"type": "distance", goal[0]: goal[1], "max": round(2.0 * size, 3)}
+    else:
+        heights = [float(model.body_pos[b][2]) for b in chosen]
+        success = {"type": "height", "min": round(min(heights) - 0.05, 3)}
+    lines = [
+        f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.",
+        "schema_version = 1",
+        f"mjcf = {_toml(model_file.name)}",
+        "",
+        "[objects]",
+        f"bodies = {_toml(patterns)}",
+        f"joints = {_toml(joints)}",
+        "",
+        "# One episode; no keyframes: record a roll-out's own commands with the Gymnasium wrapper.",
+        "[motion]",
+        f"duration = {_toml(duration)}",
+        "",
+        "[perturbation]",
+        "linear_acceleration = [2.0, 2.0, 2.0]",
+        "max_duration = 0.1",
+        "",
+        f"# Captured: every object within {radius} m of {end_effector[0]} {end_effector[1]!r} (a guess).",
+        "[capture]",
+        f"region = {_toml(capture)}",
+        "",
+        "# Success: "
+        + (
+            f"every object within {success.get('max')} m of {goal[0]} {goal[1]!r}."
+            if goal
+            else "every object above its start height less 5 cm (no goal found)."
+        ),
+        "[success]",
+        f"region = {_toml(success)}",
+        "",
+    ]
+    with atomic_path(out) as temporary:
+        temporary.write_text("\n".join(lines))
+    return StarterScene(
+        scene_file=out,
+        model_file=model_file,
+        objects=tuple(body_names[b] for b in chosen),
+        end_effector=end_effector,
+        goal=goal,
+        capture_radius=radius,
+        same_model=_same_physics(saved, model) and model_hash(saved) == model_hash(model),
+    )
+
+
+def _same_physics(first: mujoco.MjModel, second: mujoco.MjModel) -> bool:
+    return bool(first.nq == second.nq and first.nv == second.nv and first.nbody == second.nbody)

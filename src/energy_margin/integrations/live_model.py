@@ -1,0 +1,326 @@
+"""Energy margins of a running MuJoCo simulation: the state in a user's own ``MjModel`` / ``MjData``.
+
+:class:`LiveModelScorer` is the mechanism under the Gymnasium wrapper
+(:mod:`energy_margin.integrations.gymnasium`) and the dm_control one
+(:mod:`energy_margin.integrations.dm_control`): it resolves the objects and the capture and success
+regions against the user's compiled model (the tables a scene file holds, given in memory or as a
+scene file), keeps its own copy of the model and its own ``MjData``, and scores the state held in
+the user's ``MjData`` by growing the tree within a wall-clock budget
+(:func:`~energy_margin.analysis.live.score_state`) or with a learned margin
+(:class:`~energy_margin.learning.margin_model.MarginModel`). The user's model and data are only
+read: scoring never writes to them, so the simulation goes on exactly as without it.
+
+During the tree's propagation the robot holds its last command (zero-order hold): the actuator
+controls and mocap poses found in the user's ``MjData`` stay as they are, and the robot starts
+with its current velocity (``hold="action"``, the default). With ``hold="still"`` the robot is
+held where it is instead: its joint velocities start at zero and its joints get an armature of
+:data:`STILL_ARMATURE` (kg m^2 or kg), so that no actuator, gravity or contact force moves it
+measurably during the propagation; mocap bodies stay where they are in both cases.
+
+:class:`EpisodeRecorder` keeps ``time``, ``qpos``, ``qvel``, ``ctrl``, ``mocap_pos`` and
+``mocap_quat`` of every recorded step and writes them as the ``.npz`` roll-out that
+``energy-margin record`` turns into a dataset.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.live import MAX_EXPANSIONS, LiveScore, score_state
+from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
+from energy_margin.runs.files import atomic_path
+from energy_margin.sim.base import CompiledModel, ModelCommand, require
+from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables
+from energy_margin.tasks.scene_model import object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_task import SceneTask
+from energy_margin.world.state import FrameState
+
+Hold = Literal["action", "still"]
+
+#: Armature given to the robot's joints with ``hold="still"`` (kg m^2 for hinges, kg for slides):
+#: large enough that the forces of a manipulation scene move the robot by far less than a
+#: micrometre over a propagation.
+STILL_ARMATURE = 1e8
+
+#: Keys of the ``info["energy_margin"]`` dictionary (and of :meth:`LiveModelScorer.score`).
+INFO_KEYS = ("capture_score", "success_score", "expansions", "nodes", "ms", "stopped_by", "seed")
+
+
+class HeldCommandTask(SceneTask):
+    """A scene task whose robot holds one command (the last one applied) while the tree grows."""
+
+    held: ModelCommand = ModelCommand(ctrl=None, mocap_pos=None, mocap_quat=None)
+
+    def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
+        """The held command, whatever the time."""
+        del drive, time
+        return self.held
+
+
+def _set_table(value: Mapping[str, Any], name: str) -> dict[str, Any]:
+    """A capture or success set table from either the region table itself or ``{region, at_least}``."""
+    if not isinstance(value, Mapping):
+        raise EnergyMarginError(f"{name} must be a region table (a dict with a type), got {type(value).__name__}")
+    if "region" in value:
+        return dict(value)
+    return {"region": dict(value)}
+
+
+def scene_tables(
+    *,
+    objects: str | list[str] | tuple[str, ...] | None,
+    capture: Mapping[str, Any] | None,
+    success: Mapping[str, Any] | None,
+    perturbation: Mapping[str, Any] | None = None,
+    bounds: Mapping[str, Any] | None = None,
+    joints: str | None = None,
+) -> dict[str, Any]:
+    """The tables of a scene file from a wrapper's keyword arguments (see :class:`LiveModelScorer`)."""
+    if objects is None:
+        raise EnergyMarginError("objects is missing: give the object bodies by name or glob, e.g. objects='object*'")
+    if capture is None or success is None:
+        missing = "capture" if capture is None else "success"
+        raise EnergyMarginError(f"{missing} is missing: give its region table (as in a scene file) or scene=FILE")
+    patterns = [objects] if isinstance(objects, str) else list(objects)
+    document: dict[str, Any] = {
+        "objects": {"bodies": patterns, **({"joints": joints} if joints is not None else {})},
+        # A live state has no declared motion: the robot holds its last command.
+        "motion": {"duration": 1.0},
+        "capture": _set_table(capture, "capture"),
+        "success": _set_table(success, "success"),
+    }
+    if perturbation is not None:
+        document["perturbation"] = dict(perturbation)
+    if bounds is not None:
+        document["bounds"] = dict(bounds)
+    return document
+
+
+@dataclass(frozen=True)
+class LiveOptions:
+    """How a live scorer scores.
+
+    Attributes:
+        budget_s: wall-clock budget of one tree, s (``None``: stop at ``max_expansions`` only,
+            deterministic).
+        max_expansions: most expansions of one tree.
+        hold: ``"action"`` (the robot holds its last command) or ``"still"`` (held where it is).
+        seed: root seed; call k uses the k-th child of ``numpy.random.SeedSequence(seed)``.
+        config: further analysis settings (cost model, lambda, ...); its budgets are replaced.
+
+    """
+
+    budget_s: float | None = 0.05
+    max_expansions: int = MAX_EXPANSIONS
+    hold: Hold = "action"
+    seed: int = 0
+    config: AnalyzerConfig | None = None
+
+
+class LiveModelScorer:
+    """Energy margins of states of a user's compiled MuJoCo model.
+
+    Args:
+        model: the user's compiled model (copied: later changes to it are not seen).
+        objects: object body names or glob patterns (``"object*"``).
+        capture: the capture set: a region table as in a scene file (``{"type": "distance",
+            "body": "tips_arm", "max": 0.1}``) or ``{"region": ..., "at_least": n}``.
+        success: the success set, likewise.
+        scene: a scene file whose objects, perturbation, bounds and sets are used instead of the
+            four arguments above (its ``mjcf`` is not loaded: ``model`` is the model).
+        perturbation: the scene file's ``[perturbation]`` table (wrench bounds, lambda).
+        bounds: the scene file's ``[bounds]`` table.
+        joints: ``"free"`` or ``"upright"`` objects; ``None`` detects it from the model.
+        margin_model: a learned margin (a file of ``energy-margin learn`` or a loaded
+            :class:`~energy_margin.learning.margin_model.MarginModel`) to use instead of the tree.
+        options: budget, hold, seed and analysis settings.
+        origin: what messages call the model, e.g. ``"Pusher-v5"``.
+
+    Raises:
+        EnergyMarginError: objects that match no body, a region naming an unknown body or site,
+            a scene file that cannot be read, a margin model of another task (one line each).
+
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        *,
+        objects: str | list[str] | tuple[str, ...] | None = None,
+        capture: Mapping[str, Any] | None = None,
+        success: Mapping[str, Any] | None = None,
+        scene: str | Path | None = None,
+        perturbation: Mapping[str, Any] | None = None,
+        bounds: Mapping[str, Any] | None = None,
+        joints: str | None = None,
+        margin_model: Any = None,
+        options: LiveOptions | None = None,
+        origin: str = "model",
+    ) -> None:
+        options = options if options is not None else LiveOptions()
+        if options.budget_s is not None:
+            check_positive_float("budget_s", options.budget_s)
+        check_positive_int("max_expansions", options.max_expansions)
+        check_choice("hold", options.hold, ("action", "still"))
+        self.options = options
+        model = copy.copy(model)
+        if scene is not None:
+            spec = read_scene_file(scene)
+        else:
+            tables = scene_tables(
+                objects=objects, capture=capture, success=success, perturbation=perturbation, bounds=bounds
+            )
+            patterns = tables["objects"]["bodies"]
+            tables["objects"]["joints"] = joints if joints is not None else object_joint_kind(model, patterns)
+            spec = scene_spec_from_tables(tables, origin=origin)
+            spec = replace(spec, mjcf=Path(origin))
+        loaded = resolve_scene(spec, model)
+        self.task = HeldCommandTask(loaded=loaded)
+        self.friction = self.task.default_friction()
+        self.drive = np.ones(self.task.drive_size())
+        self.simulator = self.task.make_simulator(loaded.n_objects, self.friction, self.drive)
+        compiled = require(self.simulator, CompiledModel, purpose="live scoring of a user's model")
+        self._model, self._data = compiled.model, compiled.data
+        self._robot_qvel = np.array(model.jnt_dofadr[list(loaded.robot_joints)], dtype=int)
+        if options.hold == "still" and self._robot_qvel.size:
+            self._model.dof_armature[self._robot_qvel] = STILL_ARMATURE
+        self._seeds = np.random.SeedSequence(options.seed)
+        self.margin_model = _load_model(margin_model)
+        self.calls = 0
+
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        """The object bodies, in the order of the scores' states."""
+        return self.task.loaded.object_names
+
+    def frame(self, data: mujoco.MjData) -> FrameState:
+        """The state held in the user's ``data`` (only read) as a frame of this scene."""
+        own = self._data
+        own.qpos[:] = data.qpos
+        own.qvel[:] = data.qvel
+        own.mocap_pos[:] = data.mocap_pos
+        own.mocap_quat[:] = data.mocap_quat
+        own.ctrl[:] = data.ctrl
+        mujoco.mj_forward(self._model, own)
+        state = self.simulator.frame_state()
+        if self.options.hold == "still":
+            state = replace(state, robot_v=np.zeros_like(state.robot_v))
+        bad = ~np.isfinite(np.concatenate([state.object_pos.ravel(), state.object_vel.ravel(), state.robot_q]))
+        if np.any(bad):
+            raise EnergyMarginError("the simulation's state holds NaN or infinite values: it cannot be scored")
+        return state
+
+    def score(self, data: mujoco.MjData) -> dict[str, Any]:
+        """Score the state held in ``data``: ``capture_score``, ``success_score``, ``expansions``, ``ms`` ...
+
+        ``ms`` is the wall time of the whole call (reading the state included), milliseconds.
+        """
+        started = time.perf_counter()
+        state = self.frame(data)
+        self.task.held = ModelCommand(
+            ctrl=np.array(data.ctrl, dtype=float) if self._model.nu else None,
+            mocap_pos=np.array(data.mocap_pos, dtype=float) if self._model.nmocap else None,
+            mocap_quat=np.array(data.mocap_quat, dtype=float) if self._model.nmocap else None,
+        )
+        seed = int(self._seeds.spawn(1)[0].generate_state(1)[0])
+        self.calls += 1
+        result: LiveScore
+        if self.margin_model is not None:
+            result = self.margin_model.score_state(self.task, state)
+        else:
+            result = score_state(
+                self.task,
+                state,
+                friction=self.friction,
+                drive=self.drive,
+                budget_s=self.options.budget_s,
+                seed=seed,
+                max_expansions=self.options.max_expansions,
+                simulator=self.simulator,
+                config=self.options.config,
+            )
+        return {
+            "capture_score": float(result.capture),
+            "success_score": float(result.success),
+            "expansions": int(result.expansions),
+            "nodes": int(result.nodes),
+            "ms": 1000.0 * (time.perf_counter() - started),
+            "stopped_by": result.stopped_by,
+            "seed": seed,
+        }
+
+    def labels(self, data: mujoco.MjData) -> tuple[bool, bool]:
+        """Whether the state in ``data`` is in the capture set and in the success set."""
+        state = self.frame(data)
+        return bool(self.task.is_captured(state)), bool(self.task.is_successful(state))
+
+
+def _load_model(margin_model: Any) -> Any:
+    if margin_model is None:
+        return None
+    if isinstance(margin_model, str | Path):
+        from energy_margin.learning.margin_model import load_margin_model
+
+        return load_margin_model(margin_model, task_name="scene")
+    if not hasattr(margin_model, "score_state"):
+        raise EnergyMarginError(
+            f"model must be a margin model file or a MarginModel, got {type(margin_model).__name__}"
+        )
+    return margin_model
+
+
+class EpisodeRecorder:
+    """The rows of one episode in the roll-out layout of ``energy-margin record``.
+
+    ``time`` is measured from the first recorded row (the motion's clock starts at 0 there).
+    """
+
+    def __init__(self) -> None:
+        self.rows: dict[str, list[np.ndarray]] = {}
+        self._start = 0.0
+
+    def clear(self) -> None:
+        """Forget every row (a new episode)."""
+        self.rows = {}
+
+    def add(self, data: mujoco.MjData) -> None:
+        """Append the state held in ``data`` (only read)."""
+        if not self.rows:
+            self._start = float(data.time)
+        values = {
+            "time": np.array(float(data.time) - self._start),
+            "qpos": np.array(data.qpos, dtype=float),
+            "qvel": np.array(data.qvel, dtype=float),
+            "ctrl": np.array(data.ctrl, dtype=float),
+            "mocap_pos": np.array(data.mocap_pos, dtype=float),
+            "mocap_quat": np.array(data.mocap_quat, dtype=float),
+        }
+        for name, value in values.items():
+            self.rows.setdefault(name, []).append(value)
+
+    def __len__(self) -> int:
+        return len(self.rows.get("time", ()))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The recorded arrays: time (n,), qpos (n, nq), qvel (n, nv), ctrl (n, nu), mocap_pos/quat."""
+        if not self.rows:
+            raise EnergyMarginError("no step has been recorded: reset the environment and step it first")
+        return {name: np.stack(rows) for name, rows in self.rows.items()}
+
+    def save(self, path: str | Path) -> Path:
+        """Write the episode as an ``.npz`` roll-out (atomically) and return its path."""
+        path = Path(path)
+        arrays = self.arrays()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as temporary, temporary.open("wb") as stream:
+            np.savez(stream, allow_pickle=False, **arrays)
+        return path

@@ -1,0 +1,193 @@
+"""The Gymnasium wrapper on Gymnasium's own Pusher-v5 (a 7-joint arm and a puck on two slides)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+
+from energy_margin.cli import main  # noqa: E402
+from energy_margin.data.dataset import load_dataset  # noqa: E402
+from energy_margin.errors import EnergyMarginError  # noqa: E402
+from energy_margin.integrations.gymnasium import MarginWrapper  # noqa: E402
+from energy_margin.integrations.live_model import INFO_KEYS  # noqa: E402
+
+CAPTURE = {"type": "distance", "body": "tips_arm", "max": 0.15}
+SUCCESS = {"type": "distance", "body": "goal", "max": 0.1}
+
+
+def wrapped(**options: object) -> MarginWrapper:
+    settings: dict[str, object] = {"budget_s": None, "max_expansions": 15, "seed": 3}
+    settings.update(options)
+    return MarginWrapper(gymnasium.make("Pusher-v5"), objects="object", capture=CAPTURE, success=SUCCESS, **settings)
+
+
+def actions(n: int) -> np.ndarray:
+    return np.random.default_rng(5).uniform(-2.0, 2.0, size=(n, 7))
+
+
+def test_observations_are_bit_identical_with_and_without_the_wrapper() -> None:
+    plain = gymnasium.make("Pusher-v5")
+    wrapper = wrapped(every=1)
+    first, _ = plain.reset(seed=11)
+    second, _ = wrapper.reset(seed=11)
+    assert np.array_equal(first, second)
+    scored = 0
+    for action in actions(12):
+        a = plain.step(action)
+        b = wrapper.step(action)
+        assert np.array_equal(a[0], b[0])
+        assert a[1] == b[1]
+        assert "energy_margin" not in a[4]
+        scored += "energy_margin" in b[4]
+    assert scored == 12
+    # The environment's own random numbers are untouched: the next episode starts alike too.
+    assert np.array_equal(plain.reset()[0], wrapper.reset()[0])
+
+
+def test_info_holds_the_scores_every_k_steps() -> None:
+    wrapper = wrapped(every=3)
+    wrapper.reset(seed=0)
+    seen = []
+    for step, action in enumerate(actions(7), start=1):
+        info = wrapper.step(action)[4]
+        if "energy_margin" in info:
+            seen.append(step)
+            margin = info["energy_margin"]
+            assert set(margin) == set(INFO_KEYS)
+            assert 0.0 <= margin["capture_score"] <= 1.0 and 0.0 <= margin["success_score"] <= 1.0
+            assert margin["expansions"] == 15 and margin["stopped_by"] == "max_expansions"
+            assert margin["ms"] > 0
+    assert seen == [3, 6]
+
+
+def test_fixed_expansions_give_identical_scores_for_the_same_seed() -> None:
+    runs = []
+    for _ in range(2):
+        wrapper = wrapped(every=2)
+        wrapper.reset(seed=4)
+        runs.append([wrapper.step(a)[4].get("energy_margin") for a in actions(6)])
+    strip = [[None if m is None else {k: v for k, v in m.items() if k != "ms"} for m in run] for run in runs]
+    assert strip[0] == strip[1]
+    assert strip[0][1] is not None and strip[0][1]["seed"] != strip[0][3]["seed"]
+
+
+def test_a_wall_clock_budget_stops_growth() -> None:
+    wrapper = wrapped(budget_s=0.02, max_expansions=100_000)
+    wrapper.reset(seed=0)
+    margin = wrapper.step(actions(1)[0])[4]["energy_margin"]
+    assert margin["stopped_by"] == "budget"
+    assert margin["ms"] < 200
+
+
+def test_hold_still_keeps_the_robot_in_place_during_propagation() -> None:
+    moved = {}
+    for hold in ("action", "still"):
+        wrapper = wrapped(hold=hold)
+        wrapper.reset(seed=2)
+        for action in actions(3):
+            wrapper.step(action)
+        scorer = wrapper.scorer
+        data = wrapper.unwrapped.data
+        data_ctrl = np.array(data.ctrl)
+        state = scorer.frame(data)
+        simulator = scorer.simulator
+        simulator.reset(state)
+        simulator.data.ctrl[:] = data_ctrl
+        before = simulator.robot_positions()
+        simulator.step(20)
+        moved[hold] = float(np.max(np.abs(simulator.robot_positions() - before)))
+    assert moved["action"] > 1e-3
+    assert moved["still"] < 1e-6
+
+
+def test_recorded_episode_becomes_a_dataset(tmp_path: Path) -> None:
+    assert (
+        main(
+            [
+                "scene",
+                "--from-gym",
+                "Pusher-v5",
+                "--objects",
+                "object",
+                "--out",
+                str(tmp_path / "pusher.toml"),
+                "--no-picture",
+            ]
+        )
+        == 0
+    )
+    wrapper = wrapped(every=0, record=True)
+    wrapper.reset(seed=1)
+    for action in actions(20):
+        wrapper.step(action)
+    episode = wrapper.save_episode(tmp_path / "episode.npz")
+    rows = np.load(episode)
+    assert rows["qpos"].shape == (21, 11) and rows["time"][0] == 0.0
+    assert np.allclose(np.diff(rows["time"]), wrapper.unwrapped.dt)
+    out = tmp_path / "dataset"
+    assert (
+        main(["record", "--scene", str(tmp_path / "pusher.toml"), str(episode), "--frames", "5", "--out", str(out)])
+        == 0
+    )
+    dataset = load_dataset(out)
+    assert dataset.n_frames == 5 and dataset.n_objects == 1
+    # The last frame is the episode's last state: the puck where the wrapper saw it.
+    final = dataset.frame(0, 4)
+    assert np.allclose(final.object_pos[0], wrapper.unwrapped.data.xpos[wrapper.unwrapped.model.body("object").id])
+
+
+def test_save_episode_needs_recording() -> None:
+    wrapper = wrapped()
+    with pytest.raises(EnergyMarginError, match="record=True"):
+        wrapper.save_episode("x.npz")
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ({"objects": "cube*"}, r"^Pusher-v5: objects.bodies: no body 'cube\*' in Pusher-v5$"),
+        ({"capture": {"type": "distance", "body": "hand", "max": 0.1}}, r"capture.region.body: no body 'hand'"),
+        ({"success": {"type": "distance", "site": "goal", "max": 0.1}}, r"success.region.site: no site 'goal'"),
+        ({"capture": {"type": "sphere"}}, r"capture.region.type: unknown region type 'sphere'"),
+        ({"objects": None}, r"^objects is missing"),
+        ({"every": -1}, r"every"),
+        ({"hold": "freeze"}, r"hold"),
+    ],
+)
+def test_bad_arguments_are_one_line(arguments: dict[str, object], message: str) -> None:
+    settings: dict[str, object] = {"objects": "object", "capture": CAPTURE, "success": SUCCESS}
+    settings.update(arguments)
+    with pytest.raises((EnergyMarginError, ValueError), match=message) as raised:
+        MarginWrapper(gymnasium.make("Pusher-v5"), **settings)  # type: ignore[arg-type]
+    assert "\n" not in str(raised.value)
+
+
+def test_an_environment_without_a_mujoco_model_is_refused() -> None:
+    with pytest.raises(EnergyMarginError, match=r"CartPoleEnv\) has no MuJoCo model"):
+        MarginWrapper(gymnasium.make("CartPole-v1"), objects="x", capture=CAPTURE, success=SUCCESS)
+
+
+def test_a_scene_file_gives_the_tables(tmp_path: Path) -> None:
+    assert (
+        main(
+            [
+                "scene",
+                "--from-gym",
+                "Pusher-v5",
+                "--objects",
+                "object",
+                "--out",
+                str(tmp_path / "p.toml"),
+                "--no-picture",
+            ]
+        )
+        == 0
+    )
+    wrapper = MarginWrapper(gymnasium.make("Pusher-v5"), scene=tmp_path / "p.toml", budget_s=None, max_expansions=5)
+    wrapper.reset(seed=0)
+    assert "energy_margin" in wrapper.step(actions(1)[0])[4]
+    assert wrapper.scorer.object_names == ("object",)
