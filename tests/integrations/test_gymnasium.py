@@ -33,8 +33,9 @@ def test_observations_are_bit_identical_with_and_without_the_wrapper() -> None:
     plain = gymnasium.make("Pusher-v5")
     wrapper = wrapped(every=1)
     first, _ = plain.reset(seed=11)
-    second, _ = wrapper.reset(seed=11)
+    second, info = wrapper.reset(seed=11)
     assert np.array_equal(first, second)
+    assert set(info["energy_margin"]) == set(INFO_KEYS)
     scored = 0
     for action in actions(12):
         a = plain.step(action)

@@ -10,7 +10,12 @@ scores of the state reached in :attr:`MarginEnvironment.margin` (the same dict a
 its last action during the tree's propagation (see
 :mod:`energy_margin.integrations.live_model`).
 
-Needs ``pip install 'energy-margin[dm]'``.
+Needs ``pip install 'energy-margin[dm]'``. dm_control 1.0.50 indexes a few flex fields that MuJoCo
+4.0's ``MjModel`` and ``MjData`` no longer have (``flex_vertedge`` and eight more), so building
+any of its ``Physics`` fails with ``AttributeError: 'MjModel' object has no attribute
+'flex_vertedge'``; importing this module drops those names from dm_control's named-index tables
+(:func:`align_dm_control_index`), which only removes ``physics.named`` access to fields that do
+not exist.
 """
 
 from __future__ import annotations
@@ -25,6 +30,26 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.errors import EnergyMarginError, check_positive_int
 from energy_margin.integrations.live_model import EpisodeRecorder, Hold, LiveModelScorer, LiveOptions
+
+
+def align_dm_control_index() -> list[str]:
+    """Drop from dm_control's named-index tables the fields this MuJoCo's structs lack; returns them."""
+    try:
+        from dm_control.mujoco.wrapper.mjbindings import sizes
+    except ImportError:
+        return []
+    model = mujoco.MjModel.from_xml_string("<mujoco/>")
+    structs = {"mjmodel": model, "mjdata": mujoco.MjData(model)}
+    dropped = []
+    for struct_name, struct in structs.items():
+        table = sizes.array_sizes.get(struct_name, {})
+        for field in [name for name in table if not hasattr(struct, name)]:
+            del table[field]
+            dropped.append(f"{struct_name}.{field}")
+    return dropped
+
+
+align_dm_control_index()
 
 
 def physics_handles(physics: Any) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -124,14 +149,15 @@ class MarginEnvironment:
         return physics_handles(self.env.physics)[1]
 
     def reset(self) -> Any:
-        """Reset the environment; a new episode's margins and rows."""
+        """Reset the environment; a new episode's margins (the start state's first) and rows."""
         time_step = self.env.reset()
         self.steps = 0
-        self.margin = None
-        self.margins = []
+        data = self._data()
         if self.recorder is not None:
             self.recorder.clear()
-            self.recorder.add(self._data())
+            self.recorder.add(data)
+        self.margin = self.scorer.score(data) if self.every else None
+        self.margins = [self.margin] if self.margin is not None else []
         return time_step
 
     def step(self, action: Any) -> Any:

@@ -6,7 +6,8 @@ gymnasium-robotics, Meta-World and most MuJoCo environments written for Gymnasiu
 ``every`` steps it scores the state reached by the step with
 :class:`~energy_margin.integrations.live_model.LiveModelScorer` (the tree within ``budget_s``, or a
 learned margin) and adds ``info["energy_margin"]``, a dict with ``capture_score``,
-``success_score``, ``expansions``, ``nodes``, ``ms``, ``stopped_by`` and ``seed``. During the tree's
+``success_score``, ``expansions``, ``nodes``, ``ms``, ``stopped_by`` and ``seed`` (``reset``'s
+``info`` holds those of the start state). During the tree's
 propagation the robot holds the last action (zero-order hold); ``hold="still"`` holds it where it
 is instead. Scoring only reads the environment's state: observations, rewards and the
 environment's random numbers are the same with and without the wrapper.
@@ -117,12 +118,16 @@ class MarginWrapper(gymnasium.Wrapper):
         self.steps = 0
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
-        """Reset the environment (and start a new recorded episode)."""
+        """Reset the environment (a new recorded episode); ``info["energy_margin"]`` scores the start state."""
         observation, info = self.env.reset(**kwargs)
         self.steps = 0
+        data = mujoco_handles(self.env)[1]
         if self.recorder is not None:
             self.recorder.clear()
-            self.recorder.add(mujoco_handles(self.env)[1])
+            self.recorder.add(data)
+        if self.every:
+            info = dict(info)
+            info["energy_margin"] = self.scorer.score(data)
         return observation, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:

@@ -1,0 +1,84 @@
+"""The dm_control wrapper on dm_control's own manipulation task (the Kinova Jaco lifting a Duplo brick)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dm_control")
+
+from energy_margin.errors import EnergyMarginError  # noqa: E402
+from energy_margin.integrations.dm_control import (  # noqa: E402
+    MarginEnvironment,
+    PhysicsScorer,
+    align_dm_control_index,
+    physics_handles,
+)
+from energy_margin.integrations.live_model import INFO_KEYS  # noqa: E402
+
+CAPTURE = {"type": "distance", "site": "jaco_arm/jaco_hand/pinchsite", "max": 0.15}
+SUCCESS = {"type": "height", "min": 0.1}
+
+
+def lift_brick(seed: int = 0):  # type: ignore[no-untyped-def]
+    from dm_control import manipulation
+
+    return manipulation.load("lift_brick_features", seed=seed)
+
+
+def steps(env, n: int) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    spec = env.action_spec()
+    rng = np.random.default_rng(0)
+    return [rng.uniform(spec.minimum, spec.maximum) for _ in range(n)]
+
+
+def test_the_index_tables_hold_only_fields_this_mujoco_has() -> None:
+    assert align_dm_control_index() == []  # already aligned on import
+    env = lift_brick()
+    model, data = physics_handles(env.physics)
+    assert model.nq == env.physics.model.nq
+
+
+def test_observations_are_identical_with_and_without_the_wrapper() -> None:
+    plain, wrapped_env = lift_brick(3), lift_brick(3)
+    wrapper = MarginEnvironment(
+        wrapped_env, objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, budget_s=None, max_expansions=10, every=2
+    )
+    first, second = plain.reset(), wrapper.reset()
+    assert wrapper.margin is not None and set(wrapper.margin) == set(INFO_KEYS)
+    for name, value in first.observation.items():
+        assert np.array_equal(value, second.observation[name])
+    for action in steps(plain, 6):
+        a, b = plain.step(action), wrapper.step(action)
+        assert a.reward == b.reward
+        for name, value in a.observation.items():
+            assert np.array_equal(value, b.observation[name]), name
+    assert len(wrapper.margins) == 1 + 3
+    assert wrapper.action_spec() == plain.action_spec()
+
+
+def test_physics_scorer_and_recording(tmp_path: Path) -> None:
+    env = lift_brick()
+    env.reset()
+    scorer = PhysicsScorer(env, objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, options=None)
+    margin = scorer.score_physics()
+    assert 0.0 <= margin["capture_score"] <= 1.0
+    assert scorer.labels(physics_handles(env)[1]) == (False, False)
+    wrapper = MarginEnvironment(env, objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, every=0, record=True)
+    wrapper.reset()
+    for action in steps(env, 4):
+        wrapper.step(action)
+    rows = np.load(wrapper.save_episode(tmp_path / "episode.npz"))
+    assert rows["qpos"].shape == (5, env.physics.model.nq)
+    assert wrapper.margins == []
+
+
+def test_bad_inputs_are_one_line() -> None:
+    with pytest.raises(EnergyMarginError, match="has no physics"):
+        MarginEnvironment(object(), objects="x", capture=CAPTURE, success=SUCCESS)
+    with pytest.raises(EnergyMarginError, match="has no MuJoCo model"):
+        PhysicsScorer(object(), objects="x", capture=CAPTURE, success=SUCCESS)
+    with pytest.raises(EnergyMarginError, match=r"objects.bodies: no body 'brick'"):
+        MarginEnvironment(lift_brick(), objects="brick", capture=CAPTURE, success=SUCCESS)
