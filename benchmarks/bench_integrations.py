@@ -1,0 +1,151 @@
+"""Cost of the Gymnasium wrapper on Gymnasium's Pusher-v5: per-step overhead and per-call scoring latency.
+
+Usage::
+
+    python benchmarks/bench_integrations.py [--steps 2000] [--calls 200] [--seed 0]
+
+Everything runs in this one process, one after another:
+
+* overhead per step with scoring off (``every=0``), with and without recording, against the plain
+  environment on the same actions (the ratio is the figure; both sides step the same physics);
+* latency per scoring call with the tree at budgets 10 ms and 50 ms (mean, median, 95th
+  percentile, and how often a call kept its budget: ``ms`` at most 1.1 x the budget) and the
+  expansions reached;
+* latency per call with a learned margin (a boosted-tree margin model fitted here on a small
+  Pusher dataset: episodes of random actions recorded through the wrapper, analysed with 60
+  expansions per frame; its accuracy is not the point, its speed is).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+
+CAPTURE = {"type": "distance", "body": "tips_arm", "max": 0.1}
+SUCCESS = {"type": "distance", "body": "goal", "max": 0.1}
+
+
+def _env(**options: Any) -> Any:
+    import gymnasium
+
+    from energy_margin.integrations.gymnasium import MarginWrapper
+
+    env = gymnasium.make("Pusher-v5")
+    if options.pop("plain", False):
+        return env
+    return MarginWrapper(env, objects="object", capture=CAPTURE, success=SUCCESS, **options)
+
+
+def per_step(env: Any, actions: np.ndarray, seed: int) -> float:
+    """Mean wall time of one step over ``actions`` (episodes restarted when they end), microseconds."""
+    env.reset(seed=seed)
+    started = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return 1e6 * (time.perf_counter() - started) / len(actions)
+
+
+def latencies(env: Any, calls: int, seed: int) -> list[dict[str, Any]]:
+    """The ``info["energy_margin"]`` of ``calls`` scored steps of random actions."""
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    found = []
+    while len(found) < calls:
+        _, _, terminated, truncated, info = env.step(rng.uniform(-2, 2, size=7))
+        if "energy_margin" in info:
+            found.append(info["energy_margin"])
+        if terminated or truncated:
+            env.reset()
+    return found
+
+
+def describe(name: str, margins: list[dict[str, Any]], budget_ms: float | None) -> str:
+    ms = np.array([m["ms"] for m in margins])
+    expansions = np.array([m["expansions"] for m in margins])
+    kept = "-" if budget_ms is None else f"{np.mean(ms <= 1.1 * budget_ms):.3f}"
+    return (
+        f"| {name} | {len(ms)} | {ms.mean():.2f} | {np.median(ms):.2f} | {np.percentile(ms, 95):.2f} | "
+        f"{kept} | {expansions.mean():.0f} |"
+    )
+
+
+def learned_model(directory: Path, seed: int) -> Path:
+    """A boosted-tree margin model fitted to a small analysed Pusher dataset recorded through the wrapper."""
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.dataset import load_dataset
+    from energy_margin.data.record import record_dataset
+    from energy_margin.integrations.gym_scene import scene_from_environment
+    from energy_margin.learning.margin_model import fit_margin_model
+
+    env = _env(every=0, record=True)
+    scene = scene_from_environment(env, objects="object", out=directory / "pusher.toml").scene_file
+    rng = np.random.default_rng(seed)
+    episodes = []
+    for episode in range(8):
+        env.reset(seed=seed + episode)
+        for _ in range(40):
+            env.step(rng.uniform(-2, 2, size=7))
+        episodes.append(env.save_episode(directory / f"episode_{episode}.npz"))
+    record_dataset(scene, episodes, n_frames=8, out=directory / "dataset")
+    analyze(directory / "dataset", AnalyzerConfig(iterations=60), seed=seed, workers=1)
+    model, _ = fit_margin_model([load_dataset(directory / "dataset")], seed=seed, kind="boosting")
+    path = directory / "model.npz"
+    model.save(path)
+    return path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=2000, help="steps timed for the overhead")
+    parser.add_argument("--calls", type=int, default=200, help="scoring calls timed per setting")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    try:
+        import gymnasium  # noqa: F401
+    except ImportError:
+        raise SystemExit("bench_integrations needs Gymnasium: pip install 'energy-margin[gymnasium]'") from None
+    actions = np.random.default_rng(args.seed).uniform(-2, 2, size=(args.steps, 7))
+    rows = []
+    for repeat in range(3):
+        plain = per_step(_env(plain=True), actions, args.seed)
+        off = per_step(_env(every=0), actions, args.seed)
+        recording = per_step(_env(every=0, record=True), actions, args.seed)
+        rows.append((plain, off, recording))
+        del repeat
+    plain, off, recording = (statistics.median(column) for column in zip(*rows, strict=True))
+    print(f"Gymnasium Pusher-v5, {args.steps} steps, median of 3 runs")
+    print("| setting | us per step | ratio to the plain environment |")
+    print("|---|---|---|")
+    print(f"| plain environment | {plain:.1f} | 1.000 |")
+    print(f"| MarginWrapper, scoring off | {off:.1f} | {off / plain:.3f} |")
+    print(f"| MarginWrapper, scoring off, recording | {recording:.1f} | {recording / plain:.3f} |")
+    print()
+    print(f"Scoring latency per call ({args.calls} calls each, every=1, random actions)")
+    print("| scorer | calls | mean ms | median ms | p95 ms | budget kept | expansions |")
+    print("|---|---|---|---|---|---|---|")
+    for budget in (0.01, 0.05):
+        margins = latencies(_env(every=1, budget_s=budget, max_expansions=100_000), args.calls, args.seed)
+        print(describe(f"tree, budget {budget * 1000:.0f} ms", margins, budget * 1000))
+    with tempfile.TemporaryDirectory() as scratch:
+        try:
+            model = learned_model(Path(scratch), args.seed)
+        except EnergyMarginError as error:
+            print(f"| learned margin | could not be fitted: {error} |")
+        else:
+            margins = latencies(_env(every=1, model=model), args.calls, args.seed)
+            print(describe("learned margin (boosting)", margins, None))
+
+
+if __name__ == "__main__":
+    main()
