@@ -9,14 +9,14 @@ import pytest
 
 pytest.importorskip("dm_control")
 
-from energy_margin.errors import EnergyMarginError  # noqa: E402
-from energy_margin.integrations.dm_control import (  # noqa: E402
+from energy_margin.errors import EnergyMarginError
+from energy_margin.integrations.dm_control import (
     MarginEnvironment,
     PhysicsScorer,
     align_dm_control_index,
     physics_handles,
 )
-from energy_margin.integrations.live_model import INFO_KEYS  # noqa: E402
+from energy_margin.integrations.live_model import INFO_KEYS
 
 CAPTURE = {"type": "distance", "site": "jaco_arm/jaco_hand/pinchsite", "max": 0.15}
 SUCCESS = {"type": "height", "min": 0.1}
@@ -37,7 +37,7 @@ def steps(env, n: int) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
 def test_the_index_tables_hold_only_fields_this_mujoco_has() -> None:
     assert align_dm_control_index() == []  # already aligned on import
     env = lift_brick()
-    model, data = physics_handles(env.physics)
+    model, _data = physics_handles(env.physics)
     assert model.nq == env.physics.model.nq
 
 

@@ -12,8 +12,6 @@ import pytest
 
 gymnasium = pytest.importorskip("gymnasium")
 
-from tiny_scene import TINY_SCENE, write_tiny_scene  # noqa: E402
-
 from energy_margin.analysis.frame import AnalyzerConfig  # noqa: E402
 from energy_margin.analysis.run import analyze  # noqa: E402
 from energy_margin.data.dataset import load_dataset  # noqa: E402
@@ -22,6 +20,7 @@ from energy_margin.data.record import record_dataset  # noqa: E402
 from energy_margin.data.scores_file import load_scores  # noqa: E402
 from energy_margin.integrations.gymnasium import MarginWrapper  # noqa: E402
 from energy_margin.tasks import get_task  # noqa: E402
+from tiny_scene import TINY_SCENE, write_tiny_scene  # noqa: E402
 
 
 class MocapPusherEnv(gymnasium.Env):  # type: ignore[misc]
@@ -75,7 +74,7 @@ def test_recorded_episode_scores_as_the_generated_one(tmp_path: Path) -> None:
         qpos[address + 3 : address + 7] = start.object_quat[index]
     drive = np.ones(2)
     dt = float(task.loaded.model.opt.timestep)
-    steps = int(round(task.config.duration / dt))
+    steps = round(task.config.duration / dt)
     env = MarginWrapper(MocapPusherEnv(scene.parent / "model.xml"), scene=scene, every=0, record=True)
     first = task.model_command(drive, 0.0)
     env.reset(options={"qpos": qpos, "mocap_pos": first.mocap_pos})
