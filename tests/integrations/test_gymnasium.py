@@ -192,3 +192,44 @@ def test_a_scene_file_gives_the_tables(tmp_path: Path) -> None:
     wrapper.reset(seed=0)
     assert "energy_margin" in wrapper.step(actions(1)[0])[4]
     assert wrapper.scorer.object_names == ("object",)
+
+
+@pytest.fixture(scope="module")
+def pusher_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A boosted-tree margin model fitted to 4 recorded Pusher episodes analysed with 10 expansions per frame."""
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.record import record_dataset
+    from energy_margin.integrations.gym_scene import scene_from_environment
+    from energy_margin.learning.margin_model import fit_margin_model
+
+    directory = tmp_path_factory.mktemp("pusher-model")
+    wrapper = wrapped(every=0, record=True)
+    scene = scene_from_environment(wrapper, objects="object", out=directory / "pusher.toml").scene_file
+    episodes = []
+    for episode in range(4):
+        wrapper.reset(seed=episode)
+        for action in actions(10):
+            wrapper.step(action)
+        episodes.append(wrapper.save_episode(directory / f"episode_{episode}.npz"))
+    record_dataset(scene, episodes, n_frames=4, out=directory / "dataset")
+    analyze(directory / "dataset", AnalyzerConfig(iterations=10), seed=0, workers=1)
+    model, _ = fit_margin_model([load_dataset(directory / "dataset")], seed=0, kind="boosting", max_iter=5, max_depth=2)
+    model.save(directory / "model.npz")
+    return directory / "model.npz"
+
+
+def test_a_learned_margin_scores_without_a_tree(pusher_model: Path) -> None:
+    wrapper = wrapped(model=pusher_model, every=1)
+    _, info = wrapper.reset(seed=0)
+    margin = wrapper.step(actions(1)[0])[4]["energy_margin"]
+    assert margin["stopped_by"] == "learned" and margin["expansions"] == 0 and margin["nodes"] == 0
+    assert 0.0 <= margin["capture_score"] <= 1.0 and 0.0 <= margin["success_score"] <= 1.0
+    assert info["energy_margin"]["stopped_by"] == "learned"
+
+
+def test_a_margin_model_of_another_task_is_refused(tmp_path: Path, pusher_model: Path) -> None:
+    with pytest.raises(EnergyMarginError, match="does not exist"):
+        wrapped(model=tmp_path / "missing.npz")
+    with pytest.raises(EnergyMarginError, match="margin model file or a MarginModel"):
+        wrapped(model=42)

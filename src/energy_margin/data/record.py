@@ -4,8 +4,9 @@ A roll-out is one ``.npz`` file with ``time`` (n,) s, ``qpos`` (n, nq) and ``qve
 MuJoCo's own state layout for the scene's compiled model, and optionally ``ctrl`` (n, nu) (checked,
 not used: the analysis follows the scene file's declared motion from each frame's time) and
 ``mocap_pos`` (n, nmocap, 3) / ``mocap_quat`` (n, nmocap, 4) (without them the mocap bodies take
-the declared motion's pose at each time). An HDF5 file (``.h5``/``.hdf5``, read with h5py) holds
-one group per roll-out with the same arrays, taken in the order of the group names. ``time`` is
+the declared motion's pose at each time). An HDF5 file (``.h5``/``.hdf5``, or any file with
+``file_format="hdf5"``; read with h5py) holds one group per roll-out with the same arrays, taken in
+the order of the group names (robomimic files: :mod:`energy_margin.data.robomimic`). ``time`` is
 the motion's clock: 0 is its start. K frames are taken at the rows nearest to K evenly spaced
 times from the first row to the last; the labels come from the scene file's capture and success
 sets. Every problem is one line naming the
@@ -24,7 +25,7 @@ import numpy as np
 
 from energy_margin.data.dataset import Dataset, check_target
 from energy_margin.data.generate import trajectory_record, write_records
-from energy_margin.errors import EnergyMarginError, check_positive_int
+from energy_margin.errors import EnergyMarginError, check_choice, check_positive_int
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks import get_task
@@ -38,7 +39,11 @@ _HDF5_SUFFIXES = (".h5", ".hdf5")
 _HDF5_ERRORS = (OSError, RuntimeError, ValueError, KeyError, TypeError)
 
 
-def _load_arrays(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
+#: The roll-out file formats ``record`` reads by itself (``None``: by the file's suffix).
+FILE_FORMATS = ("npz", "hdf5")
+
+
+def _load_arrays(path: Path, file_format: str | None = None) -> list[tuple[str, dict[str, np.ndarray]]]:
     """The roll-outs in one file: ``(name, arrays)``; an ``.npz`` holds one, an HDF5 file one per group."""
     try:
         is_file = path.is_file()
@@ -47,7 +52,7 @@ def _load_arrays(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
     if not is_file:
         problem = "is not a file" if path.exists() else "does not exist"
         raise EnergyMarginError(f"{path}: roll-out file {problem}")
-    if path.suffix.lower() in _HDF5_SUFFIXES:
+    if file_format == "hdf5" or (file_format is None and path.suffix.lower() in _HDF5_SUFFIXES):
         return _load_hdf5(path)
     try:
         arrays = read_npz(path)
@@ -75,6 +80,10 @@ def _load_hdf5(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
                     raise EnergyMarginError(f"{where}: cannot be read ({_one_line(error)})") from None
                 if not isinstance(group, h5py.Group):
                     raise EnergyMarginError(f"{where}: expected a group per roll-out, found a dataset")
+                if group_name == "data" and any(str(key).startswith("demo_") for key in group):
+                    raise EnergyMarginError(
+                        f"{where}: holds demo_* groups, as a robomimic file does: pass --format robomimic"
+                    )
                 arrays = {}
                 for key in sorted(group):
                     try:
@@ -100,21 +109,35 @@ def _one_line(error: BaseException) -> str:
     return " ".join(str(error).split()) or type(error).__name__
 
 
-def read_rollout_file(path: Path | str, model: mujoco.MjModel) -> list[tuple[str, dict[str, np.ndarray]]]:
+def read_rollout_file(
+    path: Path | str, model: mujoco.MjModel, *, file_format: str | None = None
+) -> list[tuple[str, dict[str, np.ndarray]]]:
     """The checked roll-outs of one file for the scene's compiled ``model``, as ``(name, arrays)``.
 
     An ``.npz`` file holds one roll-out (named by the file), an HDF5 file one per group (named
     ``FILE:/GROUP``); every array is returned as float.
 
+    Args:
+        path: the file.
+        model: the compiled model that recorded it.
+        file_format: ``"npz"`` or ``"hdf5"``; ``None`` decides by the suffix (``.h5``, ``.hdf5``: HDF5).
+
     Raises:
         EnergyMarginError: an unreadable file, a missing array, a width that does not fit
             ``model``, a NaN or a ``time`` that does not increase (one line naming file and array).
     """
-    return [(name, _check_rollout(name, raw, model)) for name, raw in _load_arrays(Path(path))]
+    if file_format is not None:
+        check_choice("file_format", file_format, FILE_FORMATS)
+    return [(name, check_rollout(name, raw, model)) for name, raw in _load_arrays(Path(path), file_format)]
 
 
-def _check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The arrays of one roll-out (``path`` names it in errors), checked against ``model``'s sizes."""
+def check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The arrays of one roll-out (``path`` names it in errors), checked against ``model``'s sizes, as float.
+
+    Raises:
+        EnergyMarginError: a missing ``time``, ``qpos`` or ``qvel``, a width that does not fit
+            ``model``, a NaN or a ``time`` that does not increase (one line naming ``path`` and the array).
+    """
     for name in ("time", "qpos", "qvel"):
         if name not in arrays:
             raise EnergyMarginError(f"{path}: {name}: array is missing (a roll-out needs time, qpos and qvel)")
@@ -167,6 +190,7 @@ def record_dataset(
     out: Path | str,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
+    file_format: str | None = None,
 ) -> Dataset:
     """Turn recorded roll-outs of a scene file's model into a dataset directory.
 
@@ -178,29 +202,57 @@ def record_dataset(
         out: the dataset directory to create.
         overwrite: replace an existing ``out``.
         progress: called with 1 after each roll-out.
+        file_format: ``"npz"`` or ``"hdf5"`` for every file; ``None`` decides by each file's suffix.
 
     """
     check_positive_int("n_frames", n_frames)
+    if file_format is not None:
+        check_choice("file_format", file_format, FILE_FORMATS)
     if not rollouts:
         raise EnergyMarginError("record needs at least one roll-out file")
     task = get_task("scene", {"scene_file": str(Path(scene_file).resolve())})
     assert isinstance(task, SceneTask)
     out = Path(out)
     check_target(out, overwrite=overwrite)
+    model = task.loaded.model
+    loaded_rollouts: list[tuple[str, dict[str, np.ndarray]]] = []
+    sources: list[dict[str, Any]] = []
+    for item in rollouts:
+        path = Path(item)
+        loaded_rollouts.extend(read_rollout_file(path, model, file_format=file_format))
+        sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
+    records = rollout_records(task, loaded_rollouts, n_frames=n_frames, progress=progress)
+    return write_records(task, records, out, engine="mujoco", extra={"recorded_from": sources}, overwrite=overwrite)
+
+
+def rollout_records(
+    task: SceneTask,
+    rollouts: Sequence[tuple[str, dict[str, np.ndarray]]],
+    *,
+    n_frames: int,
+    progress: Callable[[int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """The frames and labels of checked roll-outs, one :func:`trajectory_record` each.
+
+    Args:
+        task: the scene task whose model recorded the roll-outs.
+        rollouts: ``(name, arrays)`` as :func:`check_rollout` returns them; ``name`` names the
+            roll-out in errors.
+        n_frames: frames K per roll-out, taken at the rows nearest to K evenly spaced times.
+        progress: called with 1 after each roll-out.
+
+    Raises:
+        EnergyMarginError: a roll-out with fewer rows than ``n_frames``, or an object quaternion
+            that is not a unit quaternion.
+    """
     loaded = task.loaded
     friction = task.default_friction()
     drive = np.ones(task.drive_size())
     simulator = task.make_simulator(loaded.n_objects, friction, drive)
     compiled = require(simulator, CompiledModel, purpose="record")
     model, data = compiled.model, compiled.data
-    loaded_rollouts: list[tuple[str, dict[str, np.ndarray]]] = []
-    sources: list[dict[str, Any]] = []
-    for item in rollouts:
-        path = Path(item)
-        loaded_rollouts.extend(read_rollout_file(path, model))
-        sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
     records = []
-    for name, arrays in loaded_rollouts:
+    for name, arrays in rollouts:
         time = arrays["time"]
         if time.size < n_frames:
             raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than --frames {n_frames}")
@@ -229,4 +281,4 @@ def record_dataset(
         records.append(trajectory_record(task, frames, times, friction, drive))
         if progress is not None:
             progress(1)
-    return write_records(task, records, out, engine="mujoco", extra={"recorded_from": sources}, overwrite=overwrite)
+    return records

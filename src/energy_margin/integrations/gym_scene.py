@@ -13,7 +13,6 @@ effector is, and how close counts as captured, are guesses from names and sizes,
 from __future__ import annotations
 
 import fnmatch
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import atomic_path
+from energy_margin.tasks.scene_file import toml_value
 from energy_margin.tasks.scene_model import model_hash, object_joint_kind
 
 #: Name fragments of an end effector's body or site, most specific first.
@@ -97,24 +97,6 @@ def _find(model: mujoco.MjModel, words: tuple[str, ...], bodies: list[int]) -> t
         if matching:
             return "body", body_names[max(matching, key=lambda b: _depth(model, b))]
     return None
-
-
-def _toml(value: Any) -> str:
-    """A TOML value (strings, numbers, booleans, lists and inline tables)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        number = float(value)
-        if not math.isfinite(number):
-            raise ValueError(f"cannot write {value!r} to a scene file")
-        return repr(int(value)) if isinstance(value, int) else repr(round(number, 6))
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml(item) for item in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{key} = {_toml(item)}" for key, item in value.items()) + " }"
-    raise ValueError(f"cannot write {type(value).__name__} to a scene file")
 
 
 def save_model_xml(source: Path, out: Path) -> mujoco.MjModel:
@@ -199,15 +181,15 @@ def scene_from_environment(
     lines = [
         f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.",
         "schema_version = 1",
-        f"mjcf = {_toml(model_file.name)}",
+        f"mjcf = {toml_value(model_file.name)}",
         "",
         "[objects]",
-        f"bodies = {_toml(patterns)}",
-        f"joints = {_toml(joints)}",
+        f"bodies = {toml_value(patterns)}",
+        f"joints = {toml_value(joints)}",
         "",
         "# One episode; no keyframes: record a roll-out's own commands with the Gymnasium wrapper.",
         "[motion]",
-        f"duration = {_toml(duration)}",
+        f"duration = {toml_value(duration)}",
         "",
         "[perturbation]",
         "linear_acceleration = [2.0, 2.0, 2.0]",
@@ -215,7 +197,7 @@ def scene_from_environment(
         "",
         f"# Captured: every object within {radius} m of {end_effector[0]} {end_effector[1]!r} (a guess).",
         "[capture]",
-        f"region = {_toml(capture)}",
+        f"region = {toml_value(capture)}",
         "",
         "# Success: "
         + (
@@ -224,7 +206,7 @@ def scene_from_environment(
             else "every object above its start height less 5 cm (no goal found)."
         ),
         "[success]",
-        f"region = {_toml(success)}",
+        f"region = {toml_value(success)}",
         "",
     ]
     with atomic_path(out) as temporary:

@@ -647,3 +647,47 @@ def region_names(table: Mapping[str, Any], key: str) -> list[tuple[str, str, str
         elif name == "region":
             found.extend(region_names(value, f"{key}.region"))
     return found
+
+
+# -- writing scene files -------------------------------------------------------------------
+
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def toml_key(key: str) -> str:
+    """``key`` as a TOML key (quoted unless it is bare)."""
+    return key if _BARE_KEY.fullmatch(key) else _toml_string(key)
+
+
+def _toml_string(text: str) -> str:
+    """``text`` as a TOML basic string (quotes, backslashes and control characters escaped)."""
+    escaped = []
+    for char in text:
+        if char in ('"', "\\"):
+            escaped.append("\\" + char)
+        elif ord(char) < 0x20 or ord(char) == 0x7F:
+            escaped.append(f"\\u{ord(char):04X}")
+        else:
+            escaped.append(char)
+    return '"' + "".join(escaped) + '"'
+
+
+def toml_value(value: Any) -> str:
+    """``value`` (string, number, list or table) as an inline TOML value (for writing scene files)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"a scene file holds finite numbers, got {value}")
+        return repr(value)
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(item) for item in value) + "]"
+    if isinstance(value, Mapping):
+        items = ", ".join(f"{toml_key(str(key))} = {toml_value(item)}" for key, item in value.items())
+        return "{ " + items + " }" if items else "{}"
+    raise TypeError(f"no TOML value for {type(value).__name__}")
