@@ -233,3 +233,11 @@ def test_a_margin_model_of_another_task_is_refused(tmp_path: Path, pusher_model:
         wrapped(model=tmp_path / "missing.npz")
     with pytest.raises(EnergyMarginError, match="margin model file or a MarginModel"):
         wrapped(model=42)
+
+
+def test_hold_still_is_the_scene_option_of_the_simulator() -> None:
+    wrapper = wrapped(hold="still")
+    assert wrapper.scorer.task.loaded.spec.motion.robot == "still"
+    assert wrapper.scorer.simulator.still
+    # The environment's own model is untouched by the armature of the scorer's copy.
+    assert float(wrapper.unwrapped.model.dof_armature.max()) < 1e3

@@ -378,3 +378,90 @@ def test_success_region_in_a_moving_body_frame_is_taken_at_the_frame(make_scene)
     assert not task.is_successful(
         type(frame)(boxes_ahead.object_pos, frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v)
     )
+
+
+# A hinge arm driven by a position servo, and a puck on two slides (y declared before x, as in
+# Gymnasium's Pusher) whose body sits away from the origin.
+ARM_AND_PUCK = """<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <geom type="plane" size="2 2 0.1"/>
+    <body name="arm" pos="0 0 0.05">
+      <joint name="shoulder" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+      <site name="tip" pos="0.3 0 0"/>
+    </body>
+    <body name="puck" pos="0.4 0.1 0.03">
+      <joint name="puck_y" type="slide" axis="0 1 0"/>
+      <joint name="puck_x" type="slide" axis="1 0 0"/>
+      <geom type="cylinder" size="0.03 0.03" mass="0.1"/>
+    </body>
+  </worldbody>
+  <actuator><position joint="shoulder" kp="50"/></actuator>
+</mujoco>
+"""
+
+ARM_AND_PUCK_SCENE = """schema_version = 1
+mjcf = "model.xml"
+
+[objects]
+bodies = ["puck"]
+joints = "upright"
+
+[motion]
+duration = 1.0
+ROBOT
+
+[capture]
+region = { type = "distance", site = "tip", max = 0.2 }
+
+[success]
+region = { type = "height", max = 0.1 }
+"""
+
+
+def test_a_puck_on_two_slides_is_an_upright_object_at_its_world_position(tmp_path: Path) -> None:
+    from tiny_scene import write_tiny_scene
+
+    scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=ARM_AND_PUCK)
+    task = get_task("scene", {"scene_file": str(scene)})
+    simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
+    frame = simulator.frame_state()
+    np.testing.assert_allclose(frame.object_pos, [[0.4, 0.1, 0.03]])
+    moved = type(frame)(
+        np.array([[0.5, -0.2, 0.03]]), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
+    )
+    simulator.reset(moved)
+    assert np.allclose(simulator.data.xpos[task.loaded.object_bodies[0]], [0.5, -0.2, 0.03])
+    np.testing.assert_allclose(simulator.frame_state().object_pos, [[0.5, -0.2, 0.03]])
+    # z, which has no joint, stays where the body puts it.
+    high = type(frame)(np.array([[0.5, -0.2, 0.3]]), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v)
+    simulator.reset(high)
+    assert simulator.frame_state().object_pos[0, 2] == pytest.approx(0.03)
+
+
+@pytest.mark.parametrize(("robot", "moves"), [("", True), ('robot = "still"', False)])
+def test_motion_robot_still_holds_the_robot_where_the_frame_has_it(tmp_path: Path, robot: str, moves: bool) -> None:
+    from tiny_scene import write_tiny_scene
+
+    scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", robot), model=ARM_AND_PUCK)
+    task = get_task("scene", {"scene_file": str(scene)})
+    simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
+    frame = simulator.frame_state()
+    turning = type(frame)(frame.object_pos, frame.object_quat, frame.object_vel, np.array([0.5]), np.array([2.0]))
+    simulator.reset(turning)
+    travelled = 0.0
+    for _ in range(30):
+        simulator.step(1)
+        travelled = max(travelled, abs(float(simulator.robot_positions()[0]) - 0.5))
+    assert (travelled > 0.05) if moves else (travelled < 1e-6)
+
+
+def test_motion_robot_takes_declared_or_still(tmp_path: Path) -> None:
+    from tiny_scene import write_tiny_scene
+
+    scene = write_tiny_scene(
+        tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", 'robot = "frozen"'), model=ARM_AND_PUCK
+    )
+    with pytest.raises(EnergyMarginError, match=r"scene.toml:10: motion.robot: must be one of 'declared', 'still'"):
+        read_scene_file(scene)

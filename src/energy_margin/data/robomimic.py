@@ -18,7 +18,9 @@ The objects and the capture and success sets come from a scene file (its ``objec
 ``perturbation``, ``bounds``, ``capture`` and ``success`` tables; its model is not loaded) or from
 body patterns and region tables given directly. The dataset directory gets a scene of its own,
 ``source/model.xml`` (the re-rooted XML) and ``source/scene.toml``, which its ``dataset.json``
-names, so every later command rebuilds the task from the directory. Frames and labels are made as
+names, so every later command rebuilds the task from the directory. Its motion declares
+``robot = "still"``: the states carry no actuator commands, so during analysis the robot is held
+where each frame has it. Frames and labels are made as
 :func:`~energy_margin.data.record.record_dataset` makes them. Every problem is one line naming the
 file and the demonstration; nothing is written then.
 """
@@ -57,6 +59,9 @@ SOURCE_FOLDER = "source"
 SCENE_FILE = "scene.toml"
 #: The model written into :data:`SOURCE_FOLDER`.
 MODEL_FILE = "model.xml"
+#: A demonstration's states carry no actuator commands (robomimic's actions are a controller's
+#: inputs), so during analysis the robot is held where each frame has it (``motion.robot``).
+ROBOT_DURING_ANALYSIS = "still"
 
 #: Elements of a model whose ``file`` attributes name asset files, and the compiler folder each reads.
 _ASSET_ELEMENTS = {"mesh": "meshdir", "skin": "meshdir", "hfield": "assetdir", "texture": "texturedir"}
@@ -538,7 +543,7 @@ def _scene_spec(
         objects["joints"] = object_joint_kind(model, [str(p) for p in patterns])
         document["objects"] = objects
     document["mjcf"] = str(path.resolve())
-    document["motion"] = {"duration": duration}
+    document["motion"] = {"duration": duration, "robot": ROBOT_DURING_ANALYSIS}
     origin = str(scene_file) if scene_file is not None else "record options"
     return scene_spec_from_tables(document, origin=origin)
 
@@ -547,7 +552,7 @@ def _scene_text(spec: SceneSpec, loaded: LoadedScene, duration: float) -> str:
     """The scene file of the dataset's ``source`` folder (TOML)."""
     document: dict[str, Any] = {
         "objects": {"bodies": list(loaded.object_names), "joints": spec.object_joints},
-        "motion": {"duration": duration},
+        "motion": {"duration": duration, "robot": ROBOT_DURING_ANALYSIS},
         "perturbation": {
             "linear_acceleration": list(spec.linear_acceleration),
             "angular_acceleration": list(spec.angular_acceleration),

@@ -13,9 +13,10 @@ read: scoring never writes to them, so the simulation goes on exactly as without
 During the tree's propagation the robot holds its last command (zero-order hold): the actuator
 controls and mocap poses found in the user's ``MjData`` stay as they are, and the robot starts
 with its current velocity (``hold="action"``, the default). With ``hold="still"`` the robot is
-held where it is instead: its joint velocities start at zero and its joints get an armature of
-:data:`STILL_ARMATURE` (kg m^2 or kg), so that no actuator, gravity or contact force moves it
-measurably during the propagation; mocap bodies stay where they are in both cases.
+held where it is instead (a scene's ``motion.robot = "still"``: its joint velocities start at zero
+and its joints get an armature of :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE` kg m^2 or
+kg, so that no actuator, gravity or contact force moves it measurably during the propagation);
+mocap bodies stay where they are in both cases.
 
 :class:`EpisodeRecorder` keeps ``time``, ``qpos``, ``qvel``, ``ctrl``, ``mocap_pos`` and
 ``mocap_quat`` of every recorded step and writes them as the ``.npz`` roll-out that
@@ -45,11 +46,6 @@ from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
 Hold = Literal["action", "still"]
-
-#: Armature given to the robot's joints with ``hold="still"`` (kg m^2 for hinges, kg for slides):
-#: large enough that the forces of a manipulation scene move the robot by far less than a
-#: micrometre over a propagation.
-STILL_ARMATURE = 1e8
 
 #: Keys of the ``info["energy_margin"]`` dictionary (and of :meth:`LiveModelScorer.score`).
 INFO_KEYS = ("capture_score", "success_score", "expansions", "nodes", "ms", "stopped_by", "seed")
@@ -183,6 +179,8 @@ class LiveModelScorer:
             tables["objects"]["joints"] = joints if joints is not None else object_joint_kind(model, patterns)
             spec = scene_spec_from_tables(tables, origin=origin)
             spec = replace(spec, mjcf=Path(origin))
+        if options.hold == "still":
+            spec = replace(spec, motion=replace(spec.motion, robot="still"))
         loaded = resolve_scene(spec, model)
         self.task = HeldCommandTask(loaded=loaded)
         self.friction = self.task.default_friction()
@@ -190,9 +188,6 @@ class LiveModelScorer:
         self.simulator = self.task.make_simulator(loaded.n_objects, self.friction, self.drive)
         compiled = require(self.simulator, CompiledModel, purpose="live scoring of a user's model")
         self._model, self._data = compiled.model, compiled.data
-        self._robot_qvel = np.array(model.jnt_dofadr[list(loaded.robot_joints)], dtype=int)
-        if options.hold == "still" and self._robot_qvel.size:
-            self._model.dof_armature[self._robot_qvel] = STILL_ARMATURE
         self._seeds = np.random.SeedSequence(options.seed)
         self.margin_model = _load_model(margin_model)
         self.calls = 0
@@ -212,8 +207,6 @@ class LiveModelScorer:
         own.ctrl[:] = data.ctrl
         mujoco.mj_forward(self._model, own)
         state = self.simulator.frame_state()
-        if self.options.hold == "still":
-            state = replace(state, robot_v=np.zeros_like(state.robot_v))
         bad = ~np.isfinite(np.concatenate([state.object_pos.ravel(), state.object_vel.ravel(), state.robot_q]))
         if np.any(bad):
             raise EnergyMarginError("the simulation's state holds NaN or infinite values: it cannot be scored")

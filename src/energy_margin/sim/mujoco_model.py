@@ -8,6 +8,13 @@ velocities followed by zeros for the mocap coordinates (a mocap body has no velo
 robot is driven by :class:`~energy_margin.sim.base.ModelCommand` (the model's actuator controls
 and mocap poses) through ``set_model_command``; ``set_robot_force`` adds generalized forces on
 the robot joints (its mocap entries are ignored).
+
+A simulator built with ``still=True`` holds the robot where each reset puts it: its joint
+velocities are set to zero and its joints get an armature of :data:`STILL_ARMATURE` (kg m^2 for
+hinges, kg for slides), so that no actuator, gravity or contact force of a manipulation scene moves
+it measurably during a propagation of a few tenths of a second (mocap bodies stay where the frame
+puts them in any case). For recorded states whose commands are not known, and for live scoring
+with ``hold="still"``.
 """
 
 from __future__ import annotations
@@ -19,12 +26,21 @@ from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
 
+#: Armature of the robot's joints in a ``still=True`` simulator (kg m^2 or kg).
+STILL_ARMATURE = 1e8
+
 
 class MujocoModelSimulator(MujocoSimulator):
     """A :class:`~energy_margin.sim.base.Simulator` on a compiled user model."""
 
     def __init__(
-        self, model: mujoco.MjModel, scene: Scene, *, object_joints: list[int], robot_joints: list[int]
+        self,
+        model: mujoco.MjModel,
+        scene: Scene,
+        *,
+        object_joints: list[int],
+        robot_joints: list[int],
+        still: bool = False,
     ) -> None:
         """Simulate ``model``.
 
@@ -34,11 +50,16 @@ class MujocoModelSimulator(MujocoSimulator):
             object_joints: joint id of each object's free joint (or first upright joint).
             robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order (none
                 is servoed: the model's own actuators drive the robot).
+            still: hold the robot where each reset puts it (see the module docstring); the
+                model's robot armature is changed.
 
         """
         index = ModelIndex.of(model, scene, object_joints=object_joints, robot_joints=robot_joints)
         super().__init__(scene, model=model, index=index)
         self._n_mocap = int(model.nmocap)
+        self.still = still
+        if still and index.robot_qvel.size:
+            model.dof_armature[index.robot_qvel] = STILL_ARMATURE
 
     @property
     def n_robot_dofs(self) -> int:
@@ -48,7 +69,7 @@ class MujocoModelSimulator(MujocoSimulator):
     def _set_robot_state(self, robot_q: np.ndarray, robot_v: np.ndarray) -> None:
         joints = self.index.robot_qpos.size
         self.data.qpos[self.index.robot_qpos] = robot_q[:joints]
-        self.data.qvel[self.index.robot_qvel] = robot_v[:joints]
+        self.data.qvel[self.index.robot_qvel] = 0.0 if self.still else robot_v[:joints]
         if self._n_mocap:
             mocap = np.asarray(robot_q[joints:], dtype=float)
             self.data.mocap_pos[:] = mocap[: 3 * self._n_mocap].reshape(-1, 3)

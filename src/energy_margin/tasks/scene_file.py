@@ -32,6 +32,7 @@ MAX_DEPTH = 64
 
 Interpolation = Literal["linear", "hold"]
 ObjectJoints = Literal["free", "upright"]
+RobotDuringAnalysis = Literal["declared", "still"]
 
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"'. ]+?)\s*=")
@@ -111,6 +112,9 @@ class MotionSpec:
         control_period: during analysis the command is re-evaluated every this many seconds, s.
         actuators: the actuators the control columns drive, in order (others get 0), or ``None``
             for every actuator of the model in its order.
+        robot: ``"declared"``: during analysis the robot follows this motion; ``"still"``: the
+            robot is held where each analysed frame has it (for recorded states whose commands
+            are not known; see :class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
 
     """
 
@@ -121,6 +125,7 @@ class MotionSpec:
     initial_keyframe: str | None
     control_period: float
     actuators: tuple[str, ...] | None = None
+    robot: RobotDuringAnalysis = "declared"
 
 
 @dataclass(frozen=True)
@@ -510,6 +515,7 @@ _MOTION_KEYS = {
     "initial_keyframe",
     "control_period",
     "actuators",
+    "robot",
 }
 
 
@@ -581,7 +587,17 @@ def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> Moti
         if not isinstance(value, list) or not value:
             raise read.fail("motion.actuators", f"must be a non-empty list of actuator names, got {value!r}")
         actuators = tuple(read.string(item, "motion.actuators") for item in value)
-    return MotionSpec(tuple(keyframes), ctrl_file, interpolation, duration, initial, period, actuators)  # type: ignore[arg-type]
+    robot = read.choice(motion.get("robot", "declared"), "motion.robot", ("declared", "still"))
+    return MotionSpec(
+        tuple(keyframes),
+        ctrl_file,
+        interpolation,  # type: ignore[arg-type]
+        duration,
+        initial,
+        period,
+        actuators,
+        robot,  # type: ignore[arg-type]
+    )
 
 
 def _check_region(read: _Reader, table: Any, key: str) -> dict[str, Any]:

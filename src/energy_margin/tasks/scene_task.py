@@ -270,6 +270,7 @@ class SceneTask(Task):
             self.build_scene(n_objects, friction, drive),
             object_joints=list(self.loaded.object_joints),
             robot_joints=list(self.loaded.robot_joints),
+            still=self.loaded.spec.motion.robot == "still",
         )
 
     def robot_dofs(self) -> int:
