@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from energy_margin.cli import main
@@ -65,4 +66,34 @@ def test_record_example(tmp_path: Path, capsys) -> None:
     scene = str(EXAMPLES / "record" / "tabletop.toml")
     assert main(["record", "--scene", scene, *rollouts, "--frames", "3", "--out", str(out)]) == 0
     assert load_dataset(out).n_trajectories == 2
+    _analyze_and_evaluate(out, capsys)
+
+
+@pytest.mark.slow
+def test_robomimic_example(tmp_path: Path, capsys) -> None:
+    pytest.importorskip(
+        "dm_control", reason="the Jaco model ships with dm_control (pip install 'energy-margin[examples]')"
+    )
+    h5py = pytest.importorskip("h5py", reason="robomimic files are HDF5 (pip install 'energy-margin[demos]')")
+    folder = tmp_path / "jaco"
+    subprocess.run([sys.executable, str(EXAMPLES / "jaco" / "write_model.py"), "--out", str(folder)], check=True)
+    shutil.copy(EXAMPLES / "jaco" / "jaco.toml", folder / "jaco.toml")
+    demos = tmp_path / "demos.hdf5"
+    script = EXAMPLES / "robomimic" / "write_demos.py"
+    command = [sys.executable, str(script), "--demos", "2", "--scene", str(folder / "jaco.toml"), "--out", str(demos)]
+    subprocess.run(command, check=True)
+    with h5py.File(demos, "r") as handle:
+        assert sorted(handle["data"]) == ["demo_0", "demo_1"]
+        states = handle["data/demo_0/states"][()]
+        assert states.shape[0] > 100 and np.all(np.diff(states[:, 0]) > 0)  # time, then qpos and qvel
+        assert "<mujoco" in handle["data/demo_0"].attrs["model_file"]
+    out = tmp_path / "demos_data"
+    scene = EXAMPLES / "robomimic" / "jaco_demos.toml"
+    arguments = ["record", "--format", "robomimic", str(demos), "--scene", str(scene), "--frames", "3"]
+    assert main([*arguments, "--out", str(out)]) == 0
+    dataset = load_dataset(out)
+    assert dataset.n_objects == 4 and dataset.n_trajectories == 2
+    # The boxes were pushed forward (+y) between the first and the last frame.
+    pos = dataset.arrays["object_pos"]
+    assert (pos[:, -1, :, 1].mean(axis=1) > pos[:, 0, :, 1].mean(axis=1) + 0.1).all()
     _analyze_and_evaluate(out, capsys)

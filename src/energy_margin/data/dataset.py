@@ -128,10 +128,21 @@ def check_target(out: Path, *, overwrite: bool) -> None:
         raise EnergyMarginError(f"{out} already exists; pass --overwrite to replace it")
 
 
-def write_directory(out: Path, metadata: dict[str, Any], arrays: dict[str, np.ndarray], *, overwrite: bool) -> None:
-    """Write a dataset directory atomically: staged in a sibling, then renamed onto ``out``."""
+def write_directory(
+    out: Path,
+    metadata: dict[str, Any],
+    arrays: dict[str, np.ndarray],
+    *,
+    overwrite: bool,
+    staging: Path | None = None,
+) -> None:
+    """Write a dataset directory atomically: staged in a sibling, then renamed onto ``out``.
+
+    ``staging`` is a sibling of ``out`` from ``staging_directory`` that already holds other files
+    of the dataset (they move with it); ``None`` makes a fresh one. It is removed on an error.
+    """
     out.parent.mkdir(parents=True, exist_ok=True)
-    staging = staging_directory(out.parent, out.name)
+    staging = staging if staging is not None else staging_directory(out.parent, out.name)
     try:
         np.savez_compressed(staging / FRAMES_FILE, allow_pickle=False, **arrays)
         write_json(staging / METADATA_FILE, metadata)

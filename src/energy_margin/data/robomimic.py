@@ -43,11 +43,11 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, check_target
+from energy_margin.data.dataset import Dataset, check_target, write_directory
 from energy_margin.data.generate import records_dataset
 from energy_margin.data.record import check_rollout, rollout_records
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_float, check_positive_int
-from energy_margin.runs.files import staging_directory, write_json
+from energy_margin.runs.files import staging_directory
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_file import SCHEMA_VERSION, SceneSpec, scene_spec_from_tables, toml_key, toml_value
 from energy_margin.tasks.scene_model import LoadedScene, model_hash, object_joint_kind, resolve_scene
@@ -614,14 +614,7 @@ def _write(
             **metadata["task_config"],
             "scene_file": str(out.resolve() / SOURCE_FOLDER / SCENE_FILE),
         }
-        np.savez_compressed(staging / FRAMES_FILE, allow_pickle=False, **dataset.arrays)
-        write_json(staging / METADATA_FILE, metadata)
-        check_target(out, overwrite=overwrite)
-        if out.is_dir():
-            shutil.rmtree(out)
-        elif out.exists():
-            out.unlink()
-        staging.rename(out)
+        write_directory(out, metadata, dataset.arrays, overwrite=overwrite, staging=staging)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise

@@ -28,8 +28,8 @@ import mujoco
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
-from energy_margin.errors import EnergyMarginError, check_positive_int
-from energy_margin.integrations.live_model import EpisodeRecorder, Hold, LiveModelScorer, LiveOptions
+from energy_margin.errors import EnergyMarginError
+from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
 
 def align_dm_control_index() -> list[str]:
@@ -124,11 +124,9 @@ class MarginEnvironment:
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
     ) -> None:
-        check_positive_int("every", every, minimum=0)
         if not hasattr(env, "physics"):
             raise EnergyMarginError(f"{type(env).__name__} has no physics: give a dm_control environment")
         self.env = env
-        self.every = every
         self.scorer = PhysicsScorer(
             env.physics,
             objects=objects,
@@ -140,43 +138,29 @@ class MarginEnvironment:
             options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
             origin=type(env).__name__,
         )
-        self.recorder = EpisodeRecorder() if record else None
+        self.session = LiveSession(self.scorer, every=every, record=record)
         self.margin: dict[str, Any] | None = None
         self.margins: list[dict[str, Any]] = []
-        self.steps = 0
-
-    def _data(self) -> mujoco.MjData:
-        return physics_handles(self.env.physics)[1]
 
     def reset(self) -> Any:
         """Reset the environment; a new episode's margins (the start state's first) and rows."""
         time_step = self.env.reset()
-        self.steps = 0
-        data = self._data()
-        if self.recorder is not None:
-            self.recorder.clear()
-            self.recorder.add(data)
-        self.margin = self.scorer.score(data) if self.every else None
+        self.margin = self.session.reset(physics_handles(self.env.physics)[1])
         self.margins = [self.margin] if self.margin is not None else []
         return time_step
 
     def step(self, action: Any) -> Any:
         """Step the environment, then score the state it reached every ``every`` steps."""
         time_step = self.env.step(action)
-        self.steps += 1
-        data = self._data()
-        if self.recorder is not None:
-            self.recorder.add(data)
-        if self.every and self.steps % self.every == 0:
-            self.margin = self.scorer.score(data)
-            self.margins.append(self.margin)
+        margin = self.session.step(physics_handles(self.env.physics)[1])
+        if margin is not None:
+            self.margin = margin
+            self.margins.append(margin)
         return time_step
 
     def save_episode(self, path: str | Path) -> Path:
         """Write the recorded episode as an ``.npz`` roll-out for ``energy-margin record``."""
-        if self.recorder is None:
-            raise EnergyMarginError("the wrapper does not record: create it with record=True")
-        return self.recorder.save(path)
+        return self.session.save_episode(path)
 
     def __getattr__(self, name: str) -> Any:
         """Everything else (``action_spec``, ``observation_spec``, ``physics`` ...) is the environment's."""

@@ -36,8 +36,8 @@ import mujoco
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
-from energy_margin.errors import EnergyMarginError, check_positive_int
-from energy_margin.integrations.live_model import EpisodeRecorder, Hold, LiveModelScorer, LiveOptions
+from energy_margin.errors import EnergyMarginError
+from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
 
 def mujoco_handles(env: Any, *, what: str = "the environment") -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -100,10 +100,8 @@ class MarginWrapper(gymnasium.Wrapper):
         config: AnalyzerConfig | None = None,
     ) -> None:
         super().__init__(env)
-        check_positive_int("every", every, minimum=0)
         mj_model, _ = mujoco_handles(env)
-        self.every = every
-        self.scorer = LiveModelScorer(
+        scorer = LiveModelScorer(
             mj_model,
             objects=objects,
             capture=capture,
@@ -114,32 +112,28 @@ class MarginWrapper(gymnasium.Wrapper):
             options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
             origin=environment_name(env),
         )
-        self.recorder = EpisodeRecorder() if record else None
-        self.steps = 0
+        self.session = LiveSession(scorer, every=every, record=record)
+        self.scorer = scorer
+
+    @property
+    def steps(self) -> int:
+        """Steps since the last reset."""
+        return self.session.steps
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         """Reset the environment (a new recorded episode); ``info["energy_margin"]`` scores the start state."""
         observation, info = self.env.reset(**kwargs)
-        self.steps = 0
-        data = mujoco_handles(self.env)[1]
-        if self.recorder is not None:
-            self.recorder.clear()
-            self.recorder.add(data)
-        if self.every:
-            info = dict(info)
-            info["energy_margin"] = self.scorer.score(data)
+        margin = self.session.reset(mujoco_handles(self.env)[1])
+        if margin is not None:
+            info = {**info, "energy_margin": margin}
         return observation, info
 
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step the environment, then score the state it reached every ``every`` steps."""
         observation, reward, terminated, truncated, info = self.env.step(action)
-        self.steps += 1
-        _, data = mujoco_handles(self.env)
-        if self.recorder is not None:
-            self.recorder.add(data)
-        if self.every and self.steps % self.every == 0:
-            info = dict(info)
-            info["energy_margin"] = self.scorer.score(data)
+        margin = self.session.step(mujoco_handles(self.env)[1])
+        if margin is not None:
+            info = {**info, "energy_margin": margin}
         return observation, reward, terminated, truncated, info
 
     def labels(self) -> tuple[bool, bool]:
@@ -148,6 +142,4 @@ class MarginWrapper(gymnasium.Wrapper):
 
     def save_episode(self, path: str | Path) -> Path:
         """Write the recorded episode as an ``.npz`` roll-out for ``energy-margin record``."""
-        if self.recorder is None:
-            raise EnergyMarginError("the wrapper does not record: create it with record=True")
-        return self.recorder.save(path)
+        return self.session.save_episode(path)

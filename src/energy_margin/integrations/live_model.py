@@ -317,3 +317,48 @@ class EpisodeRecorder:
         with atomic_path(path) as temporary, temporary.open("wb") as stream:
             np.savez(stream, allow_pickle=False, **arrays)
         return path
+
+
+class LiveSession:
+    """What a wrapper does around an episode: score every ``every`` steps (and at reset), record rows.
+
+    Shared by :class:`~energy_margin.integrations.gymnasium.MarginWrapper` and
+    :class:`~energy_margin.integrations.dm_control.MarginEnvironment`; each gives it the ``MjData``
+    after its environment's reset or step.
+
+    Args:
+        scorer: the scorer of the environment's model.
+        every: score after every this many steps (>= 1), and at reset; 0 never scores.
+        record: keep the episode's rows.
+
+    """
+
+    def __init__(self, scorer: LiveModelScorer, *, every: int, record: bool) -> None:
+        check_positive_int("every", every, minimum=0)
+        self.scorer = scorer
+        self.every = every
+        self.recorder = EpisodeRecorder() if record else None
+        self.steps = 0
+
+    def reset(self, data: mujoco.MjData) -> dict[str, Any] | None:
+        """A new episode from the state in ``data``: its scores (``None`` when scoring is off)."""
+        self.steps = 0
+        if self.recorder is not None:
+            self.recorder.clear()
+            self.recorder.add(data)
+        return self.scorer.score(data) if self.every else None
+
+    def step(self, data: mujoco.MjData) -> dict[str, Any] | None:
+        """The state after one more step: its scores on every ``every``-th step, else ``None``."""
+        self.steps += 1
+        if self.recorder is not None:
+            self.recorder.add(data)
+        if self.every and self.steps % self.every == 0:
+            return self.scorer.score(data)
+        return None
+
+    def save_episode(self, path: str | Path) -> Path:
+        """Write the recorded episode as an ``.npz`` roll-out for ``energy-margin record``."""
+        if self.recorder is None:
+            raise EnergyMarginError("the wrapper does not record: create it with record=True")
+        return self.recorder.save(path)
