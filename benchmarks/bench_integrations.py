@@ -9,8 +9,8 @@ Everything runs in this one process, one after another:
 * overhead per step with scoring off (``every=0``), with and without recording, against the plain
   environment on the same actions (the ratio is the figure; both sides step the same physics);
 * latency per scoring call with the tree at budgets 10 ms and 50 ms (mean, median, 95th
-  percentile, and how often a call kept its budget: ``ms`` at most 1.1 x the budget) and the
-  expansions reached;
+  percentile, maximum, and how often a call kept its budget: the share of calls with ``ms`` at
+  most the budget and at most 1.1 x the budget) and the expansions reached;
 * latency per call with a learned margin (a boosted-tree margin model fitted here on a small
   Pusher dataset: episodes of random actions recorded through the wrapper, analysed with 60
   expansions per frame; its accuracy is not the point, its speed is).
@@ -72,10 +72,11 @@ def latencies(env: Any, calls: int, seed: int) -> list[dict[str, Any]]:
 def describe(name: str, margins: list[dict[str, Any]], budget_ms: float | None) -> str:
     ms = np.array([m["ms"] for m in margins])
     expansions = np.array([m["expansions"] for m in margins])
+    within = "-" if budget_ms is None else f"{np.mean(ms <= budget_ms):.3f}"
     kept = "-" if budget_ms is None else f"{np.mean(ms <= 1.1 * budget_ms):.3f}"
     return (
         f"| {name} | {len(ms)} | {ms.mean():.2f} | {np.median(ms):.2f} | {np.percentile(ms, 95):.2f} | "
-        f"{kept} | {expansions.mean():.0f} |"
+        f"{np.max(ms):.2f} | {within} | {kept} | {expansions.mean():.0f} |"
     )
 
 
@@ -132,8 +133,8 @@ def main() -> None:
     print(f"| MarginWrapper, scoring off, recording | {recording:.1f} | {recording / plain:.3f} |")
     print()
     print(f"Scoring latency per call ({args.calls} calls each, every=1, random actions)")
-    print("| scorer | calls | mean ms | median ms | p95 ms | budget kept | expansions |")
-    print("|---|---|---|---|---|---|---|")
+    print("| scorer | calls | mean ms | median ms | p95 ms | max ms | <= budget | <= 1.1 x budget | expansions |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for budget in (0.01, 0.05):
         margins = latencies(_env(every=1, budget_s=budget, max_expansions=100_000), args.calls, args.seed)
         print(describe(f"tree, budget {budget * 1000:.0f} ms", margins, budget * 1000))

@@ -241,3 +241,21 @@ def test_hold_still_is_the_scene_option_of_the_simulator() -> None:
     assert wrapper.scorer.simulator.still
     # The environment's own model is untouched by the armature of the scorer's copy.
     assert float(wrapper.unwrapped.model.dof_armature.max()) < 1e3
+
+
+def test_the_tree_budget_keeps_a_reserve_for_the_measured_overrun() -> None:
+    wrapper = wrapped(budget_s=0.02, max_expansions=100_000)
+    scorer = wrapper.scorer
+    assert scorer.tree_budget() == pytest.approx(0.02)
+    wrapper.reset(seed=0)
+    for action in actions(3):
+        margin = wrapper.step(action)[4]["energy_margin"]
+        assert margin["stopped_by"] == "budget"
+    # Every call's overrun of its tree's budget is kept; the next tree gets the budget less the largest.
+    assert len(scorer._overruns) == 4 and all(overrun >= 0 for overrun in scorer._overruns)
+    assert scorer.tree_budget() == pytest.approx(max(0.02 - max(scorer._overruns), 0.01))
+    scorer._overruns[:] = [0.003, 0.05]
+    assert scorer.tree_budget() == pytest.approx(0.01)  # never less than half the budget
+    scorer._overruns[:] = [0.003, 0.001]
+    assert scorer.tree_budget() == pytest.approx(0.017)
+    assert wrapped(budget_s=None).scorer.tree_budget() is None
