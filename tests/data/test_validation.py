@@ -392,3 +392,16 @@ def test_drive_size_that_does_not_match_the_task(tiny_dataset: Path, rewrite_fra
     metadata_path.write_text(json.dumps(metadata))
     rewrite_frames(tiny_dataset, drive=_arrays(tiny_dataset)["drive"][:, :0].copy())
     assert [p.field for p in check_dataset(tiny_dataset)] == ["n_drive"]
+
+
+def test_overlaps_of_a_recorded_set_are_warnings(scored: Path, rewrite_frames: Callable[..., None]) -> None:
+    """A recorded set's frames are the user's simulation's own states: its penetrations are kept, not refused."""
+    _overlap_one_frame(scored, rewrite_frames, 1, 0)
+    metadata_path = scored / "dataset.json"
+    metadata = json.loads(metadata_path.read_text())
+    metadata["recorded_from"] = [{"file": "episode.npz", "sha256": "0" * 64}]
+    metadata_path.write_text(json.dumps(metadata))
+    warnings: list = []
+    assert check_dataset(scored, warnings=warnings) == []
+    assert warnings and "overlaps object" in warnings[0].message
+    assert evaluate(scored)["n_frames"] > 0

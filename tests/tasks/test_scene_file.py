@@ -465,3 +465,18 @@ def test_motion_robot_takes_declared_or_still(tmp_path: Path) -> None:
     )
     with pytest.raises(EnergyMarginError, match=r"scene.toml:10: motion.robot: must be one of 'declared', 'still'"):
         read_scene_file(scene)
+
+
+def test_wrench_bounds_count_the_armature_of_the_objects_joints(tmp_path: Path) -> None:
+    from tiny_scene import write_tiny_scene
+
+    with_armature = ARM_AND_PUCK.replace(
+        '<joint name="puck_x" type="slide" axis="1 0 0"/>',
+        '<joint name="puck_x" type="slide" axis="1 0 0" armature="0.4"/>',
+    )
+    scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=with_armature)
+    task = get_task("scene", {"scene_file": str(scene)})
+    limits = task.wrench_limits(task.build_scene(1, 0.5)).max_wrench
+    # linear_acceleration defaults to 2 m/s^2 per axis: (0.1 kg + armature) x 2 m/s^2.
+    np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * 2.0, 0.1 * 2.0, 0.1 * 2.0])
+    np.testing.assert_allclose(limits[0, 3:], 0.0)

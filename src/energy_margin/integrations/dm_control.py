@@ -95,7 +95,8 @@ class MarginEnvironment:
         success: the success set, likewise.
         scene: a scene file giving objects, perturbation, bounds and both sets instead.
         every: score after every this many steps (>= 1); 0 turns scoring off.
-        budget_s: wall-clock budget of one tree, s; ``None`` for ``max_expansions`` only.
+        budget_s: wall-clock budget of one scoring call (reading the state included), s; ``None`` for
+            ``max_expansions`` only.
         max_expansions: most tree expansions per call.
         model: a learned margin file to score with instead of the tree.
         hold: ``"action"`` or ``"still"``.

@@ -470,18 +470,39 @@ class SceneTask(Task):
         return self._set(spec.success, spec.success_at_least, root)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
-        """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias."""
+        """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias.
+
+        The mass and inertia of an axis include the armature of the object's joint along it (an
+        object on slide joints with armature, like Gymnasium Pusher's puck: 8 mg body, 0.04 kg of
+        armature per slide, is accelerated as the armature's mass); a joint without armature adds
+        nothing, so objects with plain free joints keep ``m a`` and ``I alpha``.
+        """
         loaded = self.loaded
-        base_mass = loaded.model.body_mass[loaded.object_bodies]
+        model = loaded.model
+        base_mass = model.body_mass[loaded.object_bodies]
         scale = scene.object_masses / base_mass
-        inertia = loaded.model.body_inertia[loaded.object_bodies] * scale[:, None]
+        inertia = model.body_inertia[loaded.object_bodies] * scale[:, None]
+        linear_armature, angular_armature = self._object_armature()
         spec = loaded.spec
         limits = np.zeros((scene.n_objects, 6))
-        limits[:, :3] = scene.object_masses[:, None] * np.asarray(spec.linear_acceleration)
-        limits[:, 3:] = inertia * np.asarray(spec.angular_acceleration)
+        limits[:, :3] = (scene.object_masses[:, None] + linear_armature) * np.asarray(spec.linear_acceleration)
+        limits[:, 3:] = (inertia + angular_armature) * np.asarray(spec.angular_acceleration)
         if spec.object_joints == "upright":
             limits[:, 3:5] = 0.0
         return WrenchLimits(max_wrench=limits, max_duration=spec.max_duration)
+
+    def _object_armature(self) -> tuple[np.ndarray, np.ndarray]:
+        """Armature of each object's joints along x, y, z (n, 3), kg, and about them (n, 3), kg m^2."""
+        index = self._index
+        armature = self.loaded.model.dof_armature
+        n = self.loaded.n_objects
+        if not index.upright:
+            return armature[index.linvel_index], armature[index.angvel_index]
+        mask = index.axis_mask if index.axis_mask is not None else np.ones((n, 4), dtype=bool)
+        linear = np.where(mask[:, :3], armature[index.linvel_index], 0.0)
+        angular = np.zeros((n, 3))
+        angular[:, 2] = np.where(mask[:, 3], armature[index.yaw_rate_index], 0.0)
+        return linear, angular
 
     def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
         """Objects inside the bounds box and slower than ``bounds.max_speed``."""
