@@ -75,6 +75,8 @@ def test_live_scores_quick(tmp_path: Path) -> None:
     for row in results["table"].values():
         assert set(row) == set(live_scores.METHODS)
     assert results["timing"]["calls"] == 2 * 11
+    # evaluate reads the recorded set (its overlaps are warnings) and gives the same AP.
+    assert results["evaluate_check"]["evaluated"] and results["evaluate_check"]["agrees"], results["evaluate_check"]
     # The dataset's frames are the scored states: reset and every 10th step of 0.05 s.
     steps = list(range(0, 101, 10))
     assert results["scored_steps"] == steps
