@@ -1,8 +1,8 @@
 """A Gymnasium wrapper that adds the energy margins of the current state to ``info``.
 
 ``MarginWrapper(env, objects=..., capture=..., success=...)`` works on any environment whose
-``env.unwrapped`` holds a MuJoCo ``model`` and ``data`` (Gymnasium's own MuJoCo environments,
-gymnasium-robotics, Meta-World and most MuJoCo environments written for Gymnasium). Every
+``env.unwrapped`` holds a MuJoCo ``model`` and ``data`` (Gymnasium's own MuJoCo environments and
+those written the same way, as gymnasium-robotics' and Meta-World's are). Every
 ``every`` steps it scores the state reached by the step with
 :class:`~energy_margin.integrations.live_model.LiveModelScorer` (the tree within ``budget_s``, or a
 learned margin) and adds ``info["energy_margin"]``, a dict with ``capture_score``,
