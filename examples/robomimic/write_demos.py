@@ -1,4 +1,4 @@
-"""Write a demonstration file in robomimic's layout from the Kinova Jaco example (dm_control's arm, four boxes).
+r"""Write a demonstration file in robomimic's layout from the Kinova Jaco example (dm_control's arm, four boxes).
 
 robomimic (and robosuite's demonstration collection) store one HDF5 file: a group ``data`` with
 one subgroup per demonstration, ``data/demo_N``, holding ``states`` (N, 1 + nq + nv: time, qpos,
@@ -15,7 +15,7 @@ meshes by the absolute paths where pip put dm_control).
 
     python examples/jaco/write_model.py
     python examples/robomimic/write_demos.py --demos 50 --out runs/jaco_demos.hdf5
-    energy-margin record --format robomimic runs/jaco_demos.hdf5 --scene examples/robomimic/jaco_demos.toml \\
+    energy-margin record --format robomimic runs/jaco_demos.hdf5 --scene examples/robomimic/jaco_demos.toml \
         --frames 10 --out runs/jaco_demos
 """
 
@@ -26,7 +26,6 @@ import copy
 import json
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
 from energy_margin.sim.mujoco_model import MujocoModelSimulator
@@ -39,11 +38,17 @@ HERE = Path(__file__).resolve().parent
 JACO_SCENE = HERE.parent / "jaco" / "jaco.toml"
 
 
-def demonstration(task: SceneTask, seed: np.random.SeedSequence, every: int) -> tuple[np.ndarray, np.ndarray]:
-    """One sweep: states (n, 1 + nq + nv) and actions (n, nu) every ``every`` physics steps."""
+def demonstration(
+    task: SceneTask, seed: np.random.SeedSequence, every: int, *, nominal_speed: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """One sweep: states (n, 1 + nq + nv) and actions (n, nu) every ``every`` physics steps.
+
+    ``nominal_speed``: run the motion at its declared speed (time scale 1) instead of the drawn one.
+    """
     loaded = task.loaded
     trajectory = task.sample_trajectory(np.random.default_rng(seed), loaded.n_objects)
-    drive = np.array([trajectory.drive[0], 1.0])  # the drawn speed; the model's own masses
+    speed = 1.0 if nominal_speed else trajectory.drive[0]
+    drive = np.array([speed, 1.0])  # the model's own masses
     simulator = MujocoModelSimulator(
         copy.copy(loaded.model),
         task.build_scene(loaded.n_objects, task.default_friction(), drive),
@@ -65,12 +70,19 @@ def demonstration(task: SceneTask, seed: np.random.SeedSequence, every: int) -> 
 
 
 def main() -> None:
+    """Write the file."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--demos", type=int, default=50)
     parser.add_argument("--every", type=int, default=5, help="physics steps between stored states")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scene", type=Path, default=JACO_SCENE, help="the Jaco example's scene file")
     parser.add_argument("--out", type=Path, required=True, help="the .hdf5 file to write")
+    parser.add_argument(
+        "--nominal-speed", action="store_true", help="run every sweep at the declared speed (time scale 1)"
+    )
+    parser.add_argument(
+        "--npz", type=Path, help="also write each demonstration as an .npz roll-out (time, qpos, qvel, ctrl) here"
+    )
     args = parser.parse_args()
     import h5py
 
@@ -84,7 +96,17 @@ def main() -> None:
         group = handle.create_group("data")
         total = 0
         for index, seed in enumerate(seeds):
-            states, actions = demonstration(task, seed, args.every)
+            states, actions = demonstration(task, seed, args.every, nominal_speed=args.nominal_speed)
+            if args.npz is not None:
+                args.npz.mkdir(parents=True, exist_ok=True)
+                nq = task.loaded.model.nq
+                np.savez(
+                    args.npz / f"demo_{index:03d}.npz",
+                    time=states[:, 0],
+                    qpos=states[:, 1 : 1 + nq],
+                    qvel=states[:, 1 + nq :],
+                    ctrl=actions,
+                )
             demo = group.create_group(f"demo_{index}")
             demo.create_dataset("states", data=states)
             demo.create_dataset("actions", data=actions)
@@ -94,7 +116,11 @@ def main() -> None:
             print(f"demo_{index}: {len(states)} states", flush=True)
         group.attrs["total"] = total
         group.attrs["env_args"] = json.dumps(
-            {"env_name": "JacoSweep", "type": 1, "env_kwargs": {"control_freq": 1.0 / (args.every * task.config.timestep)}}
+            {
+                "env_name": "JacoSweep",
+                "type": 1,
+                "env_kwargs": {"control_freq": 1.0 / (args.every * task.config.timestep)},
+            }
         )
     print(f"wrote {args.out}: {args.demos} demonstrations, {total} states")
 
