@@ -1,9 +1,10 @@
 """A starter scene file from a Gymnasium environment (``energy-margin scene --from-gym ENV_ID``).
 
-The environment's model is re-saved beside the scene file with ``mujoco.MjSpec`` (loaded from the
-XML the environment names in ``env.unwrapped.fullpath``; mesh, texture and height-field folders
-made absolute so the copy compiles anywhere), and the scene file declares the objects, the
-actuators (every one, in the model's order), a motion as long as one episode without keyframes,
+The environment's model is copied beside the scene file (the XML the environment names in
+``env.unwrapped.fullpath``, its asset folders and included files made absolute so the copy
+compiles anywhere; loaded with ``mujoco.MjSpec`` to check that it compiles), and the scene file
+declares the objects, the actuators (listed in comments, named in ``motion.actuators`` when every
+one has a name), a motion as long as one episode without keyframes,
 and a starter capture region around the end effector and a success region around a goal body or
 site when the model has one. The regions are a starting point for the user to edit: what the end
 effector is, and how close counts as captured, are guesses from names and sizes, printed by
@@ -13,6 +14,8 @@ effector is, and how close counts as captured, are guesses from names and sizes,
 from __future__ import annotations
 
 import fnmatch
+import tomllib
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,8 +25,8 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import atomic_path
-from energy_margin.tasks.scene_file import toml_value
-from energy_margin.tasks.scene_model import model_hash, object_joint_kind
+from energy_margin.tasks.scene_file import scene_spec_from_tables, toml_value
+from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
 
 #: Name fragments of an end effector's body or site, most specific first.
 END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")
@@ -100,20 +103,39 @@ def _find(model: mujoco.MjModel, words: tuple[str, ...], bodies: list[int]) -> t
 
 
 def save_model_xml(source: Path, out: Path) -> mujoco.MjModel:
-    """Re-save the MJCF at ``source`` to ``out`` with ``MjSpec``, asset folders made absolute; compile it."""
+    """Copy the MJCF at ``source`` to ``out`` with its file references made absolute; compile the copy.
+
+    The text is kept as written (only the compiler's ``meshdir``, ``texturedir`` and ``assetdir``
+    and the ``<include>`` files become absolute paths), so the copy compiles to the same numbers:
+    ``MjSpec.to_xml`` in MuJoCo 4.0.0 writes six significant digits (Pusher's shoulder range
+    1.714602 came back as 1.7146). The copy is loaded with ``MjSpec`` and compiled to check it.
+    """
+    folder = source.parent.resolve()
     try:
-        spec = mujoco.MjSpec.from_file(str(source))
-        folder = source.parent
-        for attribute in ("meshdir", "texturedir"):
-            value = getattr(spec, attribute, "") or ""
-            setattr(spec, attribute, str((folder / value).resolve()))
-        model = spec.compile()
-        text = spec.to_xml()
-    except (ValueError, mujoco.FatalError) as error:
-        raise EnergyMarginError(f"{source}: the environment's model cannot be re-saved ({error})") from None
+        tree = ElementTree.parse(source)
+    except (OSError, ElementTree.ParseError) as error:
+        raise EnergyMarginError(f"{source}: the environment's model cannot be read ({error})") from None
+    root = tree.getroot()
+    compiler = root.find("compiler")
+    if compiler is None:
+        compiler = ElementTree.Element("compiler")
+        root.insert(0, compiler)
+    assets = compiler.get("assetdir", "")
+    for attribute in ("meshdir", "texturedir"):
+        compiler.set(attribute, str((folder / (compiler.get(attribute) or assets)).resolve()))
+    if "assetdir" in compiler.attrib:
+        compiler.set("assetdir", str((folder / assets).resolve()))
+    for include in root.iter("include"):
+        if include.get("file"):
+            include.set("file", str((folder / str(include.get("file"))).resolve()))
+    text = ElementTree.tostring(root, encoding="unicode")
     with atomic_path(out) as temporary:
         temporary.write_text(text)
-    return model
+    try:
+        return mujoco.MjSpec.from_file(str(out)).compile()
+    except (ValueError, mujoco.FatalError) as error:
+        out.unlink(missing_ok=True)
+        raise EnergyMarginError(f"{source}: the environment's model does not compile once copied ({error})") from None
 
 
 def scene_from_environment(
@@ -152,15 +174,17 @@ def scene_from_environment(
         )
     out = Path(out)
     model_file = out.with_suffix(".xml")
-    robot = _robot_bodies(model, set(chosen))
+    # Regions name their bodies: only named robot bodies can carry the capture region.
+    robot = [body for body in _robot_bodies(model, set(chosen)) if body_names[body]]
     end_effector = _find(model, END_EFFECTOR_WORDS, robot)
     if end_effector is None:
         if not robot:
             raise EnergyMarginError(
-                f"{name}: no robot body (one moved by a joint or mocap) to centre a capture region on"
+                f"{name}: no named robot body (one moved by a joint or a mocap body, not an object) to centre "
+                "a capture region on"
             )
         end_effector = ("body", body_names[max(robot, key=lambda b: _depth(model, b))])
-    every_body = [b for b in range(1, model.nbody) if b not in chosen]
+    every_body = [b for b in range(1, model.nbody) if b not in chosen and body_names[b]]
     goal = _find(model, GOAL_WORDS, every_body)
     geoms = np.flatnonzero(np.isin(model.geom_bodyid, chosen))
     size = (
@@ -169,8 +193,6 @@ def scene_from_environment(
     radius = capture_radius if capture_radius is not None else round(2.0 * size + 0.05, 3)
     steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
     duration = float(steps) * float(getattr(env.unwrapped, "dt", model.opt.timestep))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    saved = save_model_xml(Path(str(source)), model_file)
     joints = object_joint_kind(model, patterns)
     capture = {"type": "distance", end_effector[0]: end_effector[1], "max": radius}
     if goal is not None:
@@ -188,8 +210,10 @@ def scene_from_environment(
         f"joints = {toml_value(joints)}",
         "",
         "# One episode; no keyframes: record a roll-out's own commands with the Gymnasium wrapper.",
+        *_actuator_comments(model),
         "[motion]",
         f"duration = {toml_value(duration)}",
+        *_actuator_names(model),
         "",
         "[perturbation]",
         "linear_acceleration = [2.0, 2.0, 2.0]",
@@ -209,8 +233,14 @@ def scene_from_environment(
         f"region = {toml_value(success)}",
         "",
     ]
+    text = "\n".join(lines)
+    # The file is checked against the environment's model before anything is written.
+    document = {key: value for key, value in tomllib.loads(text).items() if key not in ("schema_version", "mjcf")}
+    resolve_scene(scene_spec_from_tables(document, origin=str(out)), model)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    saved = save_model_xml(Path(str(source)), model_file)
     with atomic_path(out) as temporary:
-        temporary.write_text("\n".join(lines))
+        temporary.write_text(text)
     return StarterScene(
         scene_file=out,
         model_file=model_file,
@@ -220,6 +250,37 @@ def scene_from_environment(
         capture_radius=radius,
         same_model=_same_physics(saved, model) and model_hash(saved) == model_hash(model),
     )
+
+
+_TRANSMISSIONS = {
+    int(mujoco.mjtTrn.mjTRN_JOINT): (mujoco.mjtObj.mjOBJ_JOINT, "joint"),
+    int(mujoco.mjtTrn.mjTRN_JOINTINPARENT): (mujoco.mjtObj.mjOBJ_JOINT, "joint"),
+    int(mujoco.mjtTrn.mjTRN_TENDON): (mujoco.mjtObj.mjOBJ_TENDON, "tendon"),
+    int(mujoco.mjtTrn.mjTRN_SITE): (mujoco.mjtObj.mjOBJ_SITE, "site"),
+    int(mujoco.mjtTrn.mjTRN_BODY): (mujoco.mjtObj.mjOBJ_BODY, "body"),
+}
+
+
+def _actuator_comments(model: mujoco.MjModel) -> list[str]:
+    """One comment line per actuator: its index, name, what it drives and its control range."""
+    lines = [f"# The model's {model.nu} actuators, in the order of a keyframe's ctrl:"]
+    for actuator in range(model.nu):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, actuator) or "(unnamed)"
+        kind, word = _TRANSMISSIONS.get(int(model.actuator_trntype[actuator]), (None, "target"))
+        target = mujoco.mj_id2name(model, kind, int(model.actuator_trnid[actuator, 0])) if kind is not None else None
+        low, high = model.actuator_ctrlrange[actuator]
+        limited = bool(model.actuator_ctrllimited[actuator])
+        bounds = f"ctrl in [{low:g}, {high:g}]" if limited else "ctrl unbounded"
+        lines.append(f"#   {actuator}: {name} -> {word} {target or '?'}, {bounds}")
+    return lines if model.nu else []
+
+
+def _actuator_names(model: mujoco.MjModel) -> list[str]:
+    """``actuators = [...]`` when every actuator has a name (the columns of a keyframe's ctrl)."""
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
+    if not names or not all(names):
+        return []
+    return [f"actuators = {toml_value(names)}"]
 
 
 def _same_physics(first: mujoco.MjModel, second: mujoco.MjModel) -> bool:

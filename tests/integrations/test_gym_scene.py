@@ -1,0 +1,71 @@
+"""``energy-margin scene --from-gym``: a starter scene file for a Gymnasium MuJoCo environment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+
+from energy_margin.cli import main  # noqa: E402
+from energy_margin.integrations.gym_scene import scene_from_environment  # noqa: E402
+from energy_margin.integrations.gymnasium import mujoco_handles  # noqa: E402
+from energy_margin.tasks.scene_file import read_scene_file  # noqa: E402
+from energy_margin.tasks.scene_model import load_scene, model_hash  # noqa: E402
+
+
+def test_pusher_starter_scene(tmp_path: Path) -> None:
+    env = gymnasium.make("Pusher-v5")
+    written = scene_from_environment(env, objects="object", out=tmp_path / "pusher.toml")
+    assert written.objects == ("object",)
+    assert written.end_effector == ("body", "tips_arm") and written.goal == ("body", "goal")
+    assert written.same_model
+    # The re-saved model compiles to the environment's model, and the file loads against it.
+    loaded = load_scene(written.scene_file)
+    assert loaded.model_sha256 == model_hash(mujoco_handles(env)[0])
+    assert loaded.object_names == ("object",) and loaded.spec.object_joints == "upright"
+    text = written.scene_file.read_text()
+    assert "#   0: (unnamed) -> joint r_shoulder_pan_joint, ctrl in [-2, 2]" in text
+    spec = read_scene_file(written.scene_file)
+    assert spec.capture == {"type": "distance", "body": "tips_arm", "max": written.capture_radius}
+    assert spec.motion.duration == pytest.approx(5.0)  # 100 steps of 0.05 s
+
+
+def test_a_model_with_unnamed_bodies_gets_a_named_end_effector(tmp_path: Path) -> None:
+    written = scene_from_environment(gymnasium.make("Ant-v5"), objects="torso", out=tmp_path / "ant.toml")
+    assert written.end_effector[1] != ""
+    assert written.goal is None  # then the objects must stay up
+    assert read_scene_file(written.scene_file).success["type"] == "height"
+
+
+def test_the_command_prints_its_guesses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "p.toml"
+    assert main(["scene", "--from-gym", "Pusher-v5", "--objects", "object", "--out", str(out), "--no-picture"]) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out} and its model {out.with_suffix('.xml')}" in printed
+    assert "capture (a guess, edit it): within 0.191 m of body 'tips_arm'" in printed
+    assert "objects (1, upright)" in printed
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--from-gym", "Nope-v0", "--objects", "x"], "--from-gym Nope-v0: Environment `Nope` doesn't exist"),
+        (["--from-gym", "CartPole-v1", "--objects", "x"], r"\(CartPoleEnv\) has no MuJoCo model"),
+        (["--from-gym", "Pusher-v5", "--objects", "cube"], "--objects cube: no body of Pusher-v5 matches"),
+        (["--from-gym", "Pusher-v5"], "--from-gym needs --objects PATTERN and --out SCENE.toml"),
+        (["--from-gym", "Pusher-v5", "--objects", "object", "--capture-radius", "0"], "--capture-radius must be > 0"),
+        ([], "give a scene file, or --from-gym ENV_ID"),
+    ],
+)
+def test_bad_input_is_one_line_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], arguments: list[str], message: str
+) -> None:
+    out = tmp_path / "scene" / "s.toml"
+    if arguments and "--objects" in arguments:
+        arguments = [*arguments, "--out", str(out)]
+    assert main(["scene", *arguments, "--no-picture"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and pytest.importorskip("re").search(message, error), error
+    assert not out.parent.exists()
