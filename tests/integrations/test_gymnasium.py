@@ -259,3 +259,32 @@ def test_the_tree_budget_keeps_a_reserve_for_the_measured_overrun() -> None:
     scorer._overruns[:] = [0.003, 0.001]
     assert scorer.tree_budget() == pytest.approx(0.017)
     assert wrapped(budget_s=None).scorer.tree_budget() is None
+
+
+def test_a_scene_files_randomisation_leaves_the_model_as_it_is(tmp_path: Path) -> None:
+    assert (
+        main(
+            [
+                "scene",
+                "--from-gym",
+                "Pusher-v5",
+                "--objects",
+                "object",
+                "--out",
+                str(tmp_path / "p.toml"),
+                "--no-picture",
+            ]
+        )
+        == 0
+    )
+    scene = tmp_path / "p.toml"
+    scene.write_text(scene.read_text() + "\n[randomize]\nfriction = [0.1, 0.2]\nmass_scale = [2.0, 3.0]\n")
+    env = gymnasium.make("Pusher-v5")
+    puck = env.unwrapped.model.body("object").id
+    env.unwrapped.model.geom_friction[env.unwrapped.model.geom_bodyid == puck, 0] = 0.5  # the others keep 0.8
+    wrapper = MarginWrapper(env, scene=scene, budget_s=None, max_expansions=5)
+    model = wrapper.scorer.simulator.model
+    assert np.array_equal(model.geom_friction, wrapper.unwrapped.model.geom_friction)
+    assert np.array_equal(model.body_mass, wrapper.unwrapped.model.body_mass)
+    with pytest.raises(EnergyMarginError, match="give either scene or objects, capture, not both"):
+        MarginWrapper(gymnasium.make("Pusher-v5"), scene=scene, objects="object", capture=CAPTURE)

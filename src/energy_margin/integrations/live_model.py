@@ -137,7 +137,8 @@ class LiveModelScorer:
             "body": "tips_arm", "max": 0.1}``) or ``{"region": ..., "at_least": n}``.
         success: the success set, likewise.
         scene: a scene file whose objects, perturbation, bounds and sets are used instead of the
-            four arguments above (its ``mjcf`` is not loaded: ``model`` is the model).
+            arguments above (its ``mjcf`` is not loaded: ``model`` is the model; its ``[randomize]``
+            table is ignored: the model's own friction and masses are scored).
         perturbation: the scene file's ``[perturbation]`` table (wrench bounds, lambda).
         bounds: the scene file's ``[bounds]`` table.
         joints: ``"free"`` or ``"upright"`` objects; ``None`` detects it from the model.
@@ -175,7 +176,13 @@ class LiveModelScorer:
         self.options = options
         model = copy.copy(model)
         if scene is not None:
-            spec = read_scene_file(scene)
+            given = [
+                name for name, value in (("objects", objects), ("capture", capture), ("success", success)) if value
+            ]
+            if given:
+                raise EnergyMarginError(f"give either scene or {', '.join(given)}, not both")
+            # The environment's physics as it is: a scene file's randomisation is for `generate`.
+            spec = replace(read_scene_file(scene), friction_range=None, mass_scale=None, time_scale=None)
         else:
             tables = scene_tables(
                 objects=objects, capture=capture, success=success, perturbation=perturbation, bounds=bounds
