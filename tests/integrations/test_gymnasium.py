@@ -233,6 +233,11 @@ def test_a_margin_model_of_another_task_is_refused(tmp_path: Path, pusher_model:
         wrapped(model=tmp_path / "missing.npz")
     with pytest.raises(EnergyMarginError, match="margin model file or a MarginModel"):
         wrapped(model=42)
+    # Fitted on Pusher-v5's model; an environment whose model differs (a heavier puck) refuses it.
+    env = gymnasium.make("Pusher-v5")
+    env.unwrapped.model.body_mass[env.unwrapped.model.body("object").id] *= 2.0
+    with pytest.raises(EnergyMarginError, match=r"^the margin model was fitted on another compiled model"):
+        MarginWrapper(env, objects="object", capture=CAPTURE, success=SUCCESS, model=pusher_model)
 
 
 def test_hold_still_is_the_scene_option_of_the_simulator() -> None:

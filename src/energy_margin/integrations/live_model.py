@@ -41,7 +41,7 @@ from energy_margin.errors import EnergyMarginError, check_choice, check_positive
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables
-from energy_margin.tasks.scene_model import object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
@@ -201,7 +201,7 @@ class LiveModelScorer:
         compiled = require(self.simulator, CompiledModel, purpose="live scoring of a user's model")
         self._model, self._data = compiled.model, compiled.data
         self._seeds = np.random.SeedSequence(options.seed)
-        self.margin_model = _load_model(margin_model)
+        self.margin_model = _load_model(margin_model, loaded.model)
         self.calls = 0
         self._overruns: list[float] = []
 
@@ -289,16 +289,24 @@ class LiveModelScorer:
         return bool(self.task.is_captured(state)), bool(self.task.is_successful(state))
 
 
-def _load_model(margin_model: Any) -> Any:
+def _load_model(margin_model: Any, model: mujoco.MjModel) -> Any:
+    """The learned margin to score with, refused when it was fitted on another compiled model."""
     if margin_model is None:
         return None
     if isinstance(margin_model, str | Path):
         from energy_margin.learning.margin_model import load_margin_model
 
-        return load_margin_model(margin_model, task_name="scene")
+        margin_model = load_margin_model(margin_model, task_name="scene")
     if not hasattr(margin_model, "score_state"):
         raise EnergyMarginError(
             f"model must be a margin model file or a MarginModel, got {type(margin_model).__name__}"
+        )
+    config = getattr(margin_model, "task_config", None) or {}
+    fitted_on = config.get("model_sha256") if isinstance(config, dict) else None
+    if fitted_on and fitted_on != model_hash(model):
+        raise EnergyMarginError(
+            f"the margin model was fitted on another compiled model (sha256 {str(fitted_on)[:12]}…, "
+            f"this environment's {model_hash(model)[:12]}…)"
         )
     return margin_model
 
