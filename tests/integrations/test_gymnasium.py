@@ -25,6 +25,13 @@ def wrapped(**options: object) -> MarginWrapper:
     return MarginWrapper(gymnasium.make("Pusher-v5"), objects="object", capture=CAPTURE, success=SUCCESS, **settings)
 
 
+def starter_scene(out: Path) -> Path:
+    """The starter scene file of ``energy-margin scene --from-gym Pusher-v5`` at ``out``."""
+    arguments = ["scene", "--from-gym", "Pusher-v5", "--objects", "object", "--out", str(out), "--no-picture"]
+    assert main(arguments) == 0
+    return out
+
+
 def actions(n: int) -> np.ndarray:
     return np.random.default_rng(5).uniform(-2.0, 2.0, size=(n, 7))
 
@@ -106,21 +113,7 @@ def test_hold_still_keeps_the_robot_in_place_during_propagation() -> None:
 
 
 def test_recorded_episode_becomes_a_dataset(tmp_path: Path) -> None:
-    assert (
-        main(
-            [
-                "scene",
-                "--from-gym",
-                "Pusher-v5",
-                "--objects",
-                "object",
-                "--out",
-                str(tmp_path / "pusher.toml"),
-                "--no-picture",
-            ]
-        )
-        == 0
-    )
+    starter_scene(tmp_path / "pusher.toml")
     wrapper = wrapped(every=0, record=True)
     wrapper.reset(seed=1)
     for action in actions(20):
@@ -173,21 +166,7 @@ def test_an_environment_without_a_mujoco_model_is_refused() -> None:
 
 
 def test_a_scene_file_gives_the_tables(tmp_path: Path) -> None:
-    assert (
-        main(
-            [
-                "scene",
-                "--from-gym",
-                "Pusher-v5",
-                "--objects",
-                "object",
-                "--out",
-                str(tmp_path / "p.toml"),
-                "--no-picture",
-            ]
-        )
-        == 0
-    )
+    starter_scene(tmp_path / "p.toml")
     wrapper = MarginWrapper(gymnasium.make("Pusher-v5"), scene=tmp_path / "p.toml", budget_s=None, max_expansions=5)
     wrapper.reset(seed=0)
     assert "energy_margin" in wrapper.step(actions(1)[0])[4]
@@ -267,21 +246,7 @@ def test_the_tree_budget_keeps_a_reserve_for_the_measured_overrun() -> None:
 
 
 def test_a_scene_files_randomisation_leaves_the_model_as_it_is(tmp_path: Path) -> None:
-    assert (
-        main(
-            [
-                "scene",
-                "--from-gym",
-                "Pusher-v5",
-                "--objects",
-                "object",
-                "--out",
-                str(tmp_path / "p.toml"),
-                "--no-picture",
-            ]
-        )
-        == 0
-    )
+    starter_scene(tmp_path / "p.toml")
     scene = tmp_path / "p.toml"
     scene.write_text(scene.read_text() + "\n[randomize]\nfriction = [0.1, 0.2]\nmass_scale = [2.0, 3.0]\n")
     env = gymnasium.make("Pusher-v5")
