@@ -90,11 +90,6 @@ class ModelIndex:
     axis_mask: np.ndarray | None = None
     pos_offset: np.ndarray | None = None
 
-    @property
-    def partial(self) -> bool:
-        """Whether some upright object lacks one of the four joints (or sits away from the origin)."""
-        return self.axis_mask is not None
-
     @classmethod
     def of(
         cls,
@@ -122,6 +117,12 @@ class ModelIndex:
         qvel_adr = np.asarray(model.jnt_dofadr[list(object_joints)], dtype=int)
         upright = scene.object_motion == "upright"
         none = np.zeros(0, dtype=int)
+        robot = {
+            "robot_qpos": np.array(model.jnt_qposadr[list(robot_joints)], dtype=int),
+            "robot_qvel": np.array(model.jnt_dofadr[list(robot_joints)], dtype=int),
+            "servoed": np.array([False] * len(robot_joints) if servoed is None else servoed, dtype=bool),
+            "servo_actuators": np.array(servo_actuators, dtype=int),
+        }
         if upright:
             axes = [_upright_axes(model, int(body)) for body in bodies]
             if not all(np.all(mask) and np.all(offset == 0) for _, _, mask, offset in axes):
@@ -134,12 +135,9 @@ class ModelIndex:
                     yaw_rate_index=np.array([qvel[3] for _, qvel, _, _ in axes], dtype=int),
                     quat_index=none.reshape(0, 4),
                     angvel_index=none.reshape(0, 3),
-                    robot_qpos=np.array(model.jnt_qposadr[list(robot_joints)], dtype=int),
-                    robot_qvel=np.array(model.jnt_dofadr[list(robot_joints)], dtype=int),
-                    servoed=np.array([False] * len(robot_joints) if servoed is None else servoed, dtype=bool),
-                    servo_actuators=np.array(servo_actuators, dtype=int),
                     axis_mask=np.array([mask for _, _, mask, _ in axes], dtype=bool).reshape(-1, 4),
                     pos_offset=np.array([offset for _, _, _, offset in axes], dtype=float).reshape(-1, 3),
+                    **robot,
                 )
         return cls(
             object_bodies=bodies,
@@ -150,10 +148,7 @@ class ModelIndex:
             yaw_rate_index=qvel_adr + 3 if upright else none,
             quat_index=none.reshape(0, 4) if upright else qpos_adr[:, None] + 3 + np.arange(4),
             angvel_index=none.reshape(0, 3) if upright else qvel_adr[:, None] + 3 + np.arange(3),
-            robot_qpos=np.array(model.jnt_qposadr[list(robot_joints)], dtype=int),
-            robot_qvel=np.array(model.jnt_dofadr[list(robot_joints)], dtype=int),
-            servoed=np.array([False] * len(robot_joints) if servoed is None else servoed, dtype=bool),
-            servo_actuators=np.array(servo_actuators, dtype=int),
+            **robot,
         )
 
     def object_positions(self, qpos: np.ndarray) -> np.ndarray:
