@@ -258,3 +258,16 @@ def test_a_scene_files_randomisation_leaves_the_model_as_it_is(tmp_path: Path) -
     assert np.array_equal(model.body_mass, wrapper.unwrapped.model.body_mass)
     with pytest.raises(EnergyMarginError, match="give either scene or objects, capture, not both"):
         MarginWrapper(gymnasium.make("Pusher-v5"), scene=scene, objects="object", capture=CAPTURE)
+
+
+def test_a_not_region_is_a_region_not_a_set_table() -> None:
+    """A ``not`` region holds a ``region`` key of its own: it is still the set's region, not its table."""
+    outside = {"type": "not", "region": {"type": "distance", "body": "goal", "max": 0.05}}
+    wrapper = MarginWrapper(
+        gymnasium.make("Pusher-v5"), objects="object", capture=CAPTURE, success=outside, budget_s=None, max_expansions=5
+    )
+    assert wrapper.scorer.task.loaded.spec.success == outside
+    with_at_least = MarginWrapper(
+        gymnasium.make("Pusher-v5"), objects="object", capture={"region": CAPTURE, "at_least": 1}, success=SUCCESS
+    )
+    assert with_at_least.scorer.task.loaded.spec.capture_at_least == 1

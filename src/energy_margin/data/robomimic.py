@@ -49,7 +49,14 @@ from energy_margin.data.record import check_rollout, rollout_records
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_float, check_positive_int
 from energy_margin.runs.files import staging_directory
 from energy_margin.tasks import get_task
-from energy_margin.tasks.scene_file import SCHEMA_VERSION, SceneSpec, scene_spec_from_tables, toml_key, toml_value
+from energy_margin.tasks.scene_file import (
+    SCHEMA_VERSION,
+    SceneSpec,
+    scene_spec_from_tables,
+    set_table,
+    toml_key,
+    toml_value,
+)
 from energy_margin.tasks.scene_model import LoadedScene, model_hash, object_joint_kind, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 
@@ -214,12 +221,7 @@ def _set_table(name: str, value: Mapping[str, Any] | str) -> dict[str, Any]:
             value = json.loads(value)
         except (ValueError, RecursionError) as error:
             raise InvalidParameterError(name, f"is not valid JSON ({error})") from None
-    if not isinstance(value, Mapping):
-        raise InvalidParameterError(name, f"must be a region table (a JSON object with a type), got {value!r}")
-    table = dict(value)
-    if "region" in table and "type" not in table:
-        return table
-    return {"region": table}
+    return set_table(name, value)
 
 
 def _scene_document(path: Path) -> dict[str, Any]:

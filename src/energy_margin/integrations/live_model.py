@@ -40,7 +40,7 @@ from energy_margin.analysis.live import MAX_EXPANSIONS, LiveScore, score_state
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
-from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables
+from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
 from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
@@ -65,15 +65,6 @@ class HeldCommandTask(SceneTask):
         return self.held
 
 
-def _set_table(value: Mapping[str, Any], name: str) -> dict[str, Any]:
-    """A capture or success set table from either the region table itself or ``{region, at_least}``."""
-    if not isinstance(value, Mapping):
-        raise EnergyMarginError(f"{name} must be a region table (a dict with a type), got {type(value).__name__}")
-    if "region" in value:
-        return dict(value)
-    return {"region": dict(value)}
-
-
 def scene_tables(
     *,
     objects: str | list[str] | tuple[str, ...] | None,
@@ -94,8 +85,8 @@ def scene_tables(
         "objects": {"bodies": patterns, **({"joints": joints} if joints is not None else {})},
         # A live state has no declared motion: the robot holds its last command.
         "motion": {"duration": 1.0},
-        "capture": _set_table(capture, "capture"),
-        "success": _set_table(success, "success"),
+        "capture": set_table("capture", capture),
+        "success": set_table("success", success),
     }
     if perturbation is not None:
         document["perturbation"] = dict(perturbation)
@@ -190,7 +181,6 @@ class LiveModelScorer:
             patterns = tables["objects"]["bodies"]
             tables["objects"]["joints"] = joints if joints is not None else object_joint_kind(model, patterns)
             spec = scene_spec_from_tables(tables, origin=origin)
-            spec = replace(spec, mjcf=Path(origin))
         if options.hold == "still":
             spec = replace(spec, motion=replace(spec.motion, robot="still"))
         loaded = resolve_scene(spec, model)
@@ -217,7 +207,6 @@ class LiveModelScorer:
         own.qvel[:] = data.qvel
         own.mocap_pos[:] = data.mocap_pos
         own.mocap_quat[:] = data.mocap_quat
-        own.ctrl[:] = data.ctrl
         mujoco.mj_forward(self._model, own)
         state = self.simulator.frame_state()
         bad = ~np.isfinite(np.concatenate([state.object_pos.ravel(), state.object_vel.ravel(), state.robot_q]))

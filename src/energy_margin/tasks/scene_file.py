@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks.regions import REGION_TYPES
 
 SCHEMA_VERSION = 1
@@ -353,17 +353,35 @@ def scene_spec_from_tables(document: Mapping[str, Any], *, origin: str) -> Scene
 
     Args:
         document: the tables a scene file holds (``schema_version`` and ``mjcf`` may be left out:
-            the model is given beside it, and ``mjcf`` then only names it in messages).
+            the model is given beside it, and ``mjcf``, ``origin`` by default, only names it in
+            messages).
         origin: what errors name instead of a file, e.g. ``"MarginWrapper(Pusher-v5)"``.
 
     Raises:
         EnergyMarginError: the first problem, as one line ``ORIGIN: KEY: message``.
     """
-    document = {"schema_version": SCHEMA_VERSION, "mjcf": "model", **dict(document)}
+    document = {"schema_version": SCHEMA_VERSION, "mjcf": origin, **dict(document)}
     if _depth(document) > MAX_DEPTH:
         raise EnergyMarginError(f"{origin}: arrays or tables are nested more than {MAX_DEPTH} levels deep")
     digest = hashlib.sha256(json.dumps(document, sort_keys=True, default=str).encode("utf-8")).hexdigest()
     return _read_document(document, Path(origin), Locator(""), digest)
+
+
+def set_table(name: str, value: Any) -> dict[str, Any]:
+    """A ``[capture]`` or ``[success]`` table from the region table itself or the whole set table.
+
+    ``{"type": ..., ...}`` is a region (a ``not`` region holds a ``region`` key too);
+    ``{"region": {...}, "at_least": n}`` without a ``type`` is the set's table.
+
+    Raises:
+        InvalidParameterError: ``value`` is not a mapping (named by ``name``).
+    """
+    if not isinstance(value, Mapping):
+        raise InvalidParameterError(name, f"must be a region table (a mapping with a type), got {value!r}")
+    table = dict(value)
+    if "region" in table and "type" not in table:
+        return table
+    return {"region": table}
 
 
 def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, digest: str) -> SceneSpec:
