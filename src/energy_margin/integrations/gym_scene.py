@@ -248,7 +248,7 @@ def scene_from_environment(
         end_effector=end_effector,
         goal=goal,
         capture_radius=radius,
-        same_model=_same_physics(saved, model) and model_hash(saved) == model_hash(model),
+        same_model=model_hash(saved) == model_hash(model),
     )
 
 
@@ -281,7 +281,3 @@ def _actuator_names(model: mujoco.MjModel) -> list[str]:
     if not names or not all(names):
         return []
     return [f"actuators = {toml_value(names)}"]
-
-
-def _same_physics(first: mujoco.MjModel, second: mujoco.MjModel) -> bool:
-    return bool(first.nq == second.nq and first.nv == second.nv and first.nbody == second.nbody)

@@ -41,7 +41,7 @@ from energy_margin.errors import EnergyMarginError, check_choice, check_positive
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
-from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import object_joint_kind, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
@@ -191,8 +191,7 @@ class LiveModelScorer:
         compiled = require(self.simulator, CompiledModel, purpose="live scoring of a user's model")
         self._model, self._data = compiled.model, compiled.data
         self._seeds = np.random.SeedSequence(options.seed)
-        self.margin_model = _load_model(margin_model, loaded.model)
-        self.calls = 0
+        self.margin_model = _load_model(margin_model, loaded.model_sha256)
         self._overruns: list[float] = []
 
     @property
@@ -241,7 +240,6 @@ class LiveModelScorer:
             mocap_quat=np.array(data.mocap_quat, dtype=float) if self._model.nmocap else None,
         )
         seed = int(self._seeds.spawn(1)[0].generate_state(1)[0])
-        self.calls += 1
         result: LiveScore
         tree_budget = self.tree_budget()
         if self.margin_model is not None:
@@ -278,8 +276,11 @@ class LiveModelScorer:
         return bool(self.task.is_captured(state)), bool(self.task.is_successful(state))
 
 
-def _load_model(margin_model: Any, model: mujoco.MjModel) -> Any:
-    """The learned margin to score with, refused when it was fitted on another compiled model."""
+def _load_model(margin_model: Any, model_sha256: str) -> Any:
+    """The learned margin to score with, refused when it was fitted on another compiled model.
+
+    ``model_sha256`` is the hash of the model scored (:func:`~energy_margin.tasks.scene_model.model_hash`).
+    """
     if margin_model is None:
         return None
     if isinstance(margin_model, str | Path):
@@ -292,10 +293,10 @@ def _load_model(margin_model: Any, model: mujoco.MjModel) -> Any:
         )
     config = getattr(margin_model, "task_config", None) or {}
     fitted_on = config.get("model_sha256") if isinstance(config, dict) else None
-    if fitted_on and fitted_on != model_hash(model):
+    if fitted_on and fitted_on != model_sha256:
         raise EnergyMarginError(
             f"the margin model was fitted on another compiled model (sha256 {str(fitted_on)[:12]}…, "
-            f"this environment's {model_hash(model)[:12]}…)"
+            f"this environment's {model_sha256[:12]}…)"
         )
     return margin_model
 
