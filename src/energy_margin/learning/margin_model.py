@@ -43,7 +43,7 @@ from energy_margin.world.state import FrameState
 #: ``format`` of a saved model's header.
 FORMAT = "energy-margin-margin-model"
 #: Version of the saved layout.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 #: Regressor kinds :func:`fit_margin_model` fits.
 KINDS = ("mlp", "boosting")
 _HEADER = "header"
@@ -63,6 +63,8 @@ class MarginModel:
         feature_names: name of every feature column, shape (D,).
         regressor: the fitted parameters and their prediction.
         report: what :func:`fit_margin_model` measured (JSON-compatible).
+        n_objects_range: the fewest and the most objects of any training frame; frames outside
+            this range are refused by :meth:`check_dataset`.
 
     """
 
@@ -74,6 +76,7 @@ class MarginModel:
     feature_names: tuple[str, ...]
     regressor: Regressor
     report: dict[str, Any] = field(default_factory=dict)
+    n_objects_range: tuple[int, int] = (1, 1_000_000)
     _features: dict[int, tuple[Task, FrameFeatures]] = field(default_factory=dict, init=False, repr=False)
 
     @property
@@ -134,6 +137,32 @@ class MarginModel:
             stopped_by="learned",
         )
 
+    def check_dataset(self, dataset: Dataset) -> None:
+        """Refuse, in one line, a dataset this model cannot score.
+
+        Raises:
+            EnergyMarginError: the dataset is of another task, holds a number of objects outside
+                the model's training range, or (a scene file's task) was made with another
+                compiled model than the model's training data.
+        """
+        name = dataset.metadata["task"]
+        where = f"the margin model (task {self.task_name!r}) cannot score {dataset.path or 'this dataset'}"
+        if name != self.task_name:
+            raise EnergyMarginError(f"{where}: it is a dataset of task {name!r}")
+        fewest, most = self.n_objects_range
+        if not fewest <= dataset.n_objects <= most:
+            raise EnergyMarginError(
+                f"{where}: it holds {dataset.n_objects} objects and the model was fitted on "
+                f"{fewest if fewest == most else f'{fewest} to {most}'}"
+            )
+        fitted_on = str(self.task_config.get("model_sha256") or "")
+        scored = str(dataset.task.config.to_dict().get("model_sha256") or "")
+        if fitted_on and scored and fitted_on != scored:
+            raise EnergyMarginError(
+                f"{where}: it was made with another compiled model (sha256 {scored[:12]}…, the model's "
+                f"training data {fitted_on[:12]}…)"
+            )
+
     def header(self) -> dict[str, Any]:
         """The JSON header of the saved file."""
         return {
@@ -145,6 +174,7 @@ class MarginModel:
             "feature_set": self.feature_set,
             "feature_names": list(self.feature_names),
             "kind": self.kind,
+            "n_objects": list(self.n_objects_range),
             "report": self.report,
         }
 
@@ -219,6 +249,7 @@ def load_margin_model(path: Path | str, *, task_name: str | None = None) -> Marg
         feature_names=tuple(header["feature_names"]),
         regressor=regressor,
         report=header.get("report", {}),
+        n_objects_range=(int(header["n_objects"][0]), int(header["n_objects"][1])),
     )
 
 
@@ -241,6 +272,14 @@ def _check_header(path: Path, header: Any, task_name: str | None) -> None:
     for key, kind in required.items():
         if not isinstance(header.get(key), kind):
             raise EnergyMarginError(f"{where}: header field {key!r} is missing or not a {kind.__name__}")
+    objects = header.get("n_objects")
+    if (
+        not isinstance(objects, list)
+        or len(objects) != 2
+        or not all(isinstance(value, int) and not isinstance(value, bool) and value >= 1 for value in objects)
+        or objects[0] > objects[1]
+    ):
+        raise EnergyMarginError(f"{where}: header field 'n_objects' is not a [fewest, most] pair of counts >= 1")
     if "report" in header and not isinstance(header["report"], dict):
         raise EnergyMarginError(f"{where}: header field 'report' is not a dict")
     if not all(isinstance(name, str) for name in header["feature_names"]):
@@ -401,6 +440,10 @@ def fit_margin_model(
         kind=kind,
         feature_names=definition.names,
         regressor=regressor,
+        n_objects_range=(
+            min(item.dataset.n_objects for item in frames),
+            max(item.dataset.n_objects for item in frames),
+        ),
     )
     report = _held_out_report(model, frames, held, test_x, test_y, success_frames=success_frames)
     report.update(
