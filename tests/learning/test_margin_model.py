@@ -25,7 +25,7 @@ from energy_margin.world.state import FrameState
 
 # Tiny regressors: the tests check the mechanism, not the fit (which then stops before converging).
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
-SMALL = {"mlp": {"hidden": (8,), "max_iter": 40}, "boosting": {"max_iter": 8}}
+SMALL = {"mlp": {"hidden": (8,), "max_iter": 40}, "boosting": {"max_iter": 8}, "set": {"hidden": 8, "epochs": 6}}
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +42,7 @@ def dataset(analysed: Path) -> Dataset:
     return load_dataset(analysed)
 
 
-@pytest.fixture(scope="module", params=["mlp", "boosting"])
+@pytest.fixture(scope="module", params=["mlp", "boosting", "set"])
 def fitted(request: pytest.FixtureRequest, dataset: Dataset) -> tuple[MarginModel, dict]:
     return fit_margin_model([dataset], seed=0, kind=request.param, **SMALL[request.param])
 
@@ -74,7 +74,7 @@ def test_report_splits_by_trajectory(fitted: tuple[MarginModel, dict], dataset: 
         assert set(report["ap"][question]) == {"learned", "tree"}
     assert report["seconds_per_query"] > 0 and report["tree_seconds_per_frame"] > 0
     assert report["speedup"] == pytest.approx(report["tree_seconds_per_frame"] / report["seconds_per_query"])
-    assert report["feature_set"] == "frame-statistics/1"
+    assert report["feature_set"] == ("object-sets/1" if report["kind"] == "set" else "frame-statistics/1")
 
 
 def test_save_load_round_trip_predicts_identically(

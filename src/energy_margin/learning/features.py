@@ -25,6 +25,7 @@ pusher's centre for ``pushing``, the base centre for ``scooping``); a task witho
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -112,9 +113,16 @@ class FrameFeatures:
             ValueError: an empty ``frames``, or a frame whose ``robot_q`` or ``robot_v`` is not of
                 the task's size.
         """
+        groups = self._groups(frames)
+        out = np.empty((len(frames), self.dimension))
+        for indices in groups.values():
+            out[indices] = self._same_size([frames[i] for i in indices])[1]
+        return out
+
+    def _groups(self, frames: Sequence[FrameState]) -> dict[int, list[int]]:
+        """Indices of the frames by number of objects, after checking every frame's robot size."""
         if len(frames) == 0:
             raise ValueError("frames must hold at least one frame state")
-        out = np.empty((len(frames), self.dimension))
         groups: dict[int, list[int]] = {}
         for index, frame in enumerate(frames):
             if np.shape(frame.robot_q) != (self.n_robot_dofs,) or np.shape(frame.robot_v) != (self.n_robot_dofs,):
@@ -123,12 +131,10 @@ class FrameFeatures:
                     f"{self.task.label} has {self.n_robot_dofs} end-effector coordinates"
                 )
             groups.setdefault(frame.n_objects, []).append(index)
-        for indices in groups.values():
-            out[indices] = self._same_size([frames[i] for i in indices])
-        return out
+        return groups
 
-    def _same_size(self, frames: list[FrameState]) -> np.ndarray:
-        """Features of frames that all hold the same number of objects, shape (F, D)."""
+    def _same_size(self, frames: list[FrameState]) -> tuple[np.ndarray, np.ndarray]:
+        """Per-object channels (F, n, C) and features (F, D) of frames that all hold n objects."""
         pos = np.stack([np.asarray(frame.object_pos, dtype=float) for frame in frames])  # (F, n, 3)
         vel = np.stack([np.asarray(frame.object_vel, dtype=float) for frame in frames])  # (F, n, 6)
         robot_q = np.stack([np.asarray(frame.robot_q, dtype=float) for frame in frames])  # (F, r)
@@ -172,7 +178,96 @@ class FrameFeatures:
             ],
             axis=1,
         )
-        return np.concatenate([statistics, set_features, robot_q, robot_v], axis=1)
+        return channels, np.concatenate([statistics, set_features, robot_q, robot_v], axis=1)
+
+
+@dataclass(frozen=True)
+class SetInputs:
+    """Inputs of a set model: every object's channels, padded, beside the frame's features.
+
+    Attributes:
+        objects: per-object channels, shape (F, N, C), N the most objects of any frame; the rows
+            past a frame's own objects are zeros.
+        mask: which rows of ``objects`` are objects, shape (F, N), bool.
+        frame: the ``frame-statistics`` features of each frame, shape (F, D).
+    """
+
+    objects: np.ndarray
+    mask: np.ndarray
+    frame: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.frame.shape[0])
+
+    def take(self, rows: np.ndarray | slice) -> SetInputs:
+        """The inputs of the frames ``rows`` (indices or a slice), padding trimmed to their most objects."""
+        mask = self.mask[rows]
+        width = max(1, int(mask.sum(axis=1).max())) if mask.shape[0] else 1
+        return SetInputs(self.objects[rows][:, :width], mask[:, :width], self.frame[rows])
+
+    @staticmethod
+    def concatenate(parts: Sequence[SetInputs]) -> SetInputs:
+        """The frames of ``parts`` in order, padded to the most objects of any of them."""
+        if not parts:
+            raise ValueError("parts must hold at least one SetInputs")
+        width = max(part.objects.shape[1] for part in parts)
+        channels = parts[0].objects.shape[2]
+        total = sum(len(part) for part in parts)
+        objects = np.zeros((total, width, channels))
+        mask = np.zeros((total, width), dtype=bool)
+        row = 0
+        for part in parts:
+            count, n = len(part), part.objects.shape[1]
+            objects[row : row + count, :n] = part.objects
+            mask[row : row + count, :n] = part.mask
+            row += count
+        return SetInputs(objects, mask, np.concatenate([part.frame for part in parts]))
+
+
+class ObjectSetFeatures(FrameFeatures):
+    """The ``object-sets`` inputs of a set model: each object's 13 channels and the frame's features.
+
+    The per-object channels are those the ``frame-statistics`` summarise (module docstring), kept
+    object by object so that a permutation-invariant network (:mod:`energy_margin.learning.set_network`)
+    can weigh each object and its neighbours itself; the frame's ``frame-statistics`` features come
+    beside them.
+    """
+
+    name = "object-sets"
+    version = 1
+
+    @property
+    def object_channels(self) -> tuple[str, ...]:
+        """Name of every per-object channel, in order."""
+        return _OBJECT_CHANNELS
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """``object.<channel>`` for every per-object channel, then the frame features' names."""
+        return tuple(f"object.{channel}" for channel in _OBJECT_CHANNELS) + super().names
+
+    @property
+    def dimension(self) -> int:
+        """Number of per-object channels plus frame features, C + D."""
+        return len(_OBJECT_CHANNELS) + super().dimension
+
+    def __call__(self, frames: Sequence[FrameState]) -> SetInputs:  # type: ignore[override]
+        """The set inputs of ``frames`` (any numbers of objects), in the units of the module docstring.
+
+        Raises:
+            ValueError: as :meth:`FrameFeatures.__call__`.
+        """
+        groups = self._groups(frames)
+        width = max(groups)
+        objects = np.zeros((len(frames), width, len(_OBJECT_CHANNELS)))
+        mask = np.zeros((len(frames), width), dtype=bool)
+        frame = np.empty((len(frames), super().dimension))
+        for n, indices in groups.items():
+            channels, features = self._same_size([frames[i] for i in indices])
+            objects[indices, :n] = channels
+            mask[indices, :n] = True
+            frame[indices] = features
+        return SetInputs(objects, mask, frame)
 
 
 #: Whether each region class measures distances (a protocol ``isinstance`` is slow per frame).

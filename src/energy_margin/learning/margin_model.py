@@ -33,8 +33,8 @@ from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_positive_int
 from energy_margin.evaluation.metrics import average_precision, score_grid
-from energy_margin.learning.features import FrameFeatures
-from energy_margin.learning.regressors import Regressor, fit_regressor, regressor_from_arrays
+from energy_margin.learning.features import FrameFeatures, ObjectSetFeatures, SetInputs
+from energy_margin.learning.regressors import KINDS, Regressor, fit_regressor, regressor_from_arrays
 from energy_margin.runs.files import atomic_path
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.tasks import Task, get_recorded_task
@@ -44,8 +44,12 @@ from energy_margin.world.state import FrameState
 FORMAT = "energy-margin-margin-model"
 #: Version of the saved layout.
 SCHEMA_VERSION = 2
-#: Regressor kinds :func:`fit_margin_model` fits.
-KINDS = ("mlp", "boosting")
+#: The feature definition of each regressor kind (:data:`KINDS`).
+FEATURES_OF_KIND: dict[str, type[FrameFeatures]] = {
+    "mlp": FrameFeatures,
+    "boosting": FrameFeatures,
+    "set": ObjectSetFeatures,
+}
 _HEADER = "header"
 _PREFIX = "regressor."
 
@@ -95,7 +99,7 @@ class MarginModel:
             return cached[1]
         if task.name != self.task_name:
             raise EnergyMarginError(f"this margin model was fitted on task {self.task_name!r}, not {task.name!r}")
-        features = FrameFeatures(task)
+        features = FEATURES_OF_KIND[self.kind](task)
         if features.identifier != self.feature_set or features.names != self.feature_names:
             raise EnergyMarginError(
                 f"this margin model uses features {self.feature_set!r} of {len(self.feature_names)} columns; "
@@ -286,10 +290,13 @@ def _check_header(path: Path, header: Any, task_name: str | None) -> None:
         raise EnergyMarginError(f"{where}: header field 'feature_names' holds a value that is not a str")
     if task_name is not None and header["task"] != task_name:
         raise EnergyMarginError(f"{where} is a model of task {header['task']!r}, not {task_name!r}")
-    if header["feature_set"] != f"{FrameFeatures.name}/{FrameFeatures.version}":
+    if header["kind"] not in KINDS:
+        raise EnergyMarginError(f"{where}: unknown regressor kind {header['kind']!r} (known: {', '.join(KINDS)})")
+    definition = FEATURES_OF_KIND[header["kind"]]
+    if header["feature_set"] != f"{definition.name}/{definition.version}":
         raise EnergyMarginError(
             f"{where} uses features {header['feature_set']!r}; this version computes "
-            f"{FrameFeatures.name}/{FrameFeatures.version}"
+            f"{definition.name}/{definition.version} for a {header['kind']} model"
         )
 
 
@@ -302,7 +309,7 @@ class _Frames:
     """The frames of one analysed dataset with their features and scores, trajectory-major."""
 
     dataset: Dataset
-    features: np.ndarray  # (T * K, D)
+    features: np.ndarray | SetInputs  # (T * K, D), or the set inputs of the T * K frames
     capture: np.ndarray  # (T, K) tree capture scores
     success: np.ndarray  # (T, K) tree success scores
     runtime: np.ndarray  # (T, K) tree seconds per frame
@@ -332,8 +339,10 @@ def check_same_task(datasets: Sequence[Dataset]) -> None:
             )
 
 
-def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
+def training_frames(datasets: Sequence[Dataset], *, kind: str = "mlp") -> list[_Frames]:
     """Features and scores of every frame of analysed ``datasets`` (one task, one configuration).
+
+    ``kind`` chooses the feature definition (:data:`FEATURES_OF_KIND`).
 
     Raises:
         EnergyMarginError: no datasets, datasets of different tasks or settings, or one without
@@ -342,7 +351,7 @@ def training_frames(datasets: Sequence[Dataset]) -> list[_Frames]:
     check_same_task(datasets)
     first = datasets[0]
     task = first.task
-    features = FrameFeatures(task)
+    features = FEATURES_OF_KIND[kind](task)
     frames = []
     for dataset in datasets:
         if dataset.path is None:
@@ -407,7 +416,7 @@ def fit_margin_model(
     check_choice("kind", kind, KINDS)
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
     check_positive_int("success_frames", success_frames)
-    frames = training_frames(datasets)
+    frames = training_frames(datasets, kind=kind)
     groups = [(d, t) for d, item in enumerate(frames) for t in range(item.dataset.n_trajectories)]
     if len(groups) < 2:
         raise EnergyMarginError("a margin model needs at least 2 trajectories (one is held out)")
@@ -415,23 +424,28 @@ def fit_margin_model(
     n_held = min(len(groups) - 1, max(1, round(holdout * len(groups))))
     held = {groups[i] for i in order[:n_held]}
 
-    def select(is_held: bool) -> tuple[np.ndarray, np.ndarray]:
-        rows, targets = [], []
+    def select(is_held: bool) -> tuple[Any, np.ndarray, np.ndarray]:
+        rows: list[Any] = []
+        targets: list[np.ndarray] = []
+        trajectory: list[np.ndarray] = []
         for d, item in enumerate(frames):
             k = item.dataset.n_frames
             for t in range(item.dataset.n_trajectories):
                 if ((d, t) in held) == is_held:
-                    rows.append(item.features[t * k : (t + 1) * k])
+                    rows.append(_take(item.features, slice(t * k, (t + 1) * k)))
                     targets.append(np.stack([item.capture[t], item.success[t]], axis=1))
-        return np.concatenate(rows), np.concatenate(targets)
+                    trajectory.append(np.full(k, len(trajectory)))
+        return _concatenate(rows), np.concatenate(targets), np.concatenate(trajectory)
 
-    train_x, train_y = select(False)
-    test_x, test_y = select(True)
+    train_x, train_y, train_groups = select(False)
+    test_x, test_y, _ = select(True)
     started = time.perf_counter()
+    if kind == "set":
+        options = {"groups": train_groups, **options}
     regressor = fit_regressor(kind, train_x, train_y, seed=seed, **options)
     fit_seconds = time.perf_counter() - started
     task = frames[0].dataset.task
-    definition = FrameFeatures(task)
+    definition = FEATURES_OF_KIND[kind](task)
     model = MarginModel(
         task_name=task.name,
         task_config=task.config.to_dict(),
@@ -455,13 +469,24 @@ def fit_margin_model(
             "feature_set": definition.identifier,
             "n_features": definition.dimension,
             "n_trajectories": {"train": len(groups) - n_held, "held_out": n_held},
-            "n_frames": {"train": int(train_x.shape[0]), "held_out": int(test_x.shape[0])},
+            "n_frames": {"train": len(train_x), "held_out": len(test_x)},
             "fit_seconds": fit_seconds,
+            "fit": {key: value for key, value in getattr(regressor, "fit_info", {}).items() if key != "fit_seconds"},
             "datasets": [str(item.dataset.path) for item in frames],
         }
     )
     model.report = report
     return model, report
+
+
+def _take(features: np.ndarray | SetInputs, rows: slice) -> np.ndarray | SetInputs:
+    """The rows ``rows`` of features (F, D) or of set inputs."""
+    return features.take(rows) if isinstance(features, SetInputs) else features[rows]
+
+
+def _concatenate(parts: list[Any]) -> Any:
+    """Features of many frames in order: one array (F, D), or set inputs padded to one width."""
+    return SetInputs.concatenate(parts) if isinstance(parts[0], SetInputs) else np.concatenate(parts)
 
 
 def _r2(truth: np.ndarray, predicted: np.ndarray) -> float | None:

@@ -22,6 +22,8 @@ from energy_margin.errors import check_choice
 
 #: Targets predicted together: the capture and the success score.
 N_OUTPUTS = 2
+#: Regressor kinds: a perceptron and boosted trees over frame statistics, the set network over objects.
+KINDS = ("mlp", "boosting", "set")
 
 
 class Regressor(Protocol):
@@ -34,8 +36,8 @@ class Regressor(Protocol):
         """Number of features D it was fitted on."""
         ...
 
-    def predict(self, features: np.ndarray) -> np.ndarray:
-        """Raw predictions, shape (F, 2), from ``features`` (F, D)."""
+    def predict(self, features: Any) -> np.ndarray:
+        """Raw predictions, shape (F, 2), from ``features`` (F, D) (set inputs for the ``set`` kind)."""
         ...
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -234,6 +236,10 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
                 [np.asarray(arrays[f"weight_{i}"], dtype=float) for i in range(layers)],
                 [np.asarray(arrays[f"bias_{i}"], dtype=float) for i in range(layers)],
             )
+        if kind == "set":
+            from energy_margin.learning.set_network import SetRegressor
+
+            return SetRegressor.from_arrays(arrays)
         if kind == "boosting":
             return BoostingRegressor(
                 np.asarray(arrays["baseline"], dtype=float),
@@ -247,15 +253,20 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
             )
     except KeyError as error:
         raise ValueError(f"array {error.args[0]!r} is missing") from None
-    raise ValueError(f"unknown regressor kind {kind!r} (known: mlp, boosting)")
+    raise ValueError(f"unknown regressor kind {kind!r} (known: {', '.join(KINDS)})")
 
 
-def fit_regressor(kind: str, features: np.ndarray, targets: np.ndarray, *, seed: int, **options: Any) -> Regressor:
+def fit_regressor(kind: str, features: Any, targets: np.ndarray, *, seed: int, **options: Any) -> Regressor:
     """Fit a regressor of ``kind`` to ``targets`` (F, 2) from ``features`` (F, D) with scikit-learn.
 
+    The ``set`` kind is fitted with PyTorch instead
+    (:func:`energy_margin.learning.set_network.fit_set_regressor`, whose options it takes, ``groups``
+    included); its ``features`` are :class:`~energy_margin.learning.features.SetInputs` and what the fit
+    measured is kept as the regressor's ``fit_info``.
+
     Args:
-        kind: ``"mlp"`` or ``"boosting"``.
-        features: training features, shape (F, D).
+        kind: ``"mlp"``, ``"boosting"`` or ``"set"``.
+        features: training features, shape (F, D) (``SetInputs`` of F frames for ``set``).
         targets: capture and success scores, shape (F, 2).
         seed: the regressor's random state.
         options: ``hidden`` (MLP layer widths, default (64, 64)), ``alpha`` (MLP L2 penalty,
@@ -271,7 +282,14 @@ def fit_regressor(kind: str, features: np.ndarray, targets: np.ndarray, *, seed:
     """
     from threadpoolctl import threadpool_limits
 
-    check_choice("kind", kind, ("mlp", "boosting"))
+    check_choice("kind", kind, KINDS)
+    if kind == "set":
+        from energy_margin.learning.set_network import fit_set_regressor
+
+        regressor, info = fit_set_regressor(features, targets, seed=seed, **options)
+        regressor.fit_info = info
+        return regressor
+    options.pop("groups", None)
     with threadpool_limits(limits=1):
         return _fit(kind, features, targets, seed=seed, **options)
 
