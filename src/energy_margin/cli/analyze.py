@@ -1,4 +1,9 @@
-"""``energy-margin analyze``: score every frame of a dataset with energy margins."""
+"""``energy-margin analyze``: score every frame of a dataset with energy margins.
+
+Trees are grown for every frame (:func:`energy_margin.analysis.run.analyze`), or, with ``--model``,
+a learned margin predicts the scores (:func:`energy_margin.learning.scoring.score_dataset`); both
+write ``scores.csv`` beside the dataset.
+"""
 
 from __future__ import annotations
 
@@ -22,10 +27,29 @@ SUMMARY = "score every frame of a dataset: capture and success scores into score
 EXAMPLES = (
     "energy-margin analyze runs/push10 --iterations 300 --workers 2 --seed 0",
     "energy-margin analyze runs/push10 --nodes 200 --cost energy --overwrite",
+    "energy-margin analyze runs/push10-perturbed --model runs/push10-margin.npz",
 )
 # The choices are the registries themselves, so a new method or cost model shows up here.
 COSTS = tuple(COST_MODELS)
 DEFAULT_ITERATIONS = 300
+#: The options of the tree analysis (by ``dest``): a learned margin (``--model``) grows no tree.
+TREE_ONLY = {
+    "iterations": "--iterations",
+    "nodes": "--nodes",
+    "cost": "--cost",
+    "likelihood_lambda": "--lambda",
+    "workers": "--workers",
+    "executor": "--executor",
+    "address": "--address",
+    "engine": "--engine",
+    "method": "--method",
+    "batch": "--batch",
+    "threads": "--threads",
+    "converge": "--converge",
+    "converge_rule": "--converge-rule",
+    "contacts": "--contacts",
+    "projection": "--projection",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,6 +82,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_engine(parser)
     parser.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument(
+        "--model",
+        default=None,
+        metavar="MODEL",
+        help="learned margin file (energy-margin learn): predict every frame's scores with it instead of "
+        "growing trees (takes none of the tree options)",
+    )
     parser.add_argument(
         "--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)} (default est)"
     )
@@ -122,8 +153,23 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         raise EnergyMarginError(str(error)) from None
 
 
+def tree_options_given(args: argparse.Namespace) -> list[str]:
+    """The tree options of ``args`` that differ from their defaults, as ``--flag VALUE``."""
+    parser = argparse.ArgumentParser(add_help=False)
+    add_arguments(parser)
+    given = []
+    for dest, flag in TREE_ONLY.items():
+        default = parser.get_default(dest)
+        value = getattr(args, dest, default)
+        if value != default:
+            given.append(f"{flag} {value}")
+    return given
+
+
 def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
+    if getattr(args, "model", None) is not None:
+        return run_learned(args)
     from energy_margin.analysis.run import analyze
 
     path = analyze(
@@ -135,6 +181,23 @@ def run(args: argparse.Namespace) -> int:
         address=args.address,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+    )
+    print(f"wrote {path}")
+    return 0
+
+
+def run_learned(args: argparse.Namespace) -> int:
+    """Score the dataset with the learned margin of ``--model`` and print where the scores went."""
+    given = tree_options_given(args)
+    if given:
+        raise EnergyMarginError(
+            f"--model scores frames with a learned margin and grows no tree: {', '.join(given)} "
+            f"{'does' if len(given) == 1 else 'do'} not apply"
+        )
+    from energy_margin.learning.scoring import score_dataset
+
+    path = score_dataset(
+        args.dataset, args.model, overwrite=args.overwrite, progress=not args.no_progress, seed=args.seed
     )
     print(f"wrote {path}")
     return 0
