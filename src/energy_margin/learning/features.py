@@ -84,6 +84,8 @@ class FrameFeatures:
         self.task = task
         self.n_robot_dofs = task.robot_dofs()
         self._anchor_origin, self._anchor_axes = _end_effector_anchor(task, self.n_robot_dofs)
+        # A task that does not override success_region_at has one success region for every frame.
+        self._success_moves = type(task).success_region_at is not Task.success_region_at
 
     @property
     def identifier(self) -> str:
@@ -147,11 +149,18 @@ class FrameFeatures:
         task = self.task
         for f, frame in enumerate(frames):
             capture = task.capture_region(frame)
-            success = task.success_region_at(frame)
             regions[f, :, 0] = _signed_distance(capture, pos[f])
-            regions[f, :, 1] = _signed_distance(success, pos[f])
             regions[f, :, 2] = capture.contains(pos[f], vel[f])
-            regions[f, :, 3] = success.contains(pos[f], vel[f])
+        if self._success_moves:
+            for f, frame in enumerate(frames):
+                success = task.success_region_at(frame)
+                regions[f, :, 1] = _signed_distance(success, pos[f])
+                regions[f, :, 3] = success.contains(pos[f], vel[f])
+        else:
+            # One region for every frame: measured on all of them at once (regions take (..., 3)).
+            success = task.success_region()
+            regions[:, :, 1] = _signed_distance(success, pos)
+            regions[:, :, 3] = success.contains(pos, vel)
         channels = np.concatenate(
             [
                 relative,
@@ -275,14 +284,14 @@ _MEASURABLE: dict[type, bool] = {}
 
 
 def _signed_distance(region: Region, positions: np.ndarray) -> np.ndarray:
-    """Signed distance (n,) of each object to ``region``, m; 0 where the region measures none."""
+    """Signed distance (...) of each position (..., 3) to ``region``, m; 0 where the region measures none."""
     kind = type(region)
     measurable = _MEASURABLE.get(kind)
     if measurable is None:
         measurable = _MEASURABLE[kind] = isinstance(region, MeasurableRegion)
     if measurable:
         return np.asarray(region.signed_distance(positions), dtype=float)  # type: ignore[attr-defined]
-    return np.zeros(positions.shape[0])
+    return np.zeros(positions.shape[:-1])
 
 
 def _end_effector_anchor(task: Task, n_robot_dofs: int) -> tuple[np.ndarray, np.ndarray]:
