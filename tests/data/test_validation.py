@@ -405,3 +405,24 @@ def test_overlaps_of_a_recorded_set_are_warnings(scored: Path, rewrite_frames: C
     assert check_dataset(scored, warnings=warnings) == []
     assert warnings and "overlaps object" in warnings[0].message
     assert evaluate(scored)["n_frames"] > 0
+
+
+def test_small_objects_get_the_overlap_floor(tmp_path: Path) -> None:
+    from energy_margin.data.generate import generate_dataset
+    from energy_margin.data.validation import OVERLAP_FLOOR
+
+    out = tmp_path / "scoop"
+    generate_dataset("scooping", out=out, n_objects=2, n_trajectories=1, n_frames=2, seed=0)
+    dataset = load_dataset(out)
+    arrays = dict(dataset.arrays)
+    pos, quat = arrays["object_pos"].copy(), arrays["object_quat"].copy()
+    quat[0, 0, :2] = [1.0, 0.0, 0.0, 0.0]
+    width = 2 * dataset.task.build_scene(2, 0.5).objects[0].geom.size[0]
+    assert OVERLAP_FRACTION * width / 2 < 0.003 < OVERLAP_FLOOR  # 1 cm boxes: 2.5 mm without the floor
+    # Box 1 pressed 3 mm into box 0 along x, then 6 mm.
+    pos[0, 0, 1] = pos[0, 0, 0] + [width - 0.003, 0.0, 0.0]
+    np.savez_compressed(out / FRAMES_FILE, **{**arrays, "object_pos": pos, "object_quat": quat})
+    assert not [p for p in check_dataset(out) if "overlaps object" in p.message]
+    pos[0, 0, 1] = pos[0, 0, 0] + [width - 0.006, 0.0, 0.0]
+    np.savez_compressed(out / FRAMES_FILE, **{**arrays, "object_pos": pos, "object_quat": quat})
+    assert any("overlaps object" in p.message and "(limit 4.0 mm)" in p.message for p in check_dataset(out))

@@ -59,7 +59,16 @@ DEFAULTS: dict[str, Any] = {
     "weight_decay": 1e-4,
     "validation": 0.15,
     "threads": 1,
+    "loss": "bce",
+    "success_weight": 1.0,
+    "auxiliary": None,
+    "auxiliary_weight": 0.5,
 }
+#: Losses of :func:`fit_set_regressor`: binary cross-entropy against the scores, or the squared error
+#: of the logits against the scores' logits (scores clipped to [1e-3, 1 - 1e-3]), which weighs the
+#: small scores of early frames as much as the large ones.
+LOSSES = ("bce", "logit")
+_LOGIT_FLOOR = 1e-3
 
 
 def _sigmoid(values: np.ndarray) -> np.ndarray:
@@ -108,8 +117,10 @@ class SetRegressor:
             "feed_forward": (hidden, hidden),
             "frame_0": (width, hidden),
             "head_0": (3 * hidden, hidden),
-            "head_1": (hidden, N_OUTPUTS),
+            "head_1": (hidden, weights["head_1"].shape[1] if weights["head_1"].ndim == 2 else -1),
         }
+        if expected["head_1"][1] < N_OUTPUTS:
+            raise ValueError(f"layer head_1 has {expected['head_1'][1]} outputs, expected >= {N_OUTPUTS}")
         for name, shape in expected.items():
             if weights[name].shape != shape:
                 raise ValueError(f"layer {name} has weights {weights[name].shape}, expected {shape}")
@@ -154,7 +165,8 @@ class SetRegressor:
         frame_hidden = np.maximum(frame @ w["frame_0"] + b["frame_0"], 0.0)
         head = np.concatenate([mean, maximum, frame_hidden], axis=1)
         head = np.maximum(head @ w["head_0"] + b["head_0"], 0.0)
-        return np.asarray(_sigmoid(head @ w["head_1"] + b["head_1"]))
+        # Outputs past the first two are the auxiliary heads of the fit (labels), not scores.
+        return np.asarray(_sigmoid(head @ w["head_1"][:, :N_OUTPUTS] + b["head_1"][:N_OUTPUTS]))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The parameters by name (what :meth:`from_arrays` reads back)."""
@@ -224,7 +236,7 @@ def fit_set_regressor(
         EnergyMarginError: PyTorch is not installed (naming the extra).
         ValueError: an unknown option, or targets of the wrong shape.
     """
-    from energy_margin.errors import EnergyMarginError
+    from energy_margin.errors import EnergyMarginError, check_choice
 
     unknown = sorted(set(options) - set(DEFAULTS))
     if unknown:
@@ -233,6 +245,10 @@ def fit_set_regressor(
     targets = np.asarray(targets, dtype=float)
     if targets.shape != (len(inputs), N_OUTPUTS):
         raise ValueError(f"targets must have shape {(len(inputs), N_OUTPUTS)}, got {targets.shape}")
+    auxiliary = settings.pop("auxiliary")
+    if auxiliary is not None:
+        auxiliary = np.asarray(auxiliary, dtype=float).reshape(len(inputs), -1)
+        targets = np.concatenate([targets, auxiliary], axis=1)
     try:
         import torch
     except ImportError:
@@ -263,11 +279,30 @@ def fit_set_regressor(
     torch.set_num_threads(int(settings["threads"]))
     try:
         torch.manual_seed(int(np.random.SeedSequence(seed).generate_state(1)[0]))
-        network = _torch_network(torch, inputs.objects.shape[2], inputs.frame.shape[1], int(settings["hidden"]))
+        network = _torch_network(
+            torch, inputs.objects.shape[2], inputs.frame.shape[1], int(settings["hidden"]), targets.shape[1]
+        )
         optimiser = torch.optim.Adam(
             network.parameters(), lr=settings["learning_rate"], weight_decay=settings["weight_decay"]
         )
-        loss_function = torch.nn.BCEWithLogitsLoss()
+        check_choice("loss", settings["loss"], LOSSES)
+        weights = torch.as_tensor(
+            [1.0, float(settings["success_weight"])]
+            + [float(settings["auxiliary_weight"])] * (targets.shape[1] - N_OUTPUTS),
+            dtype=torch.float32,
+        )
+        if settings["loss"] == "bce":
+            bce = torch.nn.BCEWithLogitsLoss(reduction="none")
+
+            def loss_function(logits: Any, scores: Any) -> Any:
+                return (bce(logits, scores) * weights).mean()
+
+        else:
+
+            def loss_function(logits: Any, scores: Any) -> Any:
+                clipped = scores.clamp(_LOGIT_FLOOR, 1.0 - _LOGIT_FLOOR)
+                return (((logits - torch.log(clipped / (1.0 - clipped))) ** 2) * weights).mean()
+
         best_loss, best_epoch, best_state, epoch = float("inf"), -1, None, 0
         count = train[0].shape[0]
         for epoch in range(int(settings["epochs"])):
@@ -316,7 +351,7 @@ def _from_torch(
     )
 
 
-def _torch_network(torch: Any, channels: int, width: int, hidden: int) -> Any:
+def _torch_network(torch: Any, channels: int, width: int, hidden: int, outputs: int = N_OUTPUTS) -> Any:
     """The PyTorch module of the network (logits out); its layer names are those of :data:`_WEIGHTS`."""
     nn = torch.nn
 
@@ -332,7 +367,7 @@ def _torch_network(torch: Any, channels: int, width: int, hidden: int) -> Any:
             self.feed_forward = nn.Linear(hidden, hidden)
             self.frame_0 = nn.Linear(width, hidden)
             self.head_0 = nn.Linear(3 * hidden, hidden)
-            self.head_1 = nn.Linear(hidden, N_OUTPUTS)
+            self.head_1 = nn.Linear(hidden, outputs)
 
         def forward(self, objects: Any, mask: Any, frame: Any) -> Any:
             relu = torch.relu
