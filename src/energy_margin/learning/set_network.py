@@ -129,6 +129,8 @@ class SetRegressor:
         self.object_mean, self.object_scale = object_mean, object_scale
         self.frame_mean, self.frame_scale = frame_mean, frame_scale
         self.weights, self.biases = weights, biases
+        self._weights32 = {name: value.astype(np.float32) for name, value in weights.items()}
+        self._biases32 = {name: value.astype(np.float32) for name, value in biases.items()}
         #: What the fit measured (:func:`fit_set_regressor`); empty for a loaded model.
         self.fit_info: dict[str, Any] = {}
 
@@ -143,30 +145,35 @@ class SetRegressor:
         return int(self.weights["encoder_0"].shape[1])
 
     def predict(self, inputs: SetInputs) -> np.ndarray:
-        """Capture and success scores, shape (F, 2), in [0, 1], of ``inputs`` (F frames)."""
-        w, b = self.weights, self.biases
+        """Capture and success scores, shape (F, 2), in [0, 1], of ``inputs`` (F frames).
+
+        Computed in float32 (the precision it was fitted in), which halves the time of the
+        matrix products against float64.
+        """
+        w, b = self._weights32, self._biases32
         mask = inputs.mask
-        objects = (inputs.objects - self.object_mean) / self.object_scale  # (F, N, C)
+        objects = ((inputs.objects - self.object_mean) / self.object_scale).astype(np.float32)  # (F, N, C)
         hidden = np.maximum(objects @ w["encoder_0"] + b["encoder_0"], 0.0)
         hidden = np.maximum(hidden @ w["encoder_1"] + b["encoder_1"], 0.0)  # (F, N, H)
         query, key, value = hidden @ w["query"], hidden @ w["key"], hidden @ w["value"]
-        logits = np.einsum("fnh,fmh->fnm", query, key) / np.sqrt(self.hidden)
-        logits = np.where(mask[:, None, :], logits, -np.inf)
+        logits = np.matmul(query, key.transpose(0, 2, 1)) * np.float32(1.0 / np.sqrt(self.hidden))  # (F, N, N)
+        logits = np.where(mask[:, None, :], logits, np.float32(-np.inf))
         logits -= logits.max(axis=2, keepdims=True)
         attention = np.exp(logits)
         attention /= attention.sum(axis=2, keepdims=True)
-        hidden = hidden + np.einsum("fnm,fmh->fnh", attention, value) @ w["attention_out"] + b["attention_out"]
+        hidden = hidden + np.matmul(attention, value) @ w["attention_out"] + b["attention_out"]
         hidden = hidden + np.maximum(hidden @ w["feed_forward"] + b["feed_forward"], 0.0)
-        weight = mask[:, :, None].astype(hidden.dtype)
+        weight = mask[:, :, None].astype(np.float32)
         count = np.maximum(weight.sum(axis=1), 1.0)
         mean = (hidden * weight).sum(axis=1) / count
-        maximum = np.where(mask[:, :, None], hidden, -np.inf).max(axis=1)
-        frame = (inputs.frame - self.frame_mean) / self.frame_scale
+        maximum = np.where(mask[:, :, None], hidden, np.float32(-np.inf)).max(axis=1)
+        frame = ((inputs.frame - self.frame_mean) / self.frame_scale).astype(np.float32)
         frame_hidden = np.maximum(frame @ w["frame_0"] + b["frame_0"], 0.0)
         head = np.concatenate([mean, maximum, frame_hidden], axis=1)
         head = np.maximum(head @ w["head_0"] + b["head_0"], 0.0)
         # Outputs past the first two are the auxiliary heads of the fit (labels), not scores.
-        return np.asarray(_sigmoid(head @ w["head_1"][:, :N_OUTPUTS] + b["head_1"][:N_OUTPUTS]))
+        logits_out = head @ w["head_1"][:, :N_OUTPUTS] + b["head_1"][:N_OUTPUTS]
+        return np.asarray(_sigmoid(logits_out.astype(float)))
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The parameters by name (what :meth:`from_arrays` reads back)."""
