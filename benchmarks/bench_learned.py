@@ -152,7 +152,8 @@ def main() -> None:
     for row in rows:
         print(
             f"  {row['dataset']}: batched {row['batched_cpu_s_per_state'] * 1e6:.1f} µs/state "
-            f"(features {row['features_cpu_s_per_state'] * 1e6:.1f}, network {row['network_cpu_s_per_state'] * 1e6:.1f}), "
+            f"(features {row['features_cpu_s_per_state'] * 1e6:.1f}, "
+            f"network {row['network_cpu_s_per_state'] * 1e6:.1f}), "
             f"one state {row['single_cpu_s_median'] * 1e6:.0f} µs, tree {row['tree_cpu_s_median']:.3f} s"
         )
 
