@@ -59,9 +59,11 @@ def test_predict_shapes_range_and_batching(fitted: tuple[MarginModel, dict], dat
     assert np.all((capture >= 0) & (capture <= 1)) and np.all((success >= 0) & (success <= 1))
     # One vectorised call gives what one call per frame gives.
     single = np.array([np.concatenate(model.predict(dataset.task, [frame])) for frame in frames])
-    np.testing.assert_allclose(single, np.stack([capture, success], axis=1), rtol=0, atol=1e-12)
+    # The set network computes in float32, whose sums may round differently in a batch.
+    tolerance = 1e-6 if model.kind == "set" else 1e-12
+    np.testing.assert_allclose(single, np.stack([capture, success], axis=1), rtol=0, atol=tolerance)
     live = model.score_state(dataset.task, frames[4])
-    assert (live.capture, live.success) == pytest.approx((capture[4], success[4]), abs=1e-12)
+    assert (live.capture, live.success) == pytest.approx((capture[4], success[4]), abs=tolerance)
     assert live.stopped_by == "learned" and live.expansions == 0 and live.seconds > 0
 
 

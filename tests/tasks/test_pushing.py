@@ -300,3 +300,30 @@ def test_frame_steps() -> None:
 def test_separated_sampling_gives_up_when_impossible() -> None:
     with pytest.raises(ValueError, match="cannot place 5 objects"):
         _sample_separated(np.random.default_rng(0), 5, np.zeros(2), np.full(2, 0.1), 0.2)
+
+
+def test_batched_capture_regions_equal_one_region_per_frame() -> None:
+    from energy_margin.tasks.base import FrameRegions
+    from energy_margin.world.state import FrameState
+
+    task = PushingTask()
+    rng = np.random.default_rng(4)
+    dofs = task.robot_dofs()
+    frames = []
+    # Slow (disc), straight, turning left and right, and a yaw rate of exactly zero.
+    for velocity in ([0.05, 0.1, 0.0], [0.0, 0.6, 0.0], [0.2, 0.5, 0.8], [-0.3, 0.4, -1.5], [0.5, 0.5, 3.0]):
+        robot_q, robot_v = np.zeros(dofs), np.zeros(dofs)
+        robot_q[:2] = rng.uniform(-0.5, 0.5, 2)
+        robot_v[[0, 1, 3]] = velocity
+        pos = np.column_stack([robot_q[:2] + rng.uniform(-0.8, 0.8, (6, 2)), np.full(6, 0.05)])
+        frames.append(FrameState(pos, np.tile([1.0, 0, 0, 0], (6, 1)), np.zeros((6, 6)), robot_q, robot_v))
+    positions = np.stack([frame.object_pos for frame in frames])  # (F, 6, 3)
+    batched = task.capture_regions(frames)
+    assert isinstance(batched, SweptRegion) and batched.is_disc.tolist() == [True, False, False, False, False]
+    one_by_one = FrameRegions([task.capture_region(frame) for frame in frames])
+    np.testing.assert_array_equal(batched.contains(positions), one_by_one.contains(positions))
+    np.testing.assert_array_equal(batched.signed_distance(positions), one_by_one.signed_distance(positions))
+    inside = batched.contains(positions)
+    assert inside.any() and not inside.all()
+    with pytest.raises(ValueError, match="one frame"):
+        batched.shapes()

@@ -147,10 +147,9 @@ class FrameFeatures:
         relative_vel = vel[:, :, :3] - anchor_vel[:, None, :]
         regions = np.empty((len(frames), pos.shape[1], 4))
         task = self.task
-        for f, frame in enumerate(frames):
-            capture = task.capture_region(frame)
-            regions[f, :, 0] = _signed_distance(capture, pos[f])
-            regions[f, :, 2] = capture.contains(pos[f], vel[f])
+        capture = task.capture_regions(frames)  # row f: the region built from frames[f]
+        regions[:, :, 0] = _signed_distance(capture, pos)
+        regions[:, :, 2] = capture.contains(pos, vel)
         if self._success_moves:
             for f, frame in enumerate(frames):
                 success = task.success_region_at(frame)

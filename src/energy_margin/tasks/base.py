@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -49,6 +49,37 @@ class MeasurableRegion(Region, Protocol):
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of each position (..., 3) to the boundary: > 0 inside, < 0 outside, 0 on it."""
         ...
+
+
+class FrameRegions:
+    """One region per frame, measured row by row: the default of :meth:`Task.capture_regions`.
+
+    Args:
+        regions: the region of each of F frames.
+    """
+
+    def __init__(self, regions: Sequence[Region]) -> None:
+        self.regions = list(regions)
+
+    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Whether row f of positions (F, ..., 3) lies in frame f's region; shape (F, ...)."""
+        return np.stack(
+            [
+                region.contains(positions[f], None if velocities is None else velocities[f])
+                for f, region in enumerate(self.regions)
+            ]
+        )
+
+    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of row f of positions (F, ..., 3) to frame f's region; 0 where it measures none."""
+        return np.stack(
+            [
+                np.asarray(region.signed_distance(positions[f]), dtype=float)
+                if isinstance(region, MeasurableRegion)
+                else np.zeros(np.shape(positions[f])[:-1])
+                for f, region in enumerate(self.regions)
+            ]
+        )
 
 
 @dataclass(frozen=True)
@@ -458,6 +489,17 @@ class Task(ABC):
     @abstractmethod
     def capture_region(self, root: FrameState) -> Region:
         """The capture region R_cap(z_init) built from the frame being analysed."""
+
+    def capture_regions(self, roots: Sequence[FrameState]) -> Region:
+        """The capture regions of many frames as one region over stacked positions.
+
+        Row f of positions (F, ..., 3) (and velocities (F, ..., 6)) is measured against the region
+        built from ``roots[f]``; a region that measures distances measures them the same way. By
+        default one region per frame, measured frame by frame (:class:`FrameRegions`); a task whose
+        region can be built for all frames at once overrides this (the learned margin's features
+        measure thousands of frames per call).
+        """
+        return FrameRegions([self.capture_region(root) for root in roots])
 
     @abstractmethod
     def success_region(self) -> Region:

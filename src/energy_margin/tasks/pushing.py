@@ -10,6 +10,7 @@ end-effector follows the manipulation while the objects are perturbed.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -179,52 +180,83 @@ class PushingConfig(TaskConfig):
 
 
 class SweptRegion:
-    """Annular sector swept by the pusher about its instantaneous centre of rotation, or a disc."""
+    """Annular sector swept by the pusher about its instantaneous centre of rotation, or a disc.
+
+    One region, or the regions of many frames at once: with ``pusher_xy`` (F, 2) and
+    ``pusher_velocity`` (F, 3) every parameter has shape (F,), and :meth:`contains` and
+    :meth:`signed_distance` measure row f of positions (F, ..., 3) against frame f's region
+    (:meth:`PushingTask.capture_regions`).
+    """
 
     def __init__(self, config: PushingConfig, pusher_xy: np.ndarray, pusher_velocity: np.ndarray) -> None:
         """Build the region.
 
         Args:
             config: task settings.
-            pusher_xy: pusher centre (2,), m.
-            pusher_velocity: (vx, vy, yaw rate), m/s and rad/s.
+            pusher_xy: pusher centre (2,) or (F, 2), m.
+            pusher_velocity: (vx, vy, yaw rate), shape (3,) or (F, 3), m/s and rad/s.
 
         """
         self.config = config
         self.pusher_xy = np.asarray(pusher_xy, dtype=float)
-        vx, vy, yaw_rate = (float(v) for v in pusher_velocity)
-        speed = float(np.hypot(vx, vy))
+        velocity = np.asarray(pusher_velocity, dtype=float)
+        vx, vy, yaw_rate = velocity[..., 0], velocity[..., 1], velocity[..., 2]
+        speed = np.hypot(vx, vy)
+        #: Whether the pusher is slower than ``capture_speed_threshold`` (the region is a disc), shape () or (F,).
         self.is_disc = speed < config.capture_speed_threshold
-        if self.is_disc:
+        if self.is_disc.ndim == 0 and self.is_disc:
             return
-        radius = min(speed / abs(yaw_rate), config.max_turn_radius) if yaw_rate != 0 else config.max_turn_radius
-        turn = 1.0 if yaw_rate >= 0 else -1.0
-        normal = np.array([-vy, vx]) / speed  # left of the motion
-        self.centre = self.pusher_xy + turn * radius * normal
+        # A disc frame of a batch gets the sector parameters of a unit speed, which it never uses.
+        speed = np.where(self.is_disc, 1.0, speed)
+        turning = yaw_rate != 0
+        radius = np.where(
+            turning,
+            np.minimum(speed / np.where(turning, np.abs(yaw_rate), 1.0), config.max_turn_radius),
+            config.max_turn_radius,
+        )
+        turn = np.where(yaw_rate >= 0, 1.0, -1.0)
+        normal = np.stack([-vy, vx], axis=-1) / speed[..., None]  # left of the motion
+        self.centre = self.pusher_xy + (turn * radius)[..., None] * normal
         self.radius = radius
         self.turn = turn
         offset = self.pusher_xy - self.centre
-        self.start_angle = float(np.arctan2(offset[1], offset[0]))
+        self.start_angle = np.arctan2(offset[..., 1], offset[..., 0])
         # The swept arc plus the margin behind: the arc the pusher covers in the horizon, capped at
         # the full circle.
         self.arc_margin = config.capture_behind / radius
-        self.arc_length = min(speed * config.capture_horizon / radius, 2.0 * np.pi)
+        self.arc_length = np.minimum(speed * config.capture_horizon / radius, 2.0 * np.pi)
+
+    def _per_frame(self, value: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """A parameter (), (F,) or (F, 2) shaped to broadcast against positions' xy (..., 2) or (F, ..., 2)."""
+        value = np.asarray(value)
+        batch = self.is_disc.ndim
+        return value.reshape(value.shape[:batch] + (1,) * (xy.ndim - 1 - batch) + value.shape[batch:])
+
+    def _sector_parts(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Distance to the centre of rotation, its band slack, the shifted angle and the span, for each point."""
+        config = self.config
+        relative = xy - self._per_frame(self.centre, xy)
+        distance = np.linalg.norm(relative, axis=-1)
+        band = config.capture_half_width - np.abs(distance - self._per_frame(self.radius, xy))
+        angle = self._per_frame(self.turn, xy) * (
+            np.arctan2(relative[..., 1], relative[..., 0]) - self._per_frame(self.start_angle, xy)
+        )
+        margin = self._per_frame(self.arc_margin, xy)
+        shifted = np.mod(angle + margin, 2.0 * np.pi)
+        return distance, band, shifted, self._per_frame(self.arc_length, xy) + margin
 
     def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
         """Whether each position (..., 3) lies in the region (velocities unused); shape (...)."""
         del velocities
         xy = np.asarray(positions)[..., :2]
         config = self.config
-        if self.is_disc:
-            in_disc = np.linalg.norm(xy - self.pusher_xy, axis=-1) <= config.capture_disc_radius
-            return in_disc & _inside_workspace(xy, config)
-        relative = xy - self.centre
-        distance = np.linalg.norm(relative, axis=-1)
-        angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)
-        shifted = np.mod(angle + self.arc_margin, 2.0 * np.pi)
-        in_arc = shifted <= self.arc_length + self.arc_margin
-        in_band = np.abs(distance - self.radius) <= config.capture_half_width
-        return in_arc & in_band & _inside_workspace(xy, config)
+        inside_workspace = _inside_workspace(xy, config)
+        in_disc = np.linalg.norm(xy - self._per_frame(self.pusher_xy, xy), axis=-1) <= config.capture_disc_radius
+        if self.is_disc.ndim == 0 and self.is_disc:
+            return in_disc & inside_workspace
+        _, band, shifted, span = self._sector_parts(xy)
+        in_sector = (shifted <= span) & (band >= 0.0)
+        return np.where(self._per_frame(self.is_disc, xy), in_disc, in_sector) & inside_workspace
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of each position (..., 3) to the region's boundary in the plane.
@@ -237,21 +269,16 @@ class SweptRegion:
         xy = np.asarray(positions, dtype=float)[..., :2]
         config = self.config
         workspace = _workspace_distance(xy, config)
-        if self.is_disc:
-            disc = config.capture_disc_radius - np.linalg.norm(xy - self.pusher_xy, axis=-1)
+        disc = config.capture_disc_radius - np.linalg.norm(xy - self._per_frame(self.pusher_xy, xy), axis=-1)
+        if self.is_disc.ndim == 0 and self.is_disc:
             return np.minimum(disc, workspace)
-        relative = xy - self.centre
-        distance = np.linalg.norm(relative, axis=-1)
-        band = config.capture_half_width - np.abs(distance - self.radius)
-        span = self.arc_length + self.arc_margin
-        if span >= 2.0 * np.pi:
-            return np.minimum(band, workspace)
-        angle = self.turn * (np.arctan2(relative[..., 1], relative[..., 0]) - self.start_angle)
-        shifted = np.mod(angle + self.arc_margin, 2.0 * np.pi)
+        distance, band, shifted, span = self._sector_parts(xy)
         angular = np.where(
             shifted <= span, np.minimum(shifted, span - shifted), -np.minimum(shifted - span, 2.0 * np.pi - shifted)
         )
-        return np.minimum(np.minimum(band, angular * distance), workspace)
+        # A span of the full circle has no angular constraint.
+        sector = np.where(span >= 2.0 * np.pi, band, np.minimum(band, angular * distance))
+        return np.minimum(np.where(self._per_frame(self.is_disc, xy), disc, sector), workspace)
 
     def shapes(self) -> tuple[RegionShape, ...]:
         """The disc, or boxes along the sector's arc, as thin slabs on the ground.
@@ -259,23 +286,27 @@ class SweptRegion:
         The region ignores height, so it is drawn as its footprint under the objects. The
         workspace bound is not drawn (it lies outside every picture of the task).
         """
+        if self.is_disc.ndim:
+            raise ValueError("only the region of one frame is drawn, not a batch of regions")
         config = self.config
         z, half_height = _slab(config)
         if self.is_disc:
             centre = (float(self.pusher_xy[0]), float(self.pusher_xy[1]), z)
             return (RegionShape("cylinder", centre, (config.capture_disc_radius, half_height, 0.0)),)
-        span = min(self.arc_length + self.arc_margin, 2.0 * np.pi)
-        outer = self.radius + config.capture_half_width
+        radius, arc_margin = float(self.radius), float(self.arc_margin)
+        start_angle, turn = float(self.start_angle), float(self.turn)
+        span = min(float(self.arc_length) + arc_margin, 2.0 * np.pi)
+        outer = radius + config.capture_half_width
         count = int(np.clip(np.ceil(span * outer / _SECTOR_CHORD), 1, _SECTOR_SEGMENTS))
         step = span / count
         # Each box covers its slice of the band out to the outer radius (chords fall inside).
         half_length = outer * np.tan(0.5 * step) if step < np.pi else outer
         # The band's inner edge stops at the centre of rotation for a tight turn.
-        inner = max(0.0, self.radius - config.capture_half_width)
+        inner = max(0.0, radius - config.capture_half_width)
         middle, half_band = 0.5 * (inner + outer), 0.5 * (outer - inner)
         shapes = []
         for index in range(count):
-            angle = self.start_angle + self.turn * (-self.arc_margin + (index + 0.5) * step)
+            angle = start_angle + turn * (-arc_margin + (index + 0.5) * step)
             direction = np.array([np.cos(angle), np.sin(angle)])
             centre_xy = self.centre + middle * direction
             shapes.append(
@@ -446,6 +477,14 @@ class PushingTask(Task):
     def capture_region(self, root: FrameState) -> SweptRegion:
         """Swept annular sector (disc at low speed) from the pusher's pose and velocity."""
         return SweptRegion(self.config, root.robot_q[:2], root.robot_v[[0, 1, 3]])
+
+    def capture_regions(self, roots: Sequence[FrameState]) -> SweptRegion:
+        """The capture regions of many frames as one batched :class:`SweptRegion` (parameters of shape (F,))."""
+        return SweptRegion(
+            self.config,
+            np.stack([root.robot_q[:2] for root in roots]),
+            np.stack([root.robot_v[[0, 1, 3]] for root in roots]),
+        )
 
     def capture_region_shape(self, root: FrameState) -> str:
         """``"disc"`` while the pusher is slower than ``capture_speed_threshold``, else ``"sector"``."""

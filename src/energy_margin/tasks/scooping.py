@@ -33,6 +33,7 @@ timing of their own (the authors' scooping frames, :mod:`energy_margin.data.refe
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -561,6 +562,11 @@ class ScoopingTask(Task):
     def capture_region(self, root: FrameState) -> BoxesAboveTable:
         """Boxes on the blades: ``capture_margin`` above the table, in the footprint, not falling."""
         del root
+        return BoxesAboveTable(self.config, self.config.capture_margin)
+
+    def capture_regions(self, roots: Sequence[FrameState]) -> BoxesAboveTable:
+        """The capture region of every frame: one region (it does not depend on the frame)."""
+        del roots
         return BoxesAboveTable(self.config, self.config.capture_margin)
 
     def success_region(self) -> BoxesAboveTable:
