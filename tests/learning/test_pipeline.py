@@ -43,6 +43,7 @@ TINY: dict[str, Any] = {
     "seed": 0,
     "hidden": (8,),
     "max_iter": 40,
+    "kind": "mlp",
 }
 CLI_TINY = ["--task", "pushing", "--objects", "2,3", "--trajectories", "3", "--frames", "3", "--iterations", "10"]
 
@@ -212,7 +213,7 @@ def test_changed_settings_are_refused(baseline: LearnResult, tmp_path: Path) -> 
 def test_fit_settings_reuse_the_sets_and_overwrite_starts_afresh(baseline: LearnResult, tmp_path: Path) -> None:
     work = copy_work(baseline, tmp_path)
     before = file_stamps(work)
-    options = {key: value for key, value in TINY.items() if key not in ("hidden", "max_iter")}
+    options = {key: value for key, value in TINY.items() if key not in ("hidden", "max_iter", "kind")}
     lines: list[str] = []
     result = learn_pipeline(work, tmp_path / "boosting.npz", **options, kind="boosting", max_iter=8, log=lines.append)
     assert result.resumed and file_stamps(work) == before

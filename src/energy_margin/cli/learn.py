@@ -100,7 +100,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     source.add_argument("--scene", metavar="SCENE.toml", help="generate, analyse and fit datasets of a scene file")
     parser.add_argument("--out", required=True, metavar="MODEL", help="model file to write (.npz)")
-    parser.add_argument("--kind", choices=KINDS, default="mlp", help=f"regressor: {', '.join(KINDS)} (default mlp)")
+    parser.add_argument(
+        "--kind",
+        choices=KINDS,
+        default="set",
+        help=f"regressor: {', '.join(KINDS)} (default set: the network over the objects, fitted with PyTorch, "
+        "the learn extra)",
+    )
     add_seed(parser)
     parser.add_argument(
         "--holdout", type=_fraction, default=0.25, help="fraction of trajectories held out (default 0.25)"

@@ -63,7 +63,7 @@ class MarginModel:
         task_config: that task's resolved configuration (as in ``dataset.json``).
         feature_set: the feature definition, ``name/version`` (e.g. ``"frame-statistics/1"``).
         package_version: the energy-margin version that fitted it.
-        kind: regressor kind, ``"mlp"`` or ``"boosting"``.
+        kind: regressor kind, ``"mlp"``, ``"boosting"`` or ``"set"``.
         feature_names: name of every feature column, shape (D,).
         regressor: the fitted parameters and their prediction.
         report: what :func:`fit_margin_model` measured (JSON-compatible).
@@ -389,7 +389,8 @@ def fit_margin_model(
         datasets: analysed datasets (``load_dataset``; each with ``scores.csv`` beside it), one
             task and one task configuration; their numbers of objects may differ.
         seed: seed of the split and of the regressor.
-        kind: ``"mlp"`` (a ReLU perceptron) or ``"boosting"`` (gradient-boosted trees).
+        kind: ``"mlp"`` (a ReLU perceptron), ``"boosting"`` (gradient-boosted trees) or ``"set"``
+            (the network over the objects, :mod:`energy_margin.learning.set_network`; needs PyTorch).
         holdout: fraction of the trajectories (whole trajectories, never single frames) held out
             for the report, in (0, 1); at least one trajectory is held out and one kept.
         success_frames: k-bar of the trajectory success AP (as in ``evaluate``), >= 1.

@@ -228,7 +228,7 @@ def learn_pipeline(
     seed: int = 0,
     workers: int = 1,
     iterations: int | None = None,
-    kind: str = "mlp",
+    kind: str = "set",
     holdout: float = 0.25,
     success_frames: int = 3,
     overwrite: bool = False,
