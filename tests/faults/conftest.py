@@ -6,23 +6,23 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from fault_harness import Command, Processes, Run, hidden_matplotlib, run_uninterrupted
+from fault_harness import Command, Processes, Run, hidden_matplotlib, run_uninterrupted, startup_seconds
 
 
 def commands(dataset: Path) -> dict[str, Command]:
-    """The long commands, each on a workload of a few seconds (most of it the imports)."""
+    """The long commands, each on a workload of one to two seconds, about a third of it the imports."""
     return {
         # 2 trajectories x 3 frames of 2 objects, two worker processes (killed with their parent).
         "analyze": Command(
             "analyze",
-            ("analyze", "data", "--iterations", "200", "--no-progress", "--workers", "2"),
+            ("analyze", "data", "--iterations", "2000", "--no-progress", "--workers", "2"),
             out="data",
             inputs={"data": dataset},
         ),
-        # Three copies of the same 6 frames (the paper protocol: no rejection simulation).
+        # Two copies of the same 6 frames, each overlap rejected by simulation (the default protocol).
         "perturb": Command(
             "perturb",
-            ("perturb", "data", "--repeats", "3", "--seed", "1", "--out", "copies", "--protocol", "paper"),
+            ("perturb", "data", "--repeats", "2", "--seed", "1", "--out", "copies", "--no-progress"),
             out="copies",
             inputs={"data": dataset},
         ),
@@ -55,7 +55,7 @@ def commands(dataset: Path) -> dict[str, Command]:
             ),
             out="out",
         ),
-        # Two pusher widths, 2 trajectories x 2 frames of 2 objects, 8 expansions a frame.
+        # Two pusher widths, 2 trajectories x 2 frames of 2 objects, 200 expansions a frame.
         "sweep": Command(
             "sweep",
             (
@@ -73,7 +73,7 @@ def commands(dataset: Path) -> dict[str, Command]:
                 "--seed",
                 "3",
                 "--iterations",
-                "8",
+                "200",
                 "--bootstrap",
                 "20",
                 "--out",
@@ -82,7 +82,7 @@ def commands(dataset: Path) -> dict[str, Command]:
             ),
             out="out",
         ),
-        # Four short episodes of 2 objects, a tiny MPPI, 2 expansions per recorded frame.
+        # Eight 1 s episodes of 2 objects, a small MPPI, 20 expansions per recorded frame.
         "control": Command(
             "control",
             (
@@ -92,7 +92,7 @@ def commands(dataset: Path) -> dict[str, Command]:
                 "--objects",
                 "2",
                 "--episodes",
-                "4",
+                "8",
                 "--disturbance",
                 "hard",
                 "--seed",
@@ -100,15 +100,15 @@ def commands(dataset: Path) -> dict[str, Command]:
                 "--frames",
                 "3",
                 "--score-expansions",
-                "2",
+                "20",
                 "--samples",
-                "3",
+                "16",
                 "--horizon",
-                "2",
+                "5",
                 "--period",
                 "0.05",
                 "--set",
-                "duration=0.3",
+                "duration=1.0",
                 "--out",
                 "out",
                 "--no-progress",
@@ -134,6 +134,14 @@ def processes(tmp_path: Path, hidden: Path) -> Iterator[Processes]:
     started = Processes(tmp_path / "logs", hidden)
     yield started
     started.close()
+
+
+@pytest.fixture(scope="session")
+def startup(tmp_path_factory: pytest.TempPathFactory, hidden: Path) -> Iterator[float]:
+    """Seconds that starting ``energy-margin`` takes on this machine, now (the kills fall after it)."""
+    runner = Processes(tmp_path_factory.mktemp("startup-logs"), hidden)
+    yield startup_seconds(runner, tmp_path_factory.mktemp("startup"))
+    runner.close()
 
 
 @pytest.fixture(scope="session")

@@ -216,6 +216,23 @@ def run_uninterrupted(processes: Processes, command: Command, workdir: Path) -> 
     return Run(workdir, seconds, out, err)
 
 
+def startup_seconds(processes: Processes, workdir: Path, *, repeats: int = 3) -> float:
+    """The shortest of ``repeats`` runs of ``energy-margin --version``: the start-up every command pays."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    version = Command("version", ("--version",), out=".")
+    seconds = []
+    for _ in range(repeats):
+        started = time.monotonic()
+        proc = processes.start(version, workdir)
+        try:
+            proc.wait(timeout=TIMEOUT)
+        finally:
+            kill_group(proc)
+        assert proc.returncode == 0, output(proc)[1]
+        seconds.append(time.monotonic() - started)
+    return min(seconds)
+
+
 def kill_and_resume(
     processes: Processes,
     command: Command,
@@ -223,18 +240,22 @@ def kill_and_resume(
     *,
     duration: float,
     seed: int,
+    startup: float = 0.3,
     kills: int = 10,
-    earliest: float = 0.3,
     max_attempts: int = 80,
 ) -> KillReport:
     """Start the command in a fresh ``workdir`` again and again, SIGKILLing it, then let it finish.
 
     Each attempt is SIGKILLed (its whole process group) after a time drawn uniformly from
-    ``[earliest, duration]`` by ``numpy.random.default_rng(seed)``, unless it ended first, in
-    which case it must have exited 0 (a rerun of a finished run is a rerun like any other: it
-    opens, checks and rewrites the run's files, and is killed in turn). After an attempt ended
-    by itself, later times are drawn up to the time it took (what a rerun takes now). Once
-    ``kills`` kills landed on a live process, a last rerun runs to its end and must exit 0.
+    ``[startup, duration]`` by ``numpy.random.default_rng(seed)`` (``startup``: what starting
+    the interpreter and importing the package takes, see :func:`startup_seconds`, so kills fall
+    in the command's work rather than in its imports), unless it ended first, in which case it
+    must have exited 0 (a rerun of a finished run is a rerun like any other: it opens, checks
+    and rewrites the run's files, and is killed in turn). After an attempt ended by itself,
+    later times are drawn up to the time it took (what a rerun takes now), from half of it
+    where that is shorter than ``startup``: on a fast machine a rerun of a finished run is
+    little more than the start-up, and a kill must still be able to land in it. Once ``kills``
+    kills landed on a live process, a last rerun runs to its end and must exit 0.
     """
     prepare(command, workdir)
     rng = np.random.default_rng(seed)
@@ -243,7 +264,8 @@ def kill_and_resume(
     while report.kills < kills:
         assert report.attempts < max_attempts, f"only {report.kills} kills landed in {max_attempts} attempts"
         report.attempts += 1
-        delay = float(rng.uniform(earliest, max(span, earliest + 0.1)))
+        earliest = min(startup, 0.5 * span)
+        delay = float(rng.uniform(earliest, span))
         started = time.monotonic()
         proc = processes.start(command, workdir)
         try:

@@ -20,8 +20,8 @@ EXPECTED_ROWS = {
     "sweep": {"results.csv": 2, "designs/pusher_width-0.6/scores.csv": 4, "designs/pusher_width-0.8/scores.csv": 4},
 }
 EXPECTED_FILES = {
-    "perturb": ["1/dataset.json", "1/frames.npz", "2/dataset.json", "2/frames.npz", "3/dataset.json", "3/frames.npz"],
-    "control": ["control.json", "dataset.json", "frames.npz", *(f"episodes/{i:05d}.npz" for i in range(4))],
+    "perturb": ["1/dataset.json", "1/frames.npz", "2/dataset.json", "2/frames.npz"],
+    "control": ["control.json", "dataset.json", "frames.npz", *(f"episodes/{i:05d}.npz" for i in range(8))],
 }
 
 
@@ -32,11 +32,14 @@ def test_killed_ten_times_then_resumed_writes_what_an_uninterrupted_run_writes(
     fault_commands: dict[str, Command],
     references: Callable[[Command], Run],
     processes: Processes,
+    startup: float,
     tmp_path: Path,
 ) -> None:
     command = fault_commands[name]
     reference = references(command)  # how long the command takes on this machine, now
-    report = kill_and_resume(processes, command, tmp_path / "work", duration=reference.seconds, seed=SEEDS[name])
+    report = kill_and_resume(
+        processes, command, tmp_path / "work", duration=reference.seconds, startup=startup, seed=SEEDS[name]
+    )
     assert report.kills >= KILLS, report
     out = tmp_path / "work" / command.out
     comparison = compare_trees(reference.out(command), out)
@@ -45,7 +48,8 @@ def test_killed_ten_times_then_resumed_writes_what_an_uninterrupted_run_writes(
     for file in EXPECTED_FILES.get(name, []):
         assert (out / file).is_file(), file
     print(
-        f"\n{name}: uninterrupted {reference.seconds:.1f} s; {report.kills} kills landed in {report.attempts} attempts "
+        f"\n{name}: start-up {startup:.2f} s, uninterrupted {reference.seconds:.1f} s; "
+        f"{report.kills} kills landed in {report.attempts} attempts "
         f"({report.completed_before_kill} finished before their kill) at {report.kill_times} s; last rerun "
         f"{report.final_seconds:.1f} s; compared {comparison.files} files, {comparison.rows} CSV rows, "
         f"{comparison.arrays} arrays, {comparison.json_files} JSON files"
