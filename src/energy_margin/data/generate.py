@@ -20,6 +20,7 @@ from energy_margin.data.dataset import (
     validate,
     write_directory,
 )
+from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
@@ -39,13 +40,30 @@ def check_engine(task: Task, engine: str) -> None:
         raise EnergyMarginError(f"{task.label} runs on {', '.join(task.engines)} only, not --engine {engine}")
 
 
-def trajectory_rng(seed: int, n_trajectories: int, index: int) -> np.random.Generator:
+#: Draws of one trajectory before generation gives up. A draw whose frames the dataset check would
+#: refuse is replaced by the next: in crowds (20 pushing cylinders driven into each other and the
+#: walls) MuJoCo's soft contacts let a pile sink up to 30 mm into itself, deeper than the limit
+#: with which ``analyze`` refuses a dataset (data/validation.py), in about one trajectory in 15.
+MAX_DRAWS = 8
+#: Key of ``dataset.json`` that lists the redrawn trajectories: ``{"index": draw}``.
+REDRAWN_KEY = "redrawn"
+
+
+class DeepOverlapError(ValueError):
+    """A recorded frame whose objects overlap deeper than the dataset check allows."""
+
+
+def trajectory_rng(seed: int, n_trajectories: int, index: int, draw: int = 0) -> np.random.Generator:
     """The random generator of trajectory ``index`` of a dataset generated with ``seed``.
 
     ``numpy.random.SeedSequence(seed).spawn(n_trajectories)[index]``: it draws the trajectory's
-    start, friction and drive, then every step's scripted variation.
+    start, friction and drive, then every step's scripted variation. A redrawn trajectory's
+    draw ``d`` >= 1 uses that sequence's ``spawn(d)[d - 1]``.
     """
-    return np.random.default_rng(np.random.SeedSequence(seed).spawn(n_trajectories)[index])
+    sequence = np.random.SeedSequence(seed).spawn(n_trajectories)[index]
+    if draw:
+        sequence = sequence.spawn(draw)[draw - 1]
+    return np.random.default_rng(sequence)
 
 
 def roll_out(
@@ -68,9 +86,20 @@ def roll_out(
 
 
 def record_trajectory(
-    task: Task, n_objects: int, n_frames: int, rng: np.random.Generator, *, engine: str = "mujoco"
+    task: Task,
+    n_objects: int,
+    n_frames: int,
+    rng: np.random.Generator,
+    *,
+    engine: str = "mujoco",
+    check_overlaps: bool = False,
 ) -> dict[str, Any]:
-    """Run one scripted roll-out and record ``n_frames`` evenly spaced frames with their labels."""
+    """Run one scripted roll-out and record ``n_frames`` evenly spaced frames with their labels.
+
+    Raises:
+        DeepOverlapError: ``check_overlaps`` and a frame the dataset check would refuse (checked after
+            the roll-out, each frame reset as ``analyze`` resets it, so the roll-out is unchanged).
+    """
     trajectory = task.sample_trajectory(rng, n_objects)
     simulator = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, engine)
     dt = simulator.timestep
@@ -79,7 +108,37 @@ def record_trajectory(
     for step in roll_out(task, trajectory, simulator, rng, task.frame_steps(n_frames)):
         frames.append(simulator.frame_state())
         times.append(step * dt)
+    if check_overlaps:
+        limits = overlap_limits(simulator.scene)
+        for index, frame in enumerate(frames):
+            simulator.reset(frame)
+            found = deep_overlaps(simulator, limits)
+            if found:
+                raise DeepOverlapError(f"frame {index}: {describe_overlap(*found[0])}")
     return trajectory_record(task, frames, times, trajectory.friction, trajectory.drive)
+
+
+def draw_trajectory(
+    task: Task, n_objects: int, n_frames: int, seed: int, n_trajectories: int, index: int, *, engine: str
+) -> tuple[dict[str, Any], int]:
+    """Trajectory ``index``'s record from the first of :data:`MAX_DRAWS` draws the dataset check accepts.
+
+    Returns:
+        The record and its draw (0 unless earlier draws overlapped too deeply).
+
+    Raises:
+        EnergyMarginError: every draw overlapped too deeply (naming the last overlap).
+    """
+    for draw in range(MAX_DRAWS):
+        rng = trajectory_rng(seed, n_trajectories, index, draw)
+        try:
+            return record_trajectory(task, n_objects, n_frames, rng, engine=engine, check_overlaps=True), draw
+        except DeepOverlapError as error:
+            last = error
+    raise EnergyMarginError(
+        f"cannot generate {task.name} trajectory {index}: each of {MAX_DRAWS} draws has objects overlapping "
+        f"deeper than the dataset check allows (the last: {last}); use fewer objects or a larger workspace"
+    )
 
 
 def trajectory_record(
@@ -186,7 +245,9 @@ def replay_trajectory(
     if isinstance(seed, bool) or not isinstance(seed, int):
         raise EnergyMarginError(f"{dataset.path}: no generation seed in dataset.json; cannot run the roll-out again")
     task = dataset.task
-    rng = trajectory_rng(seed, dataset.n_trajectories, index)
+    redrawn = meta.get(REDRAWN_KEY) or {}
+    draw = redrawn.get(str(index), 0) if isinstance(redrawn, dict) else 0
+    rng = trajectory_rng(seed, dataset.n_trajectories, index, int(draw) if isinstance(draw, int) else 0)
     trajectory = task.sample_trajectory(rng, dataset.n_objects)
     stored_drive = dataset.arrays["drive"][index]
     if trajectory.friction != float(dataset.arrays["friction"][index]) or not np.array_equal(
@@ -255,15 +316,21 @@ def generate_dataset(
             return existing
     check_target(out, overwrite=overwrite)
     records = []
+    redrawn: dict[str, int] = {}
     for index in range(n_trajectories):
-        rng = trajectory_rng(seed, n_trajectories, index)
         try:
-            records.append(record_trajectory(task, n_objects, n_frames, rng, engine=engine))
+            record, draw = draw_trajectory(task, n_objects, n_frames, seed, n_trajectories, index, engine=engine)
         except ValueError as error:
             raise EnergyMarginError(f"cannot generate {task_name} trajectories: {error}") from None
+        records.append(record)
+        if draw:
+            redrawn[str(index)] = draw
         if progress is not None:
             progress(1)
-    return write_records(task, records, out, engine=engine, extra={"seed": int(seed)}, overwrite=overwrite)
+    extra: dict[str, Any] = {"seed": int(seed)}
+    if redrawn:
+        extra[REDRAWN_KEY] = redrawn
+    return write_records(task, records, out, engine=engine, extra=extra, overwrite=overwrite)
 
 
 def _same_dataset(

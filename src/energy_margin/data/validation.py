@@ -18,6 +18,8 @@ from typing import Any
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
+from energy_margin.sim import Simulator
+from energy_margin.world.scene import Scene
 
 #: Interpenetration deeper than this fraction of an object's largest half-extent, and deeper than
 #: :data:`OVERLAP_FLOOR`, is an overlap. Soft contacts leave some penetration in valid frames: up to
@@ -29,6 +31,43 @@ OVERLAP_FRACTION = 0.5
 #: the object's size, so small objects get this much (4 mm) whatever their size.
 OVERLAP_FLOOR = 0.004
 _MAX_PER_KIND = 5
+
+
+def overlap_limits(scene: Scene) -> list[float]:
+    """Each object's overlap limit, m: :data:`OVERLAP_FRACTION` of its largest half-extent, at least the floor."""
+    return [max(OVERLAP_FRACTION * max(obj.geom.size), OVERLAP_FLOOR) for obj in scene.objects]
+
+
+def deep_overlaps(simulator: Simulator, limits: list[float]) -> list[tuple[int, int, float, float]]:
+    """Pairs of the simulator's current state that overlap deeper than their limit.
+
+    Args:
+        simulator: a simulator holding the state to check (after ``reset``).
+        limits: :func:`overlap_limits` of its scene, m.
+
+    Returns:
+        ``(object, other, depth, limit)`` per overlapping pair, the deepest of its contact points,
+        sorted: ``other`` is another object's index or -1 for the end-effector or an obstacle;
+        ``depth`` and ``limit`` in metres.
+    """
+    deepest: dict[tuple[int, int], float] = {}
+    for obj, other, depth in simulator.object_penetrations():
+        pair = (min(obj, other), max(obj, other)) if other >= 0 else (obj, other)
+        deepest[pair] = max(depth, deepest.get(pair, 0.0))
+    found = []
+    for (obj, other), depth in sorted(deepest.items()):
+        if other < 0:
+            obj, other = max(obj, other), -1
+        limit = limits[obj] if other < 0 else min(limits[obj], limits[other])
+        if depth > limit:
+            found.append((obj, other, depth, limit))
+    return found
+
+
+def describe_overlap(obj: int, other: int, depth: float, limit: float) -> str:
+    """One overlap of :func:`deep_overlaps` in words."""
+    what = f"object {other}" if other >= 0 else "the end-effector or an obstacle"
+    return f"object {obj} overlaps {what} by {1000 * depth:.1f} mm (limit {1000 * limit:.1f} mm)"
 
 
 def overlap_problems(dataset: Dataset) -> list[Problem]:
@@ -47,27 +86,13 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
             return [
                 Problem("dataset.json", "task_config", "", f"cannot build the scene ({' '.join(str(error).split())})")
             ]
-        limits = [max(OVERLAP_FRACTION * max(obj.geom.size), OVERLAP_FLOOR) for obj in scene.objects]
+        limits = overlap_limits(scene)
         for frame in range(dataset.n_frames):
             simulator.reset(dataset.frame(trajectory, frame))
-            # One problem per overlapping pair: the deepest of its contact points.
-            deepest: dict[tuple[int, int], float] = {}
-            for obj, other, depth in simulator.object_penetrations():
-                pair = (min(obj, other), max(obj, other)) if other >= 0 else (obj, other)
-                deepest[pair] = max(depth, deepest.get(pair, 0.0))
-            for (obj, other), depth in sorted(deepest.items()):
-                if other < 0:
-                    obj, other = max(obj, other), -1
-                limit = limits[obj] if other < 0 else min(limits[obj], limits[other])
-                if depth <= limit:
-                    continue
-                what = f"object {other}" if other >= 0 else "the end-effector or an obstacle"
+            for overlap in deep_overlaps(simulator, limits):
                 problems.append(
                     Problem(
-                        FRAMES_FILE,
-                        "object_pos",
-                        f"trajectory {trajectory}, frame {frame}",
-                        f"object {obj} overlaps {what} by {1000 * depth:.1f} mm (limit {1000 * limit:.1f} mm)",
+                        FRAMES_FILE, "object_pos", f"trajectory {trajectory}, frame {frame}", describe_overlap(*overlap)
                     )
                 )
                 if len(problems) >= _MAX_PER_KIND:
@@ -205,6 +230,9 @@ __all__ = [
     "OVERLAP_FRACTION",
     "Problem",
     "check_dataset",
+    "deep_overlaps",
+    "describe_overlap",
+    "overlap_limits",
     "overlap_problems",
     "overlaps_expected",
     "require_valid",

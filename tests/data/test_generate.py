@@ -1,0 +1,70 @@
+"""Generation never writes frames that the dataset check refuses: a too-deep draw is redrawn."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.data import generate as generate_module
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.generate import MAX_DRAWS, REDRAWN_KEY, generate_dataset, replay_trajectory, trajectory_rng
+from energy_margin.data.validation import check_dataset
+from energy_margin.errors import EnergyMarginError
+
+
+def test_a_crowd_of_twenty_cylinders_is_redrawn_where_it_sinks_into_itself(tmp_path: Path) -> None:
+    # Seed 43's trajectory 12 piles 20 cylinders 28 mm deep into a wall (limit 25 mm): redrawn.
+    dataset = generate_dataset("pushing", n_objects=20, n_trajectories=13, n_frames=10, seed=43, out=tmp_path / "d")
+    assert dataset.metadata[REDRAWN_KEY] == {"12": 1}
+    assert check_dataset(tmp_path / "d") == []
+    first_draw = generate_module.record_trajectory(
+        dataset.task, 20, 10, trajectory_rng(43, 13, 12), check_overlaps=False
+    )
+    assert not np.array_equal(first_draw["object_pos"], dataset.arrays["object_pos"][12])
+
+
+def _refuse_first_draws(monkeypatch: pytest.MonkeyPatch, refused: int) -> list[int]:
+    """Make the overlap check refuse the first ``refused`` draws of trajectory 1 (counting the draws)."""
+    calls: list[int] = []
+    real = generate_module.record_trajectory
+
+    def record(task, n_objects, n_frames, rng, *, engine="mujoco", check_overlaps=False):  # type: ignore[no-untyped-def]
+        record = real(task, n_objects, n_frames, rng, engine=engine, check_overlaps=check_overlaps)
+        if 1 <= len(calls) <= refused:  # the first call is trajectory 0's
+            calls.append(1)
+            raise generate_module.DeepOverlapError("frame 0: object 0 overlaps object 1 by 30.0 mm (limit 25.0 mm)")
+        calls.append(0)
+        return record
+
+    monkeypatch.setattr(generate_module, "record_trajectory", record)
+    return calls
+
+
+def test_a_redrawn_trajectory_is_recorded_and_replays(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    plain = generate_dataset("pushing", n_objects=2, n_trajectories=3, n_frames=3, seed=5, out=tmp_path / "plain")
+    _refuse_first_draws(monkeypatch, refused=2)
+    redrawn = generate_dataset("pushing", n_objects=2, n_trajectories=3, n_frames=3, seed=5, out=tmp_path / "r")
+    assert REDRAWN_KEY not in plain.metadata
+    assert redrawn.metadata[REDRAWN_KEY] == {"1": 2}
+    for key in ("object_pos", "drive"):
+        assert np.array_equal(redrawn.arrays[key][[0, 2]], plain.arrays[key][[0, 2]])
+        assert not np.array_equal(redrawn.arrays[key][1], plain.arrays[key][1])
+    monkeypatch.undo()
+    reloaded = load_dataset(tmp_path / "r")
+    steps = reloaded.task.frame_steps(3)
+    replayed = [state for _, state in replay_trajectory(reloaded, 1, steps)]
+    for frame, state in enumerate(replayed):
+        assert np.array_equal(state.object_pos, reloaded.arrays["object_pos"][1, frame])
+
+
+def test_generation_gives_up_in_one_line_when_every_draw_overlaps(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _refuse_first_draws(monkeypatch, refused=MAX_DRAWS)
+    with pytest.raises(EnergyMarginError, match=f"trajectory 1: each of {MAX_DRAWS} draws") as error:
+        generate_dataset("pushing", n_objects=2, n_trajectories=3, n_frames=3, seed=5, out=tmp_path / "r")
+    assert "\n" not in str(error.value)
+    assert str(error.value).count("cannot generate") == 1
+    assert not (tmp_path / "r").exists()
