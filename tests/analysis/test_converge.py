@@ -172,38 +172,8 @@ def test_a_full_budget_file_from_before_the_rule_existed_still_resumes(tiny_data
     analyze(tiny_dataset, config, seed=0, progress=False)  # no tolerance: the rule never mattered
 
 
-def test_cli_adaptive_budget_is_the_default(tiny_dataset: Path) -> None:
-    from energy_margin.cli.analyze import DEFAULT_CONVERGE
-
-    assert main(["analyze", str(tiny_dataset), "--iterations", "100", "--no-progress"]) == 0
-    recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
-    assert recorded["analyzer"]["converge"] == DEFAULT_CONVERGE == 0.02
-    assert recorded["analyzer"]["converge_rule"] == "projected"
-
-
-def test_cli_full_budget_grows_every_tree_to_the_budget(tiny_dataset: Path) -> None:
-    assert main(["analyze", str(tiny_dataset), "--iterations", "40", "--full-budget", "--no-progress"]) == 0
+def test_cli_spends_the_whole_budget_by_default(tiny_dataset: Path) -> None:
+    assert main(["analyze", str(tiny_dataset), "--iterations", "40", "--no-progress"]) == 0
     recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["converge"] is None
     assert set(load_scores(tiny_dataset)["iterations"]) == {40}
-
-
-def test_cli_scores_of_the_old_default_point_to_full_budget(
-    tiny_dataset: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    analyze(tiny_dataset, AnalyzerConfig(iterations=20), seed=0, progress=False)  # the whole budget
-    assert main(["analyze", str(tiny_dataset), "--iterations", "20", "--no-progress"]) == 2
-    error = capsys.readouterr().err.strip()
-    assert len(error.splitlines()) == 1
-    assert "add --full-budget to resume them" in error
-    assert main(["analyze", str(tiny_dataset), "--iterations", "20", "--full-budget", "--no-progress"]) == 0
-
-
-def test_cli_converge_and_full_budget_exclude_each_other(
-    tiny_dataset: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    with pytest.raises(SystemExit) as exit_info:
-        main(["analyze", str(tiny_dataset), "--converge", "0.03", "--full-budget"])
-    assert exit_info.value.code == 2
-    assert "not allowed with argument" in capsys.readouterr().err
-    assert not (tiny_dataset / CONFIG_FILE).exists()

@@ -105,7 +105,6 @@ def test_a_lost_node_loses_no_frame(tmp_path: Path, cluster: tuple[str, set[int]
         str(on_cluster),
         "--iterations",
         str(CONFIG.iterations),
-        "--full-budget",
         "--seed",
         str(SEED),
         "--workers",

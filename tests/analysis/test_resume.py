@@ -40,7 +40,6 @@ def _command(directory: Path, workers: int) -> list[str]:
         str(directory),
         "--iterations",
         str(ITERATIONS),
-        "--full-budget",  # the reference below is the library's default, the whole budget
         "--no-progress",
         "--workers",
         str(workers),

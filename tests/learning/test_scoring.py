@@ -168,7 +168,6 @@ def test_evaluate_reads_learned_scores(
         ["--nodes", "10"],
         ["--workers", "2"],
         ["--converge", "0.02"],
-        ["--full-budget"],
         ["--method", "rrt"],
         ["--engine", "pybullet"],
         ["--lambda", "2"],

@@ -17,7 +17,7 @@ The network reads every object's channels and the frame's summary features
 PyTorch fits it (:func:`fit_set_regressor`, the ``learn`` extra; on the CPU, in float32, with Adam,
 a binary cross-entropy against the tree's scores and early stopping on held-out trajectories).
 What is kept and saved is only the weights as arrays: :class:`SetRegressor` predicts with numpy
-alone, so scoring with a fitted model needs no PyTorch, and a tests check that both give the same
+alone, so scoring with a fitted model needs no PyTorch, and the tests check that both give the same
 outputs.
 """
 
