@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import non_negative_int, positive_int, print_json
+from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json
 
 NAME = "evaluate"
 SUMMARY = "Average Precision of a scored dataset against its labels; with --compare, Table I"
@@ -25,6 +25,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--weights", choices=("linear", "uniform"), default="linear", help="trajectory success weights (default linear)"
     )
     parser.add_argument(
+        "--resamples",
+        type=non_negative_int,
+        default=1000,
+        help="bootstrap resamples of the trajectories behind the verdict (margin - best baseline, paired "
+        "interval); 0: no verdict (default 1000)",
+    )
+    add_seed(parser)
+    parser.add_argument(
         "--compare",
         nargs="+",
         default=None,
@@ -38,13 +46,14 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.evaluation.metrics import evaluate, format_table
 
     options = {"capture_window": args.capture_window, "success_frames": args.success_frames, "weights": args.weights}
+    verdict = {"resamples": args.resamples, "seed": args.seed}
     if args.compare:
         from energy_margin.robustness.compare import compare_perturbed, format_robustness_table
 
         result = compare_perturbed(args.dataset, args.compare, **options)
         text = format_table(result) + "\n\n" + format_robustness_table(result)
     else:
-        result = evaluate(args.dataset, **options)
+        result = evaluate(args.dataset, **options, **verdict)
         text = format_table(result)
     if args.json:
         print_json(result)

@@ -48,6 +48,7 @@ class Questions:
         capture_windows: question name -> k-hat (default: budget's two capture questions).
         success_spans: question name -> frame slice ``(start, stop)`` (``None`` bounds as in Python
             slices; default: the first half of the frames).
+        weights: weights of the frames a success question averages, ``"linear"`` or ``"uniform"``.
 
     """
 
@@ -58,6 +59,7 @@ class Questions:
         *,
         capture_windows: dict[str, int] | None = None,
         success_spans: dict[str, tuple[int | None, int | None]] | None = None,
+        weights: str = "linear",
     ) -> None:
         half = max(1, dataset.n_frames // 2)
         windows = capture_windows if capture_windows is not None else {"capture_ap": 0, "capture_ap_window2": 2}
@@ -66,6 +68,7 @@ class Questions:
         self.spans = {name: slice(*span) for name, span in spans.items()}
         self.success = dataset.success_labels()
         self.success_frames = success_frames
+        self.weights = weights
         self.names: tuple[str, ...] = (*self.capture, *self.spans)
 
     def answer(self, capture: np.ndarray, success: np.ndarray, rows: np.ndarray) -> dict[str, float | None]:
@@ -81,7 +84,7 @@ class Questions:
             name: average_precision(labels[rows], capture[rows]) for name, labels in self.capture.items()
         }
         for name, span in self.spans.items():
-            scores = trajectory_success_score(success[rows, span], last=self.success_frames)
+            scores = trajectory_success_score(success[rows, span], last=self.success_frames, scheme=self.weights)
             result[name] = average_precision(self.success[rows], scores)
         return result
 

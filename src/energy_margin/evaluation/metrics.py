@@ -24,8 +24,9 @@ from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_positive_int
+from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_positive_int, check_seed
 from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.verdict import verdicts
 
 
 def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
@@ -108,14 +109,19 @@ def evaluate(
     capture_window: int = 0,
     success_frames: int = 3,
     weights: str = "linear",
+    resamples: int = 1000,
+    seed: int = 0,
 ) -> dict[str, Any]:
-    """AP of a scored dataset.
+    """AP of a scored dataset, its baselines' and the verdict of the margin against the best of them.
 
     Args:
         path: dataset directory holding ``scores.csv``.
         capture_window: k-hat of the capture label, >= 0.
         success_frames: k-bar, frames averaged by the trajectory success score, >= 1.
         weights: ``"linear"`` (increasing towards the end) or ``"uniform"``.
+        resamples: bootstrap resamples of the trajectories behind the verdict's paired intervals
+            (:mod:`energy_margin.evaluation.verdict`), >= 0; 0 gives no verdict.
+        seed: seeds the resamples.
 
     Returns:
         A JSON-compatible dictionary (keys documented in ``docs/evaluation.md``).
@@ -124,6 +130,8 @@ def evaluate(
     check_int("capture_window", capture_window, minimum=0)
     check_positive_int("success_frames", success_frames)
     check_choice("weights", weights, ("linear", "uniform"))
+    check_int("resamples", resamples, minimum=0)
+    check_seed(seed)
     dataset = require_valid(path, overlaps=True, scores=None)
     check_options(dataset, capture_window=capture_window, success_frames=success_frames)
     scores = load_scores(path)
@@ -143,6 +151,14 @@ def evaluate(
     heuristic = distance_scores(dataset)
     if heuristic is not None:
         result["baselines"]["distance"] = _questions(dataset, *heuristic, **options)
+    if resamples:
+        compared = {"current_state": (current_capture, current_success)}
+        if heuristic is not None:
+            compared["distance"] = heuristic
+        found = verdicts(dataset, (capture, success), compared, **options, resamples=resamples, seed=seed)
+        result["verdict"] = {question: found[question].to_dict() for question in found}
+        result["verdict_resamples"] = resamples
+        result["seed"] = seed
     capture_labels = dataset.capture_labels(capture_window)
     result.update(
         {
@@ -168,6 +184,15 @@ def _cell(value: float | None) -> str:
     return "  n/a" if value is None else f"{value:5.3f}"
 
 
+def _verdict_cell(verdict: dict[str, Any]) -> str:
+    if verdict["difference"] is None or verdict["low"] is None or verdict["high"] is None:
+        return "n/a"
+    return (
+        f"{verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}] "
+        f"{verdict['word']} ({verdict['baseline']})"
+    )
+
+
 def format_table(result: dict[str, Any]) -> str:
     """A human-readable table of :func:`evaluate`'s result."""
     k_hat, k_bar = result["capture_window"], result["success_frames"]
@@ -178,7 +203,10 @@ def format_table(result: dict[str, Any]) -> str:
         ("success AP, first half of frames", "success_ap_first_half"),
     ]
     names = list(result["baselines"])
+    verdict = result.get("verdict")
     header = f"{'question':34s} {'energy-margin':>13s} " + " ".join(f"{n:>13s}" for n in names)
+    if verdict:
+        header += "  margin - best baseline [95 %]"
     lines = [
         f"{result['task']}: {result['n_trajectories']} trajectories, {result['n_frames']} frames, "
         f"{result['n_objects']} objects",
@@ -187,7 +215,15 @@ def format_table(result: dict[str, Any]) -> str:
     ]
     for label, key in rows:
         baseline_cells = " ".join(f"{_cell(result['baselines'][n][key]):>13s}" for n in names)
-        lines.append(f"{label:34s} {_cell(result[key]):>13s} {baseline_cells}")
+        line = f"{label:34s} {_cell(result[key]):>13s} {baseline_cells}"
+        if verdict:
+            line += f"  {_verdict_cell(verdict[key])}"
+        lines.append(line)
+    if verdict:
+        lines.append(
+            f"verdict: paired bootstrap over trajectories ({result['verdict_resamples']} resamples, seed "
+            f"{result['seed']}); ahead / behind: the interval lies above / below 0, level: it holds 0"
+        )
     lines.append(
         f"positive rate: capture {result['capture_positive_rate']:.3f} (k-hat={k_hat}), "
         f"success {result['success_positive_rate']:.3f}"

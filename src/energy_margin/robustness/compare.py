@@ -124,7 +124,7 @@ def compare_perturbed(
                 f"--compare mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
                 f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time"
             )
-        other_result = evaluate(other_path, **options)
+        other_result = evaluate(other_path, **options, resamples=0)  # a copy's AP, no verdict
         scores = load_scores(other_path)
         capture_errors.append(score_grid(other, scores, "capture_score") - true_capture)
         success_errors.append(score_grid(other, scores, "success_score") - true_success)
