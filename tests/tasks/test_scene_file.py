@@ -480,3 +480,60 @@ def test_wrench_bounds_count_the_armature_of_the_objects_joints(tmp_path: Path) 
     # linear_acceleration defaults to 2 m/s^2 per axis: (0.1 kg + armature) x 2 m/s^2.
     np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * 2.0, 0.1 * 2.0, 0.1 * 2.0])
     np.testing.assert_allclose(limits[0, 3:], 0.0)
+
+
+def test_a_tight_strip_is_filled_by_starting_the_layout_again(make_scene) -> None:
+    # Two 6 cm boxes 0.1 m apart on a 0.12 m strip: the first box placed in the middle leaves the
+    # second no room (the layout used to fail there); a fresh layout finds the ends.
+    strip = "[randomize.start]\nx = [-0.06, 0.06]\ny = [0.02, 0.02]\nmin_separation = 0.1\n"
+    task = get_task(
+        "scene",
+        {
+            "scene_file": str(
+                make_scene(
+                    replace={"[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n": strip}
+                )
+            )
+        },
+    )
+    for seed in range(12):
+        initial = task.sample_trajectory(np.random.default_rng(seed), 2).initial
+        assert abs(initial.object_pos[0, 0] - initial.object_pos[1, 0]) > 0.1
+        assert np.all(np.abs(initial.object_pos[:, 0]) <= 0.06)
+
+
+def test_an_impossible_layout_names_the_object_the_ranges_and_a_grids_capacity(
+    make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    strip = "[randomize.start]\nx = [-0.04, 0.04]\ny = [0.02, 0.02]\nmin_separation = 0.1\n"
+    scene = make_scene(replace={"[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n": strip})
+    for command in (["scene", str(scene), "--no-picture"], ["scene", str(scene), "--picture", str(tmp_path / "p.png")]):
+        status = main(command)
+        error = capsys.readouterr().err
+        if "--no-picture" in command:
+            assert status == 0  # the summary draws no layout
+            continue
+        assert status == 2
+        assert error.count("\n") == 1 and "ValueError" not in error, error
+        assert "cannot place 2 objects 0.1 m apart (x in [-0.04, 0.04] m, y in [0.02, 0.02] m)" in error
+        assert "at most 1 fit in" in error and "box_b found no room" in error
+        assert "a grid of 0.1 m spacing holds 1 origins there" in error
+        assert not (tmp_path / "p.png").exists()
+
+
+def test_a_start_on_the_robot_names_the_deepest_overlap(make_scene) -> None:
+    on_pusher = "[randomize.start]\nx = [-0.1, 0.1]\ny = [-0.15, -0.15]\n"
+    task = get_task(
+        "scene",
+        {
+            "scene_file": str(
+                make_scene(
+                    replace={"[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n": on_pusher}
+                )
+            )
+        },
+    )
+    with pytest.raises(
+        ValueError, match=r"without overlap in 200 draws \(the last: box_[ab] [0-9.]+ mm into the robot"
+    ):
+        task.sample_trajectory(np.random.default_rng(0), 2)

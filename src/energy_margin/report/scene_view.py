@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import staging_directory
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks.scene_model import compile_spec
@@ -102,9 +103,17 @@ def describe_scene(task: SceneTask) -> list[str]:
 
 
 def start_frame(task: SceneTask, seed: int = 0) -> FrameState:
-    """The first start ``generate --seed SEED`` draws (trajectory 0)."""
+    """The first start ``generate --seed SEED`` draws (trajectory 0).
+
+    Raises:
+        EnergyMarginError: the scene file's start ranges hold no layout (the message of
+            ``generate``, in one line).
+    """
     child = np.random.SeedSequence(seed).spawn(1)[0]
-    return task.sample_trajectory(np.random.default_rng(child), task.loaded.n_objects).initial
+    try:
+        return task.sample_trajectory(np.random.default_rng(child), task.loaded.n_objects).initial
+    except ValueError as error:
+        raise EnergyMarginError(f"cannot draw the scene's start: {error}") from None
 
 
 def _add_region_geoms(

@@ -26,6 +26,10 @@ from energy_margin.world.state import FrameState, yaw_from_quat
 
 #: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
 _LAYOUT_ATTEMPTS = 200
+#: Draws of one object's origin before the layout starts again (the objects before took its room).
+_DRAWS_PER_OBJECT = 2_000
+#: Fresh layouts before the separation is declared impossible in the start ranges.
+_LAYOUT_RESTARTS = 50
 #: Deepest accepted contact penetration of a freshly placed object, m.
 _PLACEMENT_TOLERANCE = 1e-3
 
@@ -300,16 +304,23 @@ class SceneTask(Task):
         mass_scale = float(rng.uniform(*spec.mass_scale)) if spec.mass_scale is not None else 1.0
         drive = np.array([time_scale, mass_scale])
         simulator = self.make_simulator(n_objects, friction, drive)
+        deepest = (0, -1, 0.0)
         for _ in range(_LAYOUT_ATTEMPTS):
             pos, quat = self._draw_layout(rng)
             initial = self.initial_frame(pos, quat, drive)
             simulator.reset(initial)
             self._apply_start_command(simulator, drive)
-            if all(depth <= _PLACEMENT_TOLERANCE for _, _, depth in simulator.object_penetrations()):
+            overlaps = [contact for contact in simulator.object_penetrations() if contact[2] > _PLACEMENT_TOLERANCE]
+            if not overlaps:
                 return Trajectory(initial=initial, friction=friction, drive=drive)
+            deepest = max(overlaps, key=lambda contact: contact[2])
+        obj, other, depth = deepest
+        names = self.loaded.object_names
+        what = names[other] if other >= 0 else "the robot or an obstacle"
         raise ValueError(
             f"{spec.path}: randomize.start: cannot place the {n_objects} objects without overlap in "
-            f"{_LAYOUT_ATTEMPTS} draws; widen the start ranges or lower min_separation"
+            f"{_LAYOUT_ATTEMPTS} draws (the last: {names[obj]} {1000 * depth:.1f} mm into {what}); widen the start "
+            "ranges, lower min_separation or move the start ranges off the robot"
         )
 
     def _apply_start_command(self, simulator: Simulator, drive: np.ndarray) -> None:
@@ -320,40 +331,84 @@ class SceneTask(Task):
         mujoco.mj_forward(compiled.model, compiled.data)
 
     def _draw_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation."""
+        """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation.
+
+        Objects are placed one at a time, each drawn until it lies the separation away from those
+        already placed; an object that finds no room in :data:`_DRAWS_PER_OBJECT` draws (the ones
+        before took it) starts the layout again, up to :data:`_LAYOUT_RESTARTS` times.
+
+        Raises:
+            ValueError: no layout fits, naming the object that found no room, the start ranges,
+                the separation and how many origins a grid of that spacing fits in the ranges.
+        """
+        loaded = self.loaded
+        n = loaded.n_objects
+        separation = self._separation()
+        most_placed = 0
+        for _restart in range(_LAYOUT_RESTARTS):
+            pos = np.empty((n, 3))
+            quat = np.empty((n, 4))
+            placed = 0
+            for index in range(n):
+                for _attempt in range(_DRAWS_PER_OBJECT):
+                    candidate = self._draw_origin(rng, index)
+                    if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
+                        pos[index] = candidate
+                        # Drawn right after its origin: the order of draws of every layout that fits.
+                        quat[index] = self._draw_orientation(rng, index)
+                        placed += 1
+                        break
+                else:
+                    break
+            most_placed = max(most_placed, placed)
+            if placed == n:
+                return pos, quat
+        raise ValueError(self._placement_failure(most_placed, separation))
+
+    def _separation(self) -> float:
+        start = self.loaded.spec.start
+        if start.min_separation is not None:
+            return float(start.min_separation)
+        return 2.0 * float(np.max(self.loaded.object_radius))
+
+    def _draw_origin(self, rng: np.random.Generator, index: int) -> np.ndarray:
+        start = self.loaded.spec.start
+        if start.low is not None and start.high is not None:
+            return np.asarray(rng.uniform(start.low, start.high), dtype=float)
+        candidate = self._index.object_positions(self.loaded.initial_qpos)[index].copy()
+        for axis, column in (("x", 0), ("y", 1), ("z", 2)):
+            if axis in start.ranges:
+                candidate[column] = rng.uniform(*start.ranges[axis])
+        return np.asarray(candidate, dtype=float)
+
+    def _draw_orientation(self, rng: np.random.Generator, index: int) -> np.ndarray:
+        start = self.loaded.spec.start
+        if start.mode == "pile":
+            axis_angle = rng.normal(size=4)
+            return np.asarray(axis_angle / np.linalg.norm(axis_angle), dtype=float)
+        yaw = float(rng.uniform(*start.ranges["yaw"])) if "yaw" in start.ranges else 0.0
+        return _quat_multiply(_quat_yaw(yaw), self._base_quat(index))
+
+    def _placement_failure(self, most_placed: int, separation: float) -> str:
+        """Why no layout fits: the object that found no room, the ranges and a grid's capacity."""
         loaded = self.loaded
         start = loaded.spec.start
         n = loaded.n_objects
-        base_pos = self._index.object_positions(loaded.initial_qpos)
-        separation = (
-            start.min_separation if start.min_separation is not None else 2.0 * float(np.max(loaded.object_radius))
+        if start.low is not None and start.high is not None:
+            spans = {axis: (float(lo), float(hi)) for axis, lo, hi in zip("xyz", start.low, start.high, strict=True)}
+        else:
+            spans = {axis: start.ranges[axis] for axis in "xyz" if axis in start.ranges}
+        described = ", ".join(f"{axis} in [{lo:.3g}, {hi:.3g}] m" for axis, (lo, hi) in spans.items())
+        capacity = 1
+        for lo, hi in spans.values():
+            capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
+        stuck = loaded.object_names[min(most_placed, n - 1)]
+        return (
+            f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart "
+            f"({described or 'at their model positions'}): at most {most_placed} fit in {_LAYOUT_RESTARTS} layouts, "
+            f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws; a grid of {separation:.3g} m spacing holds "
+            f"{capacity} origins there; widen the start ranges or lower min_separation"
         )
-        pos = np.empty((n, 3))
-        quat = np.empty((n, 4))
-        for index in range(n):
-            for _attempt in range(100_000):
-                if start.low is not None and start.high is not None:
-                    candidate = rng.uniform(start.low, start.high)
-                else:
-                    candidate = base_pos[index].copy()
-                    for axis, column in (("x", 0), ("y", 1), ("z", 2)):
-                        if axis in start.ranges:
-                            candidate[column] = rng.uniform(*start.ranges[axis])
-                if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
-                    break
-            else:
-                raise ValueError(
-                    f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart"
-                )
-            pos[index] = candidate
-            if start.mode == "pile":
-                axis_angle = rng.normal(size=4)
-                quat[index] = axis_angle / np.linalg.norm(axis_angle)
-            else:
-                yaw = float(rng.uniform(*start.ranges["yaw"])) if "yaw" in start.ranges else 0.0
-                base = self._base_quat(index)
-                quat[index] = _quat_multiply(_quat_yaw(yaw), base)
-        return pos, quat
 
     def _qpos_address(self, index: int) -> int:
         return int(self.loaded.model.jnt_qposadr[self.loaded.object_joints[index]])
