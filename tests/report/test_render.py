@@ -221,3 +221,12 @@ def test_a_region_without_shapes_is_drawn_as_grid_cells() -> None:
     cells = render.region_shapes(_Everywhere(), np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 1.0]]), height=0.1)
     assert len(cells) == 48 * 48
     assert all(cell.centre[2] == 0.1 and cell.kind == "box" for cell in cells)
+
+
+def test_a_picture_frames_the_robot_parts_near_the_objects_only() -> None:
+    from energy_margin.report.render import near_objects
+
+    objects = np.array([[0.0, 0.3, 0.03], [0.1, 0.35, 0.03]])
+    paddle, arm_base, floor_far = [0.05, 0.2, 0.05], [0.0, -0.6, 0.1], [3.0, 3.0, 0.0]
+    kept = near_objects(np.array([paddle, arm_base, floor_far]), objects)
+    assert kept.tolist() == [paddle]

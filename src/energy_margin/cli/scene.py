@@ -29,6 +29,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--capture-radius", type=float, help="with --from-gym: radius of the starter capture region, m")
     parser.add_argument("--picture", help="PNG to write (default: SCENE.png beside the scene file)")
     parser.add_argument("--no-picture", action="store_true", help="only print the summary")
+    parser.add_argument(
+        "--camera",
+        metavar="AZIMUTH,ELEVATION[,DISTANCE]",
+        help="the picture's camera, degrees and m (default: heading 135, pitch -60, at the distance that frames "
+        "the objects and the regions)",
+    )
     add_seed(parser)
 
 
@@ -42,6 +48,14 @@ def run(args: argparse.Namespace) -> int:
         args.scene = _from_gym(args)
     elif args.scene is None:
         raise EnergyMarginError("give a scene file, or --from-gym ENV_ID --objects PATTERN --out SCENE.toml")
+    camera = None
+    if args.camera is not None:
+        from energy_margin.report.scene_view import parse_camera
+
+        try:
+            camera = parse_camera(args.camera)
+        except ValueError as error:
+            raise EnergyMarginError(str(error)) from None
     task = get_task("scene", {"scene_file": os.path.abspath(args.scene)})
     assert isinstance(task, SceneTask)
     from energy_margin.report.scene_view import describe_scene, render_scene
@@ -52,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     require_matplotlib()
     picture = Path(args.picture) if args.picture else Path(args.scene).with_suffix(".png")
-    frame = render_scene(task, picture, seed=args.seed)
+    frame = render_scene(task, picture, seed=args.seed, camera=camera)
     captured = task.is_captured(frame)
     successful = task.is_successful(frame)
     print(

@@ -113,6 +113,21 @@ def fit_view(points: np.ndarray, *, elevation: float, azimuth: float = 90.0, fov
     return View(lookat, float(distance), azimuth, elevation)
 
 
+def near_objects(points: np.ndarray, object_pos: np.ndarray) -> np.ndarray:
+    """The ``points`` (n, 3) that lie near the objects (m, 3), m: what a picture of them frames.
+
+    Near: within 0.3 m plus twice the objects' spread of their centre. A pusher or a scoop is
+    there; a third-party arm's base, upper links and floor are not, and framing them left the
+    objects a few pixels wide.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    objects = np.asarray(object_pos, dtype=float).reshape(-1, 3)
+    centre = objects.mean(axis=0)
+    spread = float(np.max(np.linalg.norm(objects - centre, axis=1)))
+    keep = np.linalg.norm(points - centre, axis=1) <= 0.3 + 2.0 * spread
+    return points[keep]
+
+
 def scene_view(scene: Scene, points: np.ndarray, *, fovy: float = 45.0) -> View:
     """The view of a scene's frame: from above for planar (upright) objects, from the side otherwise."""
     planar = scene.object_motion == "upright"
@@ -369,7 +384,8 @@ class FrameRenderer:
         self.simulator.reset(frame)
         model, data = self.simulator.model, self.simulator.data
         robot = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
-        parts = [np.asarray(frame.object_pos, dtype=float), np.asarray(data.geom_xpos[robot], dtype=float)]
+        objects = np.asarray(frame.object_pos, dtype=float)
+        parts = [objects, near_objects(data.geom_xpos[robot], objects)]
         if field is not None:
             parts.append(field.object_pos.reshape(-1, 3))
         return np.concatenate(parts)

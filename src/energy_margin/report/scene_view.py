@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
+from energy_margin.report.render import View, fit_view
 from energy_margin.runs.files import staging_directory
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks.scene_model import compile_spec
@@ -116,16 +117,29 @@ def start_frame(task: SceneTask, seed: int = 0) -> FrameState:
         raise EnergyMarginError(f"cannot draw the scene's start: {error}") from None
 
 
+def _corners(centre: np.ndarray, rotation: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The 8 corners (8, 3) of a box of half sizes ``half`` (3,) at ``centre`` rotated by ``rotation``."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    return np.asarray(centre + (signs * half) @ rotation.T, dtype=float)
+
+
 def _add_region_geoms(
-    spec: mujoco.MjSpec, table: Mapping[str, Any], lookup: Any, rgba: tuple[float, ...], extent: float
+    spec: mujoco.MjSpec,
+    table: Mapping[str, Any],
+    lookup: Any,
+    rgba: tuple[float, ...],
+    extent: float,
+    bounds: list[np.ndarray] | None = None,
 ) -> None:
+    """Add a region's shapes to ``spec``; append the corners of the bounded ones to ``bounds`` (m)."""
+    bounds = [] if bounds is None else bounds
     kind = table["type"]
     if kind in ("all", "any"):
         for part in table["of"]:
-            _add_region_geoms(spec, part, lookup, rgba, extent)
+            _add_region_geoms(spec, part, lookup, rgba, extent, bounds)
         return
     if kind == "not":
-        _add_region_geoms(spec, table["region"], lookup, _EXCLUDED_RGBA, extent)
+        _add_region_geoms(spec, table["region"], lookup, _EXCLUDED_RGBA, extent, bounds)
         return
     origin, rotation = np.zeros(3), np.eye(3)
     for frame_kind in ("body", "site"):
@@ -139,13 +153,17 @@ def _add_region_geoms(
         spec.worldbody.add_geom(
             type=mujoco.mjtGeom.mjGEOM_BOX, size=list(table["half_size"]), pos=pos, quat=quat, **common
         )
+        bounds.append(_corners(pos, rotation, np.asarray(table["half_size"], dtype=float)))
     elif kind == "cylinder":
         pos = origin + rotation @ np.asarray(table["center"])
         size = [table["radius"], table["half_height"], 0.0]
         spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=size, pos=pos, quat=quat, **common)
+        half = np.array([table["radius"], table["radius"], table["half_height"]], dtype=float)
+        bounds.append(_corners(pos, rotation, half))
     elif kind == "distance":
         point = lookup("site" if "site" in table else "body", table.get("site", table.get("body")))[0]
         spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[table["max"], 0, 0], pos=point, **common)
+        bounds.append(_corners(np.asarray(point, dtype=float), np.eye(3), np.full(3, float(table["max"]))))
     elif kind == "height":
         reference = float(lookup("body", table["body"])[0][2]) if "body" in table else float(table.get("plane", 0.0))
         # Thin sheets at the bounds: a solid slab would hide the scene.
@@ -196,8 +214,79 @@ def _render(
     return np.flipud(pixels)
 
 
-def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960, height: int = 720) -> FrameState:
-    """Write a PNG of the scene at t = 0 with its capture (blue) and success (green) sets; return the frame."""
+#: The picture's default heading and pitch, degrees.
+DEFAULT_AZIMUTH, DEFAULT_ELEVATION = 135.0, -60.0
+
+
+def framed_view(
+    object_pos: np.ndarray,
+    object_radius: np.ndarray,
+    region_bounds: list[np.ndarray],
+    *,
+    camera: tuple[float, ...] | None = None,
+) -> View:
+    """The picture's camera: framing the objects and the bounded regions, whatever else the model holds.
+
+    A robot arm's base, its links and the floor are left out of the framing: a third-party arm's
+    model spans metres while its objects span centimetres.
+
+    Args:
+        object_pos: object origins, shape (n, 3), m.
+        object_radius: their bounding radii, shape (n,), m.
+        region_bounds: corner points of the bounded capture and success regions, each (m, 3), m
+            (height bounds have none).
+        camera: ``(azimuth, elevation)`` in degrees, or ``(azimuth, elevation, distance)`` with
+            the distance in m, overriding the fitted one (``--camera``); ``None`` for the defaults.
+
+    Returns:
+        A :class:`~energy_margin.report.render.View`.
+    """
+    positions = np.asarray(object_pos, dtype=float).reshape(-1, 3)
+    radius = np.broadcast_to(np.asarray(object_radius, dtype=float), (positions.shape[0],))
+    offsets = np.concatenate([np.eye(3), -np.eye(3)])
+    points = [(positions[:, None, :] + radius[:, None, None] * offsets[None]).reshape(-1, 3), *region_bounds]
+    azimuth, elevation = DEFAULT_AZIMUTH, DEFAULT_ELEVATION
+    if camera is not None:
+        azimuth, elevation = float(camera[0]), float(camera[1])
+    view = fit_view(np.concatenate(points), elevation=elevation, azimuth=azimuth)
+    if camera is not None and len(camera) == 3:
+        view = View(view.lookat, float(camera[2]), azimuth, elevation)
+    return view
+
+
+def parse_camera(text: str) -> tuple[float, ...]:
+    """``--camera AZIMUTH,ELEVATION[,DISTANCE]`` as numbers (degrees, degrees, m).
+
+    Raises:
+        ValueError: not two or three finite numbers, an elevation outside [-90, 90] or a distance <= 0.
+    """
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (2, 3) or not all(np.isfinite(values)):
+        raise ValueError(f"--camera takes AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, m), got {text!r}")
+    if not -90.0 <= values[1] <= 90.0:
+        raise ValueError(f"--camera: elevation {values[1]:g} is outside [-90, 90] degrees")
+    if len(values) == 3 and values[2] <= 0.0:
+        raise ValueError(f"--camera: distance {values[2]:g} m must be > 0")
+    return values
+
+
+def render_scene(
+    task: SceneTask,
+    path: Path,
+    *,
+    seed: int = 0,
+    width: int = 960,
+    height: int = 720,
+    camera: tuple[float, ...] | None = None,
+) -> FrameState:
+    """Write a PNG of the scene at t = 0 with its capture (blue) and success (green) sets; return the frame.
+
+    ``camera``: see :func:`framed_view` (``None``: frame the objects and the regions from the
+    default heading and pitch).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -207,8 +296,9 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     frame = start_frame(task, seed)
     model_spec, _ = compile_spec(loaded.spec)
     extent = float(np.max(np.abs(frame.object_pos[:, :2]))) + 1.0
-    _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent)
-    _add_region_geoms(model_spec, loaded.spec.success, task.frame_lookup(None), _SUCCESS_RGBA, extent)
+    region_bounds: list[np.ndarray] = []
+    _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent, region_bounds)
+    _add_region_geoms(model_spec, loaded.spec.success, task.frame_lookup(None), _SUCCESS_RGBA, extent, region_bounds)
     centre = frame.object_pos.mean(axis=0)
     model_spec.worldbody.add_light(pos=[centre[0], centre[1], centre[2] + 3.0], dir=[0.0, 0.0, -1.0], castshadow=False)
     model = model_spec.compile()
@@ -224,14 +314,13 @@ def render_scene(task: SceneTask, path: Path, *, seed: int = 0, width: int = 960
     data.mocap_pos[:] = posed.mocap_pos
     data.mocap_quat[:] = posed.mocap_quat
     mujoco.mj_forward(model, data)
-    camera = mujoco.MjvCamera()
-    spread = float(np.max(np.linalg.norm(frame.object_pos - centre, axis=1))) + float(np.max(loaded.object_radius))
-    camera.lookat[:] = centre
-    reach = float(np.max(np.linalg.norm(data.xpos[1:] - centre, axis=1)))  # every body but the world
-    camera.distance = max(6.0 * spread, 2.2 * reach, 0.6)
-    camera.azimuth = 135.0
-    camera.elevation = -60.0
-    image = _render(model, data, camera, width, height)
+    view = framed_view(frame.object_pos, np.asarray(loaded.object_radius), region_bounds, camera=camera)
+    free_camera = mujoco.MjvCamera()
+    free_camera.lookat[:] = view.lookat
+    free_camera.distance = view.distance
+    free_camera.azimuth = view.azimuth
+    free_camera.elevation = view.elevation
+    image = _render(model, data, free_camera, width, height)
     figure, ax = plt.subplots(figsize=(width / 100, height / 100 + 0.4), dpi=100)
     ax.imshow(image)
     ax.set_axis_off()

@@ -178,7 +178,7 @@ def region_meshes(shapes: tuple[RegionShape, ...], bounds: np.ndarray) -> list[t
 
 def view_figure(tree: AnalysedTree) -> Any:
     """The plotly figure of an analysed frame's tree (see the module docstring)."""
-    from energy_margin.report.render import CAPTURE_RGBA, SUCCESS_RGBA, region_shapes
+    from energy_margin.report.render import CAPTURE_RGBA, SUCCESS_RGBA, near_objects, region_shapes
     from energy_margin.sim.mujoco_backend import MujocoSimulator
 
     go = _plotly()
@@ -193,7 +193,7 @@ def view_figure(tree: AnalysedTree) -> Any:
     simulator.reset(frame)
     model, data = simulator.model, simulator.data
     robot = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
-    points = np.concatenate([field.object_pos.reshape(-1, 3), data.geom_xpos[robot].reshape(-1, 3)])
+    points = np.concatenate([field.object_pos.reshape(-1, 3), near_objects(data.geom_xpos[robot], frame.object_pos)])
     low, high = points.min(axis=0), points.max(axis=0)
     margin = 0.25 * float(np.max(high - low)) + max(max(obj.geom.size) for obj in scene.objects)
     bounds = np.array([low - margin, high + margin])
