@@ -94,9 +94,7 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     rows = [
-        compare(path, model, resamples=args.resamples, seed=args.seed)
-        for path in args.datasets
-        for model in args.model
+        compare(path, model, resamples=args.resamples, seed=args.seed) for path in args.datasets for model in args.model
     ]
     if args.json:
         print(json.dumps(rows, indent=1))
