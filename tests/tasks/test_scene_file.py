@@ -125,6 +125,8 @@ BAD_INPUTS = [
         "unknown key",
     ),
     ({"[randomize]\n": "[randomize]\ncolour = 1\n"}, {}, "randomize.colour:", "unknown key"),
+    ({"[capture]\n": "[capture]\nfollow = 1\n"}, {}, "capture.follow:", "must be true or false"),
+    ({"[success]\n": "[success]\nfollow = true\n"}, {}, "success.follow:", "unknown key"),
     ({"x = [-0.12, 0.12]\ny = [-0.02, 0.08]": "x = [0.0, 0.0]\ny = [0.0, 0.0]"}, {}, "randomize.start", "cannot place"),
     ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
     ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
@@ -537,3 +539,71 @@ def test_a_start_on_the_robot_names_the_deepest_overlap(make_scene) -> None:
         ValueError, match=r"without overlap in 200 draws \(the last: box_[ab] [0-9.]+ mm into the robot"
     ):
         task.sample_trajectory(np.random.default_rng(0), 2)
+
+
+def _follow_task(make_scene, follow: bool):  # type: ignore[no-untyped-def]
+    replace = {"[capture]\n": "[capture]\nfollow = true\n"} if follow else {}
+    return get_task("scene", {"scene_file": str(make_scene(replace=replace))})
+
+
+def test_a_following_capture_region_is_built_at_every_states_own_robot_pose(make_scene) -> None:
+    from energy_margin.world.state import FrameState
+
+    frozen_task, follow_task = _follow_task(make_scene, False), _follow_task(make_scene, True)
+    assert follow_task.loaded.spec.capture_follows and not frozen_task.loaded.spec.capture_follows
+    # The pusher (a mocap body: robot_q holds its position, then its quaternion) at y = -0.15 with
+    # both boxes in its band (y from -0.13 to 0.07), then a state where the pusher went on to
+    # y = 0.15 and took the boxes along to y = 0.27, inside the band it carries but not the first one.
+    pusher = lambda y: np.array([0.0, y, 0.03, 1.0, 0.0, 0.0, 0.0])  # noqa: E731
+    root = FrameState(
+        object_pos=np.array([[-0.06, -0.03, 0.03], [0.06, -0.03, 0.03]]),
+        object_quat=np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
+        object_vel=np.zeros((2, 6)),
+        robot_q=pusher(-0.15),
+        robot_v=np.zeros(7),
+    )
+    object_pos = np.stack([root.object_pos, root.object_pos + np.array([0.0, 0.3, 0.0])])
+    object_vel = np.zeros((2, 2, 6))
+    object_quat = np.stack([root.object_quat, root.object_quat])
+    robot_q = np.stack([pusher(-0.15), pusher(0.15)])
+    frozen = frozen_task.capture_inside(root, object_pos, object_vel, object_quat, robot_q)
+    follow = follow_task.capture_inside(root, object_pos, object_vel, object_quat, robot_q)
+    assert frozen.tolist() == [True, False]
+    assert follow.tolist() == [True, True]
+    with pytest.raises(ValueError, match=r"capture\.follow needs the robot's coordinates at every tree node"):
+        follow_task.capture_inside(root, object_pos, object_vel, object_quat, None)
+
+
+def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
+    from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+
+    task = _follow_task(make_scene, True)
+    trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
+    scores, field = analyze_frame(
+        task,
+        trajectory.initial,
+        friction=trajectory.friction,
+        drive=trajectory.drive,
+        seed=1,
+        config=AnalyzerConfig(iterations=40),
+    )
+    assert field.robot_q is not None and field.robot_q.shape == (field.nodes, 7)
+    np.testing.assert_array_equal(field.robot_q[0], trajectory.initial.robot_q)
+    # The pusher follows its motion through the tree: deeper nodes are further along +y.
+    assert np.max(field.robot_q[:, 1]) > trajectory.initial.robot_q[1]
+    expected = task.capture_inside(
+        trajectory.initial, field.object_pos, field.object_vel, field.object_quat, field.robot_q
+    )
+    from energy_margin.analysis.scores import region_score
+
+    assert scores.capture_score == region_score(field.costs, expected, task.config.likelihood_lambda)
+    # A batched expansion of a model with mocap bodies keeps no robot coordinates: one clear error.
+    with pytest.raises(ValueError, match="use batch 1"):
+        analyze_frame(
+            task,
+            trajectory.initial,
+            friction=trajectory.friction,
+            drive=trajectory.drive,
+            seed=1,
+            config=AnalyzerConfig(iterations=8, batch=2),
+        )

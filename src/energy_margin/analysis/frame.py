@@ -161,7 +161,7 @@ def frame_seeds(seed: int, count: int) -> list[int]:
 
 def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
     """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
-    captured = all_inside(task.capture_region(root), field.object_pos, field.object_vel, field.object_quat)
+    captured = task.capture_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
     successful = all_inside(task.success_region_at(root), field.object_pos, field.object_vel, field.object_quat)
     return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
 

@@ -92,6 +92,9 @@ class CostField:
         total_s: wall time of the whole growth, s.
         object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``
             (``None`` when not kept); regions that test geometry (``contact``) use them.
+        robot_q: the robot's coordinates at every node (as ``FrameState.robot_q``), shape
+            (M, n_robot); ``None`` when not kept (batched expansion of a model whose propagator
+            does not return them). Regions that follow the robot use them.
 
     """
 
@@ -104,6 +107,7 @@ class CostField:
     physics_s: float
     total_s: float
     object_quat: np.ndarray | None = None
+    robot_q: np.ndarray | None = None
 
     @property
     def nodes(self) -> int:
@@ -154,6 +158,7 @@ class Outcome:
     energy: float
     friction_work: float
     state: np.ndarray
+    robot: np.ndarray | None = None  # the robot's coordinates (``FrameState.robot_q``), when known
 
 
 class _Tree:
@@ -165,8 +170,12 @@ class _Tree:
     cost-model call per expansion; the values are those of one call per node.
     """
 
-    def __init__(self, capacity: int, state_size: int, n_objects: int, task: Task, cost_model: CostModel) -> None:
+    def __init__(
+        self, capacity: int, state_size: int, n_objects: int, n_robot: int, task: Task, cost_model: CostModel
+    ) -> None:
         self.states = np.empty((capacity, state_size))
+        self.robots = np.full((capacity, n_robot), np.nan)
+        self.robots_known = True
         self.costs = np.empty(capacity)
         self.parents = np.empty(capacity, dtype=np.int64)
         self.times = np.empty(capacity)
@@ -189,6 +198,7 @@ class _Tree:
         self.velocities[0] = outcome.vel
         self.quaternions[0] = outcome.quat
         self.energies[0] = outcome.energy
+        self._keep_robot(0, outcome)
         self.count = self.costed = 1
 
     def offer(self, parent: int, wrenches: np.ndarray, duration: float, outcome: Outcome) -> int | None:
@@ -210,8 +220,21 @@ class _Tree:
         self.energies[node] = outcome.energy
         self.wrenches[node] = wrenches
         self.friction_works[node] = outcome.friction_work
+        self._keep_robot(node, outcome)
         self.count += 1
         return node
+
+    def _keep_robot(self, node: int, outcome: Outcome) -> None:
+        robot = outcome.robot
+        if robot is None or robot.shape != self.robots.shape[1:]:
+            self.robots_known = False
+        else:
+            self.robots[node] = robot
+
+    def _robot_q(self, count: int, *, copy: bool) -> np.ndarray | None:
+        if not self.robots_known:
+            return None
+        return self.robots[:count].copy() if copy else self.robots[:count]
 
     def _cost_new_nodes(self) -> None:
         """Cost-to-come of the nodes added since the last call (a child's is its parent's plus Q)."""
@@ -255,6 +278,7 @@ class _Tree:
             iterations=iterations,
             physics_s=0.0,
             total_s=0.0,
+            robot_q=self._robot_q(count, copy=False),
         )
 
     def field(self, iterations: int, physics_s: float, started: float) -> CostField:
@@ -270,6 +294,7 @@ class _Tree:
             iterations=iterations,
             physics_s=physics_s,
             total_s=time.perf_counter() - started,
+            robot_q=self._robot_q(count, copy=True),
         )
 
 
@@ -336,6 +361,7 @@ def _read(simulator: Simulator, *, needs_energy: bool) -> Outcome:
         energy=simulator.mechanical_energy() if needs_energy else 0.0,
         friction_work=0.0,
         state=simulator.get_state(),
+        robot=simulator.robot_positions(),
     )
 
 
@@ -406,14 +432,16 @@ def grow(
                 f"batched expansion does not integrate friction work: use cost 'wrench', not {cost_model.name!r}"
             )
         propagator = require(simulator, BatchedRollout, purpose="batched expansion").rollout_propagator(threads)
+    first = _read(simulator, needs_energy=needs_friction)
+    assert first.robot is not None
     tree = _Tree(
         budget.node_capacity,
         propagator.state_size if propagator is not None else simulator.state_size,
         root.n_objects,
+        first.robot.size,
         task,
         cost_model,
     )
-    first = _read(simulator, needs_energy=needs_friction)
     if propagator is not None:
         first.state = propagator.current_state()
     tree.set_root(first)
@@ -456,7 +484,8 @@ def grow(
                 np.array([n_steps for _, _, _, n_steps in round_]),
                 control_steps,
             )
-            outcomes = [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j]) for j in range(len(round_))]
+            robots = propagator.object_states(states)[3]  # joint coordinates (a model's mocap poses are not among them)
+            outcomes = [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
         physics_s += time.perf_counter() - tick
         for (iteration, parent, wrenches, n_steps), outcome in zip(round_, outcomes, strict=True):
             node = tree.offer(parent, wrenches, n_steps * dt, outcome)

@@ -490,6 +490,33 @@ class Task(ABC):
     def capture_region(self, root: FrameState) -> Region:
         """The capture region R_cap(z_init) built from the frame being analysed."""
 
+    def capture_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which of M reached states of ``root``'s tree have every object captured.
+
+        By default the capture region is the one of ``root`` (:meth:`capture_region`); a task
+        whose region moves with the robot may build it at each state's own robot configuration.
+
+        Args:
+            root: the analysed frame.
+            object_pos: object centres of the states, shape (M, n_objects, 3), m.
+            object_vel: their velocities, shape (M, n_objects, 6), m/s and rad/s.
+            object_quat: their orientations, shape (M, n_objects, 4), or ``None``.
+            robot_q: the robot's coordinates at every state, shape (M, n_robot), or ``None``
+                when the tree did not keep them.
+
+        Returns:
+            Shape (M,), bool.
+        """
+        del robot_q
+        return all_inside(self.capture_region(root), object_pos, object_vel, object_quat)
+
     def capture_regions(self, roots: Sequence[FrameState]) -> Region:
         """The capture regions of many frames as one region over stacked positions.
 

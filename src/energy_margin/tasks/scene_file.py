@@ -173,6 +173,8 @@ class SceneSpec:
         likelihood_lambda: softmax inverse temperature lambda, 1/J.
         capture: the capture region table (built at the analysed frame).
         capture_at_least: capture needs at least this many objects inside, or ``None`` for every object.
+        capture_follows: the capture region's body and site frames are taken at every tree node's
+            own robot configuration (``capture.follow = true``), not frozen at the analysed frame.
         success: the success region table.
         success_at_least: success needs at least this many objects inside, or ``None`` for every object.
         bounds_low: reached states with an object below this corner are rejected, (3,), m.
@@ -206,6 +208,7 @@ class SceneSpec:
     bounds_high: tuple[float, ...]
     max_speed: float
     locator: Locator = field(repr=False, compare=False)
+    capture_follows: bool = False
 
     def error(self, key: str, message: str) -> EnergyMarginError:
         """An error naming this file, the line of ``key`` and ``key``."""
@@ -443,8 +446,15 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
     lam = read.number(perturbation.get("lambda", 5.0), "perturbation.lambda", minimum=0.0)
 
     sets = {}
+    follows = False
     for name in ("capture", "success"):
-        table = read.table(document, name, "", {"region", "at_least"})
+        table = read.table(
+            document, name, "", {"region", "at_least", "follow"} if name == "capture" else {"region", "at_least"}
+        )
+        if "follow" in table:
+            if not isinstance(table["follow"], bool):
+                raise read.fail(f"{name}.follow", f"must be true or false, got {table['follow']!r}")
+            follows = table["follow"]
         if "region" not in table:
             raise read.fail(name, f"is missing {name}.region, the region table of the {name} set")
         region = _check_region(read, table["region"], f"{name}.region")
@@ -483,6 +493,7 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
         bounds_high=high,
         max_speed=max_speed,
         locator=locator,
+        capture_follows=follows,
     )
 
 

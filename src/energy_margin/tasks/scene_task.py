@@ -18,7 +18,7 @@ import numpy as np
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex
-from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
 from energy_margin.world.scene import Geom, RigidObject, Scene
@@ -511,6 +511,52 @@ class SceneTask(Task):
         """The capture set with body and site frames taken at ``root``."""
         spec = self.loaded.spec
         return self._set(spec.capture, spec.capture_at_least, root)
+
+    def capture_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which reached states have every object captured; with ``capture.follow``, in each state's own region.
+
+        A region in a body's or a site's frame (a paddle's band) is, by default, the one of the
+        analysed frame; the tree's states move on with the robot for up to a second, so an object
+        that stays in the moving band leaves the frozen one. With ``capture.follow = true`` the
+        region is built at every state's own robot configuration (``robot_q``).
+
+        Raises:
+            ValueError: ``capture.follow`` and no robot configuration per state (a batched
+                expansion of a model with mocap bodies does not keep them).
+        """
+        spec = self.loaded.spec
+        if not spec.capture_follows:
+            return super().capture_inside(root, object_pos, object_vel, object_quat)
+        if robot_q is None:
+            raise ValueError(
+                f"{spec.path}: capture.follow needs the robot's coordinates at every tree node; a batched "
+                "expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1"
+            )
+        object_pos = np.asarray(object_pos, dtype=float)
+        count = object_pos.shape[0]
+        inside = np.empty(count, dtype=bool)
+        robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))
+        for node in range(count):
+            quat = object_quat[node] if object_quat is not None else root.object_quat
+            state = FrameState(
+                object_pos=object_pos[node],
+                object_quat=np.asarray(quat, dtype=float),
+                object_vel=np.asarray(object_vel[node], dtype=float),
+                robot_q=np.asarray(robot_q[node], dtype=float),
+                robot_v=robot_v,
+            )
+            region = self._set(spec.capture, spec.capture_at_least, state)
+            one = slice(node, node + 1)
+            one_quat = None if object_quat is None else object_quat[one]
+            inside[node] = bool(all_inside(region, object_pos[one], object_vel[one], one_quat)[0])
+        return inside
 
     def success_region(self) -> Region:
         """The success set with body and site frames at the model's start configuration."""
