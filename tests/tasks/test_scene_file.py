@@ -551,6 +551,10 @@ def test_a_following_capture_region_is_built_at_every_states_own_robot_pose(make
 
     frozen_task, follow_task = _follow_task(make_scene, False), _follow_task(make_scene, True)
     assert follow_task.loaded.spec.capture_follows and not frozen_task.loaded.spec.capture_follows
+    from energy_margin.report.scene_view import describe_scene
+
+    assert any("capture.follow" in line for line in describe_scene(follow_task))
+    assert not any("capture.follow" in line for line in describe_scene(frozen_task))
     # The pusher (a mocap body: robot_q holds its position, then its quaternion) at y = -0.15 with
     # both boxes in its band (y from -0.13 to 0.07), then a state where the pusher went on to
     # y = 0.15 and took the boxes along to y = 0.27, inside the band it carries but not the first one.

@@ -99,7 +99,12 @@ def describe_scene(task: SceneTask) -> list[str]:
         ("success", spec.success, spec.success_at_least),
     ):
         who = f"at least {at_least} objects" if at_least is not None else "every object"
-        lines.append(f"{name}: {who} in {_region_text(table)}")
+        follows = (
+            " (built at every tree node's own robot pose: capture.follow)"
+            if name == "capture" and spec.capture_follows
+            else ""
+        )
+        lines.append(f"{name}: {who} in {_region_text(table)}{follows}")
     return lines
 
 
