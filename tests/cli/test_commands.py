@@ -21,6 +21,7 @@ COMMAND_NAMES = (
     "record",
     "analyze",
     "evaluate",
+    "calibrate",
     "check",
     "perturb",
     "import-reference",

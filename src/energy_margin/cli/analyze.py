@@ -38,6 +38,7 @@ TREE_ONLY = {
     "nodes": "--nodes",
     "cost": "--cost",
     "likelihood_lambda": "--lambda",
+    "calibration": "--calibration",
     "workers": "--workers",
     "executor": "--executor",
     "address": "--address",
@@ -74,6 +75,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=None,
         help="softmax inverse temperature, 1/J (default: the task's)",
+    )
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="FILE",
+        help="calibration.json of energy-margin calibrate: analyse at the lambda it chose (not with --lambda)",
     )
     parser.add_argument("--workers", type=positive_int, default=1, help="parallel workers (default 1)")
     parser.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool (default) or Ray")
@@ -126,6 +133,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def calibrated_lambda(args: argparse.Namespace) -> float:
+    """The lambda of ``--calibration`` for the dataset's task.
+
+    Raises:
+        EnergyMarginError: ``--lambda`` too, an unreadable dataset, or a calibration that is not
+            one, is unfinished or is of another task.
+    """
+    from pathlib import Path
+
+    from energy_margin.data.dataset import METADATA_FILE, read_json
+    from energy_margin.evaluation.calibration import read_calibration
+
+    if args.likelihood_lambda is not None:
+        raise EnergyMarginError("--calibration and --lambda both set lambda: give one")
+    metadata = read_json(Path(args.dataset) / METADATA_FILE, what=METADATA_FILE)
+    task = metadata.get("task") if isinstance(metadata, dict) else None
+    return read_calibration(args.calibration, task=str(task))
+
+
 def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     """The :class:`~energy_margin.analysis.frame.AnalyzerConfig` the arguments ask for."""
     from energy_margin.analysis.frame import AnalyzerConfig
@@ -133,12 +159,15 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     if args.iterations == 0 and args.nodes is None:
         raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
     iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS
+    likelihood_lambda = args.likelihood_lambda
+    if getattr(args, "calibration", None) is not None:
+        likelihood_lambda = calibrated_lambda(args)
     try:
         return AnalyzerConfig(
             iterations=iterations,
             nodes=args.nodes,
             cost=args.cost,
-            likelihood_lambda=args.likelihood_lambda,
+            likelihood_lambda=likelihood_lambda,
             engine=args.engine,
             method=args.method,
             batch=args.batch,

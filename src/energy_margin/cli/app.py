@@ -26,6 +26,7 @@ from energy_margin._version import __version__
 from energy_margin.cli import (
     analyze,
     budget,
+    calibrate,
     check,
     control,
     evaluate,
@@ -54,6 +55,7 @@ COMMANDS: tuple[ModuleType, ...] = (
     check,
     analyze,
     evaluate,
+    calibrate,
     perturb,
     budget,
     study,

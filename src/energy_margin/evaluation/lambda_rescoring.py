@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.executors import LocalExecutor
-from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, score_field
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, field_membership
 from energy_margin.analysis.run import open_analysis, run_description, write_scores
+from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores, scores_journal
 from energy_margin.data.validation import require_valid
@@ -45,9 +46,12 @@ class LambdaRescorer(FrameAnalyzer):
         """Rows of frame ``index`` at every lambda."""
         row, field = self.analyse(index)
         frame = self.dataset.frame(row["trajectory"], row["frame"])
+        # Which nodes are in each set does not depend on lambda: tested once, weighted per lambda.
+        captured, successful = field_membership(self.task, frame, field)
         rows = []
         for lam in self.lambdas:
-            capture, success = score_field(self.task, frame, field, lam)
+            capture = region_score(field.costs, captured, lam)
+            success = region_score(field.costs, successful, lam)
             rows.append({**row, "capture_score": capture, "success_score": success})
         return {"trajectory": row["trajectory"], "frame": row["frame"], "rows": rows}
 

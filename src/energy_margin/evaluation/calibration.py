@@ -1,0 +1,288 @@
+"""``calibrate``: the likelihood lambda of a dataset chosen by cross-validated AP, nested by trajectory.
+
+A tree does not depend on lambda, so every frame's tree is grown once and scored at every lambda
+of a grid (:func:`~energy_margin.evaluation.lambda_rescoring.rescore_lambdas`, resumable, on
+workers). The trajectories are split into K folds (``numpy.random.default_rng(seed)``). For each
+fold, lambda is chosen on the other K - 1 folds (the highest mean AP over the objective's
+questions; the smaller lambda of equals) and the fold is scored at that lambda: the held-out
+scores of every trajectory come from a choice that never saw it, and their AP, with a paired
+bootstrap interval against each baseline, is the figure to report. The lambda written for use on
+new data is chosen on all trajectories.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.validation import require_valid
+from energy_margin.errors import EnergyMarginError, check_int, check_positive_int, check_seed
+from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.bootstrap import Questions
+from energy_margin.evaluation.lambda_rescoring import rescore_lambdas
+from energy_margin.evaluation.metrics import score_grid
+from energy_margin.evaluation.verdict import verdicts
+from energy_margin.runs import RunSpec, open_run
+from energy_margin.runs.files import read_json
+
+#: The calibration file a run writes and ``analyze --calibration`` reads.
+CALIBRATION_FILE = "calibration.json"
+FORMAT = "energy-margin-calibration"
+#: The lambda grid, 1/J: from a tenth to twenty times the paper's 5.
+DEFAULT_LAMBDAS = (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
+#: The questions the choice maximises by default: those a frame cannot answer by itself.
+DEFAULT_OBJECTIVE = ("capture_ap_window2", "success_ap_first_half")
+QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
+
+CALIBRATION_RUN = RunSpec(
+    contents="a calibration", settings_file=CALIBRATION_FILE, outputs=("lambda",), settings_key="settings"
+)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What :func:`calibrate` chose and measured.
+
+    Attributes:
+        task: the dataset's task.
+        likelihood_lambda: the lambda chosen on all trajectories, 1/J (for use on new data).
+        lambdas: the grid, 1/J.
+        folds: per fold: its trajectories, the lambda chosen without them, and their AP at it.
+        held_out: AP of the held-out scores per question (``None``: one class).
+        default_lambda: the task's own lambda, 1/J, and ``default``: the AP at it per question.
+        default: AP per question at the task's lambda.
+        verdict: per question, the held-out scores against the best baseline (see
+            :mod:`energy_margin.evaluation.verdict`), as dictionaries.
+        baselines: AP per question of the current-state and distance baselines.
+        objective: the questions whose mean AP the choice maximises.
+    """
+
+    task: str
+    likelihood_lambda: float
+    lambdas: tuple[float, ...]
+    folds: list[dict[str, Any]]
+    held_out: dict[str, float | None]
+    default_lambda: float
+    default: dict[str, float | None]
+    verdict: dict[str, dict[str, Any]]
+    baselines: dict[str, dict[str, float | None]]
+    objective: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-compatible fields."""
+        return dataclasses.asdict(self)
+
+
+def _mean(values: dict[str, float | None], names: tuple[str, ...]) -> float:
+    defined = [value for value in (values[name] for name in names) if value is not None]
+    return float(np.mean(defined)) if defined else float("-inf")
+
+
+def check_calibration_data(dataset: Dataset, *, folds: int, objective: tuple[str, ...]) -> None:
+    """Refuse a dataset calibration cannot learn from, in one line.
+
+    Raises:
+        EnergyMarginError: fewer trajectories than folds, or an objective question whose labels
+            are all one class.
+    """
+    if dataset.n_trajectories < folds:
+        raise EnergyMarginError(
+            f"calibrate needs at least {folds} trajectories for {folds} folds (--folds); "
+            f"{dataset.path} has {dataset.n_trajectories}"
+        )
+    labels = {
+        "capture_ap": dataset.capture_labels(0),
+        "capture_ap_window2": dataset.capture_labels(2),
+        "success_ap": dataset.success_labels(),
+        "success_ap_first_half": dataset.success_labels(),
+    }
+    for name in objective:
+        values = np.asarray(labels[name], dtype=bool)
+        if values.all() or not values.any():
+            kind = "positive" if values.all() else "negative"
+            raise EnergyMarginError(
+                f"calibrate: every label of {name} in {dataset.path} is {kind}: AP is undefined, so nothing "
+                "can be chosen by it (choose other questions with --objective)"
+            )
+
+
+def calibrate(
+    directory: Path | str,
+    out: Path | str,
+    *,
+    lambdas: tuple[float, ...] = DEFAULT_LAMBDAS,
+    folds: int = 5,
+    objective: tuple[str, ...] = DEFAULT_OBJECTIVE,
+    config: AnalyzerConfig | None = None,
+    seed: int = 0,
+    workers: int = 1,
+    resamples: int = 1000,
+    success_frames: int = 3,
+    progress: bool = True,
+    overwrite: bool = False,
+) -> Calibration:
+    """Choose lambda for the dataset ``directory`` by nested cross-validated AP; write ``out/calibration.json``.
+
+    Args:
+        directory: a dataset (its labels are what the choice is measured on).
+        out: the run directory: the per-lambda scores (``lambda/``) and ``calibration.json``.
+        lambdas: the grid, 1/J, each >= 0 (the task's own lambda is always added).
+        folds: K, >= 2; the dataset needs at least K trajectories.
+        objective: questions (of :data:`QUESTIONS`) whose mean AP the choice maximises.
+        config: analysis settings of the trees (the default analysis when ``None``); its lambda is
+            what is chosen, and ``converge`` must be off (a tree must not depend on lambda).
+        seed: analysis seed, fold split and bootstrap resamples.
+        workers: worker processes growing the trees.
+        resamples: bootstrap resamples of the verdicts, >= 1.
+        success_frames: k-bar of the success questions.
+        progress: show a progress bar while trees grow.
+        overwrite: replace a calibration of other settings in ``out``.
+
+    Returns:
+        The :class:`Calibration` (also written to ``out/calibration.json``).
+    """
+    check_int("folds", folds, minimum=2)
+    check_seed(seed)
+    check_positive_int("resamples", resamples)
+    unknown = [name for name in objective if name not in QUESTIONS]
+    if not objective or unknown:
+        raise EnergyMarginError(f"objective must name questions of {', '.join(QUESTIONS)}, got {list(objective)}")
+    config = config if config is not None else AnalyzerConfig()
+    if config.converge is not None:
+        raise EnergyMarginError("calibrate grows trees that do not depend on lambda: --converge must be off")
+    dataset = require_valid(directory, overlaps=True, scores=False)
+    check_calibration_data(dataset, folds=folds, objective=objective)
+    # The task's own lambda is always a candidate, so the calibration can keep it.
+    grid = tuple(sorted({float(lam) for lam in lambdas} | {float(dataset.task.config.likelihood_lambda)}))
+    settings = {
+        "format": FORMAT,
+        "dataset": dataset.identity(),
+        "analyzer": dataclasses.replace(config, likelihood_lambda=None).to_dict(),
+        "lambdas": list(grid),
+        "folds": folds,
+        "objective": list(objective),
+        "seed": seed,
+        "resamples": resamples,
+        "success_frames": success_frames,
+    }
+    out = Path(out)
+    with open_run(out, CALIBRATION_RUN, settings, overwrite=overwrite) as run:
+        scored = rescore_lambdas(
+            directory, out / "lambda", grid, config=config, seed=seed, workers=workers, progress=progress
+        )
+        result = _choose(
+            dataset,
+            scored,
+            grid,
+            folds=folds,
+            objective=objective,
+            seed=seed,
+            resamples=resamples,
+            success_frames=success_frames,
+        )
+        run.write_settings({"result": result.to_dict()})
+    return result
+
+
+def _choose(
+    dataset: Dataset,
+    scored: dict[float, dict[str, np.ndarray]],
+    grid: tuple[float, ...],
+    *,
+    folds: int,
+    objective: tuple[str, ...],
+    seed: int,
+    resamples: int,
+    success_frames: int,
+) -> Calibration:
+    """The nested choice on score columns by lambda."""
+    grids = {
+        lam: (score_grid(dataset, scores, "capture_score"), score_grid(dataset, scores, "success_score"))
+        for lam, scores in scored.items()
+    }
+    half = max(1, dataset.n_frames // 2)
+    questions = Questions(
+        dataset,
+        success_frames,
+        capture_windows={"capture_ap": 0, "capture_ap_window2": 2},
+        success_spans={"success_ap": (None, None), "success_ap_first_half": (0, half)},
+    )
+    order = np.random.default_rng(seed).permutation(dataset.n_trajectories)
+    split = [np.sort(part) for part in np.array_split(order, folds)]
+
+    def best(rows: np.ndarray) -> float:
+        means = [(_mean(questions.answer(*grids[lam], rows), objective), -lam) for lam in grid]
+        return -max(means)[1]  # the highest mean, then the smaller lambda
+
+    held_capture = np.empty_like(grids[grid[0]][0])
+    held_success = np.empty_like(grids[grid[0]][1])
+    fold_rows = []
+    for held in split:
+        train = np.setdiff1d(np.arange(dataset.n_trajectories), held)
+        chosen = best(train)
+        held_capture[held], held_success[held] = grids[chosen][0][held], grids[chosen][1][held]
+        fold_rows.append(
+            {
+                "trajectories": held.tolist(),
+                "likelihood_lambda": chosen,
+                "held_out": questions.answer(*grids[chosen], held),
+                "train_objective": _mean(questions.answer(*grids[chosen], train), objective),
+            }
+        )
+    everything = np.arange(dataset.n_trajectories)
+    held_out = questions.answer(held_capture, held_success, everything)
+    baselines_scores: dict[str, tuple[np.ndarray, np.ndarray]] = {
+        "current_state": (dataset.arrays["captured"].astype(float), dataset.arrays["in_success"].astype(float))
+    }
+    distance = distance_scores(dataset)
+    if distance is not None:
+        baselines_scores["distance"] = distance
+    found = verdicts(
+        dataset,
+        (held_capture, held_success),
+        baselines_scores,
+        capture_window=0,
+        success_frames=success_frames,
+        weights="linear",
+        resamples=resamples,
+        seed=seed,
+    )
+    default_lambda = float(dataset.task.config.likelihood_lambda)
+    default = questions.answer(*grids[default_lambda], everything)
+    return Calibration(
+        task=str(dataset.metadata["task"]),
+        likelihood_lambda=best(everything),
+        lambdas=grid,
+        folds=fold_rows,
+        held_out=held_out,
+        default_lambda=default_lambda,
+        default=default,
+        verdict={name: verdict.to_dict() for name, verdict in found.items()},
+        baselines={name: questions.answer(*scores, everything) for name, scores in baselines_scores.items()},
+        objective=objective,
+    )
+
+
+def read_calibration(path: Path | str, *, task: str) -> float:
+    """The lambda of a calibration file for a dataset of ``task``.
+
+    Raises:
+        EnergyMarginError: not a calibration file, an unfinished one, or one of another task.
+    """
+    path = Path(path)
+    document = read_json(path, what=CALIBRATION_FILE)
+    settings = document.get("settings") if isinstance(document, dict) else None
+    result = document.get("result") if isinstance(document, dict) else None
+    if not isinstance(settings, dict) or settings.get("format") != FORMAT:
+        raise EnergyMarginError(f"{path} is not a calibration file (energy-margin calibrate writes one)")
+    if not isinstance(result, dict) or not isinstance(result.get("likelihood_lambda"), int | float):
+        raise EnergyMarginError(f"{path}: the calibration has not finished; run energy-margin calibrate again")
+    if result.get("task") != task:
+        raise EnergyMarginError(f"{path} calibrates task {result.get('task')!r}, not this dataset's {task!r}")
+    return float(result["likelihood_lambda"])
