@@ -137,3 +137,16 @@ def test_the_copies_protocol_is_named_and_never_mixed(table_one: tuple[Path, lis
     with pytest.raises(EnergyMarginError, match=r"mixes perturbation protocols.*is paper.*is valid"):
         compare_perturbed(true, copies)
     assert compare_perturbed(true, [copies[1]])["protocol"] == "valid"
+
+
+def test_cli_compare_passes_the_verdicts_resamples_and_seed(
+    table_one: tuple[Path, list[Path]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    true, copies = table_one
+    assert main(["evaluate", str(true), "--compare", *map(str, copies), "--json", "--resamples", "0"]) == 0
+    assert "verdict" not in json.loads(capsys.readouterr().out)
+    assert (
+        main(["evaluate", str(true), "--compare", *map(str, copies), "--json", "--resamples", "7", "--seed", "3"]) == 0
+    )
+    result = json.loads(capsys.readouterr().out)
+    assert (result["verdict_resamples"], result["seed"]) == (7, 3)

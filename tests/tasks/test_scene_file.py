@@ -519,7 +519,7 @@ def test_an_impossible_layout_names_the_object_the_ranges_and_a_grids_capacity(
         assert error.count("\n") == 1 and "ValueError" not in error, error
         assert "cannot place 2 objects 0.1 m apart (x in [-0.04, 0.04] m, y in [0.02, 0.02] m)" in error
         assert "at most 1 fit in" in error and "box_b found no room" in error
-        assert "a grid of 0.1 m spacing holds 1 origins there" in error
+        assert "a grid of 0.1 m spacing holds at most 1 origins there" in error
         assert not (tmp_path / "p.png").exists()
 
 
@@ -611,3 +611,33 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
             seed=1,
             config=AnalyzerConfig(iterations=8, batch=2),
         )
+
+
+def test_follow_with_batched_expansion_of_a_mocap_model_is_refused_before_any_tree(
+    make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scene = make_scene(replace={"[capture]\n": "[capture]\nfollow = true\n"})
+    out = tmp_path / "d"
+    assert main(["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["analyze", str(out), "--iterations", "8", "--batch", "2", "--no-progress"]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "capture.follow needs the robot's coordinates" in error
+    assert not (out / "scores.csv").exists() and not (out / "analysis.json").exists()
+
+
+def test_a_zero_separation_layout_failure_is_still_one_line(make_scene) -> None:
+    point = "[randomize.start]\nx = [0.0, 0.0]\ny = [0.02, 0.02]\nmin_separation = 0.0\n"
+    task = get_task(
+        "scene",
+        {
+            "scene_file": str(
+                make_scene(
+                    replace={"[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n": point}
+                )
+            )
+        },
+    )
+    with pytest.raises(ValueError, match="cannot place 2 objects 0 m apart") as error:
+        task.sample_trajectory(np.random.default_rng(0), 2)
+    assert "grid" not in str(error.value)

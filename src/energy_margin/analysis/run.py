@@ -129,6 +129,9 @@ def analyze(
         with_contacts(dataset.task, config.contacts)
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
+    problem = dataset.task.analysis_problem(batch=config.batch)
+    if problem is not None:
+        raise EnergyMarginError(problem)
     directory = Path(path)
     description = run_description(dataset, config, seed)
     scores_path = directory / SCORES_FILE

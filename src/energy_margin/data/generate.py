@@ -280,7 +280,8 @@ def generate_dataset(
 ) -> Dataset:
     """Generate scripted roll-outs and write them as a dataset directory.
 
-    Trajectory ``i`` uses ``numpy.random.SeedSequence(seed).spawn(n_trajectories)[i]``. The
+    Trajectory ``i`` uses ``numpy.random.SeedSequence(seed).spawn(n_trajectories)[i]`` (a redrawn
+    one that sequence's children, :func:`draw_trajectory`). The
     directory is written to a temporary sibling and renamed, so an error leaves nothing behind.
 
     Args:

@@ -79,8 +79,12 @@ def compare_perturbed(
     capture_window: int = 0,
     success_frames: int = 3,
     weights: str = "linear",
+    resamples: int = 1000,
+    seed: int = 0,
 ) -> dict[str, Any]:
     """Evaluate the true-state dataset at ``path`` and its perturbed copies ``compare``.
+
+    ``resamples`` and ``seed`` are those of the true-state dataset's verdict (``evaluate``).
 
     Returns:
         :func:`~energy_margin.evaluation.metrics.evaluate`'s result for the true states (``capture_ap``,
@@ -95,7 +99,7 @@ def compare_perturbed(
 
     """
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
-    result = evaluate(path, **options)
+    result = evaluate(path, **options, resamples=resamples, seed=seed)
     others = expand_compare_paths(list(compare))
     if not others:
         raise EnergyMarginError("--compare needs at least one perturbed dataset")

@@ -490,6 +490,15 @@ class Task(ABC):
     def capture_region(self, root: FrameState) -> Region:
         """The capture region R_cap(z_init) built from the frame being analysed."""
 
+    def analysis_problem(self, *, batch: int) -> str | None:
+        """Why this task cannot be analysed with these settings (one line), or ``None``.
+
+        Args:
+            batch: expansions per batched round (``AnalyzerConfig.batch``).
+        """
+        del batch
+        return None
+
     def capture_inside(
         self,
         root: FrameState,

@@ -399,15 +399,19 @@ class SceneTask(Task):
         else:
             spans = {axis: start.ranges[axis] for axis in "xyz" if axis in start.ranges}
         described = ", ".join(f"{axis} in [{lo:.3g}, {hi:.3g}] m" for axis, (lo, hi) in spans.items())
-        capacity = 1
-        for lo, hi in spans.values():
-            capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
         stuck = loaded.object_names[min(most_placed, n - 1)]
+        grid = ""
+        if separation > 0.0:
+            capacity = 1
+            for lo, hi in spans.values():
+                capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
+            # An upper bound: objects drawn one at a time jam well before a grid is full.
+            grid = f"; a grid of {separation:.3g} m spacing holds at most {capacity} origins there"
         return (
             f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart "
             f"({described or 'at their model positions'}): at most {most_placed} fit in {_LAYOUT_RESTARTS} layouts, "
-            f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws; a grid of {separation:.3g} m spacing holds "
-            f"{capacity} origins there; widen the start ranges or lower min_separation"
+            f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws{grid}; widen the start ranges or lower "
+            "min_separation"
         )
 
     def _qpos_address(self, index: int) -> int:
@@ -511,6 +515,15 @@ class SceneTask(Task):
         """The capture set with body and site frames taken at ``root``."""
         spec = self.loaded.spec
         return self._set(spec.capture, spec.capture_at_least, root)
+
+    def analysis_problem(self, *, batch: int) -> str | None:
+        """``capture.follow`` on a model with mocap bodies needs every node's mocap pose: batch 1."""
+        if self.loaded.spec.capture_follows and batch > 1 and int(self.loaded.model.nmocap) > 0:
+            return (
+                f"{self.loaded.spec.path}: capture.follow needs the robot's coordinates at every tree node; a "
+                "batched expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1"
+            )
+        return None
 
     def capture_inside(
         self,
