@@ -55,6 +55,7 @@ def test_a_margin_equal_to_the_best_baseline_is_level_with_a_zero_interval(datas
     verdict = found["capture_ap"]
     assert verdict.baseline == "current_state"
     assert (verdict.difference, verdict.low, verdict.high, verdict.word) == (0.0, 0.0, 0.0, "level")
+    assert 0 < verdict.resamples <= 200
     assert "chance" not in {v.baseline for v in found.values()}
 
 
@@ -105,3 +106,11 @@ def test_evaluate_reports_the_verdict_in_the_table_and_in_json(
     assert "verdict: paired bootstrap over trajectories (100 resamples, seed 0)" in table
     with pytest.raises(SystemExit):
         main(["evaluate", str(dataset.path), "--resamples", "-1"])
+
+
+def test_the_table_says_when_an_interval_rests_on_fewer_resamples() -> None:
+    from energy_margin.evaluation.metrics import _verdict_cell
+
+    verdict = {"difference": 0.1, "low": 0.02, "high": 0.2, "word": "ahead", "baseline": "distance"}
+    assert _verdict_cell({**verdict, "resamples": 1000}, 1000) == "+0.100 [+0.020, +0.200] ahead (distance)"
+    assert _verdict_cell({**verdict, "resamples": 640}, 1000).endswith("(distance; 640 of 1000 resamples)")

@@ -184,12 +184,15 @@ def _cell(value: float | None) -> str:
     return "  n/a" if value is None else f"{value:5.3f}"
 
 
-def _verdict_cell(verdict: dict[str, Any]) -> str:
+def _verdict_cell(verdict: dict[str, Any], drawn: int) -> str:
     if verdict["difference"] is None or verdict["low"] is None or verdict["high"] is None:
         return "n/a"
+    used = verdict.get("resamples", drawn)
+    # Resamples whose labels are one class have no AP: say when the interval rests on fewer.
+    fewer = f"; {used} of {drawn} resamples" if used < drawn else ""
     return (
         f"{verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}] "
-        f"{verdict['word']} ({verdict['baseline']})"
+        f"{verdict['word']} ({verdict['baseline']}{fewer})"
     )
 
 
@@ -217,7 +220,7 @@ def format_table(result: dict[str, Any]) -> str:
         baseline_cells = " ".join(f"{_cell(result['baselines'][n][key]):>13s}" for n in names)
         line = f"{label:34s} {_cell(result[key]):>13s} {baseline_cells}"
         if verdict:
-            line += f"  {_verdict_cell(verdict[key])}"
+            line += f"  {_verdict_cell(verdict[key], int(result['verdict_resamples']))}"
         lines.append(line)
     if verdict:
         lines.append(

@@ -36,6 +36,9 @@ class Verdict:
         low: lower end of the paired 95 % interval of the difference.
         high: upper end.
         word: ``ahead``, ``level``, ``behind`` or ``n/a``.
+        resamples: the resamples behind the interval: those on which both APs are defined (a
+            resample whose labels are all one class has none; on few trajectories with a rare
+            class, fewer than drawn).
     """
 
     question: str
@@ -44,6 +47,7 @@ class Verdict:
     low: float | None
     high: float | None
     word: str
+    resamples: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible fields (without the question, the key it is stored under)."""
@@ -53,6 +57,7 @@ class Verdict:
             "low": self.low,
             "high": self.high,
             "word": self.word,
+            "resamples": self.resamples,
         }
 
 
@@ -122,5 +127,6 @@ def verdicts(
         best = max(contenders, key=lambda pair: pair[0])[1]  # the first of equals, in the baselines' order
         difference = paired_difference(scored_margin, scored[best])
         value, low, high = difference[question], difference[f"{question}_low"], difference[f"{question}_high"]
-        result[question] = Verdict(question, best, value, low, high, word(value, low, high))
+        used = int(np.count_nonzero(np.isfinite(scored_margin.samples[question] - scored[best].samples[question])))
+        result[question] = Verdict(question, best, value, low, high, word(value, low, high), used)
     return result
