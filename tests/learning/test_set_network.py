@@ -144,6 +144,18 @@ def test_fit_learns_a_set_function_and_stops_early() -> None:
         fit_set_regressor(inputs, targets[:10], seed=0)
 
 
+def test_the_same_data_and_seed_give_the_same_weights() -> None:
+    rng = np.random.default_rng(8)
+    inputs = random_inputs(rng, list(rng.integers(1, 5, 120)), channels=3, width=2)
+    targets = np.column_stack([rng.random(120), rng.random(120)])
+    groups = np.repeat(np.arange(30), 4)
+    first, _ = fit_set_regressor(inputs, targets, seed=3, groups=groups, hidden=8, epochs=15, patience=5)
+    again, _ = fit_set_regressor(inputs, targets, seed=3, groups=groups, hidden=8, epochs=15, patience=5)
+    other, _ = fit_set_regressor(inputs, targets, seed=4, groups=groups, hidden=8, epochs=15, patience=5)
+    assert np.array_equal(first.predict(inputs), again.predict(inputs))
+    assert not np.array_equal(first.predict(inputs), other.predict(inputs))
+
+
 def test_missing_pytorch_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "torch", None)
     inputs = random_inputs(np.random.default_rng(7), [2, 2])
