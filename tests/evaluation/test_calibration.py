@@ -130,6 +130,7 @@ def test_analyze_takes_the_calibrated_lambda(dataset: Path, calibrated, tmp_path
     assert main(["analyze", str(copy), "--iterations", "12", "--calibration", file, "--no-progress"]) == 0
     recorded = json.loads((copy / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["likelihood_lambda"] == result.likelihood_lambda
+    assert (recorded["analyzer"]["wrench_scale"], recorded["analyzer"]["duration_scale"]) == (1.0, 1.0)
     capsys.readouterr()
     assert main(["analyze", str(copy), "--calibration", file, "--lambda", "3"]) == 2
     assert "--calibration and --lambda both set lambda" in capsys.readouterr().err
@@ -158,3 +159,47 @@ def test_too_few_trajectories_or_one_class_is_refused_in_one_line(  # type: igno
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "every label of success_ap_first_half" in error and "is negative" in error
     assert not (tmp_path / "b").exists()
+
+
+def test_growth_scales_grow_their_own_trees_and_join_the_choice(dataset: Path, tmp_path: Path) -> None:
+    out = tmp_path / "grow"
+    result = calibrate(
+        dataset,
+        out,
+        lambdas=(5.0,),
+        folds=4,
+        objective=OBJECTIVE,
+        config=AnalyzerConfig(iterations=12),
+        seed=1,
+        resamples=20,
+        wrench_scales=(1.0, 3.0),
+        progress=False,
+    )
+    assert (out / "lambda" / "w3-d1").is_dir()  # the scaled trees, beside the task's own
+    assert result.wrench_scale in (1.0, 3.0) and result.duration_scale == 1.0
+    assert {fold["wrench_scale"] for fold in result.folds} <= {1.0, 3.0}
+    own = load_scores(lambda_directory(out / "lambda", "est", 12, 5.0))
+    scaled = load_scores(lambda_directory(out / "lambda" / "w3-d1", "est", 12, 5.0))
+    assert not np.array_equal(own["capture_score"], scaled["capture_score"])  # other trees
+    stored = json.loads((out / CALIBRATION_FILE).read_text())
+    assert stored["settings"]["growth"] == [[1.0, 1.0], [3.0, 1.0]]
+    with pytest.raises(EnergyMarginError, match="wrench_scales must be positive numbers"):
+        calibrate(dataset, tmp_path / "bad", wrench_scales=(0.0,), config=AnalyzerConfig(iterations=12))
+
+
+def test_a_wider_wrench_bound_grows_a_different_tree(dataset: Path) -> None:
+    from energy_margin.analysis.frame import analyze_frame
+
+    data = load_dataset(dataset)
+    frame = data.frame(0, 1)
+    friction, drive = float(data.arrays["friction"][0]), data.arrays["drive"][0]
+    own = analyze_frame(data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20))
+    again = analyze_frame(
+        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20, wrench_scale=1.0)
+    )
+    wider = analyze_frame(
+        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20, wrench_scale=2.0)
+    )
+    assert (own[0].capture_score, own[0].success_score) == (again[0].capture_score, again[0].success_score)
+    np.testing.assert_array_equal(own[1].object_pos, again[1].object_pos)
+    assert not np.array_equal(own[1].object_pos, wider[1].object_pos)

@@ -68,6 +68,8 @@ class AnalyzerConfig:
         contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or
             ``"fast"`` (the task's fast contact model, :attr:`TaskConfig.fast_contacts`: the same
             contacts from cheaper pairs; pushing: footprint ground contacts and sphere stand-ins).
+        wrench_scale: factor on the task's perturbation wrench bounds (1: the task's own).
+        duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
 
     """
 
@@ -89,6 +91,8 @@ class AnalyzerConfig:
     converge_window: int = 50
     converge_every: int = 25
     contacts: str = "recorded"
+    wrench_scale: float = 1.0
+    duration_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("iterations", "nodes"):
@@ -120,6 +124,8 @@ class AnalyzerConfig:
             raise ValueError(f"contacts 'fast' is a MuJoCo contact model, not available with engine {self.engine!r}")
         for name in ("converge_window", "converge_every"):
             check_positive_int(name, getattr(self, name))
+        for name in ("wrench_scale", "duration_scale"):
+            check_positive_float(name, getattr(self, name))
 
     @property
     def budget(self) -> TreeBudget:
@@ -325,6 +331,8 @@ def analyze_frame(
         threads=config.threads,
         rollout_length=config.rollout_length,
         rrt_extent=config.rrt_extent,
+        wrench_scale=config.wrench_scale,
+        duration_scale=config.duration_scale,
         stop=stop,
         check_every=every,
     )

@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import CONVERGE_RULES
-from energy_margin.cli.common import add_engine, add_seed, non_negative_float, non_negative_int, positive_int
+from energy_margin.cli.common import (
+    add_engine,
+    add_seed,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
@@ -39,6 +46,8 @@ TREE_ONLY = {
     "cost": "--cost",
     "likelihood_lambda": "--lambda",
     "calibration": "--calibration",
+    "wrench_scale": "--wrench-scale",
+    "duration_scale": "--duration-scale",
     "workers": "--workers",
     "executor": "--executor",
     "address": "--address",
@@ -75,6 +84,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=None,
         help="softmax inverse temperature, 1/J (default: the task's)",
+    )
+    parser.add_argument(
+        "--wrench-scale",
+        type=positive_float,
+        default=1.0,
+        help="factor on the task's perturbation wrench bounds (default 1)",
+    )
+    parser.add_argument(
+        "--duration-scale",
+        type=positive_float,
+        default=1.0,
+        help="factor on the task's longest perturbation propagation (default 1)",
     )
     parser.add_argument(
         "--calibration",
@@ -133,12 +154,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def calibrated_lambda(args: argparse.Namespace) -> float:
-    """The lambda of ``--calibration`` for the dataset's task.
+def calibrated_settings(args: argparse.Namespace) -> dict[str, float]:
+    """The settings of ``--calibration`` for the dataset's task: lambda and the growth scales.
 
     Raises:
-        EnergyMarginError: ``--lambda`` too, an unreadable dataset, or a calibration that is not
-            one, is unfinished or is of another task.
+        EnergyMarginError: ``--lambda`` or a scale too, an unreadable dataset, or a calibration
+            that is not one, is unfinished or is of another task.
     """
     from pathlib import Path
 
@@ -147,6 +168,8 @@ def calibrated_lambda(args: argparse.Namespace) -> float:
 
     if args.likelihood_lambda is not None:
         raise EnergyMarginError("--calibration and --lambda both set lambda: give one")
+    if args.wrench_scale != 1.0 or args.duration_scale != 1.0:
+        raise EnergyMarginError("--calibration sets the growth scales: leave --wrench-scale and --duration-scale out")
     metadata = read_json(Path(args.dataset) / METADATA_FILE, what=METADATA_FILE)
     task = metadata.get("task") if isinstance(metadata, dict) else None
     return read_calibration(args.calibration, task=str(task))
@@ -159,15 +182,21 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     if args.iterations == 0 and args.nodes is None:
         raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
     iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS
-    likelihood_lambda = args.likelihood_lambda
+    chosen = {
+        "likelihood_lambda": args.likelihood_lambda,
+        "wrench_scale": args.wrench_scale,
+        "duration_scale": args.duration_scale,
+    }
     if getattr(args, "calibration", None) is not None:
-        likelihood_lambda = calibrated_lambda(args)
+        chosen.update(calibrated_settings(args))
     try:
         return AnalyzerConfig(
             iterations=iterations,
             nodes=args.nodes,
             cost=args.cost,
-            likelihood_lambda=likelihood_lambda,
+            likelihood_lambda=chosen["likelihood_lambda"],
+            wrench_scale=chosen["wrench_scale"],
+            duration_scale=chosen["duration_scale"],
             engine=args.engine,
             method=args.method,
             batch=args.batch,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from energy_margin.cli.common import add_seed, non_negative_float, positive_int, print_json
+from energy_margin.cli.common import add_seed, non_negative_float, positive_float, positive_int, print_json
 from energy_margin.errors import EnergyMarginError
 
 if TYPE_CHECKING:
@@ -42,6 +42,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=list(DEFAULT_OBJECTIVE),
         help=f"questions whose mean AP the choice maximises (default {' '.join(DEFAULT_OBJECTIVE)})",
     )
+    parser.add_argument(
+        "--grow",
+        action="store_true",
+        help="also choose the settings that change the trees: wrench-bound and propagation-length factors "
+        "(default grids 0.5 1 2 each; every pair grows its own trees)",
+    )
+    parser.add_argument(
+        "--wrench-scales", type=positive_float, nargs="+", default=None, help="wrench-bound factors (implies --grow)"
+    )
+    parser.add_argument(
+        "--duration-scales",
+        type=positive_float,
+        nargs="+",
+        default=None,
+        help="propagation-length factors (implies --grow)",
+    )
     parser.add_argument("--iterations", type=positive_int, default=300, help="expansions per frame (default 300)")
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--resamples", type=positive_int, default=1000, help="bootstrap resamples (default 1000)")
@@ -58,6 +74,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.folds < 2:
         raise EnergyMarginError(f"--folds must be >= 2, got {args.folds}")
+    grow = args.grow or args.wrench_scales is not None or args.duration_scales is not None
+    default_scales = (0.5, 1.0, 2.0) if grow else (1.0,)
+    wrench_scales = tuple(args.wrench_scales) if args.wrench_scales is not None else default_scales
+    duration_scales = tuple(args.duration_scales) if args.duration_scales is not None else default_scales
     result = calibrate(
         args.dataset,
         args.out,
@@ -68,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         resamples=args.resamples,
+        wrench_scales=wrench_scales,
+        duration_scales=duration_scales,
         progress=not args.no_progress,
         overwrite=args.overwrite,
     )
@@ -87,13 +109,17 @@ def format_calibration(result: Calibration) -> str:
     questions = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
     headings = ("capture k0", "capture k2", "success last", "success 1st half")
     lines = [
-        f"lambda chosen on all trajectories: {result.likelihood_lambda:g} 1/J "
-        f"(the task's own: {result.default_lambda:g}); objective: mean AP of {', '.join(result.objective)}",
-        "fold  trajectories  lambda  " + "  ".join(f"{heading:>16s}" for heading in headings),
+        f"chosen on all trajectories: lambda {result.likelihood_lambda:g} 1/J, wrench scale {result.wrench_scale:g}, "
+        f"duration scale {result.duration_scale:g} (the task's own lambda: {result.default_lambda:g}); "
+        f"objective: mean AP of {', '.join(result.objective)}",
+        "fold  trajectories  lambda  wrench  duration  " + "  ".join(f"{heading:>16s}" for heading in headings),
     ]
     for number, fold in enumerate(result.folds):
         cells = "  ".join(f"{_cell(fold['held_out'][q]):>16s}" for q in questions)
-        lines.append(f"{number:4d}  {len(fold['trajectories']):12d}  {fold['likelihood_lambda']:6g}  {cells}")
+        lines.append(
+            f"{number:4d}  {len(fold['trajectories']):12d}  {fold['likelihood_lambda']:6g}  "
+            f"{fold['wrench_scale']:6g}  {fold['duration_scale']:8g}  {cells}"
+        )
     lines.append("AP on every trajectory (calibrated: each scored at the lambda chosen without it):")
     rows = [
         ("calibrated, held out", result.held_out),

@@ -55,6 +55,14 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def positive_float(text: str) -> float:
+    """A finite number > 0."""
+    value = non_negative_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text}")
+    return value
+
+
 def add_engine(parser: argparse.ArgumentParser) -> None:
     """The ``--engine`` option, with the engines as its choices."""
     from energy_margin.sim import ENGINES

@@ -8,6 +8,11 @@ questions; the smaller lambda of equals) and the fold is scored at that lambda: 
 scores of every trajectory come from a choice that never saw it, and their AP, with a paired
 bootstrap interval against each baseline, is the figure to report. The lambda written for use on
 new data is chosen on all trajectories.
+
+With growth scales (``wrench_scales``, ``duration_scales``: factors on the task's perturbation
+wrench bounds and longest propagation, which change the trees), every pair of scales grows its own
+trees, each scored at every lambda, and the choice runs over every (scales, lambda) candidate the
+same way.
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ class Calibration:
     Attributes:
         task: the dataset's task.
         likelihood_lambda: the lambda chosen on all trajectories, 1/J (for use on new data).
+        wrench_scale: the wrench-bound factor chosen with it (1 without growth scales).
+        duration_scale: the propagation-length factor chosen with it (1 without growth scales).
         lambdas: the grid, 1/J.
         folds: per fold: its trajectories, the lambda chosen without them, and their AP at it.
         held_out: AP of the held-out scores per question (``None``: one class).
@@ -73,6 +80,16 @@ class Calibration:
     verdict: dict[str, dict[str, Any]]
     baselines: dict[str, dict[str, float | None]]
     objective: tuple[str, ...]
+    wrench_scale: float = 1.0
+    duration_scale: float = 1.0
+
+    def settings(self) -> dict[str, float]:
+        """The analysis settings chosen: ``likelihood_lambda``, ``wrench_scale``, ``duration_scale``."""
+        return {
+            "likelihood_lambda": self.likelihood_lambda,
+            "wrench_scale": self.wrench_scale,
+            "duration_scale": self.duration_scale,
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible fields."""
@@ -124,6 +141,8 @@ def calibrate(
     workers: int = 1,
     resamples: int = 1000,
     success_frames: int = 3,
+    wrench_scales: tuple[float, ...] = (1.0,),
+    duration_scales: tuple[float, ...] = (1.0,),
     progress: bool = True,
     overwrite: bool = False,
 ) -> Calibration:
@@ -141,6 +160,9 @@ def calibrate(
         workers: worker processes growing the trees.
         resamples: bootstrap resamples of the verdicts, >= 1.
         success_frames: k-bar of the success questions.
+        wrench_scales: factors on the task's perturbation wrench bounds to choose among, each > 0
+            (each pair of scales grows its own trees; 1 is always a candidate).
+        duration_scales: factors on the task's longest perturbation propagation, each > 0.
         progress: show a progress bar while trees grow.
         overwrite: replace a calibration of other settings in ``out``.
 
@@ -160,6 +182,11 @@ def calibrate(
     check_calibration_data(dataset, folds=folds, objective=objective)
     # The task's own lambda is always a candidate, so the calibration can keep it.
     grid = tuple(sorted({float(lam) for lam in lambdas} | {float(dataset.task.config.likelihood_lambda)}))
+    for name, scales in (("wrench_scales", wrench_scales), ("duration_scales", duration_scales)):
+        if not scales or any(not np.isfinite(value) or value <= 0 for value in scales):
+            raise EnergyMarginError(f"{name} must be positive numbers, got {list(scales)}")
+    others = {(float(w), float(d)) for w in wrench_scales for d in duration_scales} - {(1.0, 1.0)}
+    growth = [(1.0, 1.0), *sorted(others)]
     settings = {
         "format": FORMAT,
         "dataset": dataset.identity(),
@@ -170,15 +197,19 @@ def calibrate(
         "seed": seed,
         "resamples": resamples,
         "success_frames": success_frames,
+        "growth": [list(pair) for pair in growth],
     }
     out = Path(out)
     with open_run(out, CALIBRATION_RUN, settings, overwrite=overwrite) as run:
-        scored = rescore_lambdas(
-            directory, out / "lambda", grid, config=config, seed=seed, workers=workers, progress=progress
-        )
+        candidates: dict[tuple[float, float, float], dict[str, np.ndarray]] = {}
+        for wrench, duration in growth:
+            grown = dataclasses.replace(config, wrench_scale=wrench, duration_scale=duration)
+            root = out / "lambda" if (wrench, duration) == (1.0, 1.0) else out / "lambda" / f"w{wrench:g}-d{duration:g}"
+            scored = rescore_lambdas(directory, root, grid, config=grown, seed=seed, workers=workers, progress=progress)
+            candidates.update({(wrench, duration, lam): scores for lam, scores in scored.items()})
         result = _choose(
             dataset,
-            scored,
+            candidates,
             grid,
             folds=folds,
             objective=objective,
@@ -190,9 +221,12 @@ def calibrate(
     return result
 
 
+Candidate = tuple[float, float, float]  # (wrench_scale, duration_scale, likelihood_lambda)
+
+
 def _choose(
     dataset: Dataset,
-    scored: dict[float, dict[str, np.ndarray]],
+    scored: dict[Candidate, dict[str, np.ndarray]],
     grid: tuple[float, ...],
     *,
     folds: int,
@@ -201,11 +235,12 @@ def _choose(
     resamples: int,
     success_frames: int,
 ) -> Calibration:
-    """The nested choice on score columns by lambda."""
+    """The nested choice on score columns by candidate (in order: the task's own growth first, lambdas ascending)."""
     grids = {
-        lam: (score_grid(dataset, scores, "capture_score"), score_grid(dataset, scores, "success_score"))
-        for lam, scores in scored.items()
+        candidate: (score_grid(dataset, scores, "capture_score"), score_grid(dataset, scores, "success_score"))
+        for candidate, scores in scored.items()
     }
+    order_of = sorted(grids, key=lambda c: ((c[0], c[1]) != (1.0, 1.0), c[0], c[1], c[2]))
     half = max(1, dataset.n_frames // 2)
     questions = Questions(
         dataset,
@@ -216,12 +251,13 @@ def _choose(
     order = np.random.default_rng(seed).permutation(dataset.n_trajectories)
     split = [np.sort(part) for part in np.array_split(order, folds)]
 
-    def best(rows: np.ndarray) -> float:
-        means = [(_mean(questions.answer(*grids[lam], rows), objective), -lam) for lam in grid]
-        return -max(means)[1]  # the highest mean, then the smaller lambda
+    def best(rows: np.ndarray) -> Candidate:
+        # The highest mean AP; among equals the first in order: the task's own growth, the smaller lambda.
+        means = [(_mean(questions.answer(*grids[c], rows), objective), -rank) for rank, c in enumerate(order_of)]
+        return order_of[-max(means)[1]]
 
-    held_capture = np.empty_like(grids[grid[0]][0])
-    held_success = np.empty_like(grids[grid[0]][1])
+    first = grids[order_of[0]]
+    held_capture, held_success = np.empty_like(first[0]), np.empty_like(first[1])
     fold_rows = []
     for held in split:
         train = np.setdiff1d(np.arange(dataset.n_trajectories), held)
@@ -230,7 +266,9 @@ def _choose(
         fold_rows.append(
             {
                 "trajectories": held.tolist(),
-                "likelihood_lambda": chosen,
+                "likelihood_lambda": chosen[2],
+                "wrench_scale": chosen[0],
+                "duration_scale": chosen[1],
                 "held_out": questions.answer(*grids[chosen], held),
                 "train_objective": _mean(questions.answer(*grids[chosen], train), objective),
             }
@@ -254,23 +292,29 @@ def _choose(
         seed=seed,
     )
     default_lambda = float(dataset.task.config.likelihood_lambda)
-    default = questions.answer(*grids[default_lambda], everything)
+    chosen = best(everything)
     return Calibration(
         task=str(dataset.metadata["task"]),
-        likelihood_lambda=best(everything),
+        likelihood_lambda=chosen[2],
         lambdas=grid,
         folds=fold_rows,
         held_out=held_out,
         default_lambda=default_lambda,
-        default=default,
+        default=questions.answer(*grids[(1.0, 1.0, default_lambda)], everything),
         verdict={name: verdict.to_dict() for name, verdict in found.items()},
         baselines={name: questions.answer(*scores, everything) for name, scores in baselines_scores.items()},
         objective=objective,
+        wrench_scale=chosen[0],
+        duration_scale=chosen[1],
     )
 
 
-def read_calibration(path: Path | str, *, task: str) -> float:
-    """The lambda of a calibration file for a dataset of ``task``.
+def read_calibration(path: Path | str, *, task: str) -> dict[str, float]:
+    """The analysis settings of a calibration file for a dataset of ``task``.
+
+    Returns:
+        ``likelihood_lambda`` (1/J), ``wrench_scale`` and ``duration_scale`` (1 in a file without
+        growth scales).
 
     Raises:
         EnergyMarginError: not a calibration file, an unfinished one, or one of another task.
@@ -285,4 +329,10 @@ def read_calibration(path: Path | str, *, task: str) -> float:
         raise EnergyMarginError(f"{path}: the calibration has not finished; run energy-margin calibrate again")
     if result.get("task") != task:
         raise EnergyMarginError(f"{path} calibrates task {result.get('task')!r}, not this dataset's {task!r}")
-    return float(result["likelihood_lambda"])
+    chosen = {"likelihood_lambda": float(result["likelihood_lambda"])}
+    for name in ("wrench_scale", "duration_scale"):
+        value = result.get(name, 1.0)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+            raise EnergyMarginError(f"{path}: {name} must be a positive number, got {value!r}")
+        chosen[name] = float(value)
+    return chosen

@@ -47,6 +47,8 @@ def grow_tree(
     rrt_extent: float = 0.1,
     stop: Callable[[CostField], bool] | None = None,
     check_every: int = 25,
+    wrench_scale: float = 1.0,
+    duration_scale: float = 1.0,
 ) -> CostField:
     """Grow a tree (EST by default) from ``root`` and return its energy-cost field.
 
@@ -70,6 +72,8 @@ def grow_tree(
         stop: early-stopping rule called every ``check_every`` expansions (see
             :func:`~energy_margin.planning.tree.grow`).
         check_every: expansions between two calls of ``stop``.
+        wrench_scale: factor on the task's perturbation wrench bounds.
+        duration_scale: factor on the task's longest perturbation propagation.
 
     The end-effector keeps following its script: its command (:func:`command_robot`, without
     random variation) is evaluated at ``start_time`` plus the node's time when a propagation
@@ -102,6 +106,8 @@ def grow_tree(
             threads=threads,
             stop=stop,
             check_every=check_every,
+            wrench_scale=wrench_scale,
+            duration_scale=duration_scale,
         )
     finally:
         # Engines that keep saved states outside the node array (PyBullet) free them now.

@@ -381,6 +381,8 @@ def grow(
     threads: int = 1,
     stop: Callable[[CostField], bool] | None = None,
     check_every: int = 25,
+    wrench_scale: float = 1.0,
+    duration_scale: float = 1.0,
 ) -> CostField:
     """Grow a tree from ``root`` with the parent choice of ``make_expansion`` and return its cost field.
 
@@ -403,6 +405,8 @@ def grow(
             ``check_every`` expansions; growth ends when it returns ``True`` (the budget stays the
             upper bound). The tree does not know why: scores and tolerances belong to the caller.
         check_every: expansions between two calls of ``stop``, >= 1.
+        wrench_scale: factor on the task's perturbation wrench bounds.
+        duration_scale: factor on the task's longest perturbation propagation, s.
 
     The end-effector keeps following its script: its command (:func:`command_robot`, without random
     variation) is evaluated at ``start_time`` plus the node's time when a propagation starts, and
@@ -419,7 +423,9 @@ def grow(
     check_positive_int("check_every", check_every)
     features = features if features is not None else ObjectPositions()
     limits = task.wrench_limits(simulator.scene)
-    max_wrench = limits.max_wrench
+    # The scales multiply the task's bounds (1: exactly the task's, bit for bit).
+    max_wrench = limits.max_wrench * wrench_scale if wrench_scale != 1.0 else limits.max_wrench
+    max_duration = limits.max_duration * duration_scale
     dt = simulator.timestep
     needs_friction = cost_model.needs_friction_work
     control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
@@ -449,7 +455,7 @@ def grow(
     expansion = make_expansion(rng, root_pos, features)
     expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
     limit = budget.iteration_limit
-    controls = _Controls(rng, expansion.uniforms, max_wrench, limits.max_duration, dt, limit)
+    controls = _Controls(rng, expansion.uniforms, max_wrench, max_duration, dt, limit)
 
     iterations = 0
     physics_s = 0.0
