@@ -109,8 +109,8 @@ def test_evaluate_reports_the_verdict_in_the_table_and_in_json(
 
 
 def test_the_table_says_when_an_interval_rests_on_fewer_resamples() -> None:
-    from energy_margin.evaluation.metrics import _verdict_cell
+    from energy_margin.evaluation.metrics import verdict_cell
 
     verdict = {"difference": 0.1, "low": 0.02, "high": 0.2, "word": "ahead", "baseline": "distance"}
-    assert _verdict_cell({**verdict, "resamples": 1000}, 1000) == "+0.100 [+0.020, +0.200] ahead (distance)"
-    assert _verdict_cell({**verdict, "resamples": 640}, 1000).endswith("(distance; 640 of 1000 resamples)")
+    assert verdict_cell({**verdict, "resamples": 1000}, 1000) == "+0.100 [+0.020, +0.200] ahead (distance)"
+    assert verdict_cell({**verdict, "resamples": 640}, 1000).endswith("(distance; 640 of 1000 resamples)")

@@ -106,6 +106,8 @@ def _cell(value: Any) -> str:
 
 def format_calibration(result: Calibration) -> str:
     """The chosen lambda, each fold's choice and AP, and the held-out AP beside the default and the baselines."""
+    from energy_margin.evaluation.metrics import verdict_cell
+
     questions = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
     headings = ("capture k0", "capture k2", "success last", "success 1st half")
     lines = [
@@ -130,12 +132,5 @@ def format_calibration(result: Calibration) -> str:
         lines.append(f"  {label:28s} " + "  ".join(f"{_cell(values[q]):>16s}" for q in questions))
     lines.append("calibrated - best baseline [95 % paired interval]:")
     for question in questions:
-        verdict = result.verdict[question]
-        if verdict["difference"] is None or verdict["low"] is None or verdict["high"] is None:
-            lines.append(f"  {question:24s} n/a")
-        else:
-            lines.append(
-                f"  {question:24s} {verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}] "
-                f"{verdict['word']} ({verdict['baseline']})"
-            )
+        lines.append(f"  {question:24s} {verdict_cell(result.verdict[question])}")
     return "\n".join(lines)

@@ -37,3 +37,20 @@ def distance_scores(dataset: Dataset) -> tuple[np.ndarray, np.ndarray] | None:
     except TypeError:
         return None
     return capture, success
+
+
+def baseline_grids(dataset: Dataset) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Capture and success score grids (each (T, K)) of the baselines: ``current_state`` and ``distance``.
+
+    ``distance`` is left out for a task whose regions measure no distance (:func:`distance_scores`).
+    """
+    grids = {
+        "current_state": (
+            dataset.arrays["captured"].astype(float),
+            dataset.arrays["in_success"].astype(float),
+        )
+    }
+    heuristic = distance_scores(dataset)
+    if heuristic is not None:
+        grids["distance"] = heuristic
+    return grids

@@ -71,6 +71,24 @@ class Questions:
         self.weights = weights
         self.names: tuple[str, ...] = (*self.capture, *self.spans)
 
+    @classmethod
+    def of_evaluate(
+        cls, dataset: Dataset, *, capture_window: int = 0, success_frames: int = 3, weights: str = "linear"
+    ) -> Questions:
+        """``evaluate``'s four questions, under its keys.
+
+        ``capture_ap`` (k-hat ``capture_window``), ``capture_ap_window2`` (k-hat 2), ``success_ap``
+        (all frames) and ``success_ap_first_half``.
+        """
+        half = max(1, dataset.n_frames // 2)
+        return cls(
+            dataset,
+            success_frames,
+            capture_windows={"capture_ap": capture_window, "capture_ap_window2": 2},
+            success_spans={"success_ap": (None, None), "success_ap_first_half": (0, half)},
+            weights=weights,
+        )
+
     def answer(self, capture: np.ndarray, success: np.ndarray, rows: np.ndarray) -> dict[str, float | None]:
         """AP of each question on trajectories ``rows`` (indices, repeats allowed).
 

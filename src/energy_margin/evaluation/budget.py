@@ -33,7 +33,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_int, check_seed
-from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import (
     Questions,
     average_precision,
@@ -329,20 +329,6 @@ def cost_summary(scores: dict[str, np.ndarray]) -> dict[str, Any]:
         "nodes_per_frame": float(scores["nodes"].mean()),
         "frames": int(scores["runtime_s"].size),
     }
-
-
-def baseline_grids(dataset: Dataset) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Capture and success score grids (each (T, K)) of the baselines: ``current_state`` and ``distance``."""
-    grids = {
-        "current_state": (
-            dataset.arrays["captured"].astype(float),
-            dataset.arrays["in_success"].astype(float),
-        )
-    }
-    heuristic = distance_scores(dataset)
-    if heuristic is not None:
-        grids["distance"] = heuristic
-    return grids
 
 
 def _interval(question: str) -> Callable[[dict[str, Any]], str]:

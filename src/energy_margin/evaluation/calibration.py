@@ -28,7 +28,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_int, check_positive_int, check_seed
-from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import Questions
 from energy_margin.evaluation.lambda_rescoring import rescore_lambdas
 from energy_margin.evaluation.metrics import score_grid
@@ -241,13 +241,7 @@ def _choose(
         for candidate, scores in scored.items()
     }
     order_of = sorted(grids, key=lambda c: ((c[0], c[1]) != (1.0, 1.0), c[0], c[1], c[2]))
-    half = max(1, dataset.n_frames // 2)
-    questions = Questions(
-        dataset,
-        success_frames,
-        capture_windows={"capture_ap": 0, "capture_ap_window2": 2},
-        success_spans={"success_ap": (None, None), "success_ap_first_half": (0, half)},
-    )
+    questions = Questions.of_evaluate(dataset, success_frames=success_frames)
     order = np.random.default_rng(seed).permutation(dataset.n_trajectories)
     split = [np.sort(part) for part in np.array_split(order, folds)]
 
@@ -275,12 +269,7 @@ def _choose(
         )
     everything = np.arange(dataset.n_trajectories)
     held_out = questions.answer(held_capture, held_success, everything)
-    baselines_scores: dict[str, tuple[np.ndarray, np.ndarray]] = {
-        "current_state": (dataset.arrays["captured"].astype(float), dataset.arrays["in_success"].astype(float))
-    }
-    distance = distance_scores(dataset)
-    if distance is not None:
-        baselines_scores["distance"] = distance
+    baselines_scores = baseline_grids(dataset)
     found = verdicts(
         dataset,
         (held_capture, held_success),

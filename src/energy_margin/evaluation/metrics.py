@@ -25,7 +25,7 @@ from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_positive_int, check_seed
-from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.verdict import verdicts
 
 
@@ -141,21 +141,16 @@ def evaluate(
     physics = score_grid(dataset, scores, "physics_s")
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
     result: dict[str, Any] = dict(_questions(dataset, capture, success, **options))
-    current_capture = dataset.arrays["captured"].astype(float)
-    current_success = dataset.arrays["in_success"].astype(float)
+    grids = baseline_grids(dataset)
     constant = np.zeros_like(capture)
     result["baselines"] = {
-        "current_state": _questions(dataset, current_capture, current_success, **options),
+        "current_state": _questions(dataset, *grids["current_state"], **options),
         "chance": _questions(dataset, constant, constant, **options),
     }
-    heuristic = distance_scores(dataset)
-    if heuristic is not None:
-        result["baselines"]["distance"] = _questions(dataset, *heuristic, **options)
+    if "distance" in grids:
+        result["baselines"]["distance"] = _questions(dataset, *grids["distance"], **options)
     if resamples:
-        compared = {"current_state": (current_capture, current_success)}
-        if heuristic is not None:
-            compared["distance"] = heuristic
-        found = verdicts(dataset, (capture, success), compared, **options, resamples=resamples, seed=seed)
+        found = verdicts(dataset, (capture, success), grids, **options, resamples=resamples, seed=seed)
         result["verdict"] = {question: found[question].to_dict() for question in found}
         result["verdict_resamples"] = resamples
         result["seed"] = seed
@@ -184,12 +179,16 @@ def _cell(value: float | None) -> str:
     return "  n/a" if value is None else f"{value:5.3f}"
 
 
-def _verdict_cell(verdict: dict[str, Any], drawn: int) -> str:
+def verdict_cell(verdict: dict[str, Any], drawn: int | None = None) -> str:
+    """One verdict as ``+0.100 [+0.020, +0.200] ahead (distance)``; ``n/a`` where it is undefined.
+
+    ``drawn``: the resamples drawn; when the interval rests on fewer (resamples whose labels are one
+    class have no AP), the cell says how many.
+    """
     if verdict["difference"] is None or verdict["low"] is None or verdict["high"] is None:
         return "n/a"
     used = verdict.get("resamples", drawn)
-    # Resamples whose labels are one class have no AP: say when the interval rests on fewer.
-    fewer = f"; {used} of {drawn} resamples" if used < drawn else ""
+    fewer = f"; {used} of {drawn} resamples" if drawn is not None and used is not None and used < drawn else ""
     return (
         f"{verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}] "
         f"{verdict['word']} ({verdict['baseline']}{fewer})"
@@ -220,7 +219,7 @@ def format_table(result: dict[str, Any]) -> str:
         baseline_cells = " ".join(f"{_cell(result['baselines'][n][key]):>13s}" for n in names)
         line = f"{label:34s} {_cell(result[key]):>13s} {baseline_cells}"
         if verdict:
-            line += f"  {_verdict_cell(verdict[key], int(result['verdict_resamples']))}"
+            line += f"  {verdict_cell(verdict[key], int(result['verdict_resamples']))}"
         lines.append(line)
     if verdict:
         lines.append(

@@ -98,13 +98,8 @@ def verdicts(
     Returns:
         Question key -> :class:`Verdict`, in ``evaluate``'s order of questions.
     """
-    half = max(1, dataset.n_frames // 2)
-    questions = Questions(
-        dataset,
-        success_frames,
-        capture_windows={"capture_ap": capture_window, "capture_ap_window2": 2},
-        success_spans={"success_ap": (None, None), "success_ap_first_half": (0, half)},
-        weights=weights,
+    questions = Questions.of_evaluate(
+        dataset, capture_window=capture_window, success_frames=success_frames, weights=weights
     )
     rng = np.random.default_rng(seed)
     drawn = rng.integers(0, dataset.n_trajectories, size=(resamples, dataset.n_trajectories))
