@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import CONFIG_FILE, load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.bootstrap import Questions
-from energy_margin.evaluation.calibration import CALIBRATION_FILE, calibrate
+from energy_margin.evaluation.calibration import CALIBRATION_FILE, Calibration, calibrate
 from energy_margin.evaluation.lambda_rescoring import lambda_directory
 from energy_margin.evaluation.metrics import score_grid
 
@@ -33,21 +34,25 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+def small_calibration(dataset: Path, out: Path, **changes: Any) -> Calibration:
+    """A calibration with 12 expansions a frame, 4 folds, seed 1 (``changes`` replace any of them)."""
+    options: dict[str, Any] = {
+        "lambdas": LAMBDAS,
+        "folds": 4,
+        "objective": OBJECTIVE,
+        "config": AnalyzerConfig(iterations=12),
+        "seed": 1,
+        "resamples": 50,
+        "progress": False,
+        **changes,
+    }
+    return calibrate(dataset, out, **options)
+
+
 @pytest.fixture(scope="module")
 def calibrated(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
     out = tmp_path_factory.mktemp("calibration-run") / "cal"
-    result = calibrate(
-        dataset,
-        out,
-        lambdas=LAMBDAS,
-        folds=4,
-        objective=OBJECTIVE,
-        config=AnalyzerConfig(iterations=12),
-        seed=1,
-        resamples=50,
-        progress=False,
-    )
-    return out, result
+    return out, small_calibration(dataset, out)
 
 
 def test_each_fold_is_scored_at_the_lambda_chosen_without_it(dataset: Path, calibrated) -> None:  # type: ignore[no-untyped-def]
@@ -94,30 +99,10 @@ def test_a_rerun_resumes_without_growing_trees_and_gives_the_same_result(
         raise AssertionError("a finished calibration grew trees again")
 
     monkeypatch.setattr(lambda_rescoring, "_rescore_pending", no_growth)
-    again = calibrate(
-        dataset,
-        out,
-        lambdas=LAMBDAS,
-        folds=4,
-        objective=OBJECTIVE,
-        config=AnalyzerConfig(iterations=12),
-        seed=1,
-        resamples=50,
-        progress=False,
-    )
+    again = small_calibration(dataset, out)
     assert again == result
     with pytest.raises(EnergyMarginError, match="holds a calibration of other settings"):
-        calibrate(
-            dataset,
-            out,
-            lambdas=LAMBDAS,
-            folds=3,
-            objective=OBJECTIVE,
-            config=AnalyzerConfig(iterations=12),
-            seed=1,
-            resamples=50,
-            progress=False,
-        )
+        small_calibration(dataset, out, folds=3)
 
 
 def test_analyze_takes_the_calibrated_lambda(dataset: Path, calibrated, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -163,18 +148,7 @@ def test_too_few_trajectories_or_one_class_is_refused_in_one_line(  # type: igno
 
 def test_growth_scales_grow_their_own_trees_and_join_the_choice(dataset: Path, tmp_path: Path) -> None:
     out = tmp_path / "grow"
-    result = calibrate(
-        dataset,
-        out,
-        lambdas=(5.0,),
-        folds=4,
-        objective=OBJECTIVE,
-        config=AnalyzerConfig(iterations=12),
-        seed=1,
-        resamples=20,
-        wrench_scales=(1.0, 3.0),
-        progress=False,
-    )
+    result = small_calibration(dataset, out, lambdas=(5.0,), resamples=20, wrench_scales=(1.0, 3.0))
     assert (out / "lambda" / "w3-d1").is_dir()  # the scaled trees, beside the task's own
     assert result.wrench_scale in (1.0, 3.0) and result.duration_scale == 1.0
     assert {fold["wrench_scale"] for fold in result.folds} <= {1.0, 3.0}

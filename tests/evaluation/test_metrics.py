@@ -10,9 +10,10 @@ from sklearn.metrics import average_precision_score
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import COLUMNS, SCORES_FILE, load_scores
+from energy_margin.data.scores_file import SCORES_FILE, load_scores
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import average_precision, evaluate, format_table, score_grid
+from score_files import write_scores
 
 REQUIRED = {
     "capture_ap",
@@ -29,16 +30,6 @@ QUESTIONS = {"capture_ap", "capture_ap_window2", "success_ap", "success_ap_first
 # Hand-made labels for a 2 x 3 dataset: mixed capture labels and mixed final success.
 CAPTURED = np.array([[True, False, True], [True, True, False]])
 IN_SUCCESS = np.array([[False, True, True], [False, False, False]])
-
-
-def _write_scores(directory: Path, capture: np.ndarray, success: np.ndarray, *, runtime: float = 0.5) -> None:
-    lines = [",".join(COLUMNS)]
-    for t in range(capture.shape[0]):
-        for k in range(capture.shape[1]):
-            lines.append(
-                f"{t},{k},{float(capture[t, k])!r},{float(success[t, k])!r},31,30,{runtime!r},0.25,{t * 10 + k}"
-            )
-    (directory / SCORES_FILE).write_text("\n".join(lines) + "\n")
 
 
 @pytest.fixture
@@ -120,7 +111,7 @@ def test_score_grid_rejects_incomplete_tables(
 
 
 def test_evaluate_refuses_a_duplicated_row(labelled: Path) -> None:
-    _write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
+    write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
     text = (labelled / SCORES_FILE).read_text().splitlines(keepends=True)
     (labelled / SCORES_FILE).write_text("".join([*text[:-1], text[2]]))  # frame (0, 1) twice, (1, 2) missing
     with pytest.raises(EnergyMarginError, match=r"duplicates line 3 \(trajectory 0, frame 1\)"):
@@ -158,7 +149,7 @@ def test_scores_equal_to_the_labels_give_perfect_ap(labelled: Path) -> None:
     dataset = load_dataset(labelled)
     # Perfect capture scores at k-hat = 0; success scores equal to in_success make every
     # trajectory score its final label.
-    _write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float), runtime=0.5)
+    write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float), runtime=0.5)
     result = evaluate(labelled)
     assert result["capture_ap"] == 1.0
     assert result["success_ap"] == 1.0
@@ -177,7 +168,7 @@ def test_scores_equal_to_the_labels_give_perfect_ap(labelled: Path) -> None:
 
 
 def test_inverted_scores_give_poor_ap(labelled: Path) -> None:
-    _write_scores(labelled, 1.0 - CAPTURED, 1.0 - IN_SUCCESS)
+    write_scores(labelled, 1.0 - CAPTURED, 1.0 - IN_SUCCESS)
     result = evaluate(labelled)
     assert result["capture_ap"] < 0.7
     assert result["success_ap"] == pytest.approx(0.5)
@@ -186,14 +177,14 @@ def test_inverted_scores_give_poor_ap(labelled: Path) -> None:
 def test_capture_window_and_success_frames(labelled: Path) -> None:
     dataset = load_dataset(labelled)
     window1 = dataset.capture_labels(1)
-    _write_scores(labelled, window1.astype(float), IN_SUCCESS.astype(float))
+    write_scores(labelled, window1.astype(float), IN_SUCCESS.astype(float))
     assert evaluate(labelled, capture_window=1)["capture_ap"] == 1.0
     assert evaluate(labelled, capture_window=1)["capture_positive_rate"] == pytest.approx(window1.mean())
     assert evaluate(labelled)["capture_ap"] < 1.0
     # Success scores that only look right early: with k-bar = 3 (all frames) the ranking is right,
     # with k-bar = 1 (last frame only) it is wrong.
     early = np.array([[1.0, 1.0, 0.0], [0.0, 0.0, 0.5]])
-    _write_scores(labelled, window1.astype(float), early)
+    write_scores(labelled, window1.astype(float), early)
     assert evaluate(labelled, success_frames=3, weights="uniform")["success_ap"] == 1.0
     assert evaluate(labelled, success_frames=1)["success_ap"] == pytest.approx(0.5)
 
@@ -208,7 +199,7 @@ def test_capture_window_and_success_frames(labelled: Path) -> None:
     ],
 )
 def test_evaluate_rejects_bad_options(labelled: Path, kwargs: dict[str, object], message: str) -> None:
-    _write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
+    write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
     with pytest.raises(EnergyMarginError, match=message):
         evaluate(labelled, **kwargs)
 

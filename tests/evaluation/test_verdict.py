@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,10 +10,10 @@ import pytest
 from energy_margin.cli import main
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.data.scores_file import COLUMNS, SCORES_FILE
 from energy_margin.evaluation.baselines import distance_scores
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.evaluation.verdict import verdicts, word
+from score_files import write_scores
 
 QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
 
@@ -79,19 +78,11 @@ def test_the_same_seed_gives_the_same_verdict(dataset: Dataset) -> None:
     assert first == again
 
 
-def _write_scores(directory: Path, capture: np.ndarray, success: np.ndarray) -> None:
-    lines = [",".join(COLUMNS)]
-    for t in range(capture.shape[0]):
-        for k in range(capture.shape[1]):
-            lines.append(f"{t},{k},{float(capture[t, k])!r},{float(success[t, k])!r},31,30,0.5,0.25,{t * 10 + k}")
-    (directory / SCORES_FILE).write_text("\n".join(lines) + "\n")
-
-
 def test_evaluate_reports_the_verdict_in_the_table_and_in_json(
     dataset: Dataset, capsys: pytest.CaptureFixture[str]
 ) -> None:
     rng = np.random.default_rng(2)
-    _write_scores(dataset.path, rng.random((12, 6)), rng.random((12, 6)))
+    write_scores(dataset.path, rng.random((12, 6)), rng.random((12, 6)))
     result = evaluate(dataset.path, resamples=100, seed=1)
     assert set(result["verdict"]) == set(QUESTIONS)
     assert {v["word"] for v in result["verdict"].values()} <= {"ahead", "level", "behind", "n/a"}

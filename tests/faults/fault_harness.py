@@ -218,19 +218,8 @@ def run_uninterrupted(processes: Processes, command: Command, workdir: Path) -> 
 
 def startup_seconds(processes: Processes, workdir: Path, *, repeats: int = 3) -> float:
     """The shortest of ``repeats`` runs of ``energy-margin --version``: the start-up every command pays."""
-    workdir.mkdir(parents=True, exist_ok=True)
     version = Command("version", ("--version",), out=".")
-    seconds = []
-    for _ in range(repeats):
-        started = time.monotonic()
-        proc = processes.start(version, workdir)
-        try:
-            proc.wait(timeout=TIMEOUT)
-        finally:
-            kill_group(proc)
-        assert proc.returncode == 0, output(proc)[1]
-        seconds.append(time.monotonic() - started)
-    return min(seconds)
+    return min(run_uninterrupted(processes, version, workdir / str(run)).seconds for run in range(repeats))
 
 
 def kill_and_resume(

@@ -9,10 +9,11 @@ import pytest
 
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import COLUMNS, SCORES_FILE
+from energy_margin.data.scores_file import SCORES_FILE
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.robustness.compare import compare_perturbed, expand_compare_paths, format_robustness_table
+from score_files import write_scores
 
 # Hand-made labels for the 2 x 3 tiny dataset: mixed capture labels and mixed final success.
 CAPTURED = np.array([[True, False, True], [True, True, False]])
@@ -21,26 +22,18 @@ TRUE_CAPTURE = np.array([[0.9, 0.1, 0.8], [0.7, 0.6, 0.2]])
 TRUE_SUCCESS = np.array([[0.1, 0.5, 0.6], [0.2, 0.1, 0.1]])
 
 
-def _write_scores(directory: Path, capture: np.ndarray, success: np.ndarray) -> None:
-    lines = [",".join(COLUMNS)]
-    for t in range(capture.shape[0]):
-        for k in range(capture.shape[1]):
-            lines.append(f"{t},{k},{float(capture[t, k])!r},{float(success[t, k])!r},31,30,0.5,0.25,{t * 10 + k}")
-    (directory / SCORES_FILE).write_text("\n".join(lines) + "\n")
-
-
 @pytest.fixture
 def table_one(tiny_dataset: Path, rewrite_frames, tmp_path: Path) -> tuple[Path, list[Path]]:  # type: ignore[no-untyped-def]
     """A scored true-state dataset and two scored 'perturbed' copies (hand-made scores)."""
     rewrite_frames(tiny_dataset, captured=CAPTURED, in_success=IN_SUCCESS)
-    _write_scores(tiny_dataset, TRUE_CAPTURE, TRUE_SUCCESS)
+    write_scores(tiny_dataset, TRUE_CAPTURE, TRUE_SUCCESS)
     parent = tmp_path / "perturbed"
     copies = []
     # Copy 1 ranks capture perfectly; copy 2 inverts it. Success scores shift by -0.1 and +0.3.
     for name, capture, shift in (("1", CAPTURED * 0.5 + 0.25, -0.1), ("2", 1.0 - CAPTURED * 0.9, 0.3)):
         target = parent / name
         shutil.copytree(tiny_dataset, target)
-        _write_scores(target, capture.astype(float), TRUE_SUCCESS + shift)
+        write_scores(target, capture.astype(float), TRUE_SUCCESS + shift)
         copies.append(target)
     return tiny_dataset, copies
 
