@@ -60,15 +60,24 @@ class FrameRegions:
 
     def __init__(self, regions: Sequence[Region]) -> None:
         self.regions = list(regions)
+        # all_inside passes orientations on when some frame's region tests them (a contact test).
+        self.uses_orientation = any(getattr(region, "uses_orientation", False) for region in self.regions)
 
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
-        """Whether row f of positions (F, ..., 3) lies in frame f's region; shape (F, ...)."""
-        return np.stack(
-            [
-                region.contains(positions[f], None if velocities is None else velocities[f])
-                for f, region in enumerate(self.regions)
-            ]
-        )
+    def contains(
+        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Whether row f of positions (F, ..., 3) lies in frame f's region; shape (F, ...).
+
+        ``quaternions`` (F, ..., 4) go to the regions that test orientations.
+        """
+        rows = []
+        for f, region in enumerate(self.regions):
+            velocity = None if velocities is None else velocities[f]
+            if quaternions is not None and getattr(region, "uses_orientation", False):
+                rows.append(region.contains(positions[f], velocity, quaternions=quaternions[f]))  # type: ignore[call-arg]
+            else:
+                rows.append(region.contains(positions[f], velocity))
+        return np.stack(rows)
 
     def signed_distance(self, positions: np.ndarray) -> np.ndarray:
         """Signed distance (m) of row f of positions (F, ..., 3) to frame f's region; 0 where it measures none."""

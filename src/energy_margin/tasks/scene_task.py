@@ -553,23 +553,19 @@ class SceneTask(Task):
                 "expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1"
             )
         object_pos = np.asarray(object_pos, dtype=float)
-        count = object_pos.shape[0]
-        inside = np.empty(count, dtype=bool)
         robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))
-        for node in range(count):
-            quat = object_quat[node] if object_quat is not None else root.object_quat
-            state = FrameState(
+        states = [
+            FrameState(
                 object_pos=object_pos[node],
-                object_quat=np.asarray(quat, dtype=float),
+                object_quat=np.asarray(root.object_quat if object_quat is None else object_quat[node], dtype=float),
                 object_vel=np.asarray(object_vel[node], dtype=float),
                 robot_q=np.asarray(robot_q[node], dtype=float),
                 robot_v=robot_v,
             )
-            region = self._set(spec.capture, spec.capture_at_least, state)
-            one = slice(node, node + 1)
-            one_quat = None if object_quat is None else object_quat[one]
-            inside[node] = bool(all_inside(region, object_pos[one], object_vel[one], one_quat)[0])
-        return inside
+            for node in range(object_pos.shape[0])
+        ]
+        # One region per state, measured row by row: the mechanism of capture_regions.
+        return all_inside(self.capture_regions(states), object_pos, object_vel, object_quat)
 
     def success_region(self) -> Region:
         """The success set with body and site frames at the model's start configuration."""
