@@ -15,6 +15,7 @@ from typing import Any
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.base import (
     DesignAlias,
+    DesignParameter,
     ReferenceLayout,
     Region,
     Task,
@@ -111,6 +112,7 @@ register_task(SceneTask)
 
 __all__ = [
     "DesignAlias",
+    "DesignParameter",
     "PushingConfig",
     "PushingTask",
     "ReferenceLayout",

@@ -273,6 +273,38 @@ class DesignAlias:
 
 
 @dataclass(frozen=True)
+class DesignParameter:
+    """One axis of a task's tool family: what ``design`` searches when no ``--param`` is given.
+
+    Exactly one of ``(low, high)`` or ``choices`` is set.
+
+    Attributes:
+        name: a ``sweep``/``design --param`` name (a configuration field or a :class:`DesignAlias`).
+        doc: what the parameter is, with its unit.
+        low: smallest value of a numeric range, in the parameter's unit (``None`` for a categorical one).
+        high: largest value of a numeric range (``None`` for a categorical one).
+        choices: the values of a categorical parameter (``None`` for a numeric one).
+        integer: whether a numeric parameter takes whole values only (e.g. a number of tines).
+
+    """
+
+    name: str
+    doc: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[Any, ...] | None = None
+    integer: bool = False
+
+    def __post_init__(self) -> None:
+        if (self.choices is None) == (self.low is None or self.high is None):
+            raise ValueError(f"design parameter {self.name!r}: give either low and high or choices")
+        if self.choices is None and not (self.low is not None and self.high is not None and self.low < self.high):
+            raise ValueError(f"design parameter {self.name!r}: low ({self.low}) must be below high ({self.high})")
+        if self.choices is not None and len(self.choices) < 2:
+            raise ValueError(f"design parameter {self.name!r}: choices need at least two values")
+
+
+@dataclass(frozen=True)
 class ReferenceLayout:
     """How the authors' published CSV files of a task read (:mod:`energy_margin.data.reference`).
 
@@ -462,6 +494,11 @@ class Task(ABC):
     @classmethod
     def design_aliases(cls) -> tuple[DesignAlias, ...]:
         """Friendly ``sweep --param`` names of the task besides its configuration fields (none by default)."""
+        return ()
+
+    @classmethod
+    def design_space(cls) -> tuple[DesignParameter, ...]:
+        """The task's tool family over its documented ranges: what ``design`` searches by default (none by default)."""
         return ()
 
     def capture_region_shape(self, root: FrameState) -> str:
