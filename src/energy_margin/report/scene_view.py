@@ -84,11 +84,14 @@ def describe_scene(task: SceneTask) -> list[str]:
         f"randomize: friction {friction}, mass scale {spec.mass_scale or '1'}, time scale {spec.time_scale or '1'}, "
         f"start {spec.start.mode} {start}"
     )
+    perturbation = loaded.perturbation
     lines.append(
-        f"perturbation: linear acceleration {_fmt(spec.linear_acceleration)} m/s^2, angular acceleration "
-        f"{_fmt(spec.angular_acceleration)} rad/s^2, longest propagation {spec.max_duration:g} s, lambda "
-        f"{spec.likelihood_lambda:g} 1/J"
+        f"perturbation: linear acceleration {_fmt(perturbation.linear_acceleration)} m/s^2, angular acceleration "
+        f"{_fmt(perturbation.angular_acceleration)} rad/s^2, longest propagation {perturbation.max_duration:.3g} s, "
+        f"lambda {perturbation.likelihood_lambda:.3g} 1/J"
     )
+    for key, reason in perturbation.derived.items():
+        lines.append(f"  derived perturbation.{key} (not in the file): {reason}")
     limits = task.wrench_limits(task.build_scene(loaded.n_objects, 0.5)).max_wrench
     lines.append(
         f"wrench bounds of {loaded.object_names[0]}: force {_fmt(tuple(limits[0, :3]))} N, "

@@ -167,7 +167,9 @@ class SceneSpec:
         mass_scale: per-trajectory object mass (and inertia) scale range, or ``None``.
         time_scale: per-trajectory speed-up of the motion, or ``None``.
         start: object start poses.
-        linear_acceleration: perturbation force bound per world axis divided by mass, (3,), m/s^2.
+        linear_acceleration: perturbation force bound per world axis divided by mass, (3,), m/s^2
+            (``None``: not in the file, derived from the scene by
+            :func:`~energy_margin.tasks.scene_defaults.resolve_perturbation`, as are the next three).
         angular_acceleration: perturbation torque bound per axis divided by inertia, (3,), rad/s^2.
         max_duration: longest perturbation propagation, s.
         likelihood_lambda: softmax inverse temperature lambda, 1/J.
@@ -196,10 +198,10 @@ class SceneSpec:
     mass_scale: tuple[float, float] | None
     time_scale: tuple[float, float] | None
     start: StartSpec
-    linear_acceleration: tuple[float, ...]
-    angular_acceleration: tuple[float, ...]
-    max_duration: float
-    likelihood_lambda: float
+    linear_acceleration: tuple[float, ...] | None
+    angular_acceleration: tuple[float, ...] | None
+    max_duration: float | None
+    likelihood_lambda: float | None
     capture: dict[str, Any]
     capture_at_least: int | None
     success: dict[str, Any]
@@ -436,14 +438,23 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
     perturbation = read.table(
         document, "perturbation", "", {"linear_acceleration", "angular_acceleration", "max_duration", "lambda"}
     )
-    linear = read.vector(
-        perturbation.get("linear_acceleration", [2.0, 2.0, 2.0]), "perturbation.linear_acceleration", minimum=0.0
+    # A key left out is derived from the scene once its model is compiled (tasks/scene_defaults.py).
+    linear = (
+        read.vector(perturbation["linear_acceleration"], "perturbation.linear_acceleration", minimum=0.0)
+        if "linear_acceleration" in perturbation
+        else None
     )
-    angular = read.vector(
-        perturbation.get("angular_acceleration", [0.0, 0.0, 0.0]), "perturbation.angular_acceleration", minimum=0.0
+    angular = (
+        read.vector(perturbation["angular_acceleration"], "perturbation.angular_acceleration", minimum=0.0)
+        if "angular_acceleration" in perturbation
+        else None
     )
-    max_duration = read.number(perturbation.get("max_duration", 0.1), "perturbation.max_duration", positive=True)
-    lam = read.number(perturbation.get("lambda", 5.0), "perturbation.lambda", minimum=0.0)
+    max_duration = (
+        read.number(perturbation["max_duration"], "perturbation.max_duration", positive=True)
+        if "max_duration" in perturbation
+        else None
+    )
+    lam = read.number(perturbation["lambda"], "perturbation.lambda", minimum=0.0) if "lambda" in perturbation else None
 
     sets = {}
     follows = False

@@ -19,6 +19,7 @@ import numpy as np
 
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import upright_axes
+from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
 from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
@@ -127,6 +128,7 @@ class LoadedScene:
         object_half_extents: half extents of each object's bounding box in its body frame, (n_objects, 3), m.
         motion: the robot's motion.
         initial_qpos: the model's start configuration (its reference or the initial keyframe), (nq,).
+        perturbation: the perturbation settings, the file's or derived from the scene where it has none.
 
     """
 
@@ -141,6 +143,7 @@ class LoadedScene:
     object_half_extents: np.ndarray
     motion: Motion
     initial_qpos: np.ndarray
+    perturbation: PerturbationSettings
 
     @property
     def n_objects(self) -> int:
@@ -444,4 +447,5 @@ def resolve_scene(spec: SceneSpec, model: mujoco.MjModel) -> LoadedScene:
         object_half_extents=extents,
         motion=motion,
         initial_qpos=initial,
+        perturbation=resolve_perturbation(spec, model, np.array(bodies, dtype=int)),
     )

@@ -160,8 +160,8 @@ class SceneTask(Task):
         resolved = SceneTaskConfig(
             duration=spec.motion.duration,
             timestep=float(model.opt.timestep),
-            likelihood_lambda=spec.likelihood_lambda,
-            max_duration=spec.max_duration,
+            likelihood_lambda=loaded.perturbation.likelihood_lambda,
+            max_duration=loaded.perturbation.max_duration,
             scene_file=str(path),
             scene_sha256=spec.text_sha256,
             model_sha256=loaded.model_sha256,
@@ -593,13 +593,13 @@ class SceneTask(Task):
         scale = scene.object_masses / base_mass
         inertia = model.body_inertia[loaded.object_bodies] * scale[:, None]
         linear_armature, angular_armature = self._object_armature()
-        spec = loaded.spec
+        perturbation = loaded.perturbation
         limits = np.zeros((scene.n_objects, 6))
-        limits[:, :3] = (scene.object_masses[:, None] + linear_armature) * np.asarray(spec.linear_acceleration)
-        limits[:, 3:] = (inertia + angular_armature) * np.asarray(spec.angular_acceleration)
-        if spec.object_joints == "upright":
+        limits[:, :3] = (scene.object_masses[:, None] + linear_armature) * np.asarray(perturbation.linear_acceleration)
+        limits[:, 3:] = (inertia + angular_armature) * np.asarray(perturbation.angular_acceleration)
+        if loaded.spec.object_joints == "upright":
             limits[:, 3:5] = 0.0
-        return WrenchLimits(max_wrench=limits, max_duration=spec.max_duration)
+        return WrenchLimits(max_wrench=limits, max_duration=perturbation.max_duration)
 
     def _object_armature(self) -> tuple[np.ndarray, np.ndarray]:
         """Armature of each object's joints along x, y, z (n, 3), kg, and about them (n, 3), kg m^2."""

@@ -1,0 +1,130 @@
+"""Perturbation settings a scene file leaves out, derived from the scene by one documented rule.
+
+Each rule reproduces the settings of the paper's planar pushing task (10 cylinders of 0.2 kg, radius
+5 cm, friction 0.1–0.3, 2 s roll-outs analysed at 10 frames: 2 m/s², 0.667 rad/s², 0.1 s, λ = 5 1/J)
+when applied to that task, and scales with the scene's own physics elsewhere:
+
+* **propagation length** ``max_duration``: 0.45 of the time between frames, the frames being the
+  10 that ``generate`` takes by default over the motion's duration (2 s → 0.1 s);
+* **linear bound** per world axis: μ̄ g, the deceleration the objects' sliding friction gives them
+  (μ̄ the middle of ``randomize.friction``, else the mean sliding friction of the objects' geoms):
+  the largest push the support absorbs without the object sliding away (μ̄ = 0.2 → 1.96 m/s²);
+* **angular bound** per axis: the linear bound over the object's radius of gyration about that axis,
+  times the paper's ratio 0.0118 (its cylinders: 0.667 rad/s² for 2 m/s² and a radius of gyration
+  of 3.5 cm);
+* **λ**: 0.080 J (the paper's λ times the energy of one full-bound perturbation of its objects)
+  divided by the energy of one full-bound perturbation of this scene's objects,
+  W = mean over objects of Σ_axes (m a² + I α²) τ². This keeps λ W, the score's dimensionless
+  exponent for a full perturbation, the paper's: scaling every mass, or the bounds, leaves the
+  likelihoods as they were.
+
+``energy-margin scene`` prints each derived value with the reason (:attr:`PerturbationSettings.derived`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from energy_margin.tasks.scene_file import SceneSpec
+
+GRAVITY = 9.81  # m/s^2
+#: Frames per roll-out that the propagation length is derived for (``generate``'s default).
+FRAMES = 10
+#: Propagation length as a share of the time between frames (the paper: 0.1 s of 2 s / 9).
+PROPAGATION_PER_FRAME = 0.45
+#: Angular bound per (linear bound / radius of gyration) (the paper: 0.667 / (2.0 / 0.0354)).
+ANGULAR_RATIO = 0.667 / (2.0 / (0.05 / np.sqrt(2.0)))
+#: The paper's λ times the energy of one full-bound perturbation of its cylinders, J (dimensionless λ W).
+LAMBDA_ENERGY = 5.0 * (0.2 * (2.0**2 + 2.0**2) + 0.5 * 0.2 * 0.05**2 * 0.667**2) * 0.1**2
+
+
+@dataclass(frozen=True)
+class PerturbationSettings:
+    """The perturbation of a scene: the file's values, and derived ones where it has none.
+
+    Attributes:
+        linear_acceleration: force bound per world axis divided by mass, (3,), m/s^2.
+        angular_acceleration: torque bound per axis divided by inertia, (3,), rad/s^2.
+        max_duration: longest propagation, s.
+        likelihood_lambda: softmax inverse temperature λ, 1/J.
+        derived: for each scene-file key that was derived (``"lambda"``, ``"max_duration"``, ...),
+            the reason in words; empty when the file sets all four.
+
+    """
+
+    linear_acceleration: tuple[float, float, float]
+    angular_acceleration: tuple[float, float, float]
+    max_duration: float
+    likelihood_lambda: float
+    derived: dict[str, str] = field(default_factory=dict)
+
+
+def _friction(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> tuple[float, str]:
+    if spec.friction_range is not None:
+        low, high = spec.friction_range
+        return 0.5 * (low + high), f"the middle of randomize.friction [{low:g}, {high:g}]"
+    geoms = np.flatnonzero(np.isin(model.geom_bodyid, bodies))
+    value = float(np.mean(model.geom_friction[geoms, 0]))
+    return value, "the objects' geoms' mean sliding friction"
+
+
+def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> PerturbationSettings:
+    """The scene's perturbation: each key the file sets, the rule of this module for each it does not.
+
+    Args:
+        spec: the validated scene file (``None`` for a perturbation key it leaves out).
+        model: the compiled model (its object masses, inertias and friction).
+        bodies: body id of each object, shape (n_objects,).
+
+    """
+    derived: dict[str, str] = {}
+    mass_scale = 1.0 if spec.mass_scale is None else 0.5 * sum(spec.mass_scale)
+    mass = model.body_mass[bodies] * mass_scale
+    inertia = model.body_inertia[bodies] * mass_scale
+    spacing = spec.motion.duration / (FRAMES - 1)
+    if spec.max_duration is None:
+        max_duration = PROPAGATION_PER_FRAME * spacing
+        derived["max_duration"] = (
+            f"{PROPAGATION_PER_FRAME:g} of the {spacing:.3g} s between {FRAMES} frames over the motion's "
+            f"{spec.motion.duration:g} s"
+        )
+    else:
+        max_duration = spec.max_duration
+    if spec.linear_acceleration is None:
+        friction, source = _friction(spec, model, bodies)
+        bound = friction * GRAVITY
+        linear: tuple[float, ...] = (bound, bound, bound)
+        derived["linear_acceleration"] = f"mu g per axis, mu = {friction:.3g} ({source})"
+    else:
+        linear = spec.linear_acceleration
+    if spec.angular_acceleration is None:
+        gyration = np.sqrt(np.mean(inertia, axis=0) / np.mean(mass))
+        angular_array = ANGULAR_RATIO * np.asarray(linear) / np.maximum(gyration, 1e-9)
+        angular: tuple[float, ...] = (float(angular_array[0]), float(angular_array[1]), float(angular_array[2]))
+        derived["angular_acceleration"] = (
+            f"{ANGULAR_RATIO:.3g} x the linear bound over the radius of gyration "
+            f"({', '.join(f'{value * 100:.2g}' for value in gyration)} cm)"
+        )
+    else:
+        angular = spec.angular_acceleration
+    if spec.likelihood_lambda is None:
+        energy = float(
+            np.mean(mass * np.sum(np.square(linear)) + inertia @ np.square(np.asarray(angular))) * max_duration**2
+        )
+        likelihood_lambda = LAMBDA_ENERGY / max(energy, 1e-12)
+        derived["lambda"] = (
+            f"{LAMBDA_ENERGY:.3g} J over the energy of one full-bound perturbation, {energy:.3g} J "
+            f"(mean object mass {np.mean(mass) * 1000:.3g} g)"
+        )
+    else:
+        likelihood_lambda = spec.likelihood_lambda
+    return PerturbationSettings(
+        linear_acceleration=(float(linear[0]), float(linear[1]), float(linear[2])),
+        angular_acceleration=(float(angular[0]), float(angular[1]), float(angular[2])),
+        max_duration=float(max_duration),
+        likelihood_lambda=float(likelihood_lambda),
+        derived=derived,
+    )
