@@ -80,11 +80,17 @@ def test_each_fold_is_scored_at_the_lambda_chosen_without_it(dataset: Path, cali
             objective[lam] = float("-inf") if value is None else value
         best = max(objective.values())
         assert fold["likelihood_lambda"] == min(lam for lam, value in objective.items() if value == best)
+        # The held-out score grids are the held trajectories' scores at the fold's choice.
+        assert result.held_out_scores is not None
+        for held_grid, chosen_grid in zip(result.held_out_scores, grids[fold["likelihood_lambda"]], strict=True):
+            np.testing.assert_array_equal(held_grid[held], chosen_grid[held])
         covered.extend(held.tolist())
     assert sorted(covered) == list(range(data.n_trajectories))  # every trajectory held out exactly once
     assert len(result.folds) == 4
     stored = json.loads((out / CALIBRATION_FILE).read_text())
     assert stored["result"]["likelihood_lambda"] == result.likelihood_lambda
+    assert "held_out_scores" not in stored["result"] and result.default_scores is not None
+    np.testing.assert_array_equal(result.default_scores[0], grids[5.0][0])
     assert stored["settings"]["folds"] == 4 and stored["settings"]["objective"] == list(OBJECTIVE)
     assert set(result.verdict) == {"capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half"}
 

@@ -18,7 +18,7 @@ same way.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +68,10 @@ class Calibration:
             :mod:`energy_margin.evaluation.verdict`), as dictionaries.
         baselines: AP per question of the current-state and distance baselines.
         objective: the questions whose mean AP the choice maximises.
+        held_out_scores: the held-out capture and success scores, each (T, K): every trajectory
+            scored at the candidate chosen without it (not written to ``calibration.json``).
+        default_scores: the capture and success scores at the task's own settings, each (T, K)
+            (not written either).
     """
 
     task: str
@@ -82,6 +86,8 @@ class Calibration:
     objective: tuple[str, ...]
     wrench_scale: float = 1.0
     duration_scale: float = 1.0
+    held_out_scores: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    default_scores: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def settings(self) -> dict[str, float]:
         """The analysis settings chosen: ``likelihood_lambda``, ``wrench_scale``, ``duration_scale``."""
@@ -92,8 +98,12 @@ class Calibration:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-compatible fields."""
-        return dataclasses.asdict(self)
+        """JSON-compatible fields (the score grids left out)."""
+        return {
+            item.name: dataclasses.asdict(self)[item.name]
+            for item in dataclasses.fields(self)
+            if item.name not in ("held_out_scores", "default_scores")
+        }
 
 
 def _mean(values: dict[str, float | None], names: tuple[str, ...]) -> float:
@@ -295,6 +305,8 @@ def _choose(
         objective=objective,
         wrench_scale=chosen[0],
         duration_scale=chosen[1],
+        held_out_scores=(held_capture, held_success),
+        default_scores=grids[(1.0, 1.0, default_lambda)],
     )
 
 

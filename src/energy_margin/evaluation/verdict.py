@@ -82,6 +82,7 @@ def verdicts(
     weights: str,
     resamples: int,
     seed: int,
+    questions: Questions | None = None,
 ) -> dict[str, Verdict]:
     """The verdict of every question of ``evaluate``.
 
@@ -94,13 +95,16 @@ def verdicts(
         weights: ``"linear"`` or ``"uniform"``.
         resamples: bootstrap resamples of the trajectories, >= 1.
         seed: seeds the resamples (``numpy.random.default_rng``).
+        questions: other questions than ``evaluate``'s (then ``capture_window``, ``success_frames``
+            and ``weights`` are not used).
 
     Returns:
         Question key -> :class:`Verdict`, in ``evaluate``'s order of questions.
     """
-    questions = Questions.of_evaluate(
-        dataset, capture_window=capture_window, success_frames=success_frames, weights=weights
-    )
+    if questions is None:
+        questions = Questions.of_evaluate(
+            dataset, capture_window=capture_window, success_frames=success_frames, weights=weights
+        )
     rng = np.random.default_rng(seed)
     drawn = rng.integers(0, dataset.n_trajectories, size=(resamples, dataset.n_trajectories))
     scored_margin = score_questions(questions, *margin, drawn)
