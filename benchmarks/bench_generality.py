@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.cli import main as cli_main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
@@ -70,17 +71,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("derived", type=Path, help="the same trajectories from the file without [perturbation]")
     parser.add_argument("--work", type=Path, required=True, help="directory of the calibration run")
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--iterations", type=int, default=300, help="expansions per frame (default 300)")
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args(argv)
 
     started = time.perf_counter()
-    calibration = calibrate(args.dataset, args.work / "calibration", workers=args.workers, seed=0)
+    config = AnalyzerConfig(iterations=args.iterations)
+    calibration = calibrate(args.dataset, args.work / "calibration", config=config, workers=args.workers, seed=0)
     calibrate_seconds = time.perf_counter() - started
     derived_seconds = 0.0
     if not (args.derived / "scores.csv").exists():
         started = time.perf_counter()
-        code = cli_main(["analyze", str(args.derived), "--workers", str(args.workers), "--seed", "0"])
+        code = cli_main(
+            ["analyze", str(args.derived), "--iterations", str(args.iterations), "--workers", str(args.workers)]
+        )
         if code:
             return code
         derived_seconds = time.perf_counter() - started
