@@ -1,0 +1,51 @@
+"""The Fetch example in quick mode: Gymnasium-Robotics' Fetch pushes four blocks across its FetchPush table."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.cli import main
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.scores_file import load_scores
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "fetch"
+#: The table top's height (m) and the x (m) where the goal area at its far side begins.
+TABLE_TOP = 0.4
+GOAL_X = 1.40
+
+
+@pytest.mark.slow
+def test_fetch_example(tmp_path: Path, capsys) -> None:
+    pytest.importorskip(
+        "gymnasium_robotics",
+        reason="the Fetch example needs gymnasium-robotics (pip install 'energy-margin[examples]')",
+    )
+    folder = tmp_path / "fetch"
+    subprocess.run([sys.executable, str(EXAMPLE / "write_model.py"), "--out", str(folder)], check=True)
+    shutil.copy(EXAMPLE / "fetch.toml", folder / "fetch.toml")
+    out = tmp_path / "fetch_data"
+    arguments = ["--trajectories", "2", "--frames", "3", "--seed", "0", "--out", str(out)]
+    assert main(["generate", "--scene", str(folder / "fetch.toml"), *arguments]) == 0
+    dataset = load_dataset(out)
+    assert dataset.n_objects == 4 and dataset.metadata["task"] == "scene"
+    robot_q = dataset.arrays["robot_q"]
+    # The mocap body (after the 12 robot joints) moved the gripper 0.27 m along +x; the base is fixed.
+    assert np.allclose(robot_q[:, -1, 12] - robot_q[:, 0, 12], 0.27, atol=1e-6)
+    pos = dataset.arrays["object_pos"]
+    # The paddle pushed the blocks forward (+x), along the table: none fell off or was lifted.
+    assert (pos[:, -1, :, 0].mean(axis=1) > pos[:, 0, :, 0].mean(axis=1) + 0.1).all()
+    assert np.allclose(pos[:, :, :, 2], TABLE_TOP + 0.025, atol=0.005)
+    # At least two blocks of each trajectory reached the goal area at the far side.
+    assert ((pos[:, -1, :, 0] > GOAL_X).sum(axis=1) >= 2).all()
+    assert main(["check", str(out)]) == 0
+    assert main(["analyze", str(out), "--iterations", "15", "--workers", "1"]) == 0
+    assert load_scores(out)["nodes"].min() > 1
+    capsys.readouterr()
+    assert main(["evaluate", str(out)]) == 0
+    assert "positive rate" in capsys.readouterr().out
