@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from energy_margin.cli import main
 from energy_margin.data import generate as generate_module
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import MAX_DRAWS, REDRAWN_KEY, generate_dataset, replay_trajectory, trajectory_rng
@@ -68,3 +69,18 @@ def test_generation_gives_up_in_one_line_when_every_draw_overlaps(
     assert "\n" not in str(error.value)
     assert str(error.value).count("cannot generate") == 1
     assert not (tmp_path / "r").exists()
+
+
+def test_a_roll_out_that_blows_up_is_drawn_again_then_refused(make_scene, tmp_path, capsys) -> None:
+    # MuJoCo restarts a blown-up simulation from the reference state by itself: without the check,
+    # the restarted frames would be written as data.
+    scene = make_scene(model_replace={'<option timestep="0.01"/>': '<option timestep="0.01" gravity="0 0 -1e200"/>'})
+    out = tmp_path / "blown"
+    code = main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "3", "--out", str(out)])
+    assert code == 2 and not out.exists()
+    error = capsys.readouterr().err.strip().splitlines()
+    assert error == [
+        "energy-margin: error: cannot generate scene trajectory 0: in each of 8 draws the simulation blew up "
+        "(a non-finite acceleration; the engine restarted it from the model's reference state); a smaller time "
+        "step, another integrator or softer contacts in the model may keep it stable"
+    ]

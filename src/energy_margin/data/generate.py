@@ -49,8 +49,16 @@ MAX_DRAWS = 8
 REDRAWN_KEY = "redrawn"
 
 
-class DeepOverlapError(ValueError):
+class RefusedDrawError(ValueError):
+    """A drawn trajectory the dataset would refuse: it is drawn again."""
+
+
+class DeepOverlapError(RefusedDrawError):
     """A recorded frame whose objects overlap deeper than the dataset check allows."""
+
+
+class DivergedError(RefusedDrawError):
+    """A roll-out whose simulation blew up (MuJoCo restarted it from the reference state)."""
 
 
 def trajectory_rng(seed: int, n_trajectories: int, index: int, draw: int = 0) -> np.random.Generator:
@@ -99,6 +107,8 @@ def record_trajectory(
     Raises:
         DeepOverlapError: ``check_overlaps`` and a frame the dataset check would refuse (checked after
             the roll-out, each frame reset as ``analyze`` resets it, so the roll-out is unchanged).
+        DivergedError: ``check_overlaps`` and the roll-out's simulation blew up (its frames after
+            that would be the engine's restart, not the task).
     """
     trajectory = task.sample_trajectory(rng, n_objects)
     simulator = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, engine)
@@ -109,6 +119,11 @@ def record_trajectory(
         frames.append(simulator.frame_state())
         times.append(step * dt)
     if check_overlaps:
+        if simulator.diverged():
+            raise DivergedError(
+                "the simulation blew up (a non-finite acceleration; the engine restarted it from the model's "
+                "reference state)"
+            )
         limits = overlap_limits(simulator.scene)
         for index, frame in enumerate(frames):
             simulator.reset(frame)
@@ -127,14 +142,20 @@ def draw_trajectory(
         The record and its draw (0 unless earlier draws overlapped too deeply).
 
     Raises:
-        EnergyMarginError: every draw overlapped too deeply (naming the last overlap).
+        EnergyMarginError: every draw was refused: objects overlapped too deeply (naming the last
+            overlap) or the simulation blew up.
     """
     for draw in range(MAX_DRAWS):
         rng = trajectory_rng(seed, n_trajectories, index, draw)
         try:
             return record_trajectory(task, n_objects, n_frames, rng, engine=engine, check_overlaps=True), draw
-        except DeepOverlapError as error:
+        except RefusedDrawError as error:
             last = error
+    if isinstance(last, DivergedError):
+        raise EnergyMarginError(
+            f"cannot generate {task.name} trajectory {index}: in each of {MAX_DRAWS} draws {last}; a smaller time "
+            "step, another integrator or softer contacts in the model may keep it stable"
+        )
     raise EnergyMarginError(
         f"cannot generate {task.name} trajectory {index}: each of {MAX_DRAWS} draws has objects overlapping "
         f"deeper than the dataset check allows (the last: {last}); use fewer objects or a larger workspace"

@@ -92,6 +92,14 @@ class Simulator(Protocol):
         """The full integration state, shape (state_size,), float64."""
         ...
 
+    def diverged(self) -> bool:
+        """Whether the integration blew up since the simulator was built or last reset.
+
+        MuJoCo restarts a blown-up simulation from the model's reference state by itself (warning
+        ``mjWARN_BADQACC``), so a roll-out that diverged can look like a quiet one.
+        """
+        ...
+
     def set_state(self, state: np.ndarray) -> None:
         """Restore a state returned by :meth:`get_state`."""
         ...

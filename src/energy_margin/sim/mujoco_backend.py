@@ -152,6 +152,10 @@ class MujocoSimulator:
         if index.servo_actuators.size:
             self.data.ctrl[index.servo_actuators] = np.asarray(targets, dtype=float)[index.servoed]
 
+    def diverged(self) -> bool:
+        """Whether MuJoCo found a non-finite acceleration (and restarted the simulation) since the last reset."""
+        return bool(self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0)
+
     def step(self, n_steps: int, *, track_friction_work: bool = False) -> float:
         """Advance ``n_steps`` steps; optionally return the friction work at object contacts (J)."""
         model, data = self.model, self.data

@@ -707,6 +707,10 @@ class PybulletSimulator:
         potential = -float(np.sum(self._masses * (pos @ self._gravity)))
         return kinetic + potential
 
+    def diverged(self) -> bool:
+        """Whether the state holds a non-finite number."""
+        return not bool(np.all(np.isfinite(self.get_state())))
+
     def frame_state(self) -> FrameState:
         """Current poses and velocities."""
         return FrameState(
