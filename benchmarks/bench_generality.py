@@ -74,29 +74,41 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--iterations", type=int, default=300, help="expansions per frame (default 300)")
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="LABEL=DIR",
+        help="another dataset of the same trajectories (e.g. other [perturbation] values) to analyse and add",
+    )
     args = parser.parse_args(argv)
 
     started = time.perf_counter()
     config = AnalyzerConfig(iterations=args.iterations)
     calibration = calibrate(args.dataset, args.work / "calibration", config=config, workers=args.workers, seed=0)
     calibrate_seconds = time.perf_counter() - started
+    extra = dict(item.split("=", 1) for item in args.variant)
     derived_seconds = 0.0
-    if not (args.derived / "scores.csv").exists():
-        started = time.perf_counter()
-        code = cli_main(
-            ["analyze", str(args.derived), "--iterations", str(args.iterations), "--workers", str(args.workers)]
-        )
-        if code:
-            return code
-        derived_seconds = time.perf_counter() - started
+    for directory in (args.derived, *(Path(path) for path in extra.values())):
+        if not (directory / "scores.csv").exists():
+            started = time.perf_counter()
+            code = cli_main(
+                ["analyze", str(directory), "--iterations", str(args.iterations), "--workers", str(args.workers)]
+            )
+            if code:
+                return code
+            if directory == args.derived:
+                derived_seconds = time.perf_counter() - started
 
     dataset = load_dataset(args.dataset)
     derived = load_dataset(args.derived)
-    for name in ("success", "capture"):
-        mine = dataset.success_labels() if name == "success" else dataset.capture_labels(0)
-        theirs = derived.success_labels() if name == "success" else derived.capture_labels(0)
-        if not np.array_equal(mine, theirs):
-            sys.exit(f"{args.derived} does not hold the trajectories of {args.dataset} ({name} labels differ)")
+    others = {label: load_dataset(path) for label, path in extra.items()}
+    for other_path, other in ((args.derived, derived), *((Path(extra[label]), data) for label, data in others.items())):
+        for name in ("success", "capture"):
+            mine = dataset.success_labels() if name == "success" else dataset.capture_labels(0)
+            theirs = other.success_labels() if name == "success" else other.capture_labels(0)
+            if not np.array_equal(mine, theirs):
+                sys.exit(f"{other_path} does not hold the trajectories of {args.dataset} ({name} labels differ)")
     derived_scores = load_scores(args.derived)
     assert calibration.default_scores is not None and calibration.held_out_scores is not None
     variants = {
@@ -107,6 +119,12 @@ def main(argv: list[str] | None = None) -> int:
         ),
         f"calibrated (λ {_fold_lambdas(calibration.folds)} by fold)": calibration.held_out_scores,
     }
+    for label, other in others.items():
+        other_scores = load_scores(Path(extra[label]))
+        variants[f"{label} (λ {other.task.config.likelihood_lambda:.3g})"] = (
+            score_grid(other, other_scores, "capture_score"),
+            score_grid(other, other_scores, "success_score"),
+        )
     questions = questions_of(dataset)
     baselines = baseline_grids(dataset)
     every = np.arange(dataset.n_trajectories)

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The table of docs/generality.md for one example: a 50 x 10 set of generation seed 202 from the scene
-# file as written and the same trajectories from the file without [perturbation] (derived settings),
-# then calibrate and the paired verdicts (benchmarks/bench_generality.py), two workers.
+# file as written, the same trajectories from the file without [perturbation] (derived settings) and
+# with the fixed constants a file without [perturbation] had before (2 m/s^2 per axis, no torque,
+# 0.1 s, lambda 5), then calibrate and the paired verdicts (benchmarks/bench_generality.py), two workers.
 #   bash examples/measure_generality.sh NAME SCENE.toml OUT_DIR [record]
 # With `record`, the trajectories are examples/record/simulate.py roll-outs of seed 202 instead.
 set -euo pipefail
@@ -12,15 +13,20 @@ mode=${4:-generate}
 here=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
 python "$here/benchmarks/scene_without_perturbation.py" "$scene" "$out/derived.toml"
+cp "$out/derived.toml" "$out/fixed.toml"
+printf '\n[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nangular_acceleration = [0.0, 0.0, 0.0]\nmax_duration = 0.1\nlambda = 5.0\n' >> "$out/fixed.toml"
 if [ "$mode" = record ]; then
   [ -d "$out/logs" ] || python "$here/examples/record/simulate.py" --rollouts 50 --seed 202 --out "$out/logs"
   [ -d "$out/file" ] || energy-margin record --scene "$scene" "$out"/logs/run_*.npz --frames 10 --out "$out/file"
-  [ -d "$out/derived" ] || energy-margin record --scene "$out/derived.toml" "$out"/logs/run_*.npz --frames 10 --out "$out/derived"
+  for variant in derived fixed; do
+    [ -d "$out/$variant" ] || energy-margin record --scene "$out/$variant.toml" "$out"/logs/run_*.npz --frames 10 --out "$out/$variant"
+  done
 else
-  for variant in file derived; do
-    toml=$scene; [ $variant = derived ] && toml=$out/derived.toml
+  for variant in file derived fixed; do
+    toml=$scene; [ $variant != file ] && toml=$out/$variant.toml
     [ -d "$out/$variant" ] || energy-margin generate --scene "$toml" --trajectories 50 --frames 10 --seed 202 --out "$out/$variant"
   done
 fi
 energy-margin scene "$out/derived.toml" --no-picture | grep "perturbation"
-python "$here/benchmarks/bench_generality.py" "$name" "$out/file" "$out/derived" --work "$out/work" --workers 2 --json "$out/row.json"
+python "$here/benchmarks/bench_generality.py" "$name" "$out/file" "$out/derived" --work "$out/work" --workers 2 --json "$out/row.json" \
+  --variant "fixed constants before=$out/fixed"

@@ -32,7 +32,9 @@ def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, 
         "linear_acceleration",
         "angular_acceleration",
     }
-    for name, toml in (("file", scene), ("derived", derived_toml)):
+    fixed_toml = derived_toml.with_name("fixed.toml")
+    fixed_toml.write_text(derived_text + "\n[perturbation]\nlambda = 5.0\nmax_duration = 0.1\n")
+    for name, toml in (("file", scene), ("derived", derived_toml), ("fixed", fixed_toml)):
         common = ["--trajectories", "10", "--frames", "6", "--seed", "5", "--out", str(tmp_path / name)]
         assert main(["generate", "--scene", str(toml), *common]) == 0
     result = subprocess.run(
@@ -50,6 +52,8 @@ def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, 
             "20",
             "--json",
             str(tmp_path / "row.json"),
+            "--variant",
+            f"fixed={tmp_path / 'fixed'}",
         ],
         capture_output=True,
         text=True,
@@ -59,6 +63,7 @@ def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, 
     row = json.loads((tmp_path / "row.json").read_text())
     settings = [entry["settings"] for entry in row["rows"]]
     assert settings[0].startswith("the file's") and settings[1].startswith("derived") and "by fold" in settings[2]
+    assert settings[3] == "fixed (λ 5)"
     for entry in row["rows"]:
         assert set(entry["ap"]) == {
             "capture k̂ = 0",
