@@ -71,9 +71,11 @@ def test_generation_gives_up_in_one_line_when_every_draw_overlaps(
     assert not (tmp_path / "r").exists()
 
 
-def test_a_roll_out_that_blows_up_is_drawn_again_then_refused(make_scene, tmp_path, capsys) -> None:
+def test_a_roll_out_that_blows_up_is_drawn_again_then_refused(make_scene, tmp_path, capsys, monkeypatch) -> None:
     # MuJoCo restarts a blown-up simulation from the reference state by itself: without the check,
-    # the restarted frames would be written as data.
+    # the restarted frames would be written as data. (MuJoCo logs the warning to MUJOCO_LOG.TXT in
+    # the working directory: keep it out of the project.)
+    monkeypatch.chdir(tmp_path)
     scene = make_scene(model_replace={'<option timestep="0.01"/>': '<option timestep="0.01" gravity="0 0 -1e200"/>'})
     out = tmp_path / "blown"
     code = main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "3", "--out", str(out)])
