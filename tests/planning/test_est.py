@@ -56,6 +56,9 @@ class PointMassSimulator:
         self.time = 0.0
         self.resets += 1
 
+    def diverged(self) -> bool:
+        return not bool(np.all(np.isfinite(self.get_state())))
+
     def get_state(self) -> np.ndarray:
         return np.concatenate([[self.time], self.pos.ravel(), self.vel.ravel(), self.wrench.ravel()])
 
