@@ -28,6 +28,7 @@ COMMAND_NAMES = (
     "budget",
     "study",
     "sweep",
+    "design",
     "learn",
     "control",
     "view",

@@ -92,10 +92,19 @@ def task_overrides(pairs: list[str], *, option: str = "--set") -> dict[str, obje
 
 
 def scene_task_config(scene: str, overrides: dict[str, object]) -> tuple[str, dict[str, object]]:
-    """The task name and configuration of ``--scene SCENE.toml`` (a scene file takes no ``--set``)."""
+    """The task name and configuration of ``--scene SCENE.toml``; ``--set`` sets its ``[design]`` parameters only."""
     if overrides:
-        raise EnergyMarginError(f"--set does not apply to --scene {scene}: edit the scene file instead")
-    return "scene", {"scene_file": os.path.abspath(scene)}
+        from energy_margin.tasks.scene_file import read_scene_file
+
+        declared = [entry.name for entry in read_scene_file(scene).design]
+        other = [key for key in overrides if key not in declared]
+        if other:
+            names = ", ".join(declared) if declared else "it declares none"
+            raise EnergyMarginError(
+                f"--set does not apply to --scene {scene} except for its [design] parameters ({names}): "
+                f"{other[0]!r} is not one; edit the scene file instead"
+            )
+    return "scene", {"scene_file": os.path.abspath(scene), **overrides}
 
 
 def print_json(value: Any) -> None:

@@ -4,8 +4,9 @@ A dataset is a directory with two files:
 
 ``dataset.json``
     ``format`` ("energy-margin-dataset"), ``schema_version`` (1), ``task``, ``task_config`` (every
-    resolved setting), ``engine``, ``seed``, ``n_trajectories`` (T), ``n_frames`` (K),
-    ``n_objects`` (n), ``n_robot_dofs`` (r), ``n_drive`` (P), ``package_version``.
+    resolved setting), ``engine``, ``model_sha256`` (the task's compiled MuJoCo model), ``seed``,
+    ``n_trajectories`` (T), ``n_frames`` (K), ``n_objects`` (n), ``n_robot_dofs`` (r), ``n_drive``
+    (P), ``package_version``.
 ``frames.npz``
     ``object_pos`` (T, K, n, 3) m; ``object_quat`` (T, K, n, 4) (w, x, y, z); ``object_vel``
     (T, K, n, 6) m/s and rad/s, world frame; ``robot_q`` and ``robot_v`` (T, K, r);

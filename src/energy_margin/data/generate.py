@@ -234,6 +234,8 @@ def records_dataset(
         "task": task.name,
         "task_config": task.config.to_dict(),
         "engine": engine,
+        # The compiled MuJoCo model of the design: the same configuration, the same hash.
+        "model_sha256": task.model_sha256(int(arrays["object_pos"].shape[2])),
         **extra,
         "n_trajectories": len(records),
         "n_frames": int(arrays["frame_time"].shape[1]),

@@ -174,7 +174,7 @@ def _check_numbers(
     return [check_int("trajectory_counts", count, minimum=1, maximum=n_trajectories) for count in counts]
 
 
-def _task_settings(
+def task_settings(
     task: Task, n_objects: int | None, engine: str, analyzer: AnalyzerConfig | None
 ) -> tuple[int, AnalyzerConfig]:
     """The objects per scene and the analysis settings of a sweep of ``task`` on ``engine``, checked."""
@@ -347,7 +347,7 @@ def design_sweep(
     counts = _check_numbers(**numbers, workers=workers, bootstrap=bootstrap, subsets=subsets, counts=trajectory_counts)
     fixed = dict(fixed or {})
     designs = design_grid(task, params, fixed=fixed)
-    n_objects, analyzer = _task_settings(get_task(task, fixed), n_objects, engine, analyzer)
+    n_objects, analyzer = task_settings(get_task(task, fixed), n_objects, engine, analyzer)
     settings = _settings(
         task, params, designs, n_objects=n_objects, **numbers, engine=engine, fixed=fixed, analyzer=analyzer
     )

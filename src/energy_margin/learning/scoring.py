@@ -237,3 +237,43 @@ def score_dataset(
         if run.resumed and scores_path.exists():
             return scores_path
         return write_scores(directory, predict_rows(model, dataset, progress=progress))
+
+
+class LearnedFrameScorer:
+    """The learned objective of ``energy-margin design --objective learned``: :func:`score_dataset` of each design.
+
+    The model is read, and checked against the task and the number of objects, when the scorer
+    is made, so a search with a model that cannot score its designs is refused before it starts.
+
+    Args:
+        model_path: the model file written by ``energy-margin learn``.
+        task_name: the searched task.
+        n_objects: objects per scene of the search.
+
+    Raises:
+        EnergyMarginError: a missing, corrupt or foreign model file, a model of another task, or
+            one fitted on other numbers of objects.
+
+    """
+
+    def __init__(self, model_path: Path | str, *, task_name: str, n_objects: int) -> None:
+        model = load_margin_model(model_path, task_name=task_name)
+        fewest, most = model.n_objects_range
+        if not fewest <= n_objects <= most:
+            raise EnergyMarginError(
+                f"the margin model {model_path} was fitted on {fewest if fewest == most else f'{fewest} to {most}'} "
+                f"objects, not {n_objects}"
+            )
+        self.model_path = str(model_path)
+        self.sha256 = file_sha256(model_path)
+        self.kind = model.kind
+        self.feature_set = model.feature_set
+
+    def settings(self) -> dict[str, Any]:
+        """What decides the scores: the model's contents (SHA-256), kind and features, not its path."""
+        return {"kind": "learned", "model_sha256": self.sha256, "model_kind": self.kind, "features": self.feature_set}
+
+    def score(self, directory: Path, *, seed: int, workers: int) -> None:
+        """Write the learned ``scores.csv`` of the dataset in ``directory`` (one process: it takes a moment)."""
+        del workers
+        score_dataset(directory, self.model_path, progress=False, seed=seed)

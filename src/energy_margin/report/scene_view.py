@@ -108,6 +108,13 @@ def describe_scene(task: SceneTask) -> list[str]:
             else ""
         )
         lines.append(f"{name}: {who} in {_region_text(table)}{follows}")
+    for entry in spec.design:
+        value = loaded.design_values.get(entry.name)
+        shown = f"{value:g}" if value is not None else "the model's"
+        lines.append(
+            f"design {entry.name} = {shown}: {entry.describe()}, range [{entry.low:g}, {entry.high:g}]"
+            + (f" ({entry.doc})" if entry.doc else "")
+        )
     return lines
 
 
@@ -302,7 +309,7 @@ def render_scene(
 
     loaded = task.loaded
     frame = start_frame(task, seed)
-    model_spec, _ = compile_spec(loaded.spec)
+    model_spec, _ = compile_spec(loaded.spec, loaded.design_values)
     extent = float(np.max(np.abs(frame.object_pos[:, :2]))) + 1.0
     region_bounds: list[np.ndarray] = []
     _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent, region_bounds)

@@ -1,7 +1,7 @@
 """A run directory: the resolved settings written first, one rule for resuming, one writer at a time.
 
-Every long command (``analyze``, ``perturb``, ``budget``, ``study``, ``sweep``, ``control``,
-``reproduce``) opens its output directory with :func:`open_run`:
+Every long command (``analyze``, ``perturb``, ``budget``, ``study``, ``sweep``, ``design``,
+``control``, ``reproduce``) opens its output directory with :func:`open_run`:
 
 1. The directory is created if needed and locked (:class:`~energy_margin.runs.lock.RunLock`): a
    second writer is refused in one line naming the first one's process and host.

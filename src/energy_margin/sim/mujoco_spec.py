@@ -14,6 +14,8 @@ upright joints ``<name>_x``, ``_y``, ``_z`` (slides) and ``_yaw`` (hinge), in th
 
 from __future__ import annotations
 
+import hashlib
+
 import mujoco
 import numpy as np
 
@@ -172,8 +174,8 @@ def _add_link(parent: mujoco.MjsBody, link: Link, conaffinity: int | None) -> No
         if joint.limits is not None:
             added.range = [float(v) for v in joint.limits]
             added.limited = mujoco.mjtLimited.mjLIMITED_TRUE
-    first = link.geoms[0]
-    _set_inertial(body, link.mass, first.principal_inertia(link.mass), first.pos, first.quat)
+    solid = link.inertia_geom
+    _set_inertial(body, link.mass, solid.principal_inertia(link.mass), solid.pos, solid.quat)
     for index, geom in enumerate(link.geoms):
         _add_geom(body, geom, geom.name or f"{link.name}_geom{index}", conaffinity=conaffinity)
     for child in link.children:
@@ -275,6 +277,13 @@ def build_spec(scene: Scene) -> mujoco.MjSpec:
 def build_model(scene: Scene) -> mujoco.MjModel:
     """The compiled model of ``scene``."""
     return build_spec(scene).compile()
+
+
+def model_hash(model: mujoco.MjModel) -> str:
+    """SHA-256 of a compiled model in MuJoCo's binary format (MJB): equal models, equal hashes."""
+    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return hashlib.sha256(buffer.tobytes()).hexdigest()
 
 
 def scene_index(model: mujoco.MjModel, scene: Scene) -> ModelIndex:

@@ -311,7 +311,7 @@ class PybulletSimulator:
                 joint=joint,
             )
             if last:
-                first = link.geoms[0]
+                first = link.inertia_geom
                 spec.mass = link.mass
                 spec.shape = self._shape(link.geoms)
                 spec.inertial_pos = first.pos

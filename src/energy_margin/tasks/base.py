@@ -496,10 +496,22 @@ class Task(ABC):
         """Friendly ``sweep --param`` names of the task besides its configuration fields (none by default)."""
         return ()
 
-    @classmethod
-    def design_space(cls) -> tuple[DesignParameter, ...]:
-        """The task's tool family over its documented ranges: what ``design`` searches by default (none by default)."""
+    def design_space(self) -> tuple[DesignParameter, ...]:
+        """The task's tool family over its documented ranges: what ``design`` searches by default (none by default).
+
+        An instance method: a scene file's family is its ``[design]`` table.
+        """
         return ()
+
+    def model_sha256(self, n_objects: int) -> str:
+        """SHA-256 of the task's compiled MuJoCo model with ``n_objects`` objects (``dataset.json``).
+
+        The model of :meth:`build_scene` at friction 0.5 and the nominal drive, in MuJoCo's binary
+        format: the same design (configuration) gives the same hash, another tool another one.
+        """
+        from energy_margin.sim.mujoco_spec import build_model, model_hash
+
+        return model_hash(build_model(self.build_scene(n_objects, 0.5)))
 
     def capture_region_shape(self, root: FrameState) -> str:
         """A word for the capture region built from ``root`` in captions: its drawn solids' kinds, else ``"region"``."""

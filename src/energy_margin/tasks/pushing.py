@@ -10,6 +10,8 @@ end-effector follows the manipulation while the objects are perturbed.
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -19,6 +21,7 @@ import numpy as np
 from energy_margin.errors import check_choice, check_float
 from energy_margin.tasks.base import (
     DesignAlias,
+    DesignParameter,
     ReferenceLayout,
     RegionShape,
     Task,
@@ -39,6 +42,12 @@ _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
 _SECTOR_CHORD = 0.02
 _SECTOR_SEGMENTS = 400
 _PUSHER_RGBA = (0.2, 0.7, 0.3, 1.0)
+#: Shapes of the pusher's front face (``PushingConfig.pusher_face``).
+PUSHER_FACES = ("flat", "v", "arc", "fork")
+# An arc face is made of this many straight segments on each side of the middle.
+_ARC_SEGMENTS = 4
+# Thickness of a plate of a V or arc face, m.
+_MIN_PLATE = 0.01
 
 
 @dataclass(frozen=True)
@@ -52,8 +61,19 @@ class PushingConfig(TaskConfig):
         object_radius: cylinder radius, m.
         object_half_height: cylinder half height, m.
         object_mass: cylinder mass, kg.
-        pusher_half_extents: pusher box half extents, m.
+        pusher_half_extents: pusher box half extents, m (the box a non-flat face is cut into).
         pusher_mass: pusher mass, kg.
+        pusher_face: shape of the pusher's front face (its +y side), built of boxes: ``"flat"``
+            (one box, the paper's pusher), ``"v"`` (a concave V, its apex ``face_depth`` behind
+            its ends), ``"arc"`` (a concave circular arc of sagitta ``face_depth``) or ``"fork"``
+            (``tine_count`` tines ``face_depth`` long). Mass, inertia and width are the box's for
+            every face.
+        face_depth: depth of a non-flat face's hollow: how far the V's apex, the arc's middle or
+            the root between two tines lies behind the face's ends, m (below the pusher's depth,
+            ``2 pusher_half_extents[1]``; a flat face ignores it).
+        tine_count: tines of a ``"fork"`` face, evenly spaced with the outer ones at the pusher's
+            ends (at least 2).
+        tine_width: width of one tine of a ``"fork"`` face along x, m.
         wall_y: y of the wall's face, m.
         ground_z: height of the ground surface, m (objects rest with their centre at
             ``ground_z + object_half_height``).
@@ -104,6 +124,10 @@ class PushingConfig(TaskConfig):
     object_mass: float = 0.2
     pusher_half_extents: tuple[float, float, float] = (0.4, 0.1, 0.015)
     pusher_mass: float = 4.0
+    pusher_face: str = "flat"
+    face_depth: float = 0.05
+    tine_count: int = 4
+    tine_width: float = 0.02
     wall_y: float = 1.6
     ground_z: float = -0.015
     friction_range: tuple[float, float] = (0.1, 0.3)
@@ -138,6 +162,21 @@ class PushingConfig(TaskConfig):
         super().check()
         check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
         check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
+        check_choice("pusher_face", self.pusher_face, PUSHER_FACES)
+        require_positive(self, "face_depth", "tine_width")
+        if self.tine_count < 2:
+            raise ValueError(f"tine_count must be at least 2, got {self.tine_count}")
+        half_x, half_y, _ = self.pusher_half_extents
+        if self.pusher_face != "flat" and self.face_depth >= 2.0 * half_y:
+            raise ValueError(
+                f"face_depth must be below the pusher's depth 2 pusher_half_extents[1] ({2.0 * half_y:g} m) "
+                f"for a {self.pusher_face!r} face, got {self.face_depth!r}"
+            )
+        if self.pusher_face == "fork" and self.tine_count * self.tine_width >= 2.0 * half_x:
+            raise ValueError(
+                f"tine_width must leave gaps between the {self.tine_count} tines of the {2.0 * half_x:g} m wide "
+                f"pusher (tine_count x tine_width < the width), got {self.tine_width!r}"
+            )
         require_positive(
             self,
             "object_radius",
@@ -368,6 +407,83 @@ def _inside_workspace(xy: np.ndarray, config: PushingConfig) -> np.ndarray:
     return np.all((xy >= low) & (xy <= high), axis=-1)
 
 
+def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
+    return (float(np.cos(0.5 * yaw)), 0.0, 0.0, float(np.sin(0.5 * yaw)))
+
+
+def _face_plates(points: np.ndarray, floor: float, half_z: float) -> list[Geom]:
+    """Plates whose front faces follow the polyline ``points`` (x increasing, right half), and their mirror.
+
+    Each plate is ``_MIN_PLATE`` thick; the hollow behind the plates is closed at each end by a cap
+    (a box from ``floor``, the back box's front, up to just behind the face), so no object can
+    enter it from the side and nothing sticks out past the ends by more than a plate's thickness.
+    """
+    plates = []
+    for start, end in itertools.pairwise(points):
+        length = float(np.linalg.norm(end - start))
+        along = (end - start) / length
+        normal = np.array([-along[1], along[0]])  # towards the front (+y)
+        centre = 0.5 * (start + end) - 0.5 * _MIN_PLATE * normal
+        yaw = float(np.arctan2(along[1], along[0]))
+        for side in (1.0, -1.0):
+            plates.append(
+                Geom(
+                    "box",
+                    (0.5 * length, 0.5 * _MIN_PLATE, half_z),
+                    pos=(side * float(centre[0]), float(centre[1]), 0.0),
+                    quat=_yaw_quat(side * yaw),
+                    rgba=_PUSHER_RGBA,
+                )
+            )
+    # The cap's top is the face's height at the cap's inner side, which meets the last plate's back.
+    end, slope = points[-1], along[1] / along[0]
+    width = min(0.9 * _MIN_PLATE / along[1], _MIN_PLATE) if along[1] > 0 else _MIN_PLATE
+    top = float(end[1]) - width * slope
+    if top > floor:
+        for side in (1.0, -1.0):
+            plates.append(
+                Geom(
+                    "box",
+                    (0.5 * width, 0.5 * (top - floor), half_z),
+                    pos=(side * (float(end[0]) - 0.5 * width), 0.5 * (top + floor), 0.0),
+                    rgba=_PUSHER_RGBA,
+                )
+            )
+    return plates
+
+
+def pusher_geoms(config: PushingConfig) -> tuple[Geom, ...]:
+    """The pusher's boxes in its frame: one box for a flat face; a back box and the face's plates or tines.
+
+    The first geom is named ``"pusher"``, the face's ``"pusher_face<i>"``.
+    """
+    half_x, half_y, half_z = config.pusher_half_extents
+    if config.pusher_face == "flat":
+        return (Geom("box", config.pusher_half_extents, name="pusher", rgba=_PUSHER_RGBA),)
+    depth = config.face_depth
+    floor = half_y - depth  # the front of the back box: the V's apex, the arc's middle, the tines' root
+    back = Geom(
+        "box", (half_x, half_y - 0.5 * depth, half_z), pos=(0.0, -0.5 * depth, 0.0), name="pusher", rgba=_PUSHER_RGBA
+    )
+    if config.pusher_face == "v":
+        parts = _face_plates(np.array([[0.0, floor], [half_x, half_y]]), floor, half_z)
+    elif config.pusher_face == "arc":
+        radius = (half_x**2 + depth**2) / (2.0 * depth)
+        angles = np.linspace(0.0, np.arcsin(min(half_x / radius, 1.0)), _ARC_SEGMENTS + 1)
+        points = np.column_stack([radius * np.sin(angles), floor + radius * (1.0 - np.cos(angles))])
+        points[-1] = (half_x, half_y)
+        parts = _face_plates(points, floor, half_z)
+    else:
+        half_tine = 0.5 * config.tine_width
+        centres = np.linspace(-half_x + half_tine, half_x - half_tine, config.tine_count)
+        parts = [
+            Geom("box", (half_tine, 0.5 * depth, half_z), pos=(float(x), half_y - 0.5 * depth, 0.0), rgba=_PUSHER_RGBA)
+            for x in centres
+        ]
+    named = [dataclasses.replace(part, name=f"pusher_face{index}") for index, part in enumerate(parts)]
+    return (back, *named)
+
+
 def _pusher_width(value: Any, current: Any) -> Any:
     return [check_float("pusher_width", value) / 2.0, current[1], current[2]]
 
@@ -411,10 +527,13 @@ class PushingTask(Task):
             name="wall",
         )
         ground = Geom("plane", (5.0, 5.0), pos=(1.0, 1.0, cfg.ground_z), name="ground")
+        geoms = pusher_geoms(cfg)
         pusher = Link(
             name="pusher",
-            geoms=(Geom("box", cfg.pusher_half_extents, name="pusher", rgba=_PUSHER_RGBA),),
+            geoms=geoms,
             mass=cfg.pusher_mass,
+            # A non-flat face keeps the box's mass distribution: only the contact shape changes.
+            inertia_shape=None if len(geoms) == 1 else Geom("box", cfg.pusher_half_extents),
             pos=(0.0, 0.0, cfg.ground_z + cfg.pusher_half_extents[2]),
             joints=(
                 Joint("pusher_x", "slide", (1.0, 0.0, 0.0)),
@@ -500,6 +619,17 @@ class PushingTask(Task):
                 "full pusher width along x, m (pusher_half_extents[0] = v / 2; depth and height unchanged)",
                 _pusher_width,
             ),
+        )
+
+    def design_space(self) -> tuple[DesignParameter, ...]:
+        """The pusher family: face shape, hollow depth, tines and width (docs/design.md, "Tool families")."""
+        return (
+            DesignParameter("pusher_face", "shape of the pusher's front face", choices=PUSHER_FACES),
+            DesignParameter(
+                "face_depth", "depth of the face's hollow (V apex, arc middle, tine roots), m", low=0.02, high=0.15
+            ),
+            DesignParameter("tine_count", "tines of a fork face", low=2, high=8, integer=True),
+            DesignParameter("pusher_width", "full pusher width along x, m", low=0.4, high=1.0),
         )
 
     def success_region(self) -> WallBand:

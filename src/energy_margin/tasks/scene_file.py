@@ -150,6 +150,53 @@ class StartSpec:
     min_separation: float | None = None
 
 
+#: Kinds of model element a ``[design]`` parameter may name (the key that names the element).
+DESIGN_ELEMENTS = ("body", "geom", "site", "joint", "actuator")
+#: Settings of the scene task that a design parameter must not be named as.
+RESERVED_DESIGN_NAMES = frozenset(
+    {"scene_file", "scene_sha256", "model_sha256", "duration", "timestep", "likelihood_lambda", "max_duration"}
+)
+_DESIGN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+@dataclass(frozen=True)
+class DesignEntry:
+    """One parameter of the ``[design]`` table: a numeric attribute of a named model element.
+
+    Attributes:
+        name: the parameter's name (``--set NAME=V``, ``design --param NAME=...``).
+        kind: the element's kind, one of :data:`DESIGN_ELEMENTS`.
+        element: the element's name in the model.
+        attribute: the ``mujoco.MjSpec`` attribute, e.g. ``"size"``, ``"pos"``, ``"mass"``, ``"gear"``.
+        index: the entry of an attribute that holds several numbers, or ``None`` for a single number.
+        low: smallest value of the parameter, in the attribute's unit.
+        high: largest value (above ``low``).
+        default: the value without an override, or ``None`` for the model's own.
+        doc: what the parameter is (empty: described by its element and attribute).
+
+    """
+
+    name: str
+    kind: str
+    element: str
+    attribute: str
+    index: int | None
+    low: float
+    high: float
+    default: float | None = None
+    doc: str = ""
+
+    @property
+    def key(self) -> str:
+        """The parameter's key in the scene file, ``design.NAME``."""
+        return f"design.{self.name}"
+
+    def describe(self) -> str:
+        """``size[0] of geom 'paddle'``."""
+        where = f"[{self.index}]" if self.index is not None else ""
+        return f"{self.attribute}{where} of {self.kind} {self.element!r}"
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """A validated scene file (see ``docs/scenes.md``).
@@ -183,6 +230,8 @@ class SceneSpec:
         bounds_high: and above this one, (3,), m.
         max_speed: reached states with a faster object (m/s) are rejected.
         locator: line numbers of the file's keys.
+        design: the ``[design]`` parameters, in the file's order (applied to the model with
+            ``MjSpec`` before it is compiled, :func:`~energy_margin.tasks.scene_model.compile_spec`).
 
     """
 
@@ -211,6 +260,7 @@ class SceneSpec:
     max_speed: float
     locator: Locator = field(repr=False, compare=False)
     capture_follows: bool = False
+    design: tuple[DesignEntry, ...] = ()
 
     def error(self, key: str, message: str) -> EnergyMarginError:
         """An error naming this file, the line of ``key`` and ``key``."""
@@ -327,6 +377,7 @@ _TOP_KEYS = {
     "capture",
     "success",
     "bounds",
+    "design",
 }
 
 
@@ -505,7 +556,60 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
         max_speed=max_speed,
         locator=locator,
         capture_follows=follows,
+        design=_read_design(read, document),
     )
+
+
+def _read_design(read: _Reader, document: Mapping[str, Any]) -> tuple[DesignEntry, ...]:
+    """The ``[design]`` table: ``NAME = { geom = "...", attribute = "size", index = 0, low = .., high = .. }``."""
+    table = document.get("design", {})
+    if not isinstance(table, dict):
+        raise read.fail("design", f"must be a table of design parameters, got {_kind(table)}")
+    entries: list[DesignEntry] = []
+    targets: dict[tuple[str, str, str, int | None], str] = {}
+    allowed = {*DESIGN_ELEMENTS, "attribute", "index", "low", "high", "default", "doc"}
+    for name, value in table.items():
+        key = f"design.{name}"
+        if not _DESIGN_NAME.fullmatch(name):
+            raise read.fail(key, "a design parameter's name must be a letter or _ then letters, digits or _")
+        if name in RESERVED_DESIGN_NAMES:
+            raise read.fail(key, f"{name!r} is a setting of the scene task; choose another name")
+        if not isinstance(value, dict):
+            raise read.fail(
+                key, f"must be a table {{ geom = NAME, attribute = ..., low = .., high = .. }}, got {_kind(value)}"
+            )
+        read.only(value, key, allowed)
+        kinds = [kind for kind in DESIGN_ELEMENTS if kind in value]
+        if len(kinds) != 1:
+            what = "give only one of" if kinds else "needs one of"
+            raise read.fail(key, f"{what} {', '.join(DESIGN_ELEMENTS)}: the element whose attribute it sets")
+        kind = kinds[0]
+        element = read.string(value[kind], f"{key}.{kind}")
+        if "attribute" not in value:
+            raise read.fail(key, "needs an attribute (a numeric attribute of the element, e.g. size, pos, mass)")
+        attribute = read.string(value["attribute"], f"{key}.attribute")
+        if not _DESIGN_NAME.fullmatch(attribute) or attribute.startswith("_"):
+            raise read.fail(f"{key}.attribute", f"{attribute!r} is not an attribute name")
+        index = read.integer(value["index"], f"{key}.index", minimum=0) if "index" in value else None
+        for bound in ("low", "high"):
+            if bound not in value:
+                raise read.fail(key, f"needs low and high, the range of the parameter (no {bound})")
+        low = read.number(value["low"], f"{key}.low")
+        high = read.number(value["high"], f"{key}.high")
+        if low == high:
+            raise read.fail(f"{key}.high", f"the range [{low:g}, {high:g}] is empty: high must exceed low")
+        if low > high:
+            raise read.fail(f"{key}.high", f"the range [{low:g}, {high:g}] is inverted: high must exceed low")
+        default = read.number(value["default"], f"{key}.default") if "default" in value else None
+        if default is not None and not low <= default <= high:
+            raise read.fail(f"{key}.default", f"{default:g} lies outside the range [{low:g}, {high:g}]")
+        doc = read.string(value["doc"], f"{key}.doc") if "doc" in value else ""
+        target = (kind, element, attribute, index)
+        if target in targets:
+            raise read.fail(key, f"sets what design.{targets[target]} sets")
+        targets[target] = name
+        entries.append(DesignEntry(name, kind, element, attribute, index, low, high, default, doc))
+    return tuple(entries)
 
 
 def _scale(read: _Reader, randomize: Mapping[str, Any], name: str) -> tuple[float, float] | None:

@@ -10,17 +10,19 @@ file, the key and the body, actuator or site.
 from __future__ import annotations
 
 import fnmatch
-import hashlib
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import upright_axes
+from energy_margin.sim.mujoco_spec import model_hash
 from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
-from energy_margin.tasks.scene_file import SceneSpec, read_scene_file, region_names
+from energy_margin.tasks.scene_file import DesignEntry, SceneSpec, read_scene_file, region_names
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
@@ -129,6 +131,8 @@ class LoadedScene:
         motion: the robot's motion.
         initial_qpos: the model's start configuration (its reference or the initial keyframe), (nq,).
         perturbation: the perturbation settings, the file's or derived from the scene where it has none.
+        design_values: the value of every ``[design]`` parameter the model was compiled with
+            (overrides, else each one's default, else the model's own value).
 
     """
 
@@ -144,18 +148,12 @@ class LoadedScene:
     motion: Motion
     initial_qpos: np.ndarray
     perturbation: PerturbationSettings
+    design_values: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_objects(self) -> int:
         """Number of objects."""
         return len(self.object_names)
-
-
-def model_hash(model: mujoco.MjModel) -> str:
-    """SHA-256 of a compiled model in MuJoCo's binary format (MJB)."""
-    buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
-    mujoco.mj_saveModel(model, None, buffer)
-    return hashlib.sha256(buffer.tobytes()).hexdigest()
 
 
 def _one_line(error: Exception) -> str:
@@ -166,8 +164,15 @@ def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
     return mujoco.mj_id2name(model, kind, index) or f"unnamed #{index}"
 
 
-def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
-    """Load the scene's MJCF with ``MjSpec``, add the template copies and compile it."""
+def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
+    """Load the scene's MJCF with ``MjSpec``, add the template copies, apply the design and compile it.
+
+    Args:
+        spec: the validated scene file.
+        design: values of some of its ``[design]`` parameters; the others take their defaults
+            (:func:`apply_design`).
+
+    """
     _check_file(spec, "mjcf", spec.mjcf, "model file ")
     try:
         model_spec = mujoco.MjSpec.from_file(str(spec.mjcf))
@@ -201,11 +206,92 @@ def compile_spec(spec: SceneSpec) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
             model_spec.delete(template)
         except (ValueError, mujoco.FatalError) as error:
             raise spec.error("objects.template", f"cannot copy body {spec.template!r}: {_one_line(error)}") from None
+    apply_design(spec, model_spec, design)
     try:
         model = model_spec.compile()
     except (ValueError, mujoco.FatalError) as error:
         raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
     return model_spec, model
+
+
+_SPEC_ELEMENTS = {"body": "body", "geom": "geom", "site": "site", "joint": "joint", "actuator": "actuator"}
+
+
+def _design_target(spec: SceneSpec, model_spec: mujoco.MjSpec, entry: DesignEntry) -> tuple[Any, float]:
+    """The ``MjSpec`` element of a design parameter and the attribute's current value (checked)."""
+    element = getattr(model_spec, _SPEC_ELEMENTS[entry.kind])(entry.element)
+    if element is None:
+        raise spec.error(f"{entry.key}.{entry.kind}", f"no {entry.kind} {entry.element!r} in {spec.mjcf.name}")
+    value = getattr(element, entry.attribute, None)
+    what = f"{entry.kind} {entry.element!r}"
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.ndim == 1 and value.size:
+        if entry.index is None:
+            if value.size > 1:
+                raise spec.error(
+                    entry.key,
+                    f"{entry.attribute} of {what} holds {value.size} numbers: give index (0 to {value.size - 1})",
+                )
+            return element, float(value[0])
+        if entry.index >= value.size:
+            raise spec.error(
+                f"{entry.key}.index",
+                f"index {entry.index} is out of range: {entry.attribute} of {what} holds {value.size} numbers "
+                f"(index 0 to {value.size - 1})",
+            )
+        return element, float(value[entry.index])
+    if isinstance(value, float):
+        if entry.index is not None:
+            raise spec.error(f"{entry.key}.index", f"{entry.attribute} of {what} is one number: leave index out")
+        return element, value
+    if value is None and not hasattr(element, entry.attribute):
+        raise spec.error(f"{entry.key}.attribute", f"{what} has no attribute {entry.attribute!r}")
+    raise spec.error(
+        f"{entry.key}.attribute",
+        f"{entry.attribute} of {what} is not a real number or a list of them ({type(value).__name__})",
+    )
+
+
+def apply_design(
+    spec: SceneSpec, model_spec: mujoco.MjSpec, design: Mapping[str, Any] | None = None
+) -> dict[str, float]:
+    """Set every ``[design]`` parameter of ``spec`` on ``model_spec``; the values set, by name.
+
+    A parameter takes its value in ``design``, else its ``default``, else keeps the model's own.
+
+    Raises:
+        ValueError: ``design`` names a parameter the file does not declare.
+        EnergyMarginError: an element or attribute the model does not have, an index out of range,
+            a value that is not a number or lies outside the parameter's range (``FILE:LINE: design.NAME``).
+
+    """
+    design = dict(design or {})
+    declared = {entry.name for entry in spec.design}
+    unknown = sorted(set(design) - declared)
+    if unknown:
+        names = ", ".join(sorted(declared)) or "none"
+        raise ValueError(
+            f"unknown scene configuration keys: {', '.join(unknown)} (the [design] parameters of {spec.path}: {names})"
+        )
+    values: dict[str, float] = {}
+    for entry in spec.design:
+        element, current = _design_target(spec, model_spec, entry)
+        value = design.get(entry.name, entry.default if entry.default is not None else current)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            raise spec.error(entry.key, f"{entry.name} must be a finite number, got {value!r}")
+        if not entry.low <= value <= entry.high:
+            given = "given" if entry.name in design else "the model's" if entry.default is None else "default"
+            raise spec.error(
+                entry.key, f"{entry.name} = {value:g} ({given}) lies outside its range [{entry.low:g}, {entry.high:g}]"
+            )
+        if entry.index is None:
+            if isinstance(getattr(element, entry.attribute), float):
+                setattr(element, entry.attribute, float(value))
+            else:
+                getattr(element, entry.attribute)[0] = float(value)
+        else:
+            getattr(element, entry.attribute)[entry.index] = float(value)
+        values[entry.name] = float(value)
+    return values
 
 
 def _check_file(spec: SceneSpec, key: str, path: Path, what: str = "") -> None:
@@ -358,11 +444,12 @@ def _check_region_names(spec: SceneSpec, model: mujoco.MjModel) -> None:
                 raise spec.error(key, f"no {kind} {name!r} in {spec.mjcf.name}")
 
 
-def load_scene(path: Path | str) -> LoadedScene:
-    """Read the scene file at ``path``, compile its model and resolve its names."""
+def load_scene(path: Path | str, design: Mapping[str, Any] | None = None) -> LoadedScene:
+    """Read the scene file at ``path``, compile its model with ``design`` (:func:`apply_design`), resolve its names."""
     spec = read_scene_file(path)
-    _, model = compile_spec(spec)
-    return resolve_scene(spec, model)
+    model_spec, model = compile_spec(spec, design)
+    values = {entry.name: _design_target(spec, model_spec, entry)[1] for entry in spec.design}
+    return resolve_scene(spec, model, design_values=values)
 
 
 def object_joint_kind(model: mujoco.MjModel, patterns: tuple[str, ...] | list[str]) -> str:
@@ -380,8 +467,13 @@ def object_joint_kind(model: mujoco.MjModel, patterns: tuple[str, ...] | list[st
     return "free" if free and all(free) else "upright"
 
 
-def resolve_scene(spec: SceneSpec, model: mujoco.MjModel) -> LoadedScene:
-    """Resolve a validated scene's names against its compiled ``model`` (not copied)."""
+def resolve_scene(
+    spec: SceneSpec, model: mujoco.MjModel, *, design_values: Mapping[str, float] | None = None
+) -> LoadedScene:
+    """Resolve a validated scene's names against its compiled ``model`` (not copied).
+
+    ``design_values``: the ``[design]`` values ``model`` was compiled with (recorded, not applied).
+    """
     bodies = _object_bodies(spec, model)
     joints = [_object_joint(spec, model, body) for body in bodies]
     if spec.capture_at_least is not None and spec.capture_at_least > len(bodies):
@@ -448,4 +540,5 @@ def resolve_scene(spec: SceneSpec, model: mujoco.MjModel) -> LoadedScene:
         motion=motion,
         initial_qpos=initial,
         perturbation=resolve_perturbation(spec, model, np.array(bodies, dtype=int)),
+        design_values=dict(design_values or {}),
     )

@@ -8,6 +8,9 @@ and refuses to (``dataset.json: task_config: ...``) when the file or the model c
 from __future__ import annotations
 
 import copy
+import dataclasses
+import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -18,7 +21,7 @@ import numpy as np
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex
-from energy_margin.tasks.base import Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
+from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
 from energy_margin.world.scene import Geom, RigidObject, Scene
@@ -50,29 +53,61 @@ class SceneTaskConfig(TaskConfig):
     model_sha256: str = ""
 
 
-_CACHE: dict[tuple[str, int, int], LoadedScene] = {}
+_BASE_FIELDS = frozenset(field.name for field in dataclasses.fields(SceneTaskConfig))
+_DESIGN_CONFIGS: dict[tuple[tuple[str, float], ...], type[SceneTaskConfig]] = {}
 
 
-def _cached_load(path: Path) -> LoadedScene:
-    """Load a scene file once per (path, modification times of the file and its model)."""
+def _design_config_class(values: Mapping[str, float]) -> type[SceneTaskConfig]:
+    """:class:`SceneTaskConfig` with one number field per ``[design]`` parameter (defaults: ``values``).
+
+    A configuration field per parameter lets ``--set``, ``sweep --param`` and ``design`` treat a
+    scene file's design parameters as they treat a built-in task's settings.
+    """
+    if not values:
+        return SceneTaskConfig
+    key = tuple(values.items())
+    if key not in _DESIGN_CONFIGS:
+        fields = [(name, float, dataclasses.field(default=float(value))) for name, value in values.items()]
+        _DESIGN_CONFIGS[key] = dataclasses.make_dataclass(
+            "SceneDesignConfig", fields, bases=(SceneTaskConfig,), frozen=True
+        )
+    return _DESIGN_CONFIGS[key]
+
+
+def design_overrides(config: SceneTaskConfig) -> dict[str, Any]:
+    """The ``[design]`` values a configuration holds (its fields beyond :class:`SceneTaskConfig`'s)."""
+    return {
+        field.name: getattr(config, field.name)
+        for field in dataclasses.fields(config)
+        if field.name not in _BASE_FIELDS
+    }
+
+
+_CACHE: dict[tuple[str, int, int, str], LoadedScene] = {}
+
+
+def _cached_load(path: Path, design: Mapping[str, Any] | None = None) -> LoadedScene:
+    """Load a scene file once per (path, modification times of the file and its model, design values)."""
+    design = dict(design or {})
     try:
         scene_time = path.stat().st_mtime_ns
-    except OSError:
-        return load_scene(path)
+        design_key = json.dumps(design, sort_keys=True)
+    except (OSError, TypeError, ValueError):
+        return load_scene(path, design)
     loaded = None
     for key, value in _CACHE.items():
-        if key[0] == str(path) and key[1] == scene_time:
+        if key[0] == str(path) and key[1] == scene_time and key[3] == design_key:
             try:
                 if value.spec.mjcf.stat().st_mtime_ns == key[2]:
                     loaded = value
             except OSError:
                 pass
     if loaded is None:
-        loaded = load_scene(path)
+        loaded = load_scene(path, design)
         model_time = loaded.spec.mjcf.stat().st_mtime_ns
         if len(_CACHE) > 8:
             _CACHE.clear()
-        _CACHE[(str(path), scene_time, model_time)] = loaded
+        _CACHE[(str(path), scene_time, model_time, design_key)] = loaded
     return loaded
 
 
@@ -127,14 +162,23 @@ class SceneTask(Task):
     engines = ("mujoco",)
     config: SceneTaskConfig
 
-    def __init__(self, config: SceneTaskConfig | None = None, *, loaded: LoadedScene | None = None) -> None:
+    def __init__(
+        self,
+        config: SceneTaskConfig | None = None,
+        *,
+        loaded: LoadedScene | None = None,
+        design: Mapping[str, Any] | None = None,
+    ) -> None:
         """Build from ``config.scene_file`` or, with ``loaded``, from a scene resolved in memory.
 
         Args:
-            config: the scene file and the hashes it must match.
+            config: the scene file and the hashes it must match (and the values of its
+                ``[design]`` parameters, in a configuration built by :meth:`from_dict`).
             loaded: a scene already resolved against its model (a wrapped environment's model,
                 :func:`~energy_margin.tasks.scene_model.resolve_scene`); ``config`` is then ignored
                 and the task cannot be rebuilt from a dataset.
+            design: values of the file's ``[design]`` parameters (over those of ``config``); the
+                model is compiled with them (:func:`~energy_margin.tasks.scene_model.apply_design`).
 
         """
         if loaded is not None:
@@ -144,7 +188,7 @@ class SceneTask(Task):
             raise ValueError("the scene task is built from a scene file: pass --scene SCENE.toml")
         else:
             path = Path(config.scene_file).resolve()
-            loaded = _cached_load(path)
+            loaded = _cached_load(path, {**design_overrides(config), **dict(design or {})})
         if config.scene_sha256 and config.scene_sha256 != loaded.spec.text_sha256:
             raise ValueError(
                 f"scene file {path} changed since these data were made "
@@ -157,7 +201,7 @@ class SceneTask(Task):
             )
         spec = loaded.spec
         model = loaded.model
-        resolved = SceneTaskConfig(
+        resolved = _design_config_class(loaded.design_values)(
             duration=spec.motion.duration,
             timestep=float(model.opt.timestep),
             likelihood_lambda=loaded.perturbation.likelihood_lambda,
@@ -184,33 +228,35 @@ class SceneTask(Task):
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> Task:
-        """Build from ``{"scene_file": ..., "scene_sha256": ..., "model_sha256": ...}``.
+        """Build from ``{"scene_file": ..., "scene_sha256": ..., "model_sha256": ...}`` and design values.
 
         The other settings are the file's; stored ones (``duration``, ``timestep``, ...) are accepted
-        and replaced by the file's values, which the hashes pin.
+        and replaced by the file's values, which the hashes pin. Any other key must name one of the
+        file's ``[design]`` parameters: its value is set on the model before it is compiled.
         """
         values = dict(values or {})
-        known = {
-            "scene_file",
-            "scene_sha256",
-            "model_sha256",
-            "duration",
-            "timestep",
-            "likelihood_lambda",
-            "max_duration",
-        }
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown scene configuration keys: {', '.join(unknown)}")
+        known = set(_BASE_FIELDS)
         for key in ("scene_file", "scene_sha256", "model_sha256"):
             if key in values and not isinstance(values[key], str):
                 raise ValueError(f"{key} must be a string, got {values[key]!r}")
-        return cls(
-            SceneTaskConfig(
-                scene_file=values.get("scene_file", ""),
-                scene_sha256=values.get("scene_sha256", ""),
-                model_sha256=values.get("model_sha256", ""),
-            )
+        config = SceneTaskConfig(
+            scene_file=values.get("scene_file", ""),
+            scene_sha256=values.get("scene_sha256", ""),
+            model_sha256=values.get("model_sha256", ""),
+        )
+        # Keys the file does not declare in [design] are refused by name where the model is compiled.
+        return cls(config, design={key: value for key, value in values.items() if key not in known})
+
+    def model_sha256(self, n_objects: int) -> str:
+        """SHA-256 of the compiled model (with the file's templates and design), as ``task_config`` records it."""
+        self._check_objects(n_objects)
+        return self.loaded.model_sha256
+
+    def design_space(self) -> tuple[DesignParameter, ...]:
+        """The scene file's ``[design]`` parameters over their declared ranges."""
+        return tuple(
+            DesignParameter(entry.name, entry.doc or entry.describe(), low=entry.low, high=entry.high)
+            for entry in self.loaded.spec.design
         )
 
     @property

@@ -39,8 +39,10 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.errors import check_float
 from energy_margin.tasks.base import (
     DesignAlias,
+    DesignParameter,
     ReferenceLayout,
     RegionShape,
     Task,
@@ -82,6 +84,9 @@ class ScoopingConfig(TaskConfig):
         tip_half_width: half width of a blade (along y), m.
         tip_half_thickness: half thickness of a blade, m.
         tip_mass: mass of a blade, kg.
+        lip_height: height of the rims along a blade's two long edges (y = +-tip_half_width), on
+            the face that carries the boxes, m; 0: no rims (the paper's flat blades). A rim is
+            1 mm thick and as long as the blade; the blade's mass and inertia do not change.
         tip_limits: joint limits of a blade, rad (0 straight down, pi/2 horizontal).
         scoop_angle: commanded blade angle, rad.
         open_gap: distance between the two leading edges with the fingers open, m.
@@ -138,6 +143,7 @@ class ScoopingConfig(TaskConfig):
     tip_half_width: float = 0.02
     tip_half_thickness: float = 0.0005
     tip_mass: float = 0.005
+    lip_height: float = 0.0
     tip_limits: tuple[float, float] = (0.0, 1.75)
     scoop_angle: float = 1.31
     open_gap: float = 0.09
@@ -202,6 +208,7 @@ class ScoopingConfig(TaskConfig):
             "friction_range",
             "tip_damping",
             "finger_return_stiffness",
+            "lip_height",
             "max_yaw",
             "capture_margin",
             "success_height",
@@ -290,6 +297,11 @@ class BoxesAboveTable:
         return (RegionShape("box", (0.0, 0.0, self.min_z + half_z), (self.half_x, self.half_y, half_z)),)
 
 
+def _blade_width(value: Any, current: Any) -> Any:
+    del current
+    return check_float("blade_width", value) / 2.0
+
+
 def _single_stiffness(value: Any, current: Any) -> Any:
     del current
     return [value, value]
@@ -314,7 +326,7 @@ class ScoopingTask(Task):
 
     @classmethod
     def design_aliases(cls) -> tuple[DesignAlias, ...]:
-        """``finger_stiffness``: one drive stiffness for every trajectory, which sets ``stiffness_range``."""
+        """``finger_stiffness`` (sets ``stiffness_range`` to one value) and ``blade_width`` (``tip_half_width``)."""
         return (
             DesignAlias(
                 "finger_stiffness",
@@ -323,6 +335,21 @@ class ScoopingTask(Task):
                 "instead of a log-uniform draw",
                 _single_stiffness,
             ),
+            DesignAlias(
+                "blade_width",
+                "tip_half_width",
+                "full width of a blade along y, m (tip_half_width = v / 2)",
+                _blade_width,
+            ),
+        )
+
+    def design_space(self) -> tuple[DesignParameter, ...]:
+        """The blade family: width, length, tip angle and rim height (docs/design.md, "Tool families")."""
+        return (
+            DesignParameter("blade_width", "full width of a blade along y, m", low=0.02, high=0.06),
+            DesignParameter("tip_length", "blade length from its hinge to its leading edge, m", low=0.025, high=0.05),
+            DesignParameter("scoop_angle", "blade (tip) angle from straight down, rad", low=1.1, high=1.6),
+            DesignParameter("lip_height", "height of the rims along the blades' long edges, m", low=0.0, high=0.006),
         )
 
     def __init__(self, config: ScoopingConfig | None = None) -> None:
@@ -420,6 +447,7 @@ class ScoopingTask(Task):
                         name=f"{side}_tip",
                         rgba=_GRIPPER_RGBA,
                     ),
+                    *self._lips(side, sign),
                 ),
                 mass=cfg.tip_mass,
                 pos=(0.0, 0.0, -2.0 * cfg.finger_half_extents[2]),
@@ -492,6 +520,28 @@ class ScoopingTask(Task):
             object_motion="free",
             integrator="implicitfast",
             contact_time_constant=cfg.contact_time_constant,
+        )
+
+    def _lips(self, side: str, sign: float) -> tuple[Geom, ...]:
+        """The rims along a blade's long edges, in its link frame (none for ``lip_height = 0``).
+
+        The blade lies along the link's -z from its hinge; the face that carries the boxes once the
+        blade turns inwards is the link's -x side on the right blade and its +x side on the left.
+        """
+        cfg = self.config
+        if cfg.lip_height <= 0.0:
+            return ()
+        rim = cfg.tip_half_thickness  # half thickness of a rim along y
+        x = -sign * (cfg.tip_half_thickness + 0.5 * cfg.lip_height)
+        return tuple(
+            Geom(
+                "box",
+                (0.5 * cfg.lip_height, rim, cfg.tip_length / 2.0),
+                pos=(x, edge * (cfg.tip_half_width - rim), -cfg.tip_length / 2.0),
+                name=f"{side}_tip_lip{index}",
+                rgba=_GRIPPER_RGBA,
+            )
+            for index, edge in enumerate((1.0, -1.0))
         )
 
     def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:

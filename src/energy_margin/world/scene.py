@@ -137,7 +137,7 @@ class Link:
     Attributes:
         name: unique link name.
         geoms: collision shapes in the link frame.
-        mass: link mass, kg (inertia computed from the first geom as a uniform solid).
+        mass: link mass, kg (inertia computed from :attr:`inertia_geom` as a uniform solid).
         pos: link origin in the parent frame, metres.
         joints: joints between the parent and this link, in order (may be empty: welded).
         children: child links.
@@ -145,6 +145,9 @@ class Link:
             carries it; loads from contacts are not compensated).
         collides_with_statics: whether the link's geoms collide with the static geoms; ``False``
             models a part that glides along a surface without being resolved as a rigid contact.
+        inertia_shape: the solid (in the link frame) whose uniform-density inertia and centre the
+            link gets, when it is not the first geom (a tool built of several geoms that keeps the
+            mass distribution of a simpler one); ``None``: the first geom. Not a collision shape.
 
     """
 
@@ -156,6 +159,12 @@ class Link:
     children: tuple[Link, ...] = ()
     gravity_compensation: bool = False
     collides_with_statics: bool = True
+    inertia_shape: Geom | None = None
+
+    @property
+    def inertia_geom(self) -> Geom:
+        """The solid the link's inertia is computed from: :attr:`inertia_shape`, else the first geom."""
+        return self.inertia_shape if self.inertia_shape is not None else self.geoms[0]
 
     def iter_links(self) -> list[Link]:
         """This link and its descendants, depth first (the order of the generalized coordinates)."""
