@@ -1,8 +1,10 @@
-"""Write a copy of a scene file without its ``[perturbation]`` table, so every perturbation setting is derived.
+"""Write a copy of a scene file without its ``[perturbation]`` values: the fixed defaults, or derived ones.
 
-The copy's file paths (``mjcf``, ``motion.ctrl_file``) are made absolute so it can live anywhere.
+With ``--derive`` the copy's table is ``[perturbation] derive = true`` (every setting derived from the
+scene, tasks/scene_defaults.py); without it the table is left out (the fixed defaults). The copy's
+file paths (``mjcf``, ``motion.ctrl_file``) are made absolute so it can live anywhere.
 
-    python benchmarks/scene_without_perturbation.py examples/jaco/jaco.toml runs/jaco-derived.toml
+    python benchmarks/scene_without_perturbation.py examples/jaco/jaco.toml runs/jaco-derived.toml --derive
 """
 
 from __future__ import annotations
@@ -23,12 +25,15 @@ def without_perturbation(text: str, folder: Path) -> str:
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) != 2:
+    derive = "--derive" in argv
+    paths = [arg for arg in argv if arg != "--derive"]
+    if len(paths) != 2:
         print(__doc__.strip().splitlines()[-1].strip(), file=sys.stderr)
         return 2
-    source, target = Path(argv[0]).resolve(), Path(argv[1])
+    source, target = Path(paths[0]).resolve(), Path(paths[1])
     target.parent.mkdir(parents=True, exist_ok=True)
-    target.write_text(without_perturbation(source.read_text(), source.parent))
+    text = without_perturbation(source.read_text(), source.parent)
+    target.write_text(text + ("\n[perturbation]\nderive = true\n" if derive else ""))
     return 0
 
 

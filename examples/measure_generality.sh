@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The table of docs/generality.md for one example: a 50 x 10 set of generation seed 202 from the scene
-# file as written, the same trajectories from the file without [perturbation] (derived settings) and
-# with the fixed constants a file without [perturbation] had before (2 m/s^2 per axis, no torque,
-# 0.1 s, lambda 5), then calibrate and the paired verdicts (benchmarks/bench_generality.py), two workers.
+# file as written, the same trajectories with [perturbation] derive = true (settings derived from the
+# scene) and without [perturbation] (the fixed defaults: 2 m/s^2 per axis, no torque, 0.1 s, lambda 5),
+# then calibrate and the paired verdicts (benchmarks/bench_generality.py), two workers.
 #   bash examples/measure_generality.sh NAME SCENE.toml OUT_DIR [record]
 # With `record`, the trajectories are examples/record/simulate.py roll-outs of seed 202 instead.
 set -euo pipefail
@@ -12,9 +12,8 @@ out=${3:?output directory}/$name
 mode=${4:-generate}
 here=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
-python "$here/benchmarks/scene_without_perturbation.py" "$scene" "$out/derived.toml"
-cp "$out/derived.toml" "$out/fixed.toml"
-printf '\n[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nangular_acceleration = [0.0, 0.0, 0.0]\nmax_duration = 0.1\nlambda = 5.0\n' >> "$out/fixed.toml"
+python "$here/benchmarks/scene_without_perturbation.py" "$scene" "$out/derived.toml" --derive
+python "$here/benchmarks/scene_without_perturbation.py" "$scene" "$out/fixed.toml"
 if [ "$mode" = record ]; then
   [ -d "$out/logs" ] || python "$here/examples/record/simulate.py" --rollouts 50 --seed 202 --out "$out/logs"
   [ -d "$out/file" ] || energy-margin record --scene "$scene" "$out"/logs/run_*.npz --frames 10 --out "$out/file"
@@ -29,4 +28,4 @@ else
 fi
 energy-margin scene "$out/derived.toml" --no-picture | grep "perturbation"
 python "$here/benchmarks/bench_generality.py" "$name" "$out/file" "$out/derived" --work "$out/work" --workers 2 --json "$out/row.json" \
-  --variant "fixed constants before=$out/fixed"
+  --variant "fixed defaults=$out/fixed"

@@ -21,11 +21,18 @@ def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, 
     scene = make_scene(replace={"max = 0.16": "max = 0.1"})
     derived_toml = tmp_path / "elsewhere" / "derived.toml"
     subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "scene_without_perturbation.py"), str(scene), str(derived_toml)],
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "scene_without_perturbation.py"),
+            str(scene),
+            str(derived_toml),
+            "--derive",
+        ],
         check=True,
     )
     derived_text = derived_toml.read_text()
-    assert "[perturbation]" not in derived_text and f'mjcf = "{scene.parent / "model.xml"}"' in derived_text
+    assert "linear_acceleration" not in derived_text and derived_text.endswith("[perturbation]\nderive = true\n")
+    assert f'mjcf = "{scene.parent / "model.xml"}"' in derived_text
     assert set(load_scene(derived_toml).perturbation.derived) == {
         "lambda",
         "max_duration",
@@ -33,7 +40,11 @@ def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, 
         "angular_acceleration",
     }
     fixed_toml = derived_toml.with_name("fixed.toml")
-    fixed_toml.write_text(derived_text + "\n[perturbation]\nlambda = 5.0\nmax_duration = 0.1\n")
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "scene_without_perturbation.py"), str(scene), str(fixed_toml)],
+        check=True,
+    )
+    assert load_scene(fixed_toml).perturbation.derived == {}
     for name, toml in (("file", scene), ("derived", derived_toml), ("fixed", fixed_toml)):
         common = ["--trajectories", "10", "--frames", "6", "--seed", "5", "--out", str(tmp_path / name)]
         assert main(["generate", "--scene", str(toml), *common]) == 0

@@ -1,22 +1,27 @@
-"""Perturbation settings a scene file leaves out, derived from the scene by one documented rule.
+"""Perturbation settings a scene file leaves out: fixed defaults, or derived from the scene.
 
-Each rule reproduces the settings of the paper's planar pushing task (10 cylinders of 0.2 kg, radius
-5 cm, friction 0.1–0.3, 2 s roll-outs analysed at 10 frames: 2 m/s², 0.667 rad/s², 0.1 s, λ = 5 1/J)
-when applied to that task, and scales with the scene's own physics elsewhere:
+A key of ``[perturbation]`` left out takes the fixed default (:data:`DEFAULTS`: 2 m/s² per axis, no
+torque, 0.1 s, λ = 5 1/J). With ``derive = true`` it is derived from the scene instead, by rules
+anchored on the paper's planar pushing task (10 cylinders of 0.2 kg, radius 5 cm, friction 0.1–0.3,
+2 s roll-outs analysed at 10 frames; 2 m/s² in x and y, 0.667 rad/s² about z, 0.1 s, λ = 5 1/J):
 
 * **propagation length** ``max_duration``: 0.45 of the time between frames, the frames being the
   10 that ``generate`` takes by default over the motion's duration (2 s → 0.1 s);
 * **linear bound** per world axis: μ̄ g, the deceleration the objects' sliding friction gives them
-  (μ̄ the middle of ``randomize.friction``, else the mean sliding friction of the objects' geoms):
-  the largest push the support absorbs without the object sliding away (μ̄ = 0.2 → 1.96 m/s²);
+  (μ̄ the middle of ``randomize.friction``, else the mean sliding friction of the objects' geoms;
+  the paper's μ̄ = 0.2 → 1.96 m/s²);
 * **angular bound** per axis: the linear bound over the object's radius of gyration about that axis,
   times the paper's ratio 0.0118 (its cylinders: 0.667 rad/s² for 2 m/s² and a radius of gyration
   of 3.5 cm);
-* **λ**: 0.080 J (the paper's λ times the energy of one full-bound perturbation of its objects)
-  divided by the energy of one full-bound perturbation of this scene's objects,
-  W = mean over objects of Σ_axes (m a² + I α²) τ². This keeps λ W, the score's dimensionless
-  exponent for a full perturbation, the paper's: scaling every mass, or the bounds, leaves the
-  likelihoods as they were.
+* **λ**: 0.080 J (the paper's λ times the energy of one full-bound perturbation of its cylinders,
+  two linear axes and rotation about z) divided by the energy of one full-bound perturbation of
+  this scene's objects, W = mean over objects of Σ_axes (m a² + I α²) τ²: scaling every mass, or
+  the bounds, leaves λ W as it was.
+
+A scene file's free objects are perturbed along all three axes, so the rule applied to the paper's
+cylinders as free bodies gives λ = 3.46 (not 5): W counts the vertical axis too. Measured on seven
+example robots (docs/generality.md), the derived settings are level with the file's own on two and
+behind on the others, which is why they are not the default.
 
 ``energy-margin scene`` prints each derived value with the reason (:attr:`PerturbationSettings.derived`).
 """
@@ -24,6 +29,7 @@ when applied to that task, and scales with the scene's own physics elsewhere:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -31,6 +37,13 @@ import numpy as np
 from energy_margin.tasks.scene_file import SceneSpec
 
 GRAVITY = 9.81  # m/s^2
+#: What a key left out takes without ``derive = true``.
+DEFAULTS: dict[str, Any] = {
+    "linear_acceleration": (2.0, 2.0, 2.0),
+    "angular_acceleration": (0.0, 0.0, 0.0),
+    "max_duration": 0.1,
+    "lambda": 5.0,
+}
 #: Frames per roll-out that the propagation length is derived for (``generate``'s default).
 FRAMES = 10
 #: Propagation length as a share of the time between frames (the paper: 0.1 s of 2 s / 9).
@@ -71,8 +84,14 @@ def _friction(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> tup
     return value, "the objects' geoms' mean sliding friction"
 
 
+def _three(values: Any) -> tuple[float, float, float]:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
 def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> PerturbationSettings:
-    """The scene's perturbation: each key the file sets, the rule of this module for each it does not.
+    """The scene's perturbation: the file's keys, and defaults or derived values for the others.
+
+    A key left out takes :data:`DEFAULTS`, or with ``derive = true`` the rule of this module.
 
     Args:
         spec: the validated scene file (``None`` for a perturbation key it leaves out).
@@ -80,6 +99,15 @@ def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndar
         bodies: body id of each object, shape (n_objects,).
 
     """
+    if not spec.derive_perturbation:
+        return PerturbationSettings(
+            linear_acceleration=_three(spec.linear_acceleration or DEFAULTS["linear_acceleration"]),
+            angular_acceleration=_three(spec.angular_acceleration or DEFAULTS["angular_acceleration"]),
+            max_duration=float(spec.max_duration if spec.max_duration is not None else DEFAULTS["max_duration"]),
+            likelihood_lambda=float(
+                spec.likelihood_lambda if spec.likelihood_lambda is not None else DEFAULTS["lambda"]
+            ),
+        )
     derived: dict[str, str] = {}
     mass_scale = 1.0 if spec.mass_scale is None else 0.5 * sum(spec.mass_scale)
     mass = model.body_mass[bodies] * mass_scale

@@ -216,7 +216,8 @@ class SceneSpec:
         start: object start poses.
         linear_acceleration: perturbation force bound per world axis divided by mass, (3,), m/s^2
             (``None``: not in the file, derived from the scene by
-            :func:`~energy_margin.tasks.scene_defaults.resolve_perturbation`, as are the next three).
+            :func:`~energy_margin.tasks.scene_defaults.resolve_perturbation` gives its default or,
+            with ``derive_perturbation``, derives it from the scene; as for the next three).
         angular_acceleration: perturbation torque bound per axis divided by inertia, (3,), rad/s^2.
         max_duration: longest perturbation propagation, s.
         likelihood_lambda: softmax inverse temperature lambda, 1/J.
@@ -224,6 +225,8 @@ class SceneSpec:
         capture_at_least: capture needs at least this many objects inside, or ``None`` for every object.
         capture_follows: the capture region's body and site frames are taken at every tree node's
             own robot configuration (``capture.follow = true``), not frozen at the analysed frame.
+        derive_perturbation: ``[perturbation] derive = true``: keys left out are derived from the
+            scene (tasks/scene_defaults.py) instead of taking the fixed defaults.
         success: the success region table.
         success_at_least: success needs at least this many objects inside, or ``None`` for every object.
         bounds_low: reached states with an object below this corner are rejected, (3,), m.
@@ -260,6 +263,7 @@ class SceneSpec:
     max_speed: float
     locator: Locator = field(repr=False, compare=False)
     capture_follows: bool = False
+    derive_perturbation: bool = False
     design: tuple[DesignEntry, ...] = ()
 
     def error(self, key: str, message: str) -> EnergyMarginError:
@@ -487,9 +491,16 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
     start = _read_start(read, randomize)
 
     perturbation = read.table(
-        document, "perturbation", "", {"linear_acceleration", "angular_acceleration", "max_duration", "lambda"}
+        document,
+        "perturbation",
+        "",
+        {"linear_acceleration", "angular_acceleration", "max_duration", "lambda", "derive"},
     )
-    # A key left out is derived from the scene once its model is compiled (tasks/scene_defaults.py).
+    derive = perturbation.get("derive", False)
+    if not isinstance(derive, bool):
+        raise read.fail("perturbation.derive", f"must be true or false, got {derive!r}")
+    # A key left out takes its default, or with derive = true is derived from the scene once its
+    # model is compiled (tasks/scene_defaults.py).
     linear = (
         read.vector(perturbation["linear_acceleration"], "perturbation.linear_acceleration", minimum=0.0)
         if "linear_acceleration" in perturbation
@@ -556,6 +567,7 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
         max_speed=max_speed,
         locator=locator,
         capture_follows=follows,
+        derive_perturbation=derive,
         design=_read_design(read, document),
     )
 
