@@ -61,6 +61,8 @@ def test_the_picture_frames_the_objects_and_regions_not_the_whole_model() -> Non
         ("90,-120", "elevation -120 is outside [-90, 90]"),
         ("90,-30,0", "distance 0 m must be > 0"),
         ("90,-30,nan", "takes AZIMUTH,ELEVATION[,DISTANCE]"),
+        # A negative azimuth is the camera's value, not an option (argparse alone would refuse it).
+        ("-135,-120", "elevation -120 is outside [-90, 90]"),
     ],
 )
 def test_a_bad_camera_is_one_line_before_anything_is_printed(

@@ -116,9 +116,20 @@ def error_message(error: EnergyMarginError, flags: dict[str, str]) -> str:
     return one_line(str(error))
 
 
+def _joined_camera(argv: list[str]) -> list[str]:
+    """``--camera -135,-35`` as ``--camera=-135,-35``: argparse would read a negative azimuth as an option."""
+    joined: list[str] = []
+    for token in argv:
+        if joined and joined[-1] == "--camera" and token.startswith("-") and "," in token:
+            joined[-1] = f"--camera={token}"
+        else:
+            joined.append(token)
+    return joined
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0, 1 unexpected error, 2 bad input, 130 interrupted)."""
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_joined_camera(sys.argv[1:] if argv is None else list(argv)))
     try:
         return int(args.run(args))
     except EnergyMarginError as error:
