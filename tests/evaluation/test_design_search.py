@@ -297,6 +297,26 @@ def test_an_interrupted_search_resumes_to_the_same_result(
     assert not any(line.startswith("design tpe") for line in lines)  # nothing measured again
 
 
+def test_a_resumed_search_of_two_axes_verifies_the_same_designs(tmp_path: Path) -> None:
+    # Axes not in alphabetical order: the journal stores each row's values with sorted keys, so a
+    # resumed run must read them back by name, not by position.
+    params = [("pusher_width", (0.4, 1.0)), ("face_depth", (0.02, 0.15))]
+    whole = _search(tmp_path / "whole", params=params)
+
+    def stop_search(phase: str, index: int) -> None:
+        if phase == "grid":  # every search evaluation is in the journal by then
+            raise KeyboardInterrupt
+
+    out = tmp_path / "resumed"
+    with pytest.raises(KeyboardInterrupt):
+        _search(out, params=params, on_evaluation=stop_search)
+    resumed = _search(out, params=params)
+    assert _essence(resumed) == _essence(whole)
+    assert [entry["task_config"] for entry in resumed["verified"]] == [
+        entry["task_config"] for entry in whole["verified"]
+    ]
+
+
 def test_other_settings_are_refused(reference: tuple[Path, dict[str, Any]], tmp_path: Path) -> None:
     copy = tmp_path / "copy"
     shutil.copytree(reference[0], copy)

@@ -467,7 +467,8 @@ class _Search:
     def _overrides(self, row: dict[str, Any]) -> dict[str, Any]:
         if row["phase"] == "default":
             return dict(self.fixed)
-        design = point_design(self.task, self.space, list(row["values"].values()), self.fixed)
+        # By name: a journal row's values come back in the journal's (sorted) key order.
+        design = point_design(self.task, self.space, [row["values"][p.name] for p in self.space], self.fixed)
         return design.overrides
 
     def write(self, result: dict[str, Any], *, figure: bool = True) -> None:
