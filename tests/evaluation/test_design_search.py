@@ -348,3 +348,12 @@ def test_the_default_design_keeps_the_task_values(tmp_path: Path) -> None:
     assert result["default"]["values"] == {"drive_jitter": 0.2}
     assert result["grid_size"] == 1 and result["grid_evaluations"][0]["values"] == {"drive_jitter": 0.2}
     assert math.isclose(result["default"]["objective"], result["grid_evaluations"][0]["objective"])
+
+
+def test_a_scene_search_takes_only_its_design_parameters(tiny_scene: Path) -> None:
+    # The scene file pins its other settings (its hash): a search over them would score one model
+    # under many labels.
+    from energy_margin.evaluation.design_space import resolve_space
+
+    with pytest.raises(EnergyMarginError, match=r"'timestep'.*known: none \(a scene file declares its own"):
+        resolve_space("scene", [("timestep", (0.001, 0.01))], fixed={"scene_file": str(tiny_scene)})

@@ -90,7 +90,7 @@ def known_names(task: Task) -> list[str]:
     """Every design parameter of ``task``: its tool family's axes, its aliases, then its configuration fields."""
     names = [parameter.name for parameter in task.design_space()]
     names += [alias.name for alias in task.design_aliases() if alias.name not in names]
-    names += [name for name in _fields(task) if name not in names]
+    names += [name for name in task.design_fields() if name not in names]
     return names
 
 
@@ -182,7 +182,8 @@ def _unknown(task: Task, name: str, known: list[str]) -> EnergyMarginError:
             except EnergyMarginError:
                 continue
     where = f" (a setting of task {owners[0]!r})" if owners else ""
-    return EnergyMarginError(f"unknown {task.name} design parameter {name!r}{where}; known: {', '.join(known)}")
+    listed = ", ".join(known) if known else "none (a scene file declares its own in a [design] table)"
+    return EnergyMarginError(f"unknown {task.name} design parameter {name!r}{where}; known: {listed}")
 
 
 def round_value(parameter: DesignParameter, value: Any) -> Any:

@@ -496,6 +496,10 @@ class Task(ABC):
         """Friendly ``sweep --param`` names of the task besides its configuration fields (none by default)."""
         return ()
 
+    def design_fields(self) -> tuple[str, ...]:
+        """Configuration fields a design may set (``design --param``): every field by default."""
+        return tuple(item.name for item in dataclasses.fields(self.config))
+
     def design_space(self) -> tuple[DesignParameter, ...]:
         """The task's tool family over its documented ranges: what ``design`` searches by default (none by default).
 

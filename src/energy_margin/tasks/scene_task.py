@@ -252,6 +252,10 @@ class SceneTask(Task):
         self._check_objects(n_objects)
         return self.loaded.model_sha256
 
+    def design_fields(self) -> tuple[str, ...]:
+        """Only the ``[design]`` parameters: the file's other settings are pinned by its hash."""
+        return tuple(entry.name for entry in self.loaded.spec.design)
+
     def design_space(self) -> tuple[DesignParameter, ...]:
         """The scene file's ``[design]`` parameters over their declared ranges."""
         return tuple(
