@@ -192,3 +192,16 @@ def test_verification_episodes_are_those_of_control(tmp_path: Path) -> None:
     )
     assert [found[i] for i in range(3)] == dataset.success_labels().astype(bool).tolist()
     assert summary["successes"] == sum(found.values())
+
+
+def test_a_scene_the_episodes_cannot_control_is_refused_before_the_search(tmp_path: Path, capsys) -> None:
+    # The tiny scene moves a mocap pusher: control episodes have no commands for it.
+    from tiny_scene import TINY_SCENE, write_tiny_scene
+
+    design = '\n[design]\nwidth = { geom = "pusher", attribute = "size", index = 0, low = 0.1, high = 0.2 }\n'
+    scene = write_tiny_scene(tmp_path / "scene", scene=TINY_SCENE + design)
+    out = tmp_path / "run"
+    code = main(["design", "--scene", str(scene), "--optimizer", "grid", "--evaluations", "2", "--out", str(out)])
+    assert code == 2 and not out.exists()
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "moves mocap bodies" in error

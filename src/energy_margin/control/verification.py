@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.executors import pool_results
-from energy_margin.control.commands import controllable_tasks
+from energy_margin.control.commands import command_space, controllable_tasks
 from energy_margin.control.disturbances import get_disturbance
 from energy_margin.control.episodes import ControlSettings, run_episode
 from energy_margin.errors import EnergyMarginError, check_choice
@@ -48,13 +48,18 @@ class EpisodeVerifier:
         """What decides the episodes besides the design, the level and the seeds (saved with the run)."""
         return {"policy": self.policy, "frames": VERIFY_FRAMES}
 
-    def check(self, task_name: str, levels: Sequence[str]) -> None:
-        """Refuse a task without a command space, or an unknown disturbance level, before anything runs."""
+    def check(self, task_name: str, levels: Sequence[str], *, fixed: dict[str, Any], n_objects: int) -> None:
+        """Refuse a task without a command space, or an unknown disturbance level, before anything runs.
+
+        The command space is built for the task with ``fixed``: a scene whose motion moves mocap
+        bodies has none, and is refused here rather than after the search.
+        """
         if task_name not in controllable_tasks():
             raise EnergyMarginError(
                 f"task {task_name!r} cannot be verified by control episodes; controllable tasks: "
                 f"{', '.join(controllable_tasks())}"
             )
+        command_space(get_task(task_name, fixed or None), n_objects)
         for level in levels:
             get_disturbance(level)
 

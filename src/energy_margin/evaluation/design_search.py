@@ -126,8 +126,8 @@ class Verifier(Protocol):
     def settings(self) -> dict[str, Any]:
         """What decides the episodes besides design, level and seeds (saved under ``verify``)."""
 
-    def check(self, task_name: str, levels: Sequence[str]) -> None:
-        """Refuse a task or a level it cannot run, before anything is written."""
+    def check(self, task_name: str, levels: Sequence[str], *, fixed: dict[str, Any], n_objects: int) -> None:
+        """Refuse a task, a scene or a level it cannot run, before anything is written."""
 
     def successes(
         self,
@@ -746,7 +746,7 @@ def design_search(
     if isinstance(scorer, TreeScorer):
         scorer = TreeScorer(analyzer)
     if verifier is not None:
-        verifier.check(task, levels)
+        verifier.check(task, levels, fixed=fixed, n_objects=n_objects)
     check_models(task, space, fixed, n_objects=n_objects, seed=seed, n_trajectories=n_trajectories)
     compile_design(
         task, default_design(task, space, fixed), n_objects=n_objects, seed=seed, n_trajectories=n_trajectories
