@@ -205,3 +205,20 @@ def test_a_scene_the_episodes_cannot_control_is_refused_before_the_search(tmp_pa
     assert code == 2 and not out.exists()
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "moves mocap bodies" in error
+
+
+def test_the_learned_objective_is_refused_for_a_scene_family(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A learned margin checks the compiled model's hash: every design but the fitted one would fail.
+    # Refused before the model file is read.
+    from tiny_scene import TINY_SCENE, write_tiny_scene
+
+    design = '\n[design]\nwidth = { geom = "pusher", attribute = "size", index = 0, low = 0.1, high = 0.2 }\n'
+    scene = write_tiny_scene(tmp_path / "scene", scene=TINY_SCENE + design)
+    out = tmp_path / "run"
+    argv = ["design", "--scene", str(scene), "--objective", "learned", "--model", str(tmp_path / "push.margin")]
+    assert main([*argv, "--optimizer", "grid", "--evaluations", "2", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "--objective learned cannot score a --scene design search" in error
+    assert not out.exists()

@@ -231,6 +231,35 @@ def test_scene_design_sweeps_as_a_setting(make_scene) -> None:
     assert len(hashes) == 2
 
 
+def test_scene_design_sets_a_bodys_mass(make_scene) -> None:
+    # MuJoCo ignores a body's mass unless its inertial is explicit: the design makes it so, from the
+    # compiled model, and the model's own value is the compiled mass (the MJCF gives it on the geom).
+    path = make_scene(append='[design]\nbox_mass = { body = "box_a", attribute = "mass", low = 0.05, high = 0.5 }\n')
+
+    def model(mass: float | None) -> tuple[mujoco.MjModel, str]:
+        task = get_task("scene", {"scene_file": str(path), **({} if mass is None else {"box_mass": mass})})
+        return task.loaded.model, task.loaded.model_sha256
+
+    default, _ = model(None)
+    body = mujoco.mj_name2id(default, mujoco.mjtObj.mjOBJ_BODY, "box_a")
+    assert get_task("scene", {"scene_file": str(path)}).config.box_mass == pytest.approx(0.1)
+    light, light_hash = model(0.2)
+    heavy, heavy_hash = model(0.3)
+    assert (light.body_mass[body], heavy.body_mass[body]) == pytest.approx((0.2, 0.3))
+    assert light_hash != heavy_hash
+    # Only the mass changes: the inertia and centre of mass stay the compiled model's.
+    for changed in (light, heavy):
+        assert changed.body_inertia[body] == pytest.approx(default.body_inertia[body])
+        assert changed.body_ipos[body] == pytest.approx(default.body_ipos[body])
+    # A model that derives every inertial from its geoms cannot take one: refused in one line.
+    derived = make_scene(
+        append='[design]\nbox_mass = { body = "box_a", attribute = "mass", low = 0.05, high = 0.5 }\n',
+        model_replace={"<default>": '<compiler inertiafromgeom="true"/><default>'},
+    )
+    with pytest.raises(EnergyMarginError, match=r"design\.box_mass\.attribute: mass of body 'box_a' cannot be set"):
+        load_scene(derived)
+
+
 @pytest.mark.parametrize(
     ("design", "fragment"),
     [

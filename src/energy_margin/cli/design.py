@@ -160,6 +160,14 @@ def run(args: argparse.Namespace) -> int:
         from energy_margin.learning.scoring import LearnedFrameScorer
         from energy_margin.tasks import get_task
 
+        if args.scene:
+            # Every --scene search sets the file's [design] values, and each design compiles to its own
+            # model: a learned margin checks the model's hash, so it would fail every design but one.
+            raise EnergyMarginError(
+                "--objective learned cannot score a --scene design search: a learned margin model is tied to "
+                "the one compiled model it was fitted on and each [design] value compiles another; "
+                "use --objective margin"
+            )
         if args.model is None:
             raise EnergyMarginError("--objective learned needs --model MODEL (made by energy-margin learn)")
         task = get_task(task_name, fixed or None)

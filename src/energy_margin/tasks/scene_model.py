@@ -251,6 +251,53 @@ def _design_target(spec: SceneSpec, model_spec: mujoco.MjSpec, entry: DesignEntr
     )
 
 
+#: A body's inertial attributes: MuJoCo reads them only when the body's inertial is explicit.
+_INERTIAL = ("mass", "inertia", "ipos", "iquat", "fullinertia")
+
+
+def _explicit_inertials(spec: SceneSpec, model_spec: mujoco.MjSpec) -> None:
+    """Make the inertial of each body a design parameter sets explicit, as the compiled model has it.
+
+    MuJoCo ignores a body's ``mass``, ``inertia`` and ``ipos`` unless its inertial is explicit (an
+    ``<inertial>`` element), and otherwise derives them from its geoms. Each such body gets
+    ``explicitinertial`` with the mass, principal inertia, centre of mass and axes of the model
+    compiled before the design, so the parameter changes its own attribute only and its default
+    (the model's own value) is the compiled one.
+    """
+    entries = [entry for entry in spec.design if entry.kind == "body" and entry.attribute in _INERTIAL]
+    if not entries:
+        return
+    for entry in entries:
+        if entry.attribute == "fullinertia":
+            raise spec.error(
+                f"{entry.key}.attribute", "fullinertia cannot be a design parameter: use inertia (principal moments)"
+            )
+    if model_spec.compiler.inertiafromgeom == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE:
+        entry = entries[0]
+        raise spec.error(
+            f"{entry.key}.attribute",
+            f"{entry.attribute} of body {entry.element!r} cannot be set: the model computes every body's inertial "
+            'from its geoms (compiler inertiafromgeom="true")',
+        )
+    try:
+        compiled = model_spec.copy().compile()
+    except (ValueError, mujoco.FatalError) as error:
+        raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
+    for entry in entries:
+        body = model_spec.body(entry.element)
+        index = mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_BODY, entry.element)
+        if body is None or index < 0:
+            continue  # refused by name in _design_target
+        if body.explicitinertial and np.isnan(body.fullinertia[0]):
+            continue  # its own <inertial>: mass, inertia, ipos and iquat are what MuJoCo uses
+        body.explicitinertial = True
+        body.mass = float(compiled.body_mass[index])
+        body.inertia = compiled.body_inertia[index].copy()
+        body.ipos = compiled.body_ipos[index].copy()
+        body.iquat = compiled.body_iquat[index].copy()
+        body.fullinertia[0] = np.nan
+
+
 def apply_design(
     spec: SceneSpec, model_spec: mujoco.MjSpec, design: Mapping[str, Any] | None = None
 ) -> dict[str, float]:
@@ -272,6 +319,7 @@ def apply_design(
         raise ValueError(
             f"unknown scene configuration keys: {', '.join(unknown)} (the [design] parameters of {spec.path}: {names})"
         )
+    _explicit_inertials(spec, model_spec)
     values: dict[str, float] = {}
     for entry in spec.design:
         element, current = _design_target(spec, model_spec, entry)
