@@ -86,3 +86,17 @@ def test_control_errors_are_one_line(
     assert message in err
     assert len(err.strip().splitlines()) == 1
     assert "Traceback" not in err
+
+
+def test_control_lookahead_is_run_and_saved(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "ahead"
+    args = ["control", "--objects", "2", "--episodes", "1", "--policy", "task", "--lookahead", "3", "--out", str(out)]
+    code, _, err = _run([*args, *SHORT], capsys)
+    assert code == 0, err
+    settings = json.loads((out / "control.json").read_text())["settings"]
+    assert settings["controller"]["lookahead"] == 3
+    with pytest.raises(SystemExit) as exited:
+        main(["control", "--lookahead", "-1", "--out", str(tmp_path / "bad"), *SHORT])
+    assert exited.value.code == 2
+    assert "--lookahead: expected an integer >= 0, got -1" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

@@ -66,6 +66,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--horizon", type=positive_int, default=4, help="MPPI horizon in periods (default 4)")
     parser.add_argument("--period", type=float, default=0.1, help="control period, s (default 0.1)")
     parser.add_argument(
+        "--lookahead",
+        type=non_negative_int,
+        default=0,
+        help="periods the prediction goes on past the horizon with the script's commands, cut at the "
+        "episode's end; the cost sees those states too (default 0)",
+    )
+    parser.add_argument(
         "--margin-expansions", type=positive_int, default=20, help="expansions per margin analysis (default 20)"
     )
     parser.add_argument(
@@ -124,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
             samples=args.samples,
             horizon=args.horizon,
             period=args.period,
+            lookahead=args.lookahead,
             margin_expansions=args.margin_expansions,
             margin_samples=args.margin_samples,
         )

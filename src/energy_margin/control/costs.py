@@ -40,16 +40,19 @@ from energy_margin.world.state import FrameState
 
 @dataclass(frozen=True)
 class Predictions:
-    """The predicted states of k command sequences at the end of each of their H periods.
+    """The predicted states of k command sequences at the end of each of their P periods.
+
+    P is the horizon H plus the controller's look-ahead (periods of the script's commands after
+    the sampled ones).
 
     Attributes:
-        object_pos: object positions, shape (k, H, n_objects, 3), m.
-        object_quat: object orientations, shape (k, H, n_objects, 4).
-        object_vel: object velocities, shape (k, H, n_objects, 6), m/s and rad/s.
-        robot_q: end-effector coordinates, shape (k, H, n_robot_dofs), m or rad.
-        robot_v: end-effector velocities, shape (k, H, n_robot_dofs), m/s or rad/s.
-        commands: the sequences' deviations from the task's scripted command, shape (k, H, m),
-            each component divided by its half range.
+        object_pos: object positions, shape (k, P, n_objects, 3), m.
+        object_quat: object orientations, shape (k, P, n_objects, 4).
+        object_vel: object velocities, shape (k, P, n_objects, 6), m/s and rad/s.
+        robot_q: end-effector coordinates, shape (k, P, n_robot_dofs), m or rad.
+        robot_v: end-effector velocities, shape (k, P, n_robot_dofs), m/s or rad/s.
+        commands: the sequences' deviations from the task's scripted command over the H sampled
+            periods, shape (k, H, m), each component divided by its half range.
         forces: end-effector forces held at each sequence's end, shape (k, n_robot_dofs).
         targets: servo targets held at each sequence's end, shape (k, n_robot_dofs), or ``None``.
         end_time: episode time at the horizon's end, s.

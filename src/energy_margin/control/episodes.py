@@ -24,9 +24,16 @@ import numpy as np
 from energy_margin._version import __version__
 from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
-from energy_margin.control.commands import command_space, controllable_tasks
+from energy_margin.control.commands import RobotInputs, command_space, controllable_tasks
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
-from energy_margin.control.disturbances import Disturbance, draw_plant, get_disturbance, observe, push_wrenches
+from energy_margin.control.disturbances import (
+    Disturbance,
+    Push,
+    draw_plant,
+    get_disturbance,
+    observe,
+    push_wrenches,
+)
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
@@ -34,8 +41,9 @@ from energy_margin.errors import EnergyMarginError, check_int, check_seed
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.runs.files import atomic_path, write_json
+from energy_margin.sim import Simulator
 from energy_margin.sim.base import ModelCommand
-from energy_margin.tasks import Task, command_robot, get_task
+from energy_margin.tasks import Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
 
 #: The policies ``energy-margin control --policy`` offers.
@@ -91,6 +99,41 @@ def _observed(plant: Any, disturbance: Disturbance, rng: np.random.Generator) ->
     )
 
 
+#: What each of an episode's generators draws, in the order they are spawned from its seed.
+EPISODE_STREAMS = ("trajectory", "plant", "observe", "sample", "script", "cost", "score")
+
+
+def episode_seeds(seed: np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:
+    """The episode's seed sequences by :data:`EPISODE_STREAMS` name."""
+    return dict(zip(EPISODE_STREAMS, seed.spawn(len(EPISODE_STREAMS)), strict=True))
+
+
+def draw_episode(
+    task: Task, n_objects: int, disturbance: Disturbance, seeds: dict[str, np.random.SeedSequence]
+) -> tuple[Trajectory, float, list[Push]]:
+    """An episode's start (its friction is the controller's nominal one), plant friction and pushes."""
+    trajectory = task.sample_trajectory(np.random.default_rng(seeds["trajectory"]), n_objects)
+    duration = task.n_steps * task.config.timestep
+    scratch = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, "mujoco")
+    friction, pushes = draw_plant(
+        disturbance,
+        np.random.default_rng(seeds["plant"]),
+        nominal_friction=trajectory.friction,
+        duration=duration,
+        masses=scratch.scene.object_masses,
+    )
+    return trajectory, friction, pushes
+
+
+def apply_inputs(plant: Simulator, inputs: RobotInputs, offset: int) -> None:
+    """Set the robot inputs of step ``offset`` of the first sequence of ``inputs`` on ``plant``."""
+    plant.set_robot_force(inputs.forces[0, offset])
+    if inputs.targets is not None:
+        plant.set_robot_targets(inputs.targets[0, offset])
+    if inputs.ctrl is not None:
+        ModelCommand(ctrl=inputs.ctrl[0, offset]).apply_to(plant, purpose="a controller's actuator controls")
+
+
 def run_episode(
     task: Task,
     settings: ControlSettings,
@@ -103,19 +146,11 @@ def run_episode(
     ``info`` holds whether it succeeded, its decisions and their compute time (s), the plant's
     friction, its pushes and, with ``score_expansions``, the frames' capture and success scores.
     """
-    trajectory_seed, plant_seed, observe_seed, sample_seed, script_seed, cost_seed, score_seed = seed.spawn(7)
-    trajectory = task.sample_trajectory(np.random.default_rng(trajectory_seed), settings.n_objects)
+    seeds = episode_seeds(seed)
     disturbance = Disturbance(**settings.disturbance)
-    duration = task.n_steps * task.config.timestep
-    scratch = task.make_simulator(settings.n_objects, trajectory.friction, trajectory.drive, "mujoco")
-    masses = scratch.scene.object_masses
-    friction, pushes = draw_plant(
-        disturbance,
-        np.random.default_rng(plant_seed),
-        nominal_friction=trajectory.friction,
-        duration=duration,
-        masses=masses,
-    )
+    trajectory, friction, pushes = draw_episode(task, settings.n_objects, disturbance, seeds)
+    observe_seed, sample_seed, script_seed = seeds["observe"], seeds["sample"], seeds["script"]
+    cost_seed, score_seed = seeds["cost"], seeds["score"]
     plant = task.make_simulator(settings.n_objects, friction, trajectory.drive, "mujoco")
     plant.reset(trajectory.initial)
     space = command_space(task, settings.n_objects)
@@ -172,11 +207,7 @@ def run_episode(
                 inputs = space.inputs(command[None, None], held=held, start_time=now, dt=dt, period_steps=period_steps)
                 held = None if inputs.held is None else inputs.held[0]
             assert inputs is not None
-            plant.set_robot_force(inputs.forces[0, offset])
-            if inputs.targets is not None:
-                plant.set_robot_targets(inputs.targets[0, offset])
-            if inputs.ctrl is not None:
-                ModelCommand(ctrl=inputs.ctrl[0, offset]).apply_to(plant, purpose="a controller's actuator controls")
+            apply_inputs(plant, inputs, offset)
         plant.step(1)
     drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
     record = trajectory_record(task, frames, times, friction, drive)

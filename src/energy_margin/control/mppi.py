@@ -21,7 +21,7 @@ import numpy as np
 
 from energy_margin.control.commands import CommandSpace
 from energy_margin.control.costs import CostContext, CostFunction, Predictions
-from energy_margin.errors import check_float, check_positive_float, check_positive_int
+from energy_margin.errors import check_float, check_int, check_positive_float, check_positive_int
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.world.state import FrameState
@@ -42,6 +42,9 @@ class ControllerConfig:
         correlation: correlation of a sample's noise between consecutive periods, in [0, 1).
         margin_expansions: expansions of each short energy-margin analysis (``margin`` cost).
         margin_samples: sequences analysed per decision (``margin`` cost).
+        lookahead: command periods the prediction goes on past the horizon with the script's
+            commands (no sampled deviation), cut at the episode's end; the cost then sees the
+            states of the horizon and of the look-ahead (0: the horizon only).
 
     """
 
@@ -53,10 +56,12 @@ class ControllerConfig:
     correlation: float = 0.8
     margin_expansions: int = 20
     margin_samples: int = 4
+    lookahead: int = 0
 
     def __post_init__(self) -> None:
         for name in ("samples", "horizon", "margin_expansions", "margin_samples"):
             check_positive_int(name, getattr(self, name))
+        check_int("lookahead", self.lookahead, minimum=0)
         check_float("correlation", self.correlation, minimum=0.0, maximum=1.0, exclusive_maximum=True)
         for name in ("period", "noise", "temperature"):
             check_positive_float(name, getattr(self, name))
@@ -109,14 +114,15 @@ class Controller:
         self.decisions = 0
         self.seconds = 0.0
 
-    def decide(self, observed: FrameState, time: float, held: np.ndarray | None) -> np.ndarray:
-        """The command (m,) to hold for the next period, from the observed state at ``time`` (s)."""
-        started = clock.perf_counter()
+    def sample(self, time: float) -> tuple[np.ndarray, np.ndarray]:
+        """Command sequences around the plan at ``time`` (s), and the script's commands.
+
+        Returns:
+            The sampled sequences, shape (K, H, m), clipped to the bounds (sample 0 is the plan
+            itself), and the script's command of each period, shape (H, m).
+
+        """
         config, space = self.config, self.space
-        self.model.reset(observed)
-        if held is not None:
-            self.model.set_robot_targets(held)
-        state = self.propagator.current_state()
         half_range = 0.5 * (space.high - space.low)
         # Sample 0 is the plan itself, so the weighted mean never ignores the current plan.
         # Noise correlated along the horizon (an AR(1) process): a sequence changes its command
@@ -132,24 +138,65 @@ class Controller:
         noise[0] = 0.0
         period = self.period_steps * self.dt
         scripted = np.stack([space.nominal(self.trajectory, time + h * period) for h in range(config.horizon)])
-        commands = space.clip(scripted[None] + self.plan[None] + noise)
+        return space.clip(scripted[None] + self.plan[None] + noise), scripted
+
+    def predict(
+        self, observed: FrameState, time: float, held: np.ndarray | None, commands: np.ndarray, scripted: np.ndarray
+    ) -> Predictions:
+        """The nominal model's states under ``commands`` (K, H, m) from ``observed`` at ``time`` (s).
+
+        With a ``lookahead`` of L periods, each sequence goes on with the script's commands for
+        up to L more periods (not past the episode's end), and the predictions hold the states
+        at the end of all H + L periods.
+
+        Args:
+            observed: the state the controller sees.
+            time: episode time, s.
+            held: servo targets held before the sequences, shape (n_robot_dofs,), or ``None``.
+            commands: command sequences, shape (K, H, m).
+            scripted: the script's command of each period, shape (H, m).
+
+        """
+        space = self.space
+        self.model.reset(observed)
+        if held is not None:
+            self.model.set_robot_targets(held)
+        state = self.propagator.current_state()
+        half_range = 0.5 * (space.high - space.low)
+        deviations = (commands - scripted[None]) / half_range
+        period = self.period_steps * self.dt
+        horizon = commands.shape[1]
+        remaining = int(np.ceil((self.task.n_steps * self.dt - time) / period - 1e-9)) - horizon
+        lookahead = max(0, min(self.config.lookahead, remaining))
+        if lookahead:
+            after = np.stack(
+                [space.nominal(self.trajectory, time + h * period) for h in range(horizon, horizon + lookahead)]
+            )
+            commands = np.concatenate([commands, np.broadcast_to(after, (len(commands), *after.shape))], axis=1)
         inputs = space.inputs(commands, held=held, start_time=time, dt=self.dt, period_steps=self.period_steps)
         states, _ = self.propagator.roll_commands(state, inputs.forces, inputs.targets, inputs.ctrl)
         knots = states[:, self.period_steps - 1 :: self.period_steps]
-        k, horizon = knots.shape[:2]
-        pos, quat, vel, robot_q, robot_v = self.propagator.object_states(knots.reshape(k * horizon, -1))
-        predictions = Predictions(
-            object_pos=pos.reshape(k, horizon, *pos.shape[1:]),
-            object_quat=quat.reshape(k, horizon, *quat.shape[1:]),
-            object_vel=vel.reshape(k, horizon, *vel.shape[1:]),
-            robot_q=robot_q.reshape(k, horizon, -1),
-            robot_v=robot_v.reshape(k, horizon, -1),
-            commands=(commands - scripted[None]) / half_range,
+        k, periods = knots.shape[:2]
+        pos, quat, vel, robot_q, robot_v = self.propagator.object_states(knots.reshape(k * periods, -1))
+        return Predictions(
+            object_pos=pos.reshape(k, periods, *pos.shape[1:]),
+            object_quat=quat.reshape(k, periods, *quat.shape[1:]),
+            object_vel=vel.reshape(k, periods, *vel.shape[1:]),
+            robot_q=robot_q.reshape(k, periods, -1),
+            robot_v=robot_v.reshape(k, periods, -1),
+            commands=deviations,
             forces=inputs.forces[:, -1],
             targets=None if inputs.targets is None else inputs.targets[:, -1],
             ctrl=None if inputs.ctrl is None else inputs.ctrl[:, -1],
-            end_time=time + horizon * self.period_steps * self.dt,
+            end_time=time + periods * period,
         )
+
+    def decide(self, observed: FrameState, time: float, held: np.ndarray | None) -> np.ndarray:
+        """The command (m,) to hold for the next period, from the observed state at ``time`` (s)."""
+        started = clock.perf_counter()
+        config, space = self.config, self.space
+        commands, scripted = self.sample(time)
+        predictions = self.predict(observed, time, held, commands, scripted)
         costs = np.asarray(self.cost(predictions, self.context), dtype=float)
         weights = np.exp(-(costs - costs.min()) / config.temperature)
         weights /= weights.sum()
