@@ -15,6 +15,9 @@ from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState
 from tiny_scene import TINY_MODEL, TINY_SCENE, write_tiny_scene
 
+# Helper modules shared by test files: their asserts report the compared values too.
+pytest.register_assert_rewrite("example_runs")
+
 # The smallest dataset the pipeline tests need: 2 objects, 2 trajectories, 3 frames.
 TINY = {"n_objects": 2, "n_trajectories": 2, "n_frames": 3, "seed": 0}
 

@@ -2,19 +2,13 @@
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from energy_margin.cli import main
-from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import load_scores
+from example_runs import analyze_and_evaluate, generate_quick, write_example
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "fetch"
 #: The table top's height (m) and the x (m) where the goal area at its far side begins.
 TABLE_TOP = 0.4
 GOAL_X = 1.40
@@ -26,13 +20,8 @@ def test_fetch_example(tmp_path: Path, capsys) -> None:
         "gymnasium_robotics",
         reason="the Fetch example needs gymnasium-robotics (pip install 'energy-margin[examples]')",
     )
-    folder = tmp_path / "fetch"
-    subprocess.run([sys.executable, str(EXAMPLE / "write_model.py"), "--out", str(folder)], check=True)
-    shutil.copy(EXAMPLE / "fetch.toml", folder / "fetch.toml")
     out = tmp_path / "fetch_data"
-    arguments = ["--trajectories", "2", "--frames", "3", "--seed", "0", "--out", str(out)]
-    assert main(["generate", "--scene", str(folder / "fetch.toml"), *arguments]) == 0
-    dataset = load_dataset(out)
+    dataset = generate_quick(write_example("fetch", tmp_path), out)
     assert dataset.n_objects == 4 and dataset.metadata["task"] == "scene"
     robot_q = dataset.arrays["robot_q"]
     # The mocap body (after the 12 robot joints) moved the gripper 0.27 m along +x; the base is fixed.
@@ -43,9 +32,4 @@ def test_fetch_example(tmp_path: Path, capsys) -> None:
     assert np.allclose(pos[:, :, :, 2], TABLE_TOP + 0.025, atol=0.005)
     # At least two blocks of each trajectory reached the goal area at the far side.
     assert ((pos[:, -1, :, 0] > GOAL_X).sum(axis=1) >= 2).all()
-    assert main(["check", str(out)]) == 0
-    assert main(["analyze", str(out), "--iterations", "15", "--workers", "1"]) == 0
-    assert load_scores(out)["nodes"].min() > 1
-    capsys.readouterr()
-    assert main(["evaluate", str(out)]) == 0
-    assert "positive rate" in capsys.readouterr().out
+    assert "positive rate" in analyze_and_evaluate(out, capsys)

@@ -2,19 +2,13 @@
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from energy_margin.cli import main
-from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import load_scores
+from example_runs import analyze_and_evaluate, generate_quick, write_example
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "panda_tray"
 #: Height (m) of a box's origin resting on the tray at the start and at the destination.
 START_Z, END_Z = 0.70, 0.78
 
@@ -25,13 +19,8 @@ def test_panda_tray_example(tmp_path: Path, capsys) -> None:
         "gymnasium_robotics",
         reason="the Panda tray example needs gymnasium-robotics (pip install 'energy-margin[examples]')",
     )
-    folder = tmp_path / "panda_tray"
-    subprocess.run([sys.executable, str(EXAMPLE / "write_model.py"), "--out", str(folder)], check=True)
-    shutil.copy(EXAMPLE / "panda_tray.toml", folder / "panda_tray.toml")
     out = tmp_path / "panda_data"
-    arguments = ["--trajectories", "2", "--frames", "3", "--seed", "0", "--out", str(out)]
-    assert main(["generate", "--scene", str(folder / "panda_tray.toml"), *arguments]) == 0
-    dataset = load_dataset(out)
+    dataset = generate_quick(write_example("panda_tray", tmp_path), out)
     assert dataset.n_objects == 4 and dataset.metadata["task"] == "scene"
     # The base joint (robot_q[0]) turned the arm a quarter turn, from +x to +y.
     robot_q = dataset.arrays["robot_q"]
@@ -48,9 +37,4 @@ def test_panda_tray_example(tmp_path: Path, capsys) -> None:
     assert (on_tray | on_floor).all() and on_tray.any(axis=1).all()
     carried = pos[:, -1][on_tray]
     assert (np.abs(carried[:, 0]) < 0.15).all() and (np.abs(carried[:, 1] - 0.7) < 0.16).all()
-    assert main(["check", str(out)]) == 0
-    assert main(["analyze", str(out), "--iterations", "15", "--workers", "1"]) == 0
-    assert load_scores(out)["nodes"].min() > 1
-    capsys.readouterr()
-    assert main(["evaluate", str(out)]) == 0
-    assert "positive rate" in capsys.readouterr().out
+    assert "positive rate" in analyze_and_evaluate(out, capsys)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -12,30 +11,17 @@ import pytest
 
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import load_scores
-
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-QUICK = ["--trajectories", "2", "--frames", "3", "--seed", "0"]
-
-
-def _analyze_and_evaluate(dataset: Path, capsys: pytest.CaptureFixture[str]) -> str:
-    assert main(["check", str(dataset)]) == 0
-    assert main(["analyze", str(dataset), "--iterations", "15", "--workers", "1"]) == 0
-    assert load_scores(dataset)["nodes"].min() > 1
-    capsys.readouterr()
-    assert main(["evaluate", str(dataset)]) == 0
-    return capsys.readouterr().out
+from example_runs import EXAMPLES, analyze_and_evaluate, generate_quick, write_example
 
 
 @pytest.mark.slow
 def test_pushing_scene_example(tmp_path: Path, capsys) -> None:
     out = tmp_path / "pushing"
-    assert main(["generate", "--scene", str(EXAMPLES / "pushing" / "pushing.toml"), *QUICK, "--out", str(out)]) == 0
-    dataset = load_dataset(out)
+    dataset = generate_quick(EXAMPLES / "pushing" / "pushing.toml", out)
     assert dataset.n_objects == 10 and dataset.metadata["task"] == "scene"
     # The pusher (robot_q[1] is its y) moves forward, as in the built-in task.
     assert (dataset.arrays["robot_q"][:, -1, 1] > dataset.arrays["robot_q"][:, 0, 1] + 0.3).all()
-    assert "positive rate" in _analyze_and_evaluate(out, capsys)
+    assert "positive rate" in analyze_and_evaluate(out, capsys)
 
 
 @pytest.mark.slow
@@ -43,17 +29,13 @@ def test_jaco_example(tmp_path: Path, capsys) -> None:
     pytest.importorskip(
         "dm_control", reason="the Jaco example needs dm_control (pip install 'energy-margin[examples]')"
     )
-    folder = tmp_path / "jaco"
-    subprocess.run([sys.executable, str(EXAMPLES / "jaco" / "write_model.py"), "--out", str(folder)], check=True)
-    shutil.copy(EXAMPLES / "jaco" / "jaco.toml", folder / "jaco.toml")
     out = tmp_path / "jaco_data"
-    assert main(["generate", "--scene", str(folder / "jaco.toml"), *QUICK, "--out", str(out)]) == 0
-    dataset = load_dataset(out)
+    dataset = generate_quick(write_example("jaco", tmp_path), out)
     assert dataset.n_objects == 4
     # The paddle pushed the boxes forward (+y).
     pos = dataset.arrays["object_pos"]
     assert (pos[:, -1, :, 1].mean(axis=1) > pos[:, 0, :, 1].mean(axis=1) + 0.1).all()
-    _analyze_and_evaluate(out, capsys)
+    analyze_and_evaluate(out, capsys)
 
 
 @pytest.mark.slow
@@ -66,7 +48,7 @@ def test_record_example(tmp_path: Path, capsys) -> None:
     scene = str(EXAMPLES / "record" / "tabletop.toml")
     assert main(["record", "--scene", scene, *rollouts, "--frames", "3", "--out", str(out)]) == 0
     assert load_dataset(out).n_trajectories == 2
-    _analyze_and_evaluate(out, capsys)
+    analyze_and_evaluate(out, capsys)
 
 
 @pytest.mark.slow
@@ -75,12 +57,10 @@ def test_robomimic_example(tmp_path: Path, capsys) -> None:
         "dm_control", reason="the Jaco model ships with dm_control (pip install 'energy-margin[examples]')"
     )
     h5py = pytest.importorskip("h5py", reason="robomimic files are HDF5 (pip install 'energy-margin[demos]')")
-    folder = tmp_path / "jaco"
-    subprocess.run([sys.executable, str(EXAMPLES / "jaco" / "write_model.py"), "--out", str(folder)], check=True)
-    shutil.copy(EXAMPLES / "jaco" / "jaco.toml", folder / "jaco.toml")
+    jaco = write_example("jaco", tmp_path)
     demos = tmp_path / "demos.hdf5"
     script = EXAMPLES / "robomimic" / "write_demos.py"
-    command = [sys.executable, str(script), "--demos", "2", "--scene", str(folder / "jaco.toml"), "--out", str(demos)]
+    command = [sys.executable, str(script), "--demos", "2", "--scene", str(jaco), "--out", str(demos)]
     subprocess.run(command, check=True)
     with h5py.File(demos, "r") as handle:
         assert sorted(handle["data"]) == ["demo_0", "demo_1"]
@@ -96,4 +76,4 @@ def test_robomimic_example(tmp_path: Path, capsys) -> None:
     # The boxes were pushed forward (+y) between the first and the last frame.
     pos = dataset.arrays["object_pos"]
     assert (pos[:, -1, :, 1].mean(axis=1) > pos[:, 0, :, 1].mean(axis=1) + 0.1).all()
-    _analyze_and_evaluate(out, capsys)
+    analyze_and_evaluate(out, capsys)
