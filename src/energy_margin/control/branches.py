@@ -27,13 +27,12 @@ import numpy as np
 
 from energy_margin.control.commands import CommandSpace, command_space
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, margin_scores, task_cost
-from energy_margin.control.disturbances import Disturbance, Push, observe, push_wrenches
-from energy_margin.control.episodes import apply_inputs, draw_episode, episode_seeds
+from energy_margin.control.disturbances import Disturbance, Push, push_wrenches
+from energy_margin.control.episodes import apply_inputs, draw_episode, episode_seeds, observed_frame
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.errors import EnergyMarginError, check_int, check_seed
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
-from energy_margin.world.state import FrameState
 
 #: The scores a study can rank branches by; each is "higher is better". ``oracle_state`` is the
 #: ``task`` score predicted from the true state instead of the observed one, ``oracle_friction``
@@ -255,13 +254,7 @@ def branch_episode(
         state, held_then = saved[step]
         plant.set_state(state)
         truth = plant.frame_state()
-        observed = FrameState(
-            observe(truth.object_pos, disturbance, observe_rng),
-            truth.object_quat,
-            truth.object_vel,
-            truth.robot_q,
-            truth.robot_v,
-        )
+        observed = observed_frame(truth, disturbance, observe_rng)
         time = step * dt
         commands, scripted = controller.sample(time)
         predictions = controller.predict(observed, time, held_then, commands, scripted)

@@ -92,8 +92,8 @@ class ControlSettings:
         return asdict(self)
 
 
-def _observed(plant: Any, disturbance: Disturbance, rng: np.random.Generator) -> FrameState:
-    frame = plant.frame_state()
+def observed_frame(frame: FrameState, disturbance: Disturbance, rng: np.random.Generator) -> FrameState:
+    """``frame`` as the controller sees it: object positions with the level's observation noise."""
     return FrameState(
         observe(frame.object_pos, disturbance, rng), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
     )
@@ -202,7 +202,7 @@ def run_episode(
         else:
             offset = step % period_steps
             if offset == 0:
-                command = controller.decide(_observed(plant, disturbance, observe_rng), now, held)
+                command = controller.decide(observed_frame(plant.frame_state(), disturbance, observe_rng), now, held)
                 executed.append(command)
                 inputs = space.inputs(command[None, None], held=held, start_time=now, dt=dt, period_steps=period_steps)
                 held = None if inputs.held is None else inputs.held[0]
