@@ -77,6 +77,11 @@ def add_seed(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed (default 0)")
 
 
+def add_set(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """The repeatable ``--set KEY=JSON`` option (read with :func:`task_overrides`)."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help=help_text)
+
+
 def task_overrides(pairs: list[str], *, option: str = "--set") -> dict[str, object]:
     """``KEY=JSON`` pairs of ``option`` (``--set`` by default) as a dictionary."""
     overrides: dict[str, object] = {}

@@ -9,6 +9,7 @@ from typing import Any
 
 from energy_margin.cli.common import (
     add_seed,
+    add_set,
     non_negative_int,
     positive_int,
     print_json,
@@ -79,13 +80,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--margin-samples", type=positive_int, default=4, help="samples analysed per decision (default 4)"
     )
     parser.add_argument("--margin-weight", type=float, default=2.0, help="weight of the scores in the cost (default 2)")
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=JSON",
-        help="override a task setting, e.g. --set friction_range=[0.1,0.2]",
-    )
+    add_set(parser, "override a task setting, e.g. --set friction_range=[0.1,0.2]")
     parser.add_argument("--workers", type=positive_int, default=1, help="parallel processes (default 1)")
     parser.add_argument("--overwrite", action="store_true", help="replace a run of other settings in --out")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -12,6 +12,7 @@ from energy_margin.cli.common import (
     add_engine,
     add_overwrite,
     add_seed,
+    add_set,
     non_negative_int,
     positive_int,
     print_json,
@@ -110,13 +111,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_overwrite(parser, "a design search of other settings in --out")
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
     add_engine(parser)
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=JSON",
-        help="a task setting fixed for every design, e.g. --set drive_jitter=0.1",
-    )
+    add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
     parser.add_argument("--no-picture", action="store_true", help="do not draw the chosen design (tool.png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")

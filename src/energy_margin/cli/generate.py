@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import ProgressBar, add_engine, add_seed, scene_task_config, task_overrides
+from energy_margin.cli.common import ProgressBar, add_engine, add_seed, add_set, scene_task_config, task_overrides
 from energy_margin.tasks import available_tasks
 
 NAME = "generate"
@@ -30,13 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_engine(parser)
     parser.add_argument("--out", required=True, help="dataset directory to create")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory")
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=JSON",
-        help="override a task setting, e.g. --set drive_jitter=0.1",
-    )
+    add_set(parser, "override a task setting, e.g. --set drive_jitter=0.1")
 
 
 def run(args: argparse.Namespace) -> int:
