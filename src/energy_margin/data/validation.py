@@ -6,9 +6,10 @@ and ``evaluate`` run the same checks first and stop on the first problem, before
 Checks: the format and schema version of ``dataset.json`` (a later schema version is refused),
 its sizes and task configuration; every array of ``frames.npz`` against n_o, T, K (shapes read
 from the headers before any allocation), NaN or infinite values, unit quaternions, labels in
-{0, 1}; objects interpenetrating each other,
-the end-effector or an obstacle at a frame; and, when present, ``scores.csv`` (header, malformed
-lines, rows outside the dataset, duplicated or missing frames, scores outside [0, 1]).
+{0, 1}; objects interpenetrating each other, the end-effector or an obstacle at a frame; and,
+when present, ``scores.csv`` (header, malformed lines, rows outside the dataset, duplicated or
+missing frames, scores outside [0, 1]). ``check`` also lists, as warnings, engine versions other
+than the installed ones or unknown (:mod:`energy_margin.data.provenance`).
 """
 
 from __future__ import annotations
