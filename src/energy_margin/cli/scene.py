@@ -34,7 +34,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         '(e.g. \'{"env_name": "bin-picking-v3"}\')',
     )
     parser.add_argument("--objects", help="with --from-gym: object body names or glob patterns, comma separated")
-    parser.add_argument("--out", metavar="SCENE.toml", help="with --from-gym: the scene file to write")
+    parser.add_argument(
+        "--out",
+        metavar="SCENE.toml",
+        help="with --from-gym: the scene file to write; the environment's model goes beside it, as SCENE.xml "
+        "(a copy of its model file when that compiles to the same model) or SCENE.mjb (the compiled model)",
+    )
     parser.add_argument("--capture-radius", type=float, help="with --from-gym: radius of the starter capture region, m")
     parser.add_argument("--picture", help="PNG to write (default: SCENE.png beside the scene file)")
     parser.add_argument("--no-picture", action="store_true", help="only print the summary")
@@ -130,7 +135,8 @@ def _from_gym(args: argparse.Namespace) -> str:
         )
     finally:
         env.close()
-    print(f"wrote {written.scene_file} and its model {written.model_file}")
+    print(f"wrote {written.scene_file}")
+    print(written.model_note)
     print(f"objects: {', '.join(written.objects)}")
     print(
         f"capture (a guess, edit it): within {written.capture_radius} m of "

@@ -22,6 +22,7 @@ import numpy as np
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import object_geoms, object_inertials, upright_axes, world_aligned
 from energy_margin.sim.mujoco_spec import model_hash
+from energy_margin.tasks.model_file import is_binary_model, load_binary_model
 from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
 from energy_margin.tasks.scene_file import DesignEntry, SceneSpec, read_scene_file, region_names
 
@@ -185,6 +186,8 @@ def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tu
 
     """
     _check_file(spec, "mjcf", spec.mjcf, "model file ")
+    if is_binary_model(spec.mjcf):
+        raise spec.error("mjcf", f"{spec.mjcf.name} is a compiled model (.mjb): it has no MJCF to edit")
     try:
         model_spec = mujoco.MjSpec.from_file(str(spec.mjcf))
     except (ValueError, mujoco.FatalError) as error:
@@ -541,8 +544,16 @@ def _check_region_names(spec: SceneSpec, model: mujoco.MjModel) -> None:
 
 
 def load_scene(path: Path | str, design: Mapping[str, Any] | None = None) -> LoadedScene:
-    """Read the scene file at ``path``, compile its model with ``design`` (:func:`apply_design`), resolve its names."""
+    """Read the scene file at ``path``, compile its model with ``design`` (:func:`apply_design`), resolve its names.
+
+    A model file ending in ``.mjb`` is loaded as compiled (:func:`~energy_margin.tasks.model_file.load_binary_model`).
+    """
     spec = read_scene_file(path)
+    if is_binary_model(spec.mjcf):  # compiled already: no template or [design] (load_binary_model)
+        _check_file(spec, "mjcf", spec.mjcf, "model file ")
+        model = load_binary_model(spec)
+        apply_design(spec, mujoco.MjSpec(), design)  # no parameters: refuses any design value given
+        return resolve_scene(spec, model)
     model_spec, model = compile_spec(spec, design)
     values = {entry.name: _design_target(spec, model_spec, entry)[1] for entry in spec.design}
     return resolve_scene(spec, model, design_values=values)
