@@ -79,7 +79,16 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
             shutil.rmtree(target)
         shutil.copytree(out / "frames" / name, target)
         started = time.perf_counter()
-        settings = ["--iterations", str(iterations), "--workers", str(workers), "--seed", str(seed)]
+        settings = [
+            "--iterations",
+            str(iterations),
+            "--workers",
+            str(workers),
+            "--seed",
+            str(seed),
+            "--engine",
+            "mujoco",
+        ]
         run_cli(["analyze", str(target), *settings, "--no-progress"])
         print(f"analysed {target} in {time.perf_counter() - started:.0f} s", flush=True)
 

@@ -10,7 +10,7 @@ shift || true
 versions=("${@:-4.0.0}")
 [ "$#" -gt 0 ] || versions=(4.0.0 3.3.0 3.9.0 3.17.0 4.0.1)
 mkdir -p "$out/venvs"
-grep -v '^mujoco==' requirements.lock > "$out/venvs/constraints.txt"
+grep -v '^mujoco' requirements.lock > "$out/venvs/constraints.txt"
 for version in "${versions[@]}"; do
     venv="$out/venvs/mujoco-$version"
     if [ ! -x "$venv/bin/python" ]; then
