@@ -19,6 +19,7 @@ import hashlib
 import mujoco
 import numpy as np
 
+from energy_margin.compat import joint_coefficient
 from energy_margin.sim.mujoco_index import ModelIndex, name_id
 from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 
@@ -168,8 +169,8 @@ def _add_link(parent: mujoco.MjsBody, link: Link, conaffinity: int | None) -> No
             name=joint.name,
             type=_JOINT_TYPES[joint.kind],
             axis=[float(v) for v in joint.axis],
-            damping=[float(joint.damping)] + [0.0] * 2,
-            stiffness=[float(joint.stiffness)] + [0.0] * 2,
+            damping=joint_coefficient(joint.damping),
+            stiffness=joint_coefficient(joint.stiffness),
         )
         if joint.limits is not None:
             added.range = [float(v) for v in joint.limits]

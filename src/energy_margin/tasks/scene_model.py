@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.compat import delete_body
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import upright_axes
 from energy_margin.sim.mujoco_spec import model_hash
@@ -203,7 +204,7 @@ def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tu
             for index in range(spec.count or 0):
                 frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
                 frame.attach_body(template, "", f"_{index}")
-            model_spec.delete(template)
+            delete_body(model_spec, template)
         except (ValueError, mujoco.FatalError) as error:
             raise spec.error("objects.template", f"cannot copy body {spec.template!r}: {_one_line(error)}") from None
     apply_design(spec, model_spec, design)

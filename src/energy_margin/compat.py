@@ -1,0 +1,135 @@
+"""Every difference between the MuJoCo and numpy versions the package supports, in one place.
+
+The package runs on MuJoCo 3.3.0 and later and numpy 1.26.4 and later. Where an older release
+spells a thing differently, the helpers below give every caller one spelling:
+
+* ``MjsJoint.damping`` and ``.stiffness`` are three numbers (a polynomial) from MuJoCo 3.7 and one
+  number before: :func:`joint_coefficient`.
+* ``MjSpec.delete`` removes an element in later releases; MuJoCo 3.3.0 has only
+  ``MjSpec.detach_body`` for a body: :func:`delete_body`.
+* Copying a body with ``attach_body`` extends the model's keyframes from MuJoCo 3.16; before,
+  the keyframes keep their old sizes and the model does not compile: :func:`attach_keeps_keyframes`
+  and :func:`rebuild_keyframes`.
+* ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.1 and an array named
+  ``allow_pickle`` before: :func:`save_npz` (which never pickles on any version).
+
+Where an older release cannot do a thing at all, :func:`require_mujoco` refuses it with one
+:class:`~energy_margin.errors.EnergyMarginError` line naming the release needed.
+
+This module is a foundation like :mod:`energy_margin.errors`: it imports no stage.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+from collections.abc import Mapping
+from typing import IO, Any
+
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+
+#: The oldest MuJoCo release the package supports (Meta-World 3.1.1 pins it).
+MUJOCO_MINIMUM = (3, 3, 0)
+#: The first MuJoCo release whose joint damping and stiffness hold three numbers.
+JOINT_POLYNOMIAL_SINCE = (3, 7, 0)
+#: The first MuJoCo release whose ``attach_body`` extends the keyframes of the model attached to.
+ATTACH_KEYFRAMES_SINCE = (3, 16, 0)
+
+
+def parse_version(text: str) -> tuple[int, int, int]:
+    """The (major, minor, patch) numbers of a version string such as ``"3.3.0"`` or ``"2.1.0rc1"``.
+
+    Raises:
+        ValueError: ``text`` does not start with a number.
+
+    """
+    numbers = [int(match) for match in re.findall(r"\d+", text.split("+")[0])[:3]]
+    if not numbers or not re.match(r"\d", text):
+        raise ValueError(f"not a version: {text!r}")
+    padded = [*numbers, 0, 0][:3]
+    return padded[0], padded[1], padded[2]
+
+
+def format_version(version: tuple[int, int, int]) -> str:
+    """``(3, 14, 0)`` as ``"3.14.0"``."""
+    return ".".join(str(number) for number in version)
+
+
+@functools.cache
+def mujoco_version() -> tuple[int, int, int]:
+    """The installed MuJoCo's (major, minor, patch)."""
+    import mujoco
+
+    return parse_version(str(mujoco.__version__))
+
+
+@functools.cache
+def numpy_version() -> tuple[int, int, int]:
+    """The installed numpy's (major, minor, patch)."""
+    return parse_version(np.__version__)
+
+
+def mujoco_at_least(version: tuple[int, int, int]) -> bool:
+    """Whether the installed MuJoCo is ``version`` or later."""
+    return mujoco_version() >= version
+
+
+def require_mujoco(version: tuple[int, int, int], what: str) -> None:
+    """Refuse ``what`` (a phrase such as ``"objects.template = 'world'"``) below MuJoCo ``version``.
+
+    Raises:
+        EnergyMarginError: the installed MuJoCo is older than ``version``; one line naming both.
+
+    """
+    if not mujoco_at_least(version):
+        raise EnergyMarginError(
+            f"{what} needs MuJoCo {format_version(version)} or later (installed: {format_version(mujoco_version())})"
+        )
+
+
+def joint_coefficient(value: float) -> float | list[float]:
+    """A joint's damping or stiffness as ``MjsJoint`` takes it: three numbers from MuJoCo 3.7, else one.
+
+    The second and third numbers (the polynomial's higher terms) are zero: the same linear
+    damping or spring as the single number of older releases.
+    """
+    if mujoco_at_least(JOINT_POLYNOMIAL_SINCE):
+        return [float(value), 0.0, 0.0]
+    return float(value)
+
+
+def delete_body(spec: Any, body: Any) -> None:
+    """Remove ``body`` and its subtree from the ``MjSpec`` ``spec``."""
+    if hasattr(spec, "delete"):
+        spec.delete(body)
+    else:
+        spec.detach_body(body)
+
+
+def attach_keeps_keyframes() -> bool:
+    """Whether ``attach_body`` (and deleting a body) keeps the model's keyframes the right size."""
+    return mujoco_at_least(ATTACH_KEYFRAMES_SINCE)
+
+
+def save_npz(
+    file: str | os.PathLike[str] | IO[bytes], arrays: Mapping[str, np.ndarray], *, compressed: bool = False
+) -> None:
+    """Write ``arrays`` as one ``.npz`` archive, refusing any array that would need pickling.
+
+    ``numpy.savez`` takes ``allow_pickle`` only from numpy 2.1 (before, it stores an array of that
+    name); it pickles only arrays of Python objects, which are refused here on every version.
+
+    Raises:
+        ValueError: an array holds Python objects.
+
+    """
+    for name, value in arrays.items():
+        if np.asarray(value).dtype.hasobject:
+            raise ValueError(f"array {name!r} holds Python objects and cannot be saved without pickling")
+    if compressed:
+        np.savez_compressed(file, **arrays)
+    else:
+        np.savez(file, **arrays)
