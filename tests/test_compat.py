@@ -171,3 +171,52 @@ def test_npz_archives_hold_exactly_the_arrays_given() -> None:
 def test_npz_archives_never_pickle() -> None:
     with pytest.raises(ValueError, match="array 'bad' holds Python objects"):
         compat.save_npz(io.BytesIO(), {"good": np.ones(2), "bad": np.array([{"x": 1}], dtype=object)})
+
+
+BOXES = """<mujoco><worldbody>
+<body pos="0 0 0.5"><freejoint/><geom type="box" size="0.005 0.005 0.005"/></body>
+<body pos="0.007 0 0.5"><freejoint/><geom type="box" size="0.005 0.005 0.005"/></body>
+<body pos="0.3 0 0.5" euler="0 0 0.3"><freejoint/><geom type="box" size="0.05 0.03 0.02"/></body>
+<body pos="0.37 0.02 0.51" euler="0.2 0.1 0.5"><freejoint/><geom type="box" size="0.04 0.03 0.02"/></body>
+<body pos="1 0 0.5"><freejoint/><geom type="sphere" size="0.01"/></body>
+<body pos="1.015 0 0.5"><freejoint/><geom type="sphere" size="0.01"/></body>
+</worldbody></mujoco>"""
+
+
+def test_box_contacts_report_their_whole_depth() -> None:
+    model = mujoco.MjModel.from_xml_string(BOXES)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    depths = compat.contact_depths(model, data)
+    pairs = list(zip(data.contact.geom1.tolist(), data.contact.geom2.tolist(), strict=True))
+    face_to_face = [depth for depth, pair in zip(depths, pairs, strict=True) if set(pair) == {0, 1}]
+    # Two 1 cm cubes 7 mm apart: 3 mm deep on every release (MuJoCo 3.3 reports 1.5 mm itself).
+    assert face_to_face and np.allclose(face_to_face, 0.003, rtol=0, atol=1e-12)
+    raw = -data.contact.dist[[set(pair) == {0, 1} for pair in pairs]]
+    assert np.allclose(raw, 0.003 if compat.mujoco_at_least(compat.BOX_DEPTH_SINCE) else 0.0015, atol=1e-12)
+    # The other contacts keep the engine's depth: the tilted boxes (whose deepest point is the
+    # pair's penetration) and the spheres (5 mm deep).
+    others = [index for index, pair in enumerate(pairs) if set(pair) != {0, 1}]
+    np.testing.assert_array_equal(depths[others], -data.contact.dist[others])
+    assert np.isclose(depths[pairs.index((4, 5))], 0.005, atol=1e-12)
+    assert depths.dtype == np.float64 and depths.shape == (data.ncon,)
+
+
+def test_no_contact_no_depths() -> None:
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    assert compat.contact_depths(model, data).shape == (0,)
+
+
+def test_a_model_unstable_at_its_reference_pose_compiles_from_mujoco_3_10() -> None:
+    unstable = (
+        '<mujoco><option gravity="0 0 -1e200"/><worldbody><body><freejoint/><geom size="0.1"/></body>'
+        "</worldbody></mujoco>"
+    )
+    spec = mujoco.MjSpec.from_string(unstable)
+    if compat.compile_refuses_warnings():
+        with pytest.raises(ValueError, match="Nan, Inf or huge value in QACC"):
+            spec.compile()
+    else:
+        assert spec.compile().nq == 7

@@ -10,8 +10,8 @@ spells a thing differently, the helpers below give every caller one spelling:
 * Copying a body with ``attach_body`` puts each copy at its reference pose in the model's
   keyframes from MuJoCo 3.16; before, it leaves zeros there, and a spec compiled before the copy
   refuses it: :func:`compile_before_copying` and :func:`copy_body`.
-* A box's contact with another box reports half its depth in some poses (face to face) before
-  MuJoCo 3.4: :func:`contact_depths` measures those pairs with ``mj_geomDistance``.
+* Two boxes face to face report half their depth before MuJoCo 3.4: :func:`contact_depths`
+  measures box-box pairs with ``mj_geomDistance`` there.
 * ``MjSpec.compile`` turns a warning while compiling (a model unstable at its reference pose) into
   an error before MuJoCo 3.10: :func:`compile_refuses_warnings`.
 * ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.1 and an array named
@@ -36,7 +36,7 @@ from __future__ import annotations
 import functools
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import IO, Any
 
 import numpy as np
@@ -214,9 +214,9 @@ def reference_pose_in_keyframes(model: Any, n_keys: int, roots: Sequence[int]) -
 def contact_depths(model: Any, data: Any) -> np.ndarray:
     """How deep each of ``data``'s contacts penetrates, m (``-dist``: positive where geoms overlap).
 
-    Before MuJoCo 3.4 a contact between two boxes can carry half the overlap (two boxes face to
-    face); there each box-box contact takes the pair's penetration from ``mj_geomDistance`` when
-    that is deeper, which is what later releases report.
+    Before MuJoCo 3.4 the contacts of two boxes face to face carry half their depth. There a
+    box-box pair whose deepest contact is shallower than the pair's penetration (``mj_geomDistance``)
+    has its contacts' depths scaled up to it, which is what later releases report.
     """
     contacts = data.contact
     depths: np.ndarray = -np.asarray(contacts.dist, dtype=np.float64)
@@ -227,9 +227,12 @@ def contact_depths(model: Any, data: Any) -> np.ndarray:
     box = int(mujoco.mjtGeom.mjGEOM_BOX)
     first, second = np.asarray(contacts.geom1), np.asarray(contacts.geom2)
     boxes = (model.geom_type[first] == box) & (model.geom_type[second] == box) & (depths > 0)
-    for contact in np.flatnonzero(boxes):
-        distance = mujoco.mj_geomDistance(model, data, int(first[contact]), int(second[contact]), 0.0, None)
-        depths[contact] = max(float(depths[contact]), -float(distance))
+    for pair in {(int(first[c]), int(second[c])) for c in np.flatnonzero(boxes)}:
+        rows = np.flatnonzero((first == pair[0]) & (second == pair[1]))
+        deepest = float(depths[rows].max())
+        penetration = -float(mujoco.mj_geomDistance(model, data, pair[0], pair[1], 0.0, None))
+        if penetration > deepest * (1.0 + 1e-9):
+            depths[rows] *= penetration / deepest
     return depths
 
 
@@ -253,7 +256,6 @@ def save_npz(
     for name, value in arrays.items():
         if np.asarray(value).dtype.hasobject:
             raise ValueError(f"array {name!r} holds Python objects and cannot be saved without pickling")
-    if compressed:
-        np.savez_compressed(file, **arrays)
-    else:
-        np.savez(file, **arrays)
+    # Typed loosely: numpy 2.1's stubs read every keyword as possibly ``allow_pickle``.
+    write: Callable[..., None] = np.savez_compressed if compressed else np.savez
+    write(file, **arrays)

@@ -148,7 +148,7 @@ def _add_object_geoms(body: mujoco.MjsBody, scene: Scene, obj: RigidObject, *, s
         # In the plane of the centres the sphere is the cylinder's circle: every contact of that
         # plane (another upright cylinder, a vertical face of the robot or a wall) has the
         # cylinder's point, normal and depth. (Against a face the engine reports the cylinder's
-        # line contact as two identical rows; the sphere gives one.)
+        # line contact as identical rows, two in MuJoCo 4.0; the sphere gives one.)
         _add_geom(body, obj.geom, obj.name, contype=0, conaffinity=floor)
         _add_helper_sphere(body, obj.name + "_sphere", float(obj.geom.size[0]), (0.0, 0.0, 0.0))
         stand_in = body.geoms[-1]
