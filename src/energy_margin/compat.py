@@ -3,10 +3,18 @@
 The package runs on MuJoCo 3.3.0 and later and numpy 1.26.4 and later. Where an older release
 spells a thing differently, the helpers below give every caller one spelling:
 
-* ``MjsJoint.damping`` and ``.stiffness`` are three numbers (a polynomial) from MuJoCo 3.7 and one
+* ``MjsJoint.damping`` and ``.stiffness`` are three numbers (the first the linear coefficient) from MuJoCo 3.7 and one
   number before: :func:`joint_coefficient`.
-* ``MjSpec.delete`` removes an element in later releases; MuJoCo 3.3.0 has only
-  ``MjSpec.detach_body`` for a body: :func:`delete_body`.
+* ``MjSpec.delete`` removes any element in later releases; MuJoCo 3.3.0 has
+  ``MjSpec.detach_body`` for a body and ``delete`` on each other element: :func:`delete_element`.
+  A joint's damping or stiffness is set in place by :func:`set_joint_coefficient`.
+* ``MjsActuator.set_to_position`` and geoms and sites added to a frame (``MjsFrame.add_geom``)
+  are later additions; MuJoCo 3.3.0 sets the gains by hand and moves an element of the body into
+  the frame: :func:`set_to_position` and :func:`add_in_frame`.
+* ``MjSpec.to_xml`` writes the spec as it stands in later releases and the last compiled model in
+  MuJoCo 3.3.0 (a keyframe added since is left out): :func:`spec_xml`.
+* The mesh and texture folders are ``MjSpec.compiler.meshdir`` and ``.texturedir`` in later
+  releases, ``MjSpec.meshdir`` and ``.texturedir`` in MuJoCo 3.3.0: :func:`set_asset_dirs`.
 * Copying a body with ``attach_body`` puts each copy at its reference pose in the model's
   keyframes from MuJoCo 3.16; before, it leaves zeros there, and a spec compiled before the copy
   refuses it: :func:`compile_before_copying` and :func:`copy_body`.
@@ -14,7 +22,7 @@ spells a thing differently, the helpers below give every caller one spelling:
   measures box-box pairs with ``mj_geomDistance`` there.
 * ``MjSpec.compile`` turns a warning while compiling (a model unstable at its reference pose) into
   an error before MuJoCo 3.10: :func:`compile_refuses_warnings`.
-* ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.1 and an array named
+* ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.2 and an array named
   ``allow_pickle`` before: :func:`save_npz` (which never pickles on any version).
 
 Some differences are the engine's own and cannot be mended here; the tests pin their numbers per
@@ -24,9 +32,6 @@ release (``tests/releases.py``) or skip on the releases that lack a behaviour:
   3.3.0 to 3.3.5: :data:`FRICTIONLESS_SLIDING_SINCE`.
 * A cylinder whose centre is inside a box touches it without a contact before MuJoCo 4.0:
   :data:`CYLINDER_INSIDE_BOX_SINCE` (the dataset check cannot see such an overlap there).
-
-Where an older release cannot do a thing at all, :func:`require_mujoco` refuses it with one
-:class:`~energy_margin.errors.EnergyMarginError` line naming the release needed.
 
 This module is a foundation like :mod:`energy_margin.errors`: it imports no stage.
 """
@@ -41,8 +46,6 @@ from typing import IO, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
-
 #: The oldest MuJoCo release the package supports (Meta-World 3.1.1 pins it).
 MUJOCO_MINIMUM = (3, 3, 0)
 #: The first MuJoCo release whose joint damping and stiffness hold three numbers.
@@ -55,6 +58,8 @@ COMPILE_WARNINGS_SINCE = (3, 10, 0)
 FRICTIONLESS_SLIDING_SINCE = (3, 3, 6)
 #: The first MuJoCo release that finds the contact of a cylinder whose centre is inside a box.
 CYLINDER_INSIDE_BOX_SINCE = (4, 0, 0)
+#: The first MuJoCo release whose ``MjSpec.to_xml`` writes the spec itself, not the last compiled model.
+SPEC_XML_SINCE = (3, 3, 1)
 #: The first MuJoCo release whose ``attach_body`` extends the keyframes of the model attached to.
 ATTACH_KEYFRAMES_SINCE = (3, 16, 0)
 
@@ -97,23 +102,10 @@ def mujoco_at_least(version: tuple[int, int, int]) -> bool:
     return mujoco_version() >= version
 
 
-def require_mujoco(version: tuple[int, int, int], what: str) -> None:
-    """Refuse ``what`` (a phrase such as ``"objects.template = 'world'"``) below MuJoCo ``version``.
-
-    Raises:
-        EnergyMarginError: the installed MuJoCo is older than ``version``; one line naming both.
-
-    """
-    if not mujoco_at_least(version):
-        raise EnergyMarginError(
-            f"{what} needs MuJoCo {format_version(version)} or later (installed: {format_version(mujoco_version())})"
-        )
-
-
 def joint_coefficient(value: float) -> float | list[float]:
     """A joint's damping or stiffness as ``MjsJoint`` takes it: three numbers from MuJoCo 3.7, else one.
 
-    The second and third numbers (the polynomial's higher terms) are zero: the same linear
+    The second and third numbers (the nonlinear terms) are zero: the same linear
     damping or spring as the single number of older releases.
     """
     if mujoco_at_least(JOINT_POLYNOMIAL_SINCE):
@@ -121,12 +113,68 @@ def joint_coefficient(value: float) -> float | list[float]:
     return float(value)
 
 
-def delete_body(spec: Any, body: Any) -> None:
-    """Remove ``body`` and its subtree from the ``MjSpec`` ``spec``."""
-    if hasattr(spec, "delete"):
-        spec.delete(body)
+def set_joint_coefficient(joint: Any, attribute: str, value: float) -> None:
+    """Set an ``MjsJoint``'s ``damping`` or ``stiffness`` (the first, linear, number from MuJoCo 3.7)."""
+    if mujoco_at_least(JOINT_POLYNOMIAL_SINCE):
+        getattr(joint, attribute)[0] = float(value)
     else:
-        spec.detach_body(body)
+        setattr(joint, attribute, float(value))
+
+
+def delete_element(spec: Any, element: Any) -> None:
+    """Remove ``element`` (a body with its subtree, a joint, a site, an actuator, ...) from ``spec``."""
+    if hasattr(spec, "delete"):
+        spec.delete(element)
+    elif type(element).__name__ == "MjsBody":
+        spec.detach_body(element)
+    else:
+        element.delete()
+
+
+def set_to_position(actuator: Any, kp: float, kv: float | None = None) -> None:
+    """Make ``actuator`` a position servo: force ``kp (ctrl - q) - kv qdot`` (no damping when ``kv`` is ``None``)."""
+    if hasattr(actuator, "set_to_position"):
+        if kv is None:
+            actuator.set_to_position(kp=kp)
+        else:
+            actuator.set_to_position(kp=kp, kv=kv)
+        return
+    import mujoco
+
+    actuator.dyntype = mujoco.mjtDyn.mjDYN_NONE
+    actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    gain, bias = np.zeros(10), np.zeros(10)
+    gain[0] = kp
+    bias[1] = -kp
+    bias[2] = -(kv or 0.0)
+    actuator.gainprm = gain
+    actuator.biasprm = bias
+
+
+def add_in_frame(body: Any, frame: Any, kind: str, **attributes: Any) -> Any:
+    """Add a ``kind`` (``"geom"`` or ``"site"``) with ``attributes`` to ``body`` in its frame ``frame``."""
+    if hasattr(frame, f"add_{kind}"):
+        return getattr(frame, f"add_{kind}")(**attributes)
+    element = getattr(body, f"add_{kind}")(**attributes)
+    element.set_frame(frame)
+    return element
+
+
+def spec_xml(spec: Any) -> str:
+    """The MJCF text of ``spec`` as it stands (compiled first where ``to_xml`` writes the last compiled model)."""
+    if not mujoco_at_least(SPEC_XML_SINCE):
+        spec.compile()
+    return str(spec.to_xml())
+
+
+def set_asset_dirs(spec: Any, *, meshdir: str | None = None, texturedir: str | None = None) -> None:
+    """Set the folders an ``MjSpec`` reads its meshes and textures from (``None``: unchanged)."""
+    holder = spec.compiler if hasattr(spec.compiler, "meshdir") else spec
+    if meshdir is not None:
+        holder.meshdir = meshdir
+    if texturedir is not None:
+        holder.texturedir = texturedir
 
 
 def attach_keeps_keyframes() -> bool:
@@ -166,7 +214,7 @@ def copy_body(spec: Any, body: Any, positions: Sequence[Sequence[float]], suffix
         frame = spec.worldbody.add_frame(pos=[float(v) for v in position])
         frame.attach_body(body, "", suffix)
     name = body.name
-    delete_body(spec, body)
+    delete_element(spec, body)
     if attach_keeps_keyframes() or n_keys == 0 or not suffixes:
         return
     import mujoco
@@ -246,7 +294,7 @@ def save_npz(
 ) -> None:
     """Write ``arrays`` as one ``.npz`` archive, refusing any array that would need pickling.
 
-    ``numpy.savez`` takes ``allow_pickle`` only from numpy 2.1 (before, it stores an array of that
+    ``numpy.savez`` takes ``allow_pickle`` only from numpy 2.2 (before, it stores an array of that
     name); it pickles only arrays of Python objects, which are refused here on every version.
 
     Raises:
@@ -256,6 +304,6 @@ def save_npz(
     for name, value in arrays.items():
         if np.asarray(value).dtype.hasobject:
             raise ValueError(f"array {name!r} holds Python objects and cannot be saved without pickling")
-    # Typed loosely: numpy 2.1's stubs read every keyword as possibly ``allow_pickle``.
+    # Typed loosely: numpy 2.2's stubs read every keyword as possibly ``allow_pickle``.
     write: Callable[..., None] = np.savez_compressed if compressed else np.savez
     write(file, **arrays)
