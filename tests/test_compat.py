@@ -63,7 +63,7 @@ def test_joint_damping_and_stiffness_take_the_installed_spelling() -> None:
     model = spec.compile()
     assert float(np.ravel(model.dof_damping)[0]) == 0.25
     assert float(np.ravel(model.jnt_stiffness)[0]) == 3.0
-    if compat.mujoco_at_least(compat.JOINT_POLYNOMIAL_SINCE):
+    if compat.mujoco_at_least(compat.JOINT_COEFFICIENTS_SINCE):
         assert damping == [0.25, 0.0, 0.0] and stiffness == [3.0, 0.0, 0.0]
     else:
         assert damping == 0.25 and stiffness == 3.0

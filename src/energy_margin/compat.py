@@ -49,7 +49,7 @@ import numpy as np
 #: The oldest MuJoCo release the package supports (Meta-World 3.1.1 pins it).
 MUJOCO_MINIMUM = (3, 3, 0)
 #: The first MuJoCo release whose joint damping and stiffness hold three numbers.
-JOINT_POLYNOMIAL_SINCE = (3, 7, 0)
+JOINT_COEFFICIENTS_SINCE = (3, 7, 0)
 #: The first MuJoCo release whose box-box contacts report their whole depth.
 BOX_DEPTH_SINCE = (3, 4, 0)
 #: The first MuJoCo release whose ``MjSpec.compile`` keeps a warning a warning.
@@ -108,14 +108,14 @@ def joint_coefficient(value: float) -> float | list[float]:
     The second and third numbers (the nonlinear terms) are zero: the same linear
     damping or spring as the single number of older releases.
     """
-    if mujoco_at_least(JOINT_POLYNOMIAL_SINCE):
+    if mujoco_at_least(JOINT_COEFFICIENTS_SINCE):
         return [float(value), 0.0, 0.0]
     return float(value)
 
 
 def set_joint_coefficient(joint: Any, attribute: str, value: float) -> None:
     """Set an ``MjsJoint``'s ``damping`` or ``stiffness`` (the first, linear, number from MuJoCo 3.7)."""
-    if mujoco_at_least(JOINT_POLYNOMIAL_SINCE):
+    if mujoco_at_least(JOINT_COEFFICIENTS_SINCE):
         getattr(joint, attribute)[0] = float(value)
     else:
         setattr(joint, attribute, float(value))
