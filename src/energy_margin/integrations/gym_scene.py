@@ -1,8 +1,10 @@
 """A starter scene file from a Gymnasium environment (``energy-margin scene --from-gym ENV_ID``).
 
-The environment's model is copied beside the scene file (the XML the environment names in
-``env.unwrapped.fullpath``, its asset folders and included files made absolute so the copy
-compiles anywhere; loaded with ``mujoco.MjSpec`` to check that it compiles), and the scene file
+The environment's model is saved beside the scene file (:func:`save_model`): a copy of the XML the
+environment names in ``env.unwrapped.fullpath`` (its asset folders and included files made
+absolute so the copy compiles anywhere) when that copy compiles to the environment's model, else
+the environment's compiled model itself as an ``.mjb`` file (an environment that changed its model
+after loading the XML, or built it in memory). The scene file
 declares the objects, the actuators (listed in comments, named in ``motion.actuators`` when every
 one has a name), a motion as long as one episode without keyframes,
 and a starter capture region around the end effector and a success region around a goal body or
@@ -14,6 +16,8 @@ effector is, and how close counts as captured, are guesses from names and sizes,
 from __future__ import annotations
 
 import fnmatch
+import os
+import tempfile
 import tomllib
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
@@ -24,9 +28,11 @@ import mujoco
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.runs.files import atomic_path
+from energy_margin.runs.files import atomic_path, file_mode
+from energy_margin.sim.mujoco_index import object_owners
+from energy_margin.tasks.model_file import BINARY_SUFFIX, model_differences, save_binary_model
 from energy_margin.tasks.scene_file import scene_spec_from_tables, toml_value
-from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import model_hash, resolve_scene
 
 #: Name fragments of an end effector's body or site, most specific first.
 END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")
@@ -46,6 +52,7 @@ class StarterScene:
         goal: ``(kind, name)`` of the success region's centre, or ``None`` (then a height region).
         capture_radius: radius of the starter capture region, m.
         same_model: whether the saved model compiles to the environment's model (same hash).
+        model_note: which model file was written and why (one line, :func:`save_model`).
 
     """
 
@@ -56,6 +63,7 @@ class StarterScene:
     goal: tuple[str, str] | None
     capture_radius: float
     same_model: bool
+    model_note: str
 
 
 def _names(model: mujoco.MjModel, kind: mujoco.mjtObj, count: int) -> list[str]:
@@ -102,19 +110,23 @@ def _find(model: mujoco.MjModel, words: tuple[str, ...], bodies: list[int]) -> t
     return None
 
 
-def save_model_xml(source: Path, out: Path) -> mujoco.MjModel:
-    """Copy the MJCF at ``source`` to ``out`` with its file references made absolute; compile the copy.
+def _portable_xml(source: Path) -> str:
+    """The MJCF at ``source`` with its file references made absolute, so a copy compiles anywhere.
 
     The text is kept as written (only the compiler's ``meshdir``, ``texturedir`` and ``assetdir``
     and the ``<include>`` files become absolute paths), so the copy compiles to the same numbers:
     ``MjSpec.to_xml`` in MuJoCo 4.0.0 writes six significant digits (Pusher's shoulder range
-    1.714602 came back as 1.7146). The copy is loaded with ``MjSpec`` and compiled to check it.
+    1.714602 came back as 1.7146).
+
+    Raises:
+        EnergyMarginError: the file cannot be read or parsed as XML.
+
     """
     folder = source.parent.resolve()
     try:
         tree = ElementTree.parse(source)
     except (OSError, ElementTree.ParseError) as error:
-        raise EnergyMarginError(f"{source}: the environment's model cannot be read ({error})") from None
+        raise EnergyMarginError(f"{source.name} cannot be read ({error})") from None
     root = tree.getroot()
     compiler = root.find("compiler")
     if compiler is None:
@@ -128,14 +140,47 @@ def save_model_xml(source: Path, out: Path) -> mujoco.MjModel:
     for include in root.iter("include"):
         if include.get("file"):
             include.set("file", str((folder / str(include.get("file"))).resolve()))
-    text = ElementTree.tostring(root, encoding="unicode")
-    with atomic_path(out) as temporary:
-        temporary.write_text(text)
-    try:
-        return mujoco.MjSpec.from_file(str(out)).compile()
-    except (ValueError, mujoco.FatalError) as error:
-        out.unlink(missing_ok=True)
-        raise EnergyMarginError(f"{source}: the environment's model does not compile once copied ({error})") from None
+    return ElementTree.tostring(root, encoding="unicode")
+
+
+def save_model(model: mujoco.MjModel, source: Path | None, out: Path) -> tuple[Path, str]:
+    """Save the environment's compiled ``model`` beside a scene file; the file written and a line saying why.
+
+    The model file the environment loaded (``source``) is copied to ``out`` with ``.xml``
+    (:func:`_portable_xml`) when the copy compiles to ``model`` (same :func:`model_hash`): an MJCF
+    is readable and works with any MuJoCo version. Otherwise (no ``source``, a copy that does not
+    compile, or a model the environment changed after loading it) ``model`` itself, as it is now,
+    goes to ``out`` with ``.mjb`` (``mujoco.mj_saveModel``), which only this MuJoCo version reads.
+    Only the file named is written, in ``out``'s folder (which must exist).
+    """
+    xml_file, binary_file = out.with_suffix(".xml"), out.with_suffix(BINARY_SUFFIX)
+    if source is None:
+        reason = "the environment names no model file to copy (env.unwrapped.fullpath): its model was built in memory"
+    else:
+        copied: mujoco.MjModel | None = None
+        handle, name = tempfile.mkstemp(dir=out.parent, prefix=f".{xml_file.name}.", suffix=".xml")
+        os.close(handle)
+        temporary = Path(name)
+        try:
+            temporary.write_text(_portable_xml(source))
+            copied = mujoco.MjSpec.from_file(str(temporary)).compile()
+        except EnergyMarginError as error:
+            reason = str(error)
+        except (ValueError, mujoco.FatalError) as error:
+            reason = f"the copy of {source.name} does not compile ({' '.join(str(error).split())})"
+        try:
+            if copied is not None and model_hash(copied) == model_hash(model):
+                temporary.chmod(file_mode())
+                os.replace(temporary, xml_file)
+                return xml_file, f"wrote {xml_file} (the environment's model file, same model)"
+        finally:
+            temporary.unlink(missing_ok=True)
+        if copied is not None:
+            fields = model_differences(copied, model)
+            changed = f"{', '.join(fields)} {'differs' if len(fields) == 1 else 'differ'}" if fields else "it differs"
+            reason = f"the environment changed its model after loading {source.name} ({changed})"
+    save_binary_model(model, binary_file)
+    return binary_file, f"wrote {binary_file}: {reason}"
 
 
 def scene_from_environment(
@@ -148,23 +193,27 @@ def scene_from_environment(
     """Write a starter scene file for a Gymnasium MuJoCo environment, its model saved beside it.
 
     Args:
-        env: the environment (``env.unwrapped`` holds ``model``, ``data`` and ``fullpath``).
+        env: the environment (its MuJoCo model is found with
+            :func:`~energy_margin.integrations.handles.find_mujoco`; ``env.unwrapped.fullpath``,
+            where it has one, names the model file it loaded).
         objects: object body names or glob patterns.
-        out: the scene file to write (``.toml``); the model goes to the same name with ``.xml``.
+        out: the scene file to write (``.toml``); the model goes to the same name with ``.xml``
+            or ``.mjb`` (:func:`save_model`).
         capture_radius: radius of the starter capture region, m; ``None``: twice the largest
             object's bounding radius plus 5 cm.
 
     Raises:
-        EnergyMarginError: no MuJoCo model, no model file, objects matching nothing.
+        EnergyMarginError: no MuJoCo model, objects matching nothing, a scene the model refuses;
+            nothing is written then.
 
     """
     from energy_margin.integrations.gymnasium import environment_name, mujoco_handles
 
     model, _ = mujoco_handles(env)
     name = environment_name(env)
-    source = getattr(getattr(env, "unwrapped", env), "fullpath", None)
-    if not source or not Path(str(source)).is_file():
-        raise EnergyMarginError(f"{name} does not name the model file it loaded (env.unwrapped.fullpath)")
+    unwrapped = getattr(env, "unwrapped", env)
+    fullpath = getattr(unwrapped, "fullpath", None)
+    source = Path(fullpath) if isinstance(fullpath, str | Path) and Path(fullpath).is_file() else None
     patterns = [objects] if isinstance(objects, str) else list(objects)
     body_names = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
     chosen = [b for b in range(1, model.nbody) if any(fnmatch.fnmatchcase(body_names[b], p) for p in patterns)]
@@ -173,7 +222,6 @@ def scene_from_environment(
             f"--objects {','.join(patterns)}: no body of {name} matches (bodies: {', '.join(body_names[1:])})"
         )
     out = Path(out)
-    model_file = out.with_suffix(".xml")
     # Regions name their bodies: only named robot bodies can carry the capture region.
     robot = [body for body in _robot_bodies(model, set(chosen)) if body_names[body]]
     end_effector = _find(model, END_EFFECTOR_WORDS, robot)
@@ -186,14 +234,13 @@ def scene_from_environment(
         end_effector = ("body", body_names[max(robot, key=lambda b: _depth(model, b))])
     every_body = [b for b in range(1, model.nbody) if b not in chosen and body_names[b]]
     goal = _find(model, GOAL_WORDS, every_body)
-    geoms = np.flatnonzero(np.isin(model.geom_bodyid, chosen))
+    geoms = np.flatnonzero(object_owners(model, chosen)[model.geom_bodyid] >= 0)
     size = (
         float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms])) if geoms.size else 0.05
     )
     radius = capture_radius if capture_radius is not None else round(2.0 * size + 0.05, 3)
     steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
-    duration = float(steps) * float(getattr(env.unwrapped, "dt", model.opt.timestep))
-    joints = object_joint_kind(model, patterns)
+    duration = float(steps) * float(getattr(unwrapped, "dt", model.opt.timestep))
     capture = {"type": "distance", end_effector[0]: end_effector[1], "max": radius}
     if goal is not None:
         success = {"type": "distance", goal[0]: goal[1], "max": round(2.0 * size, 3)}
@@ -201,13 +248,9 @@ def scene_from_environment(
         heights = [float(model.body_pos[b][2]) for b in chosen]
         success = {"type": "height", "min": round(min(heights) - 0.05, 3)}
     lines = [
-        f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.",
-        "schema_version = 1",
-        f"mjcf = {toml_value(model_file.name)}",
         "",
         "[objects]",
         f"bodies = {toml_value(patterns)}",
-        f"joints = {toml_value(joints)}",
         "",
         "# One episode; no keyframes: record a roll-out's own commands with the Gymnasium wrapper.",
         *_actuator_comments(model),
@@ -235,12 +278,16 @@ def scene_from_environment(
     ]
     text = "\n".join(lines)
     # The file is checked against the environment's model before anything is written.
-    document = {key: value for key, value in tomllib.loads(text).items() if key not in ("schema_version", "mjcf")}
+    document = tomllib.loads(text)
     resolve_scene(scene_spec_from_tables(document, origin=str(out)), model)
     out.parent.mkdir(parents=True, exist_ok=True)
-    saved = save_model_xml(Path(str(source)), model_file)
+    model_file, note = save_model(model, source, out)
+    saved = mujoco.MjModel.from_binary_path(str(model_file)) if model_file.suffix == BINARY_SUFFIX else None
     with atomic_path(out) as temporary:
-        temporary.write_text(text)
+        temporary.write_text(
+            f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.\n"
+            f"schema_version = 1\nmjcf = {toml_value(model_file.name)}\n{text}"
+        )
     return StarterScene(
         scene_file=out,
         model_file=model_file,
@@ -248,7 +295,8 @@ def scene_from_environment(
         end_effector=end_effector,
         goal=goal,
         capture_radius=radius,
-        same_model=model_hash(saved) == model_hash(model),
+        same_model=saved is None or model_hash(saved) == model_hash(model),
+        model_note=note,
     )
 
 

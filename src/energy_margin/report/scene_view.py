@@ -4,11 +4,12 @@
 motion's duration, the sets and the wrench ranges. :func:`render_scene` draws the scene at t = 0
 (the first start ``generate --seed 0`` would use) with MuJoCo's own renderer, the capture set in
 translucent blue and the success set in translucent green, added as visual-only geoms to a copy of
-the model edited with ``MjSpec``.
+the model edited with ``MjSpec`` (over a compiled ``.mjb`` model, drawn from a model of their own).
 """
 
 from __future__ import annotations
 
+import copy
 import os
 import sys
 from collections.abc import Mapping
@@ -22,6 +23,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.report.render import View, fit_view
 from energy_margin.runs.files import staging_directory
 from energy_margin.sim.base import CompiledModel, require
+from energy_margin.tasks.model_file import is_binary_model
 from energy_margin.tasks.scene_model import compile_spec
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
@@ -56,10 +58,10 @@ def describe_scene(task: SceneTask) -> list[str]:
     lines = [f"scene file {spec.path} (schema_version 1), model {spec.mjcf.name} (sha256 {loaded.model_sha256[:12]})"]
     lines.append(f"objects ({loaded.n_objects}, {spec.object_joints}):")
     for index, name in enumerate(loaded.object_names):
-        body = loaded.object_bodies[index]
-        inertia = ", ".join(f"{v:.3g}" for v in model.body_inertia[body])
+        mass, inertias = loaded.object_inertials
+        inertia = ", ".join(f"{v:.3g}" for v in inertias[index])
         lines.append(
-            f"  {name}: mass {model.body_mass[body]:.4g} kg, inertia ({inertia}) kg m^2, "
+            f"  {name}: mass {mass[index]:.4g} kg, inertia ({inertia}) kg m^2, "
             f"bounding radius {loaded.object_radius[index]:.3g} m"
         )
     actuators = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}" for i in range(model.nu)]
@@ -207,16 +209,44 @@ def _gl_context(width: int, height: int) -> Any:
     return mujoco.GLContext(width, height)
 
 
+def _add_lights(model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCamera, scene: mujoco.MjvScene) -> None:
+    """Append the lights of ``model`` (not its headlight) to ``scene``, as far as it has room."""
+    own = mujoco.MjvScene(model, maxgeom=max(int(model.ngeom), 1))
+    mujoco.mjv_updateScene(model, data, mujoco.MjvOption(), None, camera, mujoco.mjtCatBit.mjCAT_ALL, own)
+    for index in range(own.nlight):
+        light = own.lights[index]
+        if light.headlight or scene.nlight >= len(scene.lights):
+            continue
+        target = scene.lights[scene.nlight]
+        for name in ("pos", "dir", "ambient", "diffuse", "specular", "attenuation"):
+            getattr(target, name)[:] = getattr(light, name)
+        for name in ("type", "castshadow", "cutoff", "exponent", "bulbradius", "intensity", "range", "texid"):
+            setattr(target, name, getattr(light, name))
+        target.headlight = 0
+        scene.nlight += 1
+
+
 def _render(
-    model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCamera, width: int, height: int
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    camera: mujoco.MjvCamera,
+    width: int,
+    height: int,
+    overlay: tuple[mujoco.MjModel, mujoco.MjData] | None = None,
 ) -> np.ndarray:
-    """RGB pixels (height, width, 3) of ``data`` seen from ``camera`` with MuJoCo's renderer."""
+    """RGB pixels (height, width, 3) of ``data`` seen from ``camera`` with MuJoCo's renderer.
+
+    ``overlay``: a second model and its data whose geoms are drawn in the same scene.
+    """
     context = _gl_context(width, height)
     context.make_current()
     try:
         scene = mujoco.MjvScene(model, maxgeom=10_000)
         options = mujoco.MjvOption()
         mujoco.mjv_updateScene(model, data, options, None, camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
+        if overlay is not None:
+            mujoco.mjv_addGeoms(*overlay, options, mujoco.MjvPerturb(), mujoco.mjtCatBit.mjCAT_ALL, scene)
+            _add_lights(*overlay, camera, scene)
         render_context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_100)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, render_context)
         viewport = mujoco.MjrRect(0, 0, width, height)
@@ -309,14 +339,23 @@ def render_scene(
 
     loaded = task.loaded
     frame = start_frame(task, seed)
-    model_spec, _ = compile_spec(loaded.spec, loaded.design_values)
+    # A compiled model (.mjb) cannot be edited: its regions go into a model of their own, drawn over it.
+    binary = is_binary_model(loaded.spec.mjcf)
+    model_spec = mujoco.MjSpec() if binary else compile_spec(loaded.spec, loaded.design_values)[0]
     extent = float(np.max(np.abs(frame.object_pos[:, :2]))) + 1.0
     region_bounds: list[np.ndarray] = []
     _add_region_geoms(model_spec, loaded.spec.capture, task.frame_lookup(frame), _CAPTURE_RGBA, extent, region_bounds)
     _add_region_geoms(model_spec, loaded.spec.success, task.frame_lookup(None), _SUCCESS_RGBA, extent, region_bounds)
     centre = frame.object_pos.mean(axis=0)
     model_spec.worldbody.add_light(pos=[centre[0], centre[1], centre[2] + 3.0], dir=[0.0, 0.0, -1.0], castshadow=False)
-    model = model_spec.compile()
+    overlay: tuple[mujoco.MjModel, mujoco.MjData] | None = None
+    if binary:
+        regions = model_spec.compile()
+        overlay = (regions, mujoco.MjData(regions))
+        mujoco.mj_forward(*overlay)
+        model = copy.copy(loaded.model)
+    else:
+        model = model_spec.compile()
     model.vis.headlight.ambient[:] = 0.35
     model.vis.headlight.diffuse[:] = 0.5
     model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
@@ -335,7 +374,7 @@ def render_scene(
     free_camera.distance = view.distance
     free_camera.azimuth = view.azimuth
     free_camera.elevation = view.elevation
-    image = _render(model, data, free_camera, width, height)
+    image = _render(model, data, free_camera, width, height, overlay)
     figure, ax = plt.subplots(figsize=(width / 100, height / 100 + 0.4), dpi=100)
     ax.imshow(image)
     ax.set_axis_off()

@@ -1,0 +1,165 @@
+"""How far scores and AP move when the same frames are analysed under other MuJoCo versions.
+
+The paper's sets are generated once (under the MuJoCo of the interpreter that runs ``prepare``);
+each MuJoCo version then analyses its own copy of them (``analyze``, run by an interpreter with that
+version installed); ``compare`` prints and writes the largest score change per set and the AP of
+every question per version, against a reference version. ``benchmarks/engine_versions.sh`` makes
+one virtual environment per version and runs the three steps.
+
+    python benchmarks/engine_versions.py prepare --out runs/engine_versions
+    python benchmarks/engine_versions.py analyze --out runs/engine_versions    # once per MuJoCo version
+    python benchmarks/engine_versions.py compare --out runs/engine_versions --reference 4.0.0
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from energy_margin.cli import main as cli
+
+REFERENCE_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "reference" / "energy_margin_workshop"
+#: The sets: name -> generate arguments, or the authors' frames to import.
+SETS = {
+    "pushing-10": ["--task", "pushing", "--objects", "10"],
+    "scooping-5": ["--task", "scooping", "--objects", "5"],
+    "authors-planepush-10": None,
+}
+#: The questions of ``evaluate --json`` compared per version: (evaluate arguments, JSON key).
+QUESTIONS = {
+    "capture AP, k=0": ([], "capture_ap"),
+    "capture AP, k=2": (["--capture-window", "2"], "capture_ap"),
+    "success AP, all frames": ([], "success_ap"),
+    "success AP, first 3 frames": (["--success-frames", "3"], "success_ap"),
+}
+
+
+def run_cli(arguments: list[str]) -> str:
+    """Run one energy-margin command in this process; its stdout (exit code checked)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = cli(arguments)
+    if code != 0:
+        raise SystemExit(f"energy-margin {' '.join(arguments)} exited with {code}")
+    return out.getvalue()
+
+
+def prepare(out: Path, trajectories: int, frames: int, seed: int) -> None:
+    """Generate (or import) every set once into ``out/frames``."""
+    for name, arguments in SETS.items():
+        target = out / "frames" / name
+        if target.exists():
+            continue
+        if arguments is None:
+            source = REFERENCE_DATA / "planepush-10objects"
+            run_cli(["import-reference", str(source), "--out", str(target), "--no-scores"])
+        else:
+            sizes = ["--trajectories", str(trajectories), "--frames", str(frames), "--seed", str(seed)]
+            run_cli(["generate", *arguments, *sizes, "--out", str(target)])
+        print(f"prepared {target} (MuJoCo {mujoco.__version__})", flush=True)
+
+
+def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
+    """Analyse a copy of every set under this interpreter's MuJoCo (``out/mujoco-VERSION/SET``)."""
+    folder = out / f"mujoco-{mujoco.__version__}"
+    for name in SETS:
+        target = folder / name
+        if (target / "scores.csv").exists():
+            continue
+        if target.exists():
+            shutil.rmtree(target)
+        shutil.copytree(out / "frames" / name, target)
+        started = time.perf_counter()
+        settings = ["--iterations", str(iterations), "--workers", str(workers), "--seed", str(seed)]
+        run_cli(["analyze", str(target), *settings, "--no-progress"])
+        print(f"analysed {target} in {time.perf_counter() - started:.0f} s", flush=True)
+
+
+def _scores(path: Path) -> np.ndarray:
+    from energy_margin.data.scores_file import load_scores
+
+    scores = load_scores(path / "scores.csv")
+    return np.stack([scores["capture_score"], scores["success_score"]], axis=1)
+
+
+def _aps(path: Path) -> dict[str, float]:
+    values = {}
+    for question, (arguments, key) in QUESTIONS.items():
+        values[question] = float(json.loads(run_cli(["evaluate", str(path), "--json", *arguments]))[key])
+    return values
+
+
+def compare(out: Path, reference: str) -> None:
+    """Print and write (``out/engine_versions.json``, ``.md``) score and AP changes against ``reference``."""
+    versions = sorted(
+        (p.name.removeprefix("mujoco-") for p in out.glob("mujoco-*") if p.is_dir()),
+        key=lambda v: tuple(int(x) for x in v.split(".")),
+    )
+    if reference not in versions:
+        raise SystemExit(f"no analysis under MuJoCo {reference} in {out} (have {', '.join(versions)})")
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    for name in SETS:
+        base = _scores(out / f"mujoco-{reference}" / name)
+        results[name] = {}
+        for version in versions:
+            path = out / f"mujoco-{version}" / name
+            if not (path / "scores.csv").exists():
+                continue
+            change = np.abs(_scores(path) - base)
+            results[name][version] = {
+                "max_capture_change": float(change[:, 0].max()),
+                "max_success_change": float(change[:, 1].max()),
+                "frames": int(base.shape[0]),
+                **_aps(path),
+            }
+    lines = [
+        f"Scores of the same frames under each MuJoCo version against MuJoCo {reference} "
+        "(frames generated once; 300 expansions, seed 0).",
+        "",
+        "| set | MuJoCo | frames | max Δ capture | max Δ success | " + " | ".join(QUESTIONS) + " |",
+        "|---|---|---|---|---|" + "---|" * len(QUESTIONS),
+    ]
+    for name, rows in results.items():
+        for version, row in rows.items():
+            cells = [f"{row[q]:.3f} ({row[q] - rows[reference][q]:+.3f})" for q in QUESTIONS]
+            lines.append(
+                f"| {name} | {version} | {row['frames']} | {row['max_capture_change']:.3f} | "
+                f"{row['max_success_change']:.3f} | " + " | ".join(cells) + " |"
+            )
+    text = "\n".join(lines) + "\n"
+    (out / "engine_versions.json").write_text(json.dumps({"reference": reference, "sets": results}, indent=2) + "\n")
+    (out / "engine_versions.md").write_text(text)
+    print(text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("step", choices=("prepare", "analyze", "compare"))
+    parser.add_argument("--out", type=Path, default=Path("runs/engine_versions"))
+    parser.add_argument("--trajectories", type=int, default=20)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--reference", default="4.0.0")
+    args = parser.parse_args(argv)
+    if args.step == "prepare":
+        prepare(args.out, args.trajectories, args.frames, args.seed)
+    elif args.step == "analyze":
+        analyze(args.out, args.workers, args.seed, args.iterations)
+    else:
+        compare(args.out, args.reference)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
