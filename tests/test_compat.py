@@ -286,3 +286,22 @@ def test_the_xml_holds_a_keyframe_added_after_compiling() -> None:
     spec.add_key(name="start", qpos=[0.5])
     model = mujoco.MjModel.from_xml_string(compat.spec_xml(spec))
     assert model.nkey == 1 and model.key_qpos[0, 0] == 0.5
+
+
+def test_a_light_is_copied_with_its_kind() -> None:
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><light pos="1 2 3" dir="0 0 -1" directional="true" diffuse="0.3 0.4 0.5"/>'
+        '<geom size="0.1"/></worldbody></mujoco>'
+    )
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    scene = mujoco.MjvScene(model, maxgeom=10)
+    mujoco.mjv_updateScene(model, data, mujoco.MjvOption(), None, mujoco.MjvCamera(), mujoco.mjtCatBit.mjCAT_ALL, scene)
+    source = next(scene.lights[i] for i in range(scene.nlight) if not scene.lights[i].headlight)
+    target = mujoco.MjvScene(model, maxgeom=10).lights[0]
+    compat.copy_light(source, target)
+    np.testing.assert_array_equal(target.pos, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(target.dir, [0.0, 0.0, -1.0])
+    np.testing.assert_allclose(target.diffuse, [0.3, 0.4, 0.5], rtol=1e-6)
+    kind = "type" if hasattr(source, "type") else "directional"
+    assert getattr(target, kind) == getattr(source, kind) and getattr(source, kind)

@@ -13,6 +13,10 @@ spells a thing differently, the helpers below give every caller one spelling:
   the frame: :func:`set_to_position` and :func:`add_in_frame`.
 * ``MjSpec.to_xml`` writes the spec as it stands in later releases and the last compiled model in
   MuJoCo 3.3.0 (a keyframe added since is left out): :func:`spec_xml`.
+* ``MjvLight`` has ``type``, ``intensity``, ``range`` and ``texid`` in later releases and
+  ``directional`` instead of ``type`` in MuJoCo 3.3.0: :func:`copy_light`.
+* The header of a binary model (``.mjb``) names the MuJoCo release that wrote it from 3.5 (a
+  format number before): :data:`MJB_VERSION_SINCE`.
 * The mesh and texture folders are ``MjSpec.compiler.meshdir`` and ``.texturedir`` in later
   releases, ``MjSpec.meshdir`` and ``.texturedir`` in MuJoCo 3.3.0: :func:`set_asset_dirs`.
 * Copying a body with ``attach_body`` puts each copy at its reference pose in the model's
@@ -60,6 +64,8 @@ FRICTIONLESS_SLIDING_SINCE = (3, 3, 6)
 CYLINDER_INSIDE_BOX_SINCE = (4, 0, 0)
 #: The first MuJoCo release whose ``MjSpec.to_xml`` writes the spec itself, not the last compiled model.
 SPEC_XML_SINCE = (3, 3, 1)
+#: The first MuJoCo release whose binary models (``.mjb``) carry its version number in their header.
+MJB_VERSION_SINCE = (3, 5, 0)
 #: The first MuJoCo release whose ``attach_body`` extends the keyframes of the model attached to.
 ATTACH_KEYFRAMES_SINCE = (3, 16, 0)
 
@@ -166,6 +172,29 @@ def spec_xml(spec: Any) -> str:
     if not mujoco_at_least(SPEC_XML_SINCE):
         spec.compile()
     return str(spec.to_xml())
+
+
+_LIGHT_ARRAYS = ("pos", "dir", "ambient", "diffuse", "specular", "attenuation")
+_LIGHT_NUMBERS = (
+    "type",
+    "directional",
+    "castshadow",
+    "cutoff",
+    "exponent",
+    "bulbradius",
+    "intensity",
+    "range",
+    "texid",
+)
+
+
+def copy_light(source: Any, target: Any) -> None:
+    """Copy an ``MjvLight``'s position, direction, colours and kind to another (not ``headlight``)."""
+    for name in _LIGHT_ARRAYS:
+        getattr(target, name)[:] = getattr(source, name)
+    for name in _LIGHT_NUMBERS:
+        if hasattr(source, name):
+            setattr(target, name, getattr(source, name))
 
 
 def set_asset_dirs(spec: Any, *, meshdir: str | None = None, texturedir: str | None = None) -> None:
