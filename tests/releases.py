@@ -25,6 +25,10 @@ OLDEST: Release = ((3, 3, 0), 1)
 
 T = TypeVar("T")
 
+#: A MuJoCo release other than the installed one: the version recorded in a file "written under
+#: another MuJoCo" (3.3.0, or 3.2.7 where 3.3.0 is installed).
+OTHER_MUJOCO = "3.2.7" if mujoco_version() == (3, 3, 0) else "3.3.0"
+
 
 def for_release(table: dict[Release, T], what: str) -> T:
     """The entry of ``table`` for the installed MuJoCo and numpy; skips the test for another pair."""
