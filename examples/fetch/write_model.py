@@ -35,6 +35,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.compat import delete_element, set_asset_dirs, spec_xml
+
 HERE = Path(__file__).resolve().parent
 #: Where FetchPush's reset puts the base (robot.xml's base position plus slide0 and slide1), m.
 BASE_POS = (0.2869 + 0.405, 0.2641 + 0.48, 0.0)
@@ -76,11 +78,14 @@ def build_spec() -> mujoco.MjSpec:
     root = fetch_dir()
     spec = mujoco.MjSpec.from_file(str(root / "push.xml"))
     spec.modelname = "fetch_scene"
-    spec.compiler.meshdir = str((root / ".." / "stls" / "fetch").resolve())
-    spec.compiler.texturedir = str((root / ".." / "textures").resolve())
+    set_asset_dirs(
+        spec,
+        meshdir=str((root / ".." / "stls" / "fetch").resolve()),
+        texturedir=str((root / ".." / "textures").resolve()),
+    )
     base = spec.body("robot0:base_link")
     for name in ("robot0:slide0", "robot0:slide1", "robot0:slide2"):
-        spec.delete(spec.joint(name))
+        delete_element(spec, spec.joint(name))
     base.pos = list(BASE_POS)
     (weld,) = [eq for eq in spec.equalities if eq.type == mujoco.mjtEq.mjEQ_WELD]
     data = np.array(weld.data)
@@ -98,7 +103,7 @@ def build_spec() -> mujoco.MjSpec:
     # The site's frame undoes the gripper's rotation: world axes while the gripper points down.
     inverse = np.array(GRIPPER_QUAT) * [1.0, -1.0, -1.0, -1.0]
     gripper.add_site(name="paddle", pos=list(BLADE_POS), quat=inverse.tolist())
-    spec.delete(spec.site("target0"))
+    delete_element(spec, spec.site("target0"))
     spec.worldbody.add_site(
         name="goal",
         pos=[1.475, 0.75, 0.4],
@@ -159,7 +164,7 @@ def main() -> None:
     model = spec.compile()
     qpos = solve_start(model, np.array(START))
     spec.add_key(name="start", qpos=qpos.tolist(), mpos=list(START), mquat=list(GRIPPER_QUAT))
-    (out / "fetch_scene.xml").write_text(spec.to_xml())
+    (out / "fetch_scene.xml").write_text(spec_xml(spec))
     arm = qpos[[model.jnt_qposadr[model.joint(f"robot0:{n}_joint").id] for n in ARM_JOINTS]]
     print(f"wrote {out / 'fetch_scene.xml'} (arm at the start: {np.round(arm, 3).tolist()} rad)")
 

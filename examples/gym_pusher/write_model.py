@@ -23,6 +23,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.compat import delete_element, set_joint_coefficient, set_to_position, spec_xml
+
 HERE = Path(__file__).resolve().parent
 ARM_JOINTS = (
     "r_shoulder_pan_joint",
@@ -64,7 +66,7 @@ def build_spec() -> mujoco.MjSpec:
     # pusher_v5.xml's Euler integrator stays: with implicitfast (MuJoCo 4.0.0) a cylinder spinning fast
     # after it tipped over gained about 1000 rad/s in one step, with no contact, in one trajectory of 20.
     for name in ("object", "goal"):
-        spec.delete(spec.body(name))
+        delete_element(spec, spec.body(name))
     # The table is a plane (it collides everywhere); drawn 0.2 m longer towards the arm's base, under the tip's start.
     spec.geom("table").size = [1.0, 1.2, 0.1]
     for body in spec.bodies:
@@ -72,12 +74,12 @@ def build_spec() -> mujoco.MjSpec:
             body.gravcomp = 1.0
     spec.body("r_wrist_roll_link").add_site(name="tip", pos=list(TIP))
     for actuator in list(spec.actuators):
-        spec.delete(actuator)
+        delete_element(spec, actuator)
     for index, joint in enumerate(ARM_JOINTS):
         actuator = spec.add_actuator(name=f"servo_{joint[2:-6]}", target=joint)
         actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
         wrist = index >= 4
-        actuator.set_to_position(kp=ARM_KP[wrist], kv=ARM_KV[wrist])
+        set_to_position(actuator, kp=ARM_KP[wrist], kv=ARM_KV[wrist])
         actuator.forcelimited = True
         actuator.forcerange = [-15.0, 15.0] if wrist else [-60.0, 60.0]
     world = spec.worldbody
@@ -86,7 +88,7 @@ def build_spec() -> mujoco.MjSpec:
     cylinder = world.add_body(name="cylinder", pos=[0.0, 0.0, TABLE_Z + half_height])
     joint = cylinder.add_freejoint()
     # pusher_v5.xml's default class gives joints damping 1 and armature 0.04: none for the objects.
-    joint.damping = [0.0, 0.0, 0.0]
+    set_joint_coefficient(joint, "damping", 0.0)
     joint.armature = 0.0
     # and geoms condim 1 (frictionless) and no collisions: the cylinders collide, with friction.
     cylinder.add_geom(
@@ -165,7 +167,7 @@ def main() -> None:
     half_height = CYLINDER[1]
     start = np.concatenate([poses[0], [SWEEP_X, -0.35, TABLE_Z + half_height, 1.0, 0.0, 0.0, 0.0]])
     spec.add_key(name="start", qpos=start.tolist())
-    (out / "gym_pusher_scene.xml").write_text(spec.to_xml())
+    (out / "gym_pusher_scene.xml").write_text(spec_xml(spec))
     np.savez(out / "gym_pusher_motion.npz", time=times, ctrl=ctrl)
     print(f"wrote {out / 'gym_pusher_scene.xml'} and {out / 'gym_pusher_motion.npz'} ({len(times)} control rows)")
 

@@ -19,6 +19,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.compat import set_asset_dirs, set_to_position, spec_xml
+
 HERE = Path(__file__).resolve().parent
 #: Arm joint servo gains: stiffness N m/rad and damping N m s/rad.
 ARM_KP, ARM_KV = 300.0, 30.0
@@ -42,14 +44,18 @@ def build_spec() -> mujoco.MjSpec:
     arm.attach(hand, site=arm.site("wristsite"), prefix="hand_")
     arm.modelname = "jaco_scene"
     arm.option.timestep = 0.004
-    arm.compiler.meshdir = str(root / "meshes_decimated")
+    set_asset_dirs(arm, meshdir=str(root / "meshes_decimated"))
     world = arm.worldbody
     world.add_light(pos=[0, 0, 2.5], dir=[0, 0, -1])
     world.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[2, 2, 0.1], rgba=[0.75, 0.75, 0.75, 1])
     paddle = arm.body("hand_hand")
     paddle.add_geom(
-        name="paddle", type=mujoco.mjtGeom.mjGEOM_BOX, size=list(PADDLE_HALF), pos=list(PADDLE_POS),
-        mass=0.05, rgba=[0.2, 0.5, 0.9, 1],
+        name="paddle",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=list(PADDLE_HALF),
+        pos=list(PADDLE_POS),
+        mass=0.05,
+        rgba=[0.2, 0.5, 0.9, 1],
     )
     paddle.add_site(name="paddle_centre", pos=list(PADDLE_POS))
     world.add_site(name="goal", pos=[0.0, 0.45, 0.0])
@@ -59,13 +65,13 @@ def build_spec() -> mujoco.MjSpec:
     for index in range(1, 7):
         actuator = arm.add_actuator(name=f"arm_{index}", target=f"joint_{index}")
         actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        actuator.set_to_position(kp=ARM_KP, kv=ARM_KV)
+        set_to_position(actuator, kp=ARM_KP, kv=ARM_KV)
         actuator.forcelimited = True
         actuator.forcerange = [-40.0, 40.0] if index <= 3 else [-15.0, 15.0]
     for index in range(1, 4):
         actuator = arm.add_actuator(name=f"finger_{index}", target=f"hand_finger_{index}")
         actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
-        actuator.set_to_position(kp=5.0, kv=0.5)
+        set_to_position(actuator, kp=5.0, kv=0.5)
     return arm
 
 
@@ -134,7 +140,7 @@ def main() -> None:
     ctrl = np.hstack([arm, np.tile(FINGERS, (len(times), 1))])
     start = np.concatenate([poses[0], FINGERS, [0.0, 0.3, 0.025, 1.0, 0.0, 0.0, 0.0]])
     spec.add_key(name="start", qpos=start.tolist())
-    (out / "jaco_scene.xml").write_text(spec.to_xml())
+    (out / "jaco_scene.xml").write_text(spec_xml(spec))
     np.savez(out / "jaco_motion.npz", time=times, ctrl=ctrl)
     print(f"wrote {out / 'jaco_scene.xml'} and {out / 'jaco_motion.npz'} ({len(times)} control rows)")
 

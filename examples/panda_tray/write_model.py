@@ -40,6 +40,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.compat import set_asset_dirs, set_joint_coefficient, set_to_position, spec_xml
+
 HERE = Path(__file__).resolve().parent
 ARM_JOINTS = tuple(f"robot:panda0_joint{i}" for i in range(1, 8))
 #: Arm servo stiffness (N m/rad) and damping (N m s/rad), and the arm joints' own damping
@@ -92,7 +94,7 @@ def build_spec() -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_string(wrapper)
     # assets.xml names its meshes relative to its meshdir, franka_assets/meshes, which the include
     # resolves from the fragment's own folder: point each mesh at its file by absolute path.
-    spec.compiler.meshdir = ""
+    set_asset_dirs(spec, meshdir="")
     for mesh in spec.meshes:
         mesh.file = str(root / "meshes" / Path(mesh.file).relative_to(root))
     spec.option.timestep = 0.004
@@ -103,8 +105,8 @@ def build_spec() -> mujoco.MjSpec:
         if body.name.startswith("panda0_"):
             body.gravcomp = 1.0
     for name, actuator, kp, kv in zip(ARM_JOINTS, spec.actuators[:7], ARM_KP, ARM_KV, strict=True):
-        actuator.set_to_position(kp=kp, kv=kv)  # force = kp (ctrl - q) - kv qdot, within +-87 / 12 N m
-        spec.joint(name).damping[0] = JOINT_DAMPING
+        set_to_position(actuator, kp=kp, kv=kv)  # force = kp (ctrl - q) - kv qdot, within +-87 / 12 N m
+        set_joint_coefficient(spec.joint(name), "damping", JOINT_DAMPING)
         spec.joint(name).armature = JOINT_ARMATURE
     world = spec.worldbody
     world.add_light(pos=[0.3, 0.3, 2.5], dir=[0, 0, -1], diffuse=[0.7, 0.7, 0.7])
@@ -210,7 +212,7 @@ def main() -> None:
     for name in ("robot:panda0_finger_joint1", "robot:panda0_finger_joint2"):
         qpos[model.jnt_qposadr[model.joint(name).id]] = FINGER
     spec.add_key(name="start", qpos=qpos.tolist(), ctrl=ctrl[0].tolist())
-    (out / "panda_scene.xml").write_text(spec.to_xml())
+    (out / "panda_scene.xml").write_text(spec_xml(spec))
     np.savez(out / "panda_motion.npz", time=times, ctrl=ctrl)
     print(f"wrote {out / 'panda_scene.xml'} and {out / 'panda_motion.npz'} ({len(times)} control rows)")
     print(f"arm at the start: {np.round(arm[0], 3).tolist()} rad")

@@ -22,6 +22,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from energy_margin.compat import add_in_frame, delete_element, set_to_position, spec_xml
+
 HERE = Path(__file__).resolve().parent
 #: The suite's props, removed (the ball and peg have joints of their own).
 PROPS = ("ball", "peg", "slot", "cup", "target_ball", "target_peg")
@@ -78,7 +80,10 @@ def add_cup(hand: mujoco.MjsBody) -> None:
     volume = {name: np.prod(half) for name, (_, half) in parts.items()}
     total = sum(volume.values())
     for name, (pos, half) in parts.items():
-        frame.add_geom(
+        add_in_frame(
+            hand,
+            frame,
+            "geom",
             name=name,
             type=mujoco.mjtGeom.mjGEOM_BOX,
             pos=list(pos),
@@ -86,7 +91,7 @@ def add_cup(hand: mujoco.MjsBody) -> None:
             mass=CUP_MASS * volume[name] / total,
             rgba=CUP_RGBA,
         )
-    frame.add_site(name="cup", pos=[0, 0, 0])
+    add_in_frame(hand, frame, "site", name="cup", pos=[0, 0, 0])
     # A bar from the hand to the handle (no contacts: it only shows what holds the cup).
     hand.add_geom(
         name="cup_bracket",
@@ -108,9 +113,9 @@ def build_spec() -> mujoco.MjSpec:
     # cubes' spin grew without bound in some roll-outs.
     spec.option.timestep = 0.002
     for name in PROPS:
-        spec.delete(spec.body(name))
+        delete_element(spec, spec.body(name))
     for actuator in list(spec.actuators):
-        spec.delete(actuator)
+        delete_element(spec, actuator)
     add_cup(spec.body("hand"))
     servos = [
         (joint.removeprefix("arm_"), joint, mujoco.mjtTrn.mjTRN_JOINT, kp, force)
@@ -120,7 +125,7 @@ def build_spec() -> mujoco.MjSpec:
     for name, target, transmission, kp, force in servos:
         actuator = spec.add_actuator(name=name, target=target)
         actuator.trntype = transmission
-        actuator.set_to_position(kp=kp)
+        set_to_position(actuator, kp=kp)
         actuator.ctrllimited = False
         actuator.forcelimited = True
         actuator.forcerange = [-force, force]
@@ -211,7 +216,7 @@ def main() -> None:
         start[model.joint(finger).qposadr[0]] = GRASP_TARGET
     start[model.nq - 7 :] = [0.0, 0.0, 0.3, 1.0, 0.0, 0.0, 0.0]
     spec.add_key(name="start", qpos=start.tolist(), ctrl=ctrl[0].tolist())
-    (out / "manipulator_scene.xml").write_text(spec.to_xml())
+    (out / "manipulator_scene.xml").write_text(spec_xml(spec))
     np.savez(out / "manipulator_motion.npz", time=times, ctrl=ctrl)
     print(f"wrote {out / 'manipulator_scene.xml'} and {out / 'manipulator_motion.npz'} ({len(times)} control rows)")
 

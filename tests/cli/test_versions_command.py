@@ -13,6 +13,7 @@ from energy_margin.cli import main
 from energy_margin.data.dataset import METADATA_FILE
 from energy_margin.data.scores_file import CONFIG_FILE
 from energy_margin.runs.directory import run_versions
+from releases import OTHER_MUJOCO
 from tiny_scene import write_tiny_scene
 
 MUJOCO = mujoco.__version__
@@ -48,7 +49,7 @@ def set_versions(path: Path, **versions: str) -> None:
 
 def note(dataset: Path) -> str:
     return (
-        f"note: {dataset} was generated with MuJoCo 3.3.0; this is MuJoCo {MUJOCO}: "
+        f"note: {dataset} was generated with MuJoCo {OTHER_MUJOCO}; this is MuJoCo {MUJOCO}: "
         "frames and scores can differ between engine versions\n"
     )
 
@@ -69,26 +70,26 @@ def test_analyze_records_its_versions(dataset: Path) -> None:
 def test_analyze_and_evaluate_note_a_dataset_of_another_mujoco_in_one_line(
     dataset: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    set_versions(dataset / METADATA_FILE, mujoco="3.3.0")
+    set_versions(dataset / METADATA_FILE, mujoco=OTHER_MUJOCO)
     assert main(["analyze", str(dataset), *ANALYZE]) == 0
     captured = capsys.readouterr()
     assert captured.err == note(dataset)
     assert captured.out == f"wrote {dataset / 'scores.csv'}\n"
-    # The scores are this MuJoCo's, the frames 3.3.0's: evaluate names both, in one line.
+    # The scores are this MuJoCo's, the frames another's: evaluate names both, in one line.
     assert main(["evaluate", str(dataset), *EVALUATE]) == 0
     captured = capsys.readouterr()
     assert captured.err == (
         f"note: {dataset / 'scores.csv'} was computed with MuJoCo {MUJOCO}; {dataset} was generated with MuJoCo "
-        "3.3.0: frames and scores can differ between engine versions\n"
+        f"{OTHER_MUJOCO}: frames and scores can differ between engine versions\n"
     )
     assert "positive rate" in captured.out
 
 
 def test_evaluate_notes_a_dataset_of_another_mujoco(dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", str(dataset), *ANALYZE]) == 0
-    # Frames and scores both of 3.3.0: only the installed MuJoCo differs.
-    set_versions(dataset / METADATA_FILE, mujoco="3.3.0")
-    set_versions(dataset / CONFIG_FILE, mujoco="3.3.0")
+    # Frames and scores both of another release: only the installed MuJoCo differs.
+    set_versions(dataset / METADATA_FILE, mujoco=OTHER_MUJOCO)
+    set_versions(dataset / CONFIG_FILE, mujoco=OTHER_MUJOCO)
     capsys.readouterr()
     assert main(["evaluate", str(dataset), *EVALUATE]) == 0
     assert capsys.readouterr().err == note(dataset)
@@ -111,11 +112,11 @@ def test_evaluate_notes_scores_of_another_mujoco_than_the_frames(
 def test_check_lists_another_mujoco_as_a_finding_not_a_failure(
     dataset: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    set_versions(dataset / METADATA_FILE, mujoco="3.3.0")
+    set_versions(dataset / METADATA_FILE, mujoco=OTHER_MUJOCO)
     assert main(["check", str(dataset)]) == 0
     captured = capsys.readouterr()
     assert captured.out == (
-        f"warning: dataset.json: versions.mujoco: generated with MuJoCo 3.3.0; this is MuJoCo {MUJOCO}: "
+        f"warning: dataset.json: versions.mujoco: generated with MuJoCo {OTHER_MUJOCO}; this is MuJoCo {MUJOCO}: "
         f"frames and scores can differ between engine versions\n{dataset}: ok\n"
     )
     assert captured.err == ""

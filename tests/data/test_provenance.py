@@ -17,11 +17,14 @@ from energy_margin.data.scores_file import CONFIG_FILE, SCORES_FILE
 from energy_margin.data.validation import check_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.versions import engine_versions
+from releases import OTHER_MUJOCO
 from tiny_scene import write_tiny_scene
 
 MUJOCO = mujoco.__version__
 NOTE = (
-    "note: {path} was generated with MuJoCo 3.3.0; this is MuJoCo "
+    "note: {path} was generated with MuJoCo "
+    + OTHER_MUJOCO
+    + "; this is MuJoCo "
     + MUJOCO
     + ": frames and scores can differ between engine versions"
 )
@@ -80,11 +83,11 @@ def test_no_note_under_the_same_versions(scene_dataset: Path) -> None:
 
 
 def test_another_mujoco_is_one_note_and_a_finding(scene_dataset: Path) -> None:
-    edit(scene_dataset, METADATA_FILE, mujoco="3.3.0")
+    edit(scene_dataset, METADATA_FILE, mujoco=OTHER_MUJOCO)
     assert dataset_note(scene_dataset) == NOTE.format(path=scene_dataset)
     findings = version_findings(scene_dataset, load_dataset(scene_dataset).metadata)
     assert [str(finding) for finding in findings] == [
-        f"dataset.json: versions.mujoco: generated with MuJoCo 3.3.0; this is MuJoCo {MUJOCO}: "
+        f"dataset.json: versions.mujoco: generated with MuJoCo {OTHER_MUJOCO}; this is MuJoCo {MUJOCO}: "
         "frames and scores can differ between engine versions"
     ]
     # check lists it as a warning, never a problem.

@@ -13,6 +13,7 @@ import pytest
 from energy_margin import __version__
 from energy_margin.runs import RunSpec, open_run, run_directory
 from energy_margin.runs.versions import engine_difference, engine_versions, recorded_versions
+from releases import OTHER_MUJOCO
 
 SPEC = RunSpec(contents="results", settings_file="run.json", outputs=("rows.csv",))
 KEYED = RunSpec(contents="episodes", settings_file="control.json", settings_key="settings")
@@ -84,7 +85,7 @@ def test_a_run_resumes_under_other_versions_and_says_so_in_one_line(
         pass
     path = tmp_path / spec.settings_file
     document = json.loads(path.read_text())
-    document["versions"]["mujoco"] = "3.3.0"
+    document["versions"]["mujoco"] = OTHER_MUJOCO
     document["versions"]["numpy"] = "1.0.0"
     path.write_text(json.dumps(document))
     capsys.readouterr()
@@ -92,7 +93,7 @@ def test_a_run_resumes_under_other_versions_and_says_so_in_one_line(
         assert run.resumed  # the versions decide nothing: the run resumes
     err = capsys.readouterr().err
     assert err == (
-        f"note: {tmp_path} was started with MuJoCo 3.3.0; this is MuJoCo {mujoco.__version__}: "
+        f"note: {tmp_path} was started with MuJoCo {OTHER_MUJOCO}; this is MuJoCo {mujoco.__version__}: "
         "results of the two versions can differ\n"
     )
     # The record is now this install's.

@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from energy_margin import compat
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
@@ -140,8 +141,13 @@ def _rewrite(path: Path, change: str) -> None:
         ("empty", r"model\.mjb is not a MuJoCo binary model"),
         (
             "version",
-            r"model\.mjb was written by MuJoCo \d+\.\d+\.\d+ and this is MuJoCo .*: a binary model is read only by "
-            r"the MuJoCo that wrote it",
+            # Before MuJoCo 3.5 the header holds a format number, not the release that wrote it.
+            (
+                r"model\.mjb was written by MuJoCo \d+\.\d+\.\d+ "
+                if compat.mujoco_at_least(compat.MJB_VERSION_SINCE)
+                else r"model\.mjb was written by another MuJoCo version or build "
+            )
+            + r"and this is MuJoCo .*: a binary model is read only by the MuJoCo that wrote it",
         ),
         ("truncated", r"model\.mjb cannot be read as a binary model of MuJoCo .* \(.*\)"),
     ],

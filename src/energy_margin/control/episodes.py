@@ -24,6 +24,7 @@ import numpy as np
 from energy_margin._version import __version__
 from energy_margin.analysis.executors import pool_results
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.compat import save_npz
 from energy_margin.control.commands import RobotInputs, command_space, controllable_tasks
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
 from energy_margin.control.disturbances import (
@@ -263,7 +264,7 @@ def _episode_path(out: Path, index: int) -> Path:
 
 def _save_episode(path: Path, result: dict[str, Any]) -> None:
     with atomic_path(path) as temporary, open(temporary, "wb") as stream:
-        np.savez(stream, allow_pickle=False, info=np.array(json.dumps(result["info"])), **result["record"])
+        save_npz(stream, {"info": np.array(json.dumps(result["info"])), **result["record"]})
 
 
 def _load_episode(path: Path) -> dict[str, Any] | None:
@@ -473,7 +474,7 @@ def run_control(
             extra={"control": {"settings": settings.to_dict(), "summary": summary}},
         )
         with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
-            np.savez_compressed(stream, allow_pickle=False, **dataset.arrays)
+            save_npz(stream, dataset.arrays, compressed=True)
         write_json(out / METADATA_FILE, dataset.metadata)
         run.write_settings({"summary": summary, "package_version": __version__})
     return summary, load_dataset(out)

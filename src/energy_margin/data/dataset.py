@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_int
 from energy_margin.runs.files import read_json, staging_directory, write_json
 from energy_margin.runs.npz import READ_ERRORS
@@ -147,7 +148,7 @@ def write_directory(
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = staging if staging is not None else staging_directory(out.parent, out.name)
     try:
-        np.savez_compressed(staging / FRAMES_FILE, allow_pickle=False, **arrays)
+        save_npz(staging / FRAMES_FILE, arrays, compressed=True)
         write_json(staging / METADATA_FILE, metadata)
         check_target(out, overwrite=overwrite)
         if out.is_dir():

@@ -37,6 +37,7 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS, LiveScore, score_state
+from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
@@ -345,7 +346,7 @@ class EpisodeRecorder:
         arrays = self.arrays()
         path.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(path) as temporary, temporary.open("wb") as stream:
-            np.savez(stream, allow_pickle=False, **arrays)
+            save_npz(stream, arrays)
         return path
 
 

@@ -29,6 +29,7 @@ import numpy as np
 from energy_margin._version import __version__
 from energy_margin.analysis.live import LiveScore
 from energy_margin.analysis.scores import trajectory_success_score
+from energy_margin.compat import save_npz
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_positive_int
@@ -191,7 +192,7 @@ class MarginModel:
         header = np.frombuffer(json.dumps(self.header(), sort_keys=True).encode("utf-8"), dtype=np.uint8)
         arrays = {f"{_PREFIX}{name}": value for name, value in self.regressor.arrays().items()}
         with atomic_path(path) as temporary, temporary.open("wb") as stream:
-            np.savez_compressed(stream, allow_pickle=False, **{_HEADER: header}, **arrays)
+            save_npz(stream, {_HEADER: header, **arrays}, compressed=True)
 
 
 def load_margin_model(path: Path | str, *, task_name: str | None = None) -> MarginModel:

@@ -19,6 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.compat import copy_light
 from energy_margin.errors import EnergyMarginError
 from energy_margin.report.render import View, fit_view
 from energy_margin.runs.files import staging_directory
@@ -218,10 +219,7 @@ def _add_lights(model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCa
         if light.headlight or scene.nlight >= len(scene.lights):
             continue
         target = scene.lights[scene.nlight]
-        for name in ("pos", "dir", "ambient", "diffuse", "specular", "attenuation"):
-            getattr(target, name)[:] = getattr(light, name)
-        for name in ("type", "castshadow", "cutoff", "exponent", "bulbradius", "intensity", "range", "texid"):
-            setattr(target, name, getattr(light, name))
+        copy_light(light, target)
         target.headlight = 0
         scene.nlight += 1
 

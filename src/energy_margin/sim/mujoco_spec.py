@@ -19,6 +19,7 @@ import hashlib
 import mujoco
 import numpy as np
 
+from energy_margin.compat import joint_coefficient
 from energy_margin.sim.mujoco_index import ModelIndex, name_id
 from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 
@@ -147,7 +148,7 @@ def _add_object_geoms(body: mujoco.MjsBody, scene: Scene, obj: RigidObject, *, s
         # In the plane of the centres the sphere is the cylinder's circle: every contact of that
         # plane (another upright cylinder, a vertical face of the robot or a wall) has the
         # cylinder's point, normal and depth. (Against a face the engine reports the cylinder's
-        # line contact as two identical rows; the sphere gives one.)
+        # line contact as identical rows, two in MuJoCo 4.0; the sphere gives one.)
         _add_geom(body, obj.geom, obj.name, contype=0, conaffinity=floor)
         _add_helper_sphere(body, obj.name + "_sphere", float(obj.geom.size[0]), (0.0, 0.0, 0.0))
         stand_in = body.geoms[-1]
@@ -168,8 +169,8 @@ def _add_link(parent: mujoco.MjsBody, link: Link, conaffinity: int | None) -> No
             name=joint.name,
             type=_JOINT_TYPES[joint.kind],
             axis=[float(v) for v in joint.axis],
-            damping=[float(joint.damping)] + [0.0] * 2,
-            stiffness=[float(joint.stiffness)] + [0.0] * 2,
+            damping=joint_coefficient(joint.damping),
+            stiffness=joint_coefficient(joint.stiffness),
         )
         if joint.limits is not None:
             added.range = [float(v) for v in joint.limits]

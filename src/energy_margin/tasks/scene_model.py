@@ -19,6 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.compat import compile_before_copying, copy_body
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import object_geoms, object_inertials, upright_axes, world_aligned
 from energy_margin.sim.mujoco_spec import model_hash
@@ -196,10 +197,12 @@ def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tu
         template = model_spec.body(spec.template)
         if template is None:
             raise spec.error("objects.template", f"no body {spec.template!r} in {spec.mjcf.name}")
-        if template.parent is None or template.parent.name != model_spec.worldbody.name:
+        # The worldbody is compared first: MuJoCo before 3.14 crashes on the worldbody's parent.
+        worldbody = model_spec.worldbody.name
+        if template.name == worldbody or template.parent is None or template.parent.name != worldbody:
             raise spec.error("objects.template", f"body {spec.template!r} must be a child of the worldbody")
         try:
-            probe = model_spec.compile()
+            probe = compile_before_copying(model_spec)
         except (ValueError, mujoco.FatalError) as error:
             raise spec.error("mjcf", f"{spec.mjcf.name} does not compile: {_one_line(error)}") from None
         body = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_BODY, spec.template)
@@ -214,11 +217,14 @@ def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tu
         kind = spec.object_joints or object_joint_kind(probe, [body])
         spacing = 2.0 * radius + 0.01 if kind == "free" else 0.0
         model_spec.copy_during_attach = True
+        count = spec.count or 0
         try:
-            for index in range(spec.count or 0):
-                frame = model_spec.worldbody.add_frame(pos=[index * spacing, 0.0, 0.0])
-                frame.attach_body(template, "", f"_{index}")
-            model_spec.delete(template)
+            copy_body(
+                model_spec,
+                template,
+                [(index * spacing, 0.0, 0.0) for index in range(count)],
+                [f"_{index}" for index in range(count)],
+            )
         except (ValueError, mujoco.FatalError) as error:
             raise spec.error("objects.template", f"cannot copy body {spec.template!r}: {_one_line(error)}") from None
     apply_design(spec, model_spec, design)
