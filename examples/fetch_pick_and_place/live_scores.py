@@ -19,7 +19,6 @@ import argparse
 import importlib.util
 import json
 import re
-import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -47,7 +46,7 @@ def _module(path: Path, name: str) -> Any:
 
 
 policy = _module(FOLDER / "policy.py", "fetch_pick_and_place_policy")
-pictures = _module(FOLDER.parent / "live_pictures.py", "live_pictures")
+common = _module(FOLDER.parent / "stack_common.py", "stack_common")
 
 ENVIRONMENT = "FetchPickAndPlace-v4"
 #: Steps of an episode (the environment's own limit) and the scoring period.
@@ -153,49 +152,6 @@ def run_episode(
     }
 
 
-def save_picture(path: Path, episodes: list[dict[str, Any]]) -> None:
-    """One row per episode: its pictured moments side by side, each with its step and live scores."""
-    rows = []
-    for episode in episodes:
-        row = []
-        for step, pixels in sorted(episode["frames"].items()):
-            caption = f"env seed {episode['env_seed']}, noise {episode['noise']:.2f}: "
-            caption += f"{'success' if episode['success'] else 'failure'}\nstep {step} (t = {step * STEP_S:.2f} s)"
-            if step in episode["steps"]:
-                score = episode["scores"][episode["steps"].index(step)]
-                caption += f": capture {score['capture_score']:.2f}, success {score['success_score']:.2f}"
-            row.append((pixels, caption))
-        rows.append(row)
-    pictures.save_rows(path, rows)
-
-
-def cli(*arguments: str, echo: bool = True) -> str:
-    """Run ``energy-margin ARGUMENTS`` with this interpreter; its standard output (printed with ``echo``)."""
-    done = subprocess.run(
-        [sys.executable, "-m", "energy_margin", *arguments], check=True, capture_output=True, text=True
-    )
-    if echo:
-        print(done.stdout, end="", flush=True)
-    return done.stdout
-
-
-def timing(episodes: list[dict[str, Any]]) -> dict[str, Any]:
-    """Wall time per live call, ms, and tree expansions per call."""
-    calls = [score for episode in episodes for score in episode["scores"]]
-    ms = np.array([score["ms"] for score in calls])
-    expansions = np.array([score["expansions"] for score in calls])
-    return {
-        "calls": len(calls),
-        "mean_ms": float(ms.mean()),
-        "median_ms": float(np.median(ms)),
-        "p95_ms": float(np.percentile(ms, 95)),
-        "max_ms": float(ms.max()),
-        "mean_expansions": float(expansions.mean()),
-        "median_expansions": float(np.median(expansions)),
-        "fraction_stopped_by_budget": float(np.mean([score["stopped_by"] == "budget" for score in calls])),
-    }
-
-
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
@@ -226,7 +182,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     renderer = (
         None
         if args.no_picture
-        else pictures.Canvas(
+        else common.Canvas(
             env.unwrapped.model, 400, 300, lookat=(1.30, 0.78, 0.52), distance=1.0, azimuth=135.0, elevation=-20.0
         )
     )
@@ -248,19 +204,16 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
             flush=True,
         )
     if renderer is not None:
-        save_picture(out / "episode.png", [pictured[key] for key in (True, False) if key in pictured])
+        common.save_episodes(out / "episode.png", [pictured[key] for key in (True, False) if key in pictured], STEP_S)
         renderer.close()
-    times = timing(episodes)
+    times = common.timing(episodes)
     print(
         f"live calls: {times['calls']}, mean {times['mean_ms']:.1f} ms (median {times['median_ms']:.1f}, p95 "
         f"{times['p95_ms']:.1f}, max {times['max_ms']:.1f}), {times['mean_expansions']:.1f} expansions on average"
     )
-    dataset = out / "dataset"
-    cli("record", "--scene", str(scene), *files, "--frames", str(SCORED), "--out", str(dataset), "--overwrite")
-    analysis = ["--iterations", str(args.iterations), "--workers", "1", "--seed", str(args.seed), "--no-progress"]
-    cli("analyze", str(dataset), *analysis)
-    printed = cli("evaluate", str(dataset))
-    evaluation = json.loads(cli("evaluate", str(dataset), "--json", echo=False))
+    printed, evaluation = common.record_analyze_evaluate(
+        scene, files, SCORED, out / "dataset", args.iterations, args.seed
+    )
     results = {
         "environment": ENVIRONMENT,
         "mujoco": mujoco.__version__,

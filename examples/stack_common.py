@@ -1,14 +1,18 @@
-"""Pictures of a running environment for the stack examples (fetch_pick_and_place, metaworld_bin_picking).
+"""What the stack examples share (fetch_pick_and_place, metaworld_bin_picking): pictures, timing, the CLI.
 
 :class:`Canvas` draws an environment's ``MjModel`` / ``MjData`` with MuJoCo's own renderer
 (``mjr_render``) on the GL context ``MUJOCO_GL`` names, EGL (headless) when it is unset: the
 context is made here, so the choice holds even where MuJoCo was imported before the variable was
-read. :func:`save_rows` puts the moments of a few episodes side by side, each with a caption.
+read. :func:`save_episodes` puts the pictured moments of a few episodes side by side, each with its
+live scores. :func:`timing` sums up the live calls; :func:`cli` runs ``energy-margin``.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -106,3 +110,58 @@ def save_rows(path: Path, rows: list[list[tuple[np.ndarray, str]]]) -> None:
             draw.text((6, 3), caption, fill=(0, 0, 0))
             picture.paste(tile, (c * width, r * height))
     picture.save(path)
+
+
+def save_episodes(path: Path, episodes: list[dict[str, Any]], step_s: float) -> None:
+    """One row per episode (``frames``: step -> pixels), each moment captioned with its live scores."""
+    rows = []
+    for episode in episodes:
+        row = []
+        for step, pixels in sorted(episode["frames"].items()):
+            caption = f"env seed {episode['env_seed']}, noise {episode['noise']:.2f}: "
+            caption += f"{'success' if episode['success'] else 'failure'}\nstep {step} (t = {step * step_s:.2f} s)"
+            if step in episode["steps"]:
+                score = episode["scores"][episode["steps"].index(step)]
+                caption += f": capture {score['capture_score']:.2f}, success {score['success_score']:.2f}"
+            row.append((pixels, caption))
+        rows.append(row)
+    save_rows(path, rows)
+
+
+def timing(episodes: list[dict[str, Any]]) -> dict[str, Any]:
+    """Wall time per live call, ms, and tree expansions per call, over every episode's ``scores``."""
+    calls = [score for episode in episodes for score in episode["scores"]]
+    ms = np.array([score["ms"] for score in calls])
+    expansions = np.array([score["expansions"] for score in calls])
+    return {
+        "calls": len(calls),
+        "mean_ms": float(ms.mean()),
+        "median_ms": float(np.median(ms)),
+        "p95_ms": float(np.percentile(ms, 95)),
+        "max_ms": float(ms.max()),
+        "mean_expansions": float(expansions.mean()),
+        "median_expansions": float(np.median(expansions)),
+        "fraction_stopped_by_budget": float(np.mean([score["stopped_by"] == "budget" for score in calls])),
+    }
+
+
+def cli(*arguments: str, echo: bool = True) -> str:
+    """Run ``energy-margin ARGUMENTS`` with this interpreter; its standard output (printed with ``echo``)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "energy_margin", *arguments], check=True, capture_output=True, text=True
+    )
+    if echo:
+        print(done.stdout, end="", flush=True)
+    return done.stdout
+
+
+def record_analyze_evaluate(
+    scene: Path, files: list[str], frames: int, dataset: Path, iterations: int, seed: int
+) -> tuple[str, dict[str, Any]]:
+    """``energy-margin record``, ``analyze`` and ``evaluate`` of the recorded episodes; evaluate's text and JSON."""
+    cli("record", "--scene", str(scene), *files, "--frames", str(frames), "--out", str(dataset), "--overwrite")
+    cli(
+        "analyze", str(dataset), "--iterations", str(iterations), "--workers", "1", "--seed", str(seed), "--no-progress"
+    )
+    printed = cli("evaluate", str(dataset))
+    return printed, json.loads(cli("evaluate", str(dataset), "--json", echo=False))
