@@ -7,9 +7,9 @@ spells a thing differently, the helpers below give every caller one spelling:
   number before: :func:`joint_coefficient`.
 * ``MjSpec.delete`` removes an element in later releases; MuJoCo 3.3.0 has only
   ``MjSpec.detach_body`` for a body: :func:`delete_body`.
-* Copying a body with ``attach_body`` extends the model's keyframes from MuJoCo 3.16; before,
-  the keyframes keep their old sizes and the model does not compile: :func:`attach_keeps_keyframes`
-  and :func:`rebuild_keyframes`.
+* Copying a body with ``attach_body`` puts each copy at its reference pose in the model's
+  keyframes from MuJoCo 3.16; before, it leaves zeros there, and a spec compiled before the copy
+  refuses it: :func:`compile_before_copying` and :func:`copy_body`.
 * ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.1 and an array named
   ``allow_pickle`` before: :func:`save_npz` (which never pickles on any version).
 
@@ -24,7 +24,7 @@ from __future__ import annotations
 import functools
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import IO, Any
 
 import numpy as np
@@ -110,8 +110,85 @@ def delete_body(spec: Any, body: Any) -> None:
 
 
 def attach_keeps_keyframes() -> bool:
-    """Whether ``attach_body`` (and deleting a body) keeps the model's keyframes the right size."""
+    """Whether ``attach_body`` gives the copies their reference pose in every keyframe (MuJoCo 3.16 on)."""
     return mujoco_at_least(ATTACH_KEYFRAMES_SINCE)
+
+
+def compile_before_copying(spec: Any) -> Any:
+    """Compile ``spec`` to measure it before :func:`copy_body` adds copies to it.
+
+    Before MuJoCo 3.16 a compiled spec that has keyframes refuses ``attach_body`` ("Keyframe
+    'start' has invalid qpos size"): there a copy of the spec is compiled instead.
+    """
+    if attach_keeps_keyframes():
+        return spec.compile()
+    return spec.copy().compile()
+
+
+def copy_body(spec: Any, body: Any, positions: Sequence[Sequence[float]], suffixes: Sequence[str]) -> None:
+    """Replace ``body`` (a child of the worldbody) by copies at ``positions``, named ``<body><suffix>``.
+
+    Every copy hangs from a new frame of the worldbody at its position; the original is then
+    deleted. The keyframes come out as MuJoCo 3.16 and later make them: ``attach_body`` adds one
+    keyframe per copy and keyframe (the template's values on that copy), and in every other
+    keyframe each copy stands at its reference pose (``qpos0``). Older releases leave zeros
+    there, which :func:`reference_pose_in_keyframes` mends.
+
+    Args:
+        spec: the ``mujoco.MjSpec`` (``copy_during_attach`` set).
+        body: the ``MjsBody`` to copy.
+        positions: each copy's frame position, m.
+        suffixes: each copy's name suffix.
+
+    """
+    n_keys = len(spec.keys)
+    for position, suffix in zip(positions, suffixes, strict=True):
+        frame = spec.worldbody.add_frame(pos=[float(v) for v in position])
+        frame.attach_body(body, "", suffix)
+    name = body.name
+    delete_body(spec, body)
+    if attach_keeps_keyframes() or n_keys == 0 or not suffixes:
+        return
+    import mujoco
+
+    model = spec.compile()
+    roots = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name + suffix) for suffix in suffixes]
+    mended = reference_pose_in_keyframes(model, n_keys, roots)
+    for key, row in zip(spec.keys, mended, strict=True):
+        key.qpos = row
+
+
+#: qpos entries of each joint type (free, ball, slide, hinge).
+_QPOS_SIZE = (7, 4, 1, 1)
+
+
+def reference_pose_in_keyframes(model: Any, n_keys: int, roots: Sequence[int]) -> np.ndarray:
+    """``model.key_qpos`` with each copied body at its ``qpos0`` where its keyframes leave it unset.
+
+    ``attach_body`` orders the keyframes of the copied model as the ``n_keys`` original keyframes
+    once per copy (each sets the template's values on that copy only), then the original ones
+    (which set no copy). Returns the (nkey, nq) keyframe positions.
+
+    Args:
+        model: the compiled ``MjModel`` with the copies.
+        n_keys: keyframes of the model before copying.
+        roots: body id of each copy's root body, in the order the copies were attached.
+
+    """
+    qpos = np.array(model.key_qpos, dtype=np.float64).reshape(model.nkey, model.nq)
+    for copy, root in enumerate(roots):
+        joints = np.flatnonzero(model.body_rootid[model.jnt_bodyid] == root)
+        columns = [
+            address
+            for joint in joints
+            for address in range(
+                int(model.jnt_qposadr[joint]), int(model.jnt_qposadr[joint]) + _QPOS_SIZE[model.jnt_type[joint]]
+            )
+        ]
+        for key in range(model.nkey):
+            if key // n_keys != copy or key >= n_keys * len(roots):
+                qpos[key, columns] = model.qpos0[columns]
+    return qpos
 
 
 def save_npz(
