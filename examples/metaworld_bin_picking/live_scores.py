@@ -12,7 +12,7 @@ writes the scene file, turns the recorded episodes into a dataset with ``energy-
 failed episode with MuJoCo's renderer (EGL without a display) at four moments each into
 ``OUT/episode.png``.
 
-Usage: ``python examples/metaworld_bin_picking/live_scores.py --episodes 50 --out runs/metaworld_bin_picking``
+Usage: ``python examples/metaworld_bin_picking/live_scores.py --episodes 30 --out runs/metaworld_bin_picking``
 """
 
 from __future__ import annotations
@@ -167,10 +167,10 @@ def run_episode(
 def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     """The command line."""
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=50)
+    parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--out", type=Path, default=Path("runs/metaworld_bin_picking"))
     parser.add_argument("--budget", type=float, default=0.05, help="wall-clock budget of one live call, s")
-    parser.add_argument("--iterations", type=int, default=300, help="expansions per frame of the offline analysis")
+    parser.add_argument("--iterations", type=int, default=100, help="expansions per frame of the offline analysis")
     parser.add_argument("--seed", type=int, default=0, help="seed of the trees, the task sampler and the noise")
     parser.add_argument("--env-seed", type=int, default=1000, help="environment seed of episode 0")
     parser.add_argument("--no-picture", action="store_true", help="render nothing")
