@@ -17,7 +17,7 @@ import energy_margin
 
 PACKAGE = Path(energy_margin.__file__).parent
 
-#: The stages in the order data flows. Modules outside them (errors, _moved, the package
+#: The stages in the order data flows. Modules outside them (errors, compat, _moved, the package
 #: ``__init__``) are foundations every stage may import, and they import no stage.
 STAGES = (
     "runs",
@@ -38,6 +38,7 @@ STAGES = (
 FOUNDATIONS = (
     "energy_margin",
     "energy_margin.errors",
+    "energy_margin.compat",
     "energy_margin._moved",
     "energy_margin._version",
     "energy_margin.__main__",

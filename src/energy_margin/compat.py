@@ -10,8 +10,20 @@ spells a thing differently, the helpers below give every caller one spelling:
 * Copying a body with ``attach_body`` puts each copy at its reference pose in the model's
   keyframes from MuJoCo 3.16; before, it leaves zeros there, and a spec compiled before the copy
   refuses it: :func:`compile_before_copying` and :func:`copy_body`.
+* A box's contact with another box reports half its depth in some poses (face to face) before
+  MuJoCo 3.4: :func:`contact_depths` measures those pairs with ``mj_geomDistance``.
+* ``MjSpec.compile`` turns a warning while compiling (a model unstable at its reference pose) into
+  an error before MuJoCo 3.10: :func:`compile_refuses_warnings`.
 * ``numpy.savez(allow_pickle=False)`` is an option from numpy 2.1 and an array named
   ``allow_pickle`` before: :func:`save_npz` (which never pickles on any version).
+
+Some differences are the engine's own and cannot be mended here; the tests pin their numbers per
+release (``tests/releases.py``) or skip on the releases that lack a behaviour:
+
+* Frictionless contacts (friction 0, clamped to 1e-5) resist sliding in some poses in MuJoCo
+  3.3.0 to 3.3.5: :data:`FRICTIONLESS_SLIDING_SINCE`.
+* A cylinder whose centre is inside a box touches it without a contact before MuJoCo 4.0:
+  :data:`CYLINDER_INSIDE_BOX_SINCE` (the dataset check cannot see such an overlap there).
 
 Where an older release cannot do a thing at all, :func:`require_mujoco` refuses it with one
 :class:`~energy_margin.errors.EnergyMarginError` line naming the release needed.
@@ -35,6 +47,14 @@ from energy_margin.errors import EnergyMarginError
 MUJOCO_MINIMUM = (3, 3, 0)
 #: The first MuJoCo release whose joint damping and stiffness hold three numbers.
 JOINT_POLYNOMIAL_SINCE = (3, 7, 0)
+#: The first MuJoCo release whose box-box contacts report their whole depth.
+BOX_DEPTH_SINCE = (3, 4, 0)
+#: The first MuJoCo release whose ``MjSpec.compile`` keeps a warning a warning.
+COMPILE_WARNINGS_SINCE = (3, 10, 0)
+#: The first MuJoCo release whose frictionless contacts let an object slide freely in every pose.
+FRICTIONLESS_SLIDING_SINCE = (3, 3, 6)
+#: The first MuJoCo release that finds the contact of a cylinder whose centre is inside a box.
+CYLINDER_INSIDE_BOX_SINCE = (4, 0, 0)
 #: The first MuJoCo release whose ``attach_body`` extends the keyframes of the model attached to.
 ATTACH_KEYFRAMES_SINCE = (3, 16, 0)
 
@@ -189,6 +209,33 @@ def reference_pose_in_keyframes(model: Any, n_keys: int, roots: Sequence[int]) -
             if key // n_keys != copy or key >= n_keys * len(roots):
                 qpos[key, columns] = model.qpos0[columns]
     return qpos
+
+
+def contact_depths(model: Any, data: Any) -> np.ndarray:
+    """How deep each of ``data``'s contacts penetrates, m (``-dist``: positive where geoms overlap).
+
+    Before MuJoCo 3.4 a contact between two boxes can carry half the overlap (two boxes face to
+    face); there each box-box contact takes the pair's penetration from ``mj_geomDistance`` when
+    that is deeper, which is what later releases report.
+    """
+    contacts = data.contact
+    depths: np.ndarray = -np.asarray(contacts.dist, dtype=np.float64)
+    if mujoco_at_least(BOX_DEPTH_SINCE) or depths.size == 0:
+        return depths
+    import mujoco
+
+    box = int(mujoco.mjtGeom.mjGEOM_BOX)
+    first, second = np.asarray(contacts.geom1), np.asarray(contacts.geom2)
+    boxes = (model.geom_type[first] == box) & (model.geom_type[second] == box) & (depths > 0)
+    for contact in np.flatnonzero(boxes):
+        distance = mujoco.mj_geomDistance(model, data, int(first[contact]), int(second[contact]), 0.0, None)
+        depths[contact] = max(float(depths[contact]), -float(distance))
+    return depths
+
+
+def compile_refuses_warnings() -> bool:
+    """Whether ``MjSpec.compile`` raises on a warning, e.g. a model unstable at its reference pose (before 3.10)."""
+    return not mujoco_at_least(COMPILE_WARNINGS_SINCE)
 
 
 def save_npz(

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from energy_margin import compat
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
@@ -201,6 +202,10 @@ def test_object_sunk_into_the_ground(tiny_dataset: Path, rewrite_frames: Callabl
     assert all("(limit 25.0 mm)" in p.message for p in problems)
 
 
+@pytest.mark.skipif(
+    not compat.mujoco_at_least(compat.CYLINDER_INSIDE_BOX_SINCE),
+    reason="MuJoCo before 4.0 finds no contact for a cylinder whose centre is inside a box (the pusher)",
+)
 def test_object_inside_the_pusher(tiny_dataset: Path, rewrite_frames: Callable[..., None]) -> None:
     arrays = _arrays(tiny_dataset)
     pos = arrays["object_pos"]

@@ -19,7 +19,7 @@ pytest.importorskip("plotly")
 
 def plotly_traces(page: str) -> list[dict[str, Any]]:
     """The trace list of the page's ``Plotly.newPlot`` call, typed arrays decoded."""
-    start = page.index("Plotly.newPlot(")
+    start = page.rindex("Plotly.newPlot(")  # the figure's call, after plotly.js (which may name it)
     start = page.index("[", page.index(",", start))
     traces, _ = json.JSONDecoder().raw_decode(page[start:])
 

@@ -5,7 +5,8 @@ ground's. In the plane through the centres it is the cylinder's circle, so what 
 every lateral contact (pair, depth, normal) with other objects, the pusher and the wall, the
 sliding friction on the ground, the momentum exchanged in a collision, the push of the pusher, and
 the energy bookkeeping. What does change: the engine reports a cylinder's line contact with a
-face as two identical rows, the sphere's as one.
+face as several identical rows (two in MuJoCo 4.0, one in 3.3: :func:`line_contact_rows`), the
+sphere's as one.
 """
 
 from __future__ import annotations
@@ -22,8 +23,24 @@ from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, command_robot, get_task
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
+from releases import LATERAL_TOLERANCE, for_release
 
 MODES = ("geometry", "sphere")
+
+# An upright cylinder pressed 1 mm into a box's face.
+LINE_CONTACT = """<mujoco><worldbody>
+<geom type="box" size="0.5 0.05 0.1" pos="0 0.1 0.1"/>
+<body pos="0 0.001 0.015"><freejoint/><geom type="cylinder" size="0.05 0.015"/></body>
+</worldbody></mujoco>"""
+
+
+def line_contact_rows() -> int:
+    """The rows the installed MuJoCo reports for a cylinder's line contact with a face."""
+    model = mujoco.MjModel.from_xml_string(LINE_CONTACT)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    assert data.ncon >= 1 and np.allclose(data.contact.dist, -0.001, rtol=0, atol=1e-5)
+    return int(data.ncon)
 
 
 def _pushing(n_objects: int, friction: float, *, lateral: str, ground: str = "geometry") -> MujocoSimulator:
@@ -75,12 +92,15 @@ def test_sphere_needs_upright_objects(make_block_scene: Callable[..., Scene]) ->
 @pytest.mark.parametrize("ground", ["geometry", "footprint"])
 def test_lateral_contacts_are_the_cylinders(ground: str) -> None:
     # Packed layouts: every pair that touches (other than through the ground) touches with the
-    # sphere, at the same depth and along the same normal. Differences measured: depth < 1e-7 m;
+    # sphere, at the same depth and along the same normal. Differences measured: depth < 1e-7 m
+    # (1.5e-7 m with MuJoCo 3.3);
     # object-object normals within 4e-3 (the engine's convex pair is iterative; the sphere pair
     # gives the exact centre line); with the pusher and the wall depth < 1e-8 m, normals < 1e-6.
     task = PushingTask()
     rng = np.random.default_rng(11)
     checked = {"object": 0, "pusher": 0, "world": 0}
+    rows = line_contact_rows()
+    tolerance = for_release(LATERAL_TOLERANCE, "the tolerances")
     for _ in range(20):
         frame, friction = _packed_frame(task, rng, 4)
         contacts, counts = {}, {}
@@ -100,17 +120,19 @@ def test_lateral_contacts_are_the_cylinders(ground: str) -> None:
                     )
                     # Spheres take every contact; the cylinder itself only the ground's.
                     assert "sphere" in names or "ground" in names or "footprint" in names, names
-        # One row per pair with the sphere; the engine's line contacts with a face are two.
+        # One row per pair with the sphere; the engine's line contacts with a face have ``rows``.
         assert sorted(set(counts["geometry"])) == counts["sphere"]
-        assert all(counts["geometry"].count(pair) == (2 if "object" not in pair[1] else 1) for pair in counts["sphere"])
+        assert all(
+            counts["geometry"].count(pair) == (rows if "object" not in pair[1] else 1) for pair in counts["sphere"]
+        )
         assert sorted(contacts["sphere"]) == sorted(contacts["geometry"])
         for pair, (depth, normal) in contacts["sphere"].items():
             reference_depth, reference_normal = contacts["geometry"][pair]
-            assert depth == pytest.approx(reference_depth, abs=1e-7)
+            assert depth == pytest.approx(reference_depth, abs=tolerance["object"])
             np.testing.assert_allclose(normal, reference_normal, atol=4e-3)
             if "pusher" in pair or "world" in pair:
-                assert depth == pytest.approx(reference_depth, abs=1e-8)
-                np.testing.assert_allclose(normal, reference_normal, atol=1e-6)
+                assert depth == pytest.approx(reference_depth, abs=tolerance["face"])
+                np.testing.assert_allclose(normal, reference_normal, atol=tolerance["face_normal"])
                 checked["pusher" if "pusher" in pair else "world"] += 1
             else:
                 first, second = (int(name.removeprefix("object")) for name in pair)

@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from energy_margin import compat
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import Simulator, make_simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
@@ -319,6 +320,8 @@ def test_wrench_moves_object_along_the_force(
     direction: tuple[float, float],
     friction: float,
 ) -> None:
+    if friction == 0.0 and not compat.mujoco_at_least(compat.FRICTIONLESS_SLIDING_SINCE):
+        pytest.skip("frictionless contacts resist sliding in some poses in MuJoCo 3.3.0 to 3.3.5")
     scene = make_block_scene(2, motion=motion, friction=friction)
     simulator = MujocoSimulator(scene)
     simulator.reset(make_resting_frame(scene))

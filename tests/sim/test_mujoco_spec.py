@@ -79,6 +79,8 @@ def authored_hash(model: mujoco.MjModel) -> str:
     digest = hashlib.sha256()
     for name in AUTHORED:
         array = np.ascontiguousarray(getattr(model, name))
+        if name.endswith("limited"):
+            array = array.astype(bool)  # uint8 before MuJoCo 3.4-ish, bool after: the same flags
         digest.update(f"{name}{array.dtype}{array.shape}".encode())
         digest.update(array.tobytes())
     for value in (model.opt.timestep, *model.opt.gravity, float(model.opt.integrator)):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from energy_margin.compat import contact_depths
 from energy_margin.errors import InvalidParameterError
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import (
@@ -223,11 +224,12 @@ class MujocoSimulator:
         contacts = data.contact
         first = self._geom_object[contacts.geom1]
         second = self._geom_object[contacts.geom2]
-        penetrating = (contacts.dist < 0) & ((first >= 0) | (second >= 0))
+        depths = contact_depths(self.model, data)
+        penetrating = (depths > 0) & ((first >= 0) | (second >= 0))
         result = []
-        for a, b, distance in zip(first[penetrating], second[penetrating], contacts.dist[penetrating], strict=True):
+        for a, b, depth in zip(first[penetrating], second[penetrating], depths[penetrating], strict=True):
             obj, other = (int(a), int(b)) if a >= 0 else (int(b), int(a))
-            result.append((obj, other, -float(distance)))
+            result.append((obj, other, float(depth)))
         return result
 
     def object_positions(self) -> np.ndarray:
