@@ -15,6 +15,7 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, load_scores, read_journal
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
+from energy_margin.runs.directory import run_versions
 from energy_margin.tasks import all_inside
 
 SMALL = AnalyzerConfig(iterations=30)
@@ -144,7 +145,8 @@ def test_analyze_writes_one_row_per_frame(tiny_dataset: Path) -> None:
     assert description["seed"] == 0
     assert description["likelihood_lambda"] == 5.0
     assert description["dataset"]["n_trajectories"] == 2
-    assert set(description["versions"]) == {"energy_margin", "mujoco", "numpy"}
+    assert description["versions"] == run_versions("mujoco")
+    assert set(description["versions"]) == {"energy_margin", "engine", "mujoco", "numpy"}
     # Every journal row made it to the scores, and vice versa.
     assert read_journal(tiny_dataset / JOURNAL_FILE).keys() == {(t, k) for t in range(2) for k in range(3)}
 

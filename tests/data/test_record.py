@@ -11,6 +11,7 @@ import pytest
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
+from energy_margin.runs.versions import engine_versions
 from energy_margin.tasks.scene_model import load_scene
 
 
@@ -46,6 +47,7 @@ def test_record_turns_logged_rollouts_into_a_dataset(tiny_scene: Path, tmp_path:
     # The mocap coordinates of robot_q are the declared motion's at each frame time.
     np.testing.assert_allclose(dataset.arrays["robot_q"][0, :, 1], -0.15 + 0.3 * dataset.arrays["frame_time"][0])
     assert dataset.metadata["recorded_from"][0]["file"] == "run0.npz"
+    assert dataset.metadata["versions"] == engine_versions("mujoco")
     assert dataset.arrays["captured"].any()
     assert main(["check", str(out)]) == 0
     assert main(["analyze", str(out), "--iterations", "20", "--workers", "1"]) == 0

@@ -13,6 +13,7 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.reference import SCOOP_BLADE_HALF_WIDTH, import_reference, read_reference
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
+from energy_margin.runs.versions import engine_versions
 from energy_margin.tasks import get_task
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -150,6 +151,8 @@ def test_tiny_folder_imports(tmp_path: Path) -> None:
     assert not (tmp_path / "out" / "scores.csv").exists()
     assert dataset.arrays["captured"].tolist() == [[False, True], [False, True]]
     assert dataset.success_labels().tolist() == [True, False]
+    # The software that imported the set (the frames are the authors' own).
+    assert dataset.metadata["versions"] == engine_versions("pybullet")
 
 
 def _tiny_scooping(folder: Path, box_y: float) -> None:

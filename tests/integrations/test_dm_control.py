@@ -76,7 +76,7 @@ def test_physics_scorer_and_recording(tmp_path: Path) -> None:
 
 
 def test_bad_inputs_are_one_line() -> None:
-    with pytest.raises(EnergyMarginError, match="has no physics"):
+    with pytest.raises(EnergyMarginError, match="object has no MuJoCo model"):
         MarginEnvironment(object(), objects="x", capture=CAPTURE, success=SUCCESS)
     with pytest.raises(EnergyMarginError, match="has no MuJoCo model"):
         PhysicsScorer(object(), objects="x", capture=CAPTURE, success=SUCCESS)

@@ -52,6 +52,15 @@ def test_the_command_prints_its_guesses(tmp_path: Path, capsys: pytest.CaptureFi
     ("arguments", "message"),
     [
         (["--from-gym", "Nope-v0", "--objects", "x"], "--from-gym Nope-v0: Environment `Nope` doesn't exist"),
+        (["--from-gym", "Nope/Env-v0", "--objects", "x"], "give the module that registers it: MODULE:ENV_ID"),
+        (["--from-gym", "no_such_module:Env-v0", "--objects", "x"], "module 'no_such_module' cannot be imported"),
+        (["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", "{bad"], "--env-kwargs is not JSON"),
+        (["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", "[1]"], "must be a JSON object"),
+        (
+            ["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", '{"no_such_option": 1}'],
+            r"Pusher-v5 with \{'no_such_option': 1\}: TypeError: .*no_such_option",
+        ),
+        (["--env-kwargs", "{}"], "--env-kwargs applies to --from-gym only"),
         (["--from-gym", "CartPole-v1", "--objects", "x"], r"\(CartPoleEnv\) has no MuJoCo model"),
         (["--from-gym", "Pusher-v5", "--objects", "cube"], "--objects cube: no body of Pusher-v5 matches"),
         (["--from-gym", "Pusher-v5"], "--from-gym needs --objects PATTERN and --out SCENE.toml"),
@@ -69,3 +78,15 @@ def test_bad_input_is_one_line_and_writes_nothing(
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and pytest.importorskip("re").search(message, error), error
     assert not out.parent.exists()
+
+
+def test_module_and_keyword_arguments_reach_gymnasium_make(tmp_path: Path) -> None:
+    # MODULE:ENV_ID imports the module first; --env-kwargs are gymnasium.make's keyword arguments.
+    out = tmp_path / "p.toml"
+    arguments = ["--from-gym", "gymnasium.envs.mujoco:Pusher-v5", "--env-kwargs", '{"frame_skip": 3}']
+    assert main(["scene", *arguments, "--objects", "object", "--out", str(out), "--no-picture"]) == 0
+    assert out.is_file()
+    from energy_margin.integrations.gymnasium import make_environment
+
+    env = make_environment("gymnasium.envs.mujoco:Pusher-v5", {"frame_skip": 3})
+    assert env.unwrapped.frame_skip == 3

@@ -11,6 +11,7 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.robustness.perturb import perturb_dataset, perturb_frame
+from energy_margin.runs.versions import engine_versions
 from energy_margin.sim import make_simulator
 from energy_margin.world.ellipsoid import min_volume_ellipsoid
 
@@ -43,6 +44,9 @@ def test_perturbed_copies_keep_labels_and_zero_velocities(tiny_dataset: Path, tm
         assert not np.array_equal(copy.arrays["object_pos"], true.arrays["object_pos"])
         info = copy.metadata["perturbation"]
         assert info["repeat"] == repeat and info["seed"] == 3 and info["coordinates"] == "xy"
+        # The frames keep the source's versions record; the copy's own is the perturbation's.
+        assert copy.metadata["versions"] == true.metadata["versions"]
+        assert info["versions"] == engine_versions("mujoco")
         # Upright objects are put on the ground: one common height per frame.
         assert np.ptp(copy.arrays["object_pos"][..., 2], axis=-1).max() < 1e-12
         # No overlaps with each other, the pusher, the ground or the wall.

@@ -9,7 +9,7 @@ import pytest
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs import RunLockedError, RunSpec, open_run, run_directory
-from energy_margin.runs.directory import difference
+from energy_margin.runs.directory import difference, run_versions
 from energy_margin.runs.lock import LOCK_FILE
 
 SPEC = RunSpec(contents="results", settings_file="run.json", outputs=("rows.csv", "items"), may_differ=("count",))
@@ -18,7 +18,11 @@ SPEC = RunSpec(contents="results", settings_file="run.json", outputs=("rows.csv"
 def test_settings_are_written_first_and_a_run_resumes(tmp_path: Path) -> None:
     out = tmp_path / "run"
     with run_directory(out, SPEC, {"seed": 0, "count": 2}) as run:
-        assert not run.resumed and json.loads((out / "run.json").read_text()) == {"count": 2, "seed": 0}
+        assert not run.resumed and json.loads((out / "run.json").read_text()) == {
+            "count": 2,
+            "seed": 0,
+            "versions": run_versions(),
+        }
         assert (out / LOCK_FILE).exists()
         (out / "rows.csv").write_text("a\n")
     assert not (out / LOCK_FILE).exists()
@@ -95,7 +99,7 @@ def test_settings_under_a_key_keep_what_sits_beside_them(tmp_path: Path) -> None
     with run_directory(tmp_path, spec, {"n": 3, "seed": 0}) as run:
         assert run.resumed
     stored = json.loads((tmp_path / "control.json").read_text())
-    assert stored == {"settings": {"n": 3, "seed": 0}, "summary": {"rate": 0.5}}
+    assert stored == {"settings": {"n": 3, "seed": 0}, "summary": {"rate": 0.5}, "versions": run_versions()}
 
 
 def test_normalize_fills_settings_of_an_earlier_release() -> None:

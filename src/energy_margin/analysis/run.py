@@ -12,9 +12,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from energy_margin._version import __version__
 from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
@@ -23,14 +20,17 @@ from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FIL
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
+from energy_margin.runs.directory import run_versions
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.tasks import with_contacts
 
 
 def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
-    """What ``analysis.json`` records of a run: settings, seed, dataset, task and versions."""
-    import mujoco
+    """What ``analysis.json`` records of a run: settings, seed, dataset, task and versions.
 
+    ``versions`` is :func:`energy_margin.runs.directory.run_versions` of the analysis's engine:
+    the package's version, the engine, MuJoCo's and numpy's (and PyBullet's with that engine).
+    """
     description: dict[str, Any] = {
         "analyzer": config.to_dict(),
         "seed": int(seed),
@@ -39,15 +39,11 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
         "likelihood_lambda": config.likelihood_lambda
         if config.likelihood_lambda is not None
         else dataset.task.config.likelihood_lambda,
-        "versions": {"energy_margin": __version__, "mujoco": mujoco.__version__, "numpy": np.__version__},
+        "versions": run_versions(config.engine),
     }
     if config.contacts != "recorded":
         # The settings the physics of the analysis used (the dataset's, with the contact model's).
         description["analysis_task_config"] = with_contacts(dataset.task, config.contacts).config.to_dict()
-    if config.engine == "pybullet":
-        from importlib.metadata import version
-
-        description["versions"]["pybullet"] = version("pybullet")
     return description
 
 
@@ -169,7 +165,8 @@ def open_analysis(
         of this very run exists.
 
     """
-    run = open_run(directory, ANALYSIS_RUN, description, overwrite=overwrite)
+    engine = str(description.get("analyzer", {}).get("engine", "mujoco"))
+    run = open_run(directory, ANALYSIS_RUN, description, overwrite=overwrite, engine=engine)
     try:
         if run.resumed and (directory / SCORES_FILE).exists():
             return run, None

@@ -19,6 +19,7 @@ from energy_margin.cli.common import (
     non_negative_int,
     positive_float,
     positive_int,
+    say_notes,
 )
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.costs import COST_MODELS
@@ -230,7 +231,9 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "model", None) is not None:
         return run_learned(args)
     from energy_margin.analysis.run import analyze
+    from energy_margin.data.provenance import dataset_note
 
+    say_notes(dataset_note(args.dataset, engine=args.engine))
     path = analyze(
         args.dataset,
         analyzer_config(args),
@@ -253,8 +256,10 @@ def run_learned(args: argparse.Namespace) -> int:
             f"--model scores frames with a learned margin and grows no tree: {', '.join(given)} "
             f"{'does' if len(given) == 1 else 'do'} not apply"
         )
+    from energy_margin.data.provenance import dataset_note
     from energy_margin.learning.scoring import score_dataset
 
+    say_notes(dataset_note(args.dataset))
     path = score_dataset(
         args.dataset, args.model, overwrite=args.overwrite, progress=not args.no_progress, seed=args.seed
     )

@@ -138,6 +138,13 @@ class ProgressBar:
             self._bar.close()
 
 
+def say_notes(*notes: str | None) -> None:
+    """Print each note (one line, a warning, not an error) on standard error; ``None`` is skipped."""
+    for note in notes:
+        if note:
+            print(one_line(note), file=sys.stderr, flush=True)
+
+
 def require_matplotlib() -> None:
     """Raise a one-line hint when the ``plot`` extra is missing."""
     try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json
+from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json, say_notes
 
 NAME = "evaluate"
 SUMMARY = "Average Precision of a scored dataset against its labels; with --compare, Table I"
@@ -43,8 +43,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the AP table (or JSON)."""
+    from energy_margin.data.provenance import dataset_note, scores_note
     from energy_margin.evaluation.metrics import evaluate, format_table
 
+    # One line: the scores' engine against the frames' when they differ, else the frames' against this one.
+    say_notes(scores_note(args.dataset) or dataset_note(args.dataset))
     options = {"capture_window": args.capture_window, "success_frames": args.success_frames, "weights": args.weights}
     verdict = {"resamples": args.resamples, "seed": args.seed}
     if args.compare:

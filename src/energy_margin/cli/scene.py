@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from pathlib import Path
+from typing import Any
 
 from energy_margin.cli.common import add_seed, require_matplotlib
 
@@ -21,8 +23,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", nargs="?", metavar="SCENE.toml", help="the scene file (docs/scenes.md)")
     parser.add_argument(
         "--from-gym",
-        metavar="ENV_ID",
-        help="write a starter scene file for this Gymnasium MuJoCo environment (needs --objects and --out)",
+        metavar="[MODULE:]ENV_ID",
+        help="write a starter scene file for this Gymnasium MuJoCo environment (needs --objects and --out); "
+        "MODULE is imported first (the package that registers the id, e.g. metaworld:Meta-World/MT1)",
+    )
+    parser.add_argument(
+        "--env-kwargs",
+        metavar="JSON",
+        help="with --from-gym: keyword arguments of gymnasium.make, a JSON object "
+        '(e.g. \'{"env_name": "bin-picking-v3"}\')',
     )
     parser.add_argument("--objects", help="with --from-gym: object body names or glob patterns, comma separated")
     parser.add_argument("--out", metavar="SCENE.toml", help="with --from-gym: the scene file to write")
@@ -46,6 +55,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.from_gym is not None:
         args.scene = _from_gym(args)
+    elif args.env_kwargs is not None:
+        raise EnergyMarginError("--env-kwargs applies to --from-gym only")
     elif args.scene is None:
         raise EnergyMarginError("give a scene file, or --from-gym ENV_ID --objects PATTERN --out SCENE.toml")
     camera = None
@@ -76,6 +87,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _env_kwargs(text: str | None) -> dict[str, Any]:
+    """The JSON object of ``--env-kwargs`` (empty without one)."""
+    from energy_margin.errors import EnergyMarginError
+
+    if text is None:
+        return {}
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise EnergyMarginError(f"--env-kwargs is not JSON ({error.msg} at character {error.pos}): {text}") from None
+    if not isinstance(value, dict):
+        raise EnergyMarginError(f"--env-kwargs must be a JSON object of keyword arguments, got {text}")
+    return value
+
+
 def _from_gym(args: argparse.Namespace) -> str:
     """Write the starter scene of ``--from-gym`` and print what was guessed; returns its path."""
     from energy_margin.errors import EnergyMarginError
@@ -86,16 +112,18 @@ def _from_gym(args: argparse.Namespace) -> str:
         raise EnergyMarginError("--from-gym needs --objects PATTERN and --out SCENE.toml")
     if args.capture_radius is not None and not args.capture_radius > 0:
         raise EnergyMarginError(f"--capture-radius must be > 0, got {args.capture_radius}")
+    env_kwargs = _env_kwargs(args.env_kwargs)
     try:
-        import gymnasium
+        import gymnasium  # noqa: F401
     except ImportError:
         raise EnergyMarginError("--from-gym needs Gymnasium: pip install 'energy-margin[gymnasium]'") from None
     from energy_margin.integrations.gym_scene import scene_from_environment
+    from energy_margin.integrations.gymnasium import make_environment
 
     try:
-        env = gymnasium.make(args.from_gym)
-    except Exception as error:  # Gymnasium raises several types for an unknown or broken id.
-        raise EnergyMarginError(f"--from-gym {args.from_gym}: {' '.join(str(error).split())}") from None
+        env = make_environment(args.from_gym, env_kwargs)
+    except EnergyMarginError as error:
+        raise EnergyMarginError(f"--from-gym {error}") from None
     try:
         written = scene_from_environment(
             env, objects=args.objects.split(","), out=args.out, capture_radius=args.capture_radius

@@ -6,7 +6,9 @@ A dataset is a directory with two files:
     ``format`` ("energy-margin-dataset"), ``schema_version`` (1), ``task``, ``task_config`` (every
     resolved setting), ``engine``, ``model_sha256`` (the task's compiled MuJoCo model), ``seed``,
     ``n_trajectories`` (T), ``n_frames`` (K), ``n_objects`` (n), ``n_robot_dofs`` (r), ``n_drive``
-    (P), ``package_version``.
+    (P), ``package_version``, ``versions`` (the engine and the MuJoCo and numpy versions that
+    wrote it, :func:`energy_margin.runs.versions.engine_versions`; absent in sets written before
+    it was recorded, whose versions are unknown: :mod:`energy_margin.data.provenance`).
 ``frames.npz``
     ``object_pos`` (T, K, n, 3) m; ``object_quat`` (T, K, n, 4) (w, x, y, z); ``object_vel``
     (T, K, n, 6) m/s and rad/s, world frame; ``robot_q`` and ``robot_v`` (T, K, r);
@@ -247,14 +249,7 @@ def metadata_problems(metadata: Any) -> list[Problem]:
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
         return [Problem(METADATA_FILE, "format", "", "is not an energy-margin dataset")]
     if metadata.get("schema_version") != SCHEMA_VERSION:
-        return [
-            Problem(
-                METADATA_FILE,
-                "schema_version",
-                "",
-                f"{metadata.get('schema_version')!r} is not supported (this version reads {SCHEMA_VERSION})",
-            )
-        ]
+        return [Problem(METADATA_FILE, "schema_version", "", _unsupported_schema(metadata))]
     problems = []
     for key in ("task", *_LIMITS):
         if key not in metadata:
@@ -279,6 +274,17 @@ def metadata_problems(metadata: Any) -> list[Problem]:
                 if not any(problem.field in ("n_robot_dofs", "n_drive") for problem in problems):
                     problems.extend(_task_size_problems(task, metadata))
     return problems
+
+
+def _unsupported_schema(metadata: dict[str, Any]) -> str:
+    """Why a ``schema_version`` other than :data:`SCHEMA_VERSION` is refused, in words."""
+    version = metadata.get("schema_version")
+    reads = f"this version of energy-margin reads {SCHEMA_VERSION}"
+    if isinstance(version, int) and not isinstance(version, bool) and version > SCHEMA_VERSION:
+        writer = metadata.get("package_version")
+        by = f"energy-margin {writer}" if isinstance(writer, str) else "a later energy-margin"
+        return f"{version} is not supported ({reads}; {by} wrote it: upgrade energy-margin to read it)"
+    return f"{version!r} is not supported ({reads})"
 
 
 def _task_size_problems(task: Task, metadata: dict[str, Any]) -> list[Problem]:

@@ -22,6 +22,7 @@ from energy_margin.data.dataset import (
 )
 from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
+from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
@@ -243,6 +244,8 @@ def records_dataset(
         "n_robot_dofs": int(arrays["robot_q"].shape[-1]),
         "n_drive": int(arrays["drive"].shape[-1]),
         "package_version": __version__,
+        # Frames depend on the engine's version: the same seed moves centimetres between releases.
+        VERSIONS_KEY: engine_versions(engine),
     }
     dataset = Dataset(path=out, metadata=metadata, arrays=arrays)
     validate(dataset)

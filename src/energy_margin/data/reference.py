@@ -55,6 +55,7 @@ from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE
 from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.runs.files import atomic_write_text, write_json
+from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.tasks import PushingTask, ReferenceLayout, ScoopingTask, available_tasks, get_task, task_class
 
 #: Sub-folders holding the true-state scores, in order of preference.
@@ -476,6 +477,8 @@ def import_reference(
         "n_robot_dofs": int(arrays["robot_q"].shape[-1]),
         "n_drive": int(arrays["drive"].shape[-1]),
         "package_version": __version__,
+        # The software that imported the set (the frames are the authors' own).
+        VERSIONS_KEY: engine_versions("pybullet"),
         "imported_from": str(folder),
         "imported_drive": "recorded" if layout.replays_recorded else drive,
     }

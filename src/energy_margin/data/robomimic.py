@@ -57,7 +57,7 @@ from energy_margin.tasks.scene_file import (
     toml_key,
     toml_value,
 )
-from energy_margin.tasks.scene_model import LoadedScene, model_hash, object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import LoadedScene, model_hash, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 
 #: The folder of the dataset directory that holds its own scene file and model.
@@ -160,7 +160,7 @@ def record_robomimic(
     duration = max(float(arrays["time"][-1]) for _, arrays in rollouts)
     if duration <= 0:
         duration = float(model.opt.timestep)
-    spec = _scene_spec(tables, scene_file, path, model, duration)
+    spec = _scene_spec(tables, scene_file, path, duration)
     loaded = resolve_scene(spec, model)
     scene_text = _scene_text(spec, loaded, duration)
     sources = [
@@ -533,17 +533,9 @@ def _rollout(
 # -- the scene ---------------------------------------------------------------------------------
 
 
-def _scene_spec(
-    tables: _Tables, scene_file: Path | str | None, path: Path, model: mujoco.MjModel, duration: float
-) -> SceneSpec:
+def _scene_spec(tables: _Tables, scene_file: Path | str | None, path: Path, duration: float) -> SceneSpec:
     """The validated scene of the recording (its ``mjcf`` names the HDF5 file in messages)."""
     document = dict(tables.document)
-    objects = dict(document.get("objects", {})) if isinstance(document.get("objects"), dict) else None
-    if objects is not None and "joints" not in objects and not tables.from_scene:
-        bodies = objects.get("bodies")
-        patterns = [bodies] if isinstance(bodies, str) else list(bodies or [])
-        objects["joints"] = object_joint_kind(model, [str(p) for p in patterns])
-        document["objects"] = objects
     document["mjcf"] = str(path.resolve())
     document["motion"] = {"duration": duration, "robot": ROBOT_DURING_ANALYSIS}
     origin = str(scene_file) if scene_file is not None else "record options"
@@ -553,7 +545,7 @@ def _scene_spec(
 def _scene_text(spec: SceneSpec, loaded: LoadedScene, duration: float) -> str:
     """The scene file of the dataset's ``source`` folder (TOML)."""
     document: dict[str, Any] = {
-        "objects": {"bodies": list(loaded.object_names), "joints": spec.object_joints},
+        "objects": {"bodies": list(loaded.object_names), "joints": loaded.spec.object_joints},
         "motion": {"duration": duration, "robot": ROBOT_DURING_ANALYSIS},
         "perturbation": {
             "linear_acceleration": list(loaded.perturbation.linear_acceleration),

@@ -3,11 +3,13 @@
 Each problem names the file, the field and the row. ``check_dataset`` lists them all; ``analyze``
 and ``evaluate`` run the same checks first and stop on the first problem, before writing anything.
 
-Checks: the format and schema version of ``dataset.json``, its sizes and task configuration; every
-array of ``frames.npz`` against n_o, T, K (shapes read from the headers before any allocation),
-NaN or infinite values, unit quaternions, labels in {0, 1}; objects interpenetrating each other,
-the end-effector or an obstacle at a frame; and, when present, ``scores.csv`` (header, malformed
-lines, rows outside the dataset, duplicated or missing frames, scores outside [0, 1]).
+Checks: the format and schema version of ``dataset.json`` (a later schema version is refused),
+its sizes and task configuration; every array of ``frames.npz`` against n_o, T, K (shapes read
+from the headers before any allocation), NaN or infinite values, unit quaternions, labels in
+{0, 1}; objects interpenetrating each other, the end-effector or an obstacle at a frame; and,
+when present, ``scores.csv`` (header, malformed lines, rows outside the dataset, duplicated or
+missing frames, scores outside [0, 1]). ``check`` also lists, as warnings, engine versions other
+than the installed ones or unknown (:mod:`energy_margin.data.provenance`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
+from energy_margin.data.provenance import version_findings
 from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
 from energy_margin.sim import Simulator
 from energy_margin.world.scene import Scene
@@ -176,7 +179,9 @@ def check_dataset(
         scores: check ``scores.csv``: ``True`` requires it, ``None`` checks it when present,
             ``False`` skips it.
         warnings: receives the overlaps of a dataset whose overlaps are expected
-            (:func:`overlaps_expected`), which are warnings, not problems.
+            (:func:`overlaps_expected`) and the engine versions of a dataset generated under
+            another version, or unknown (:func:`~energy_margin.data.provenance.version_findings`),
+            which are warnings, not problems.
     """
     return _check(path, overlaps=overlaps, scores=scores, warnings=warnings)[1]
 
@@ -202,6 +207,8 @@ def _check(
     dataset, problems = read_dataset(path)
     if dataset is None or problems:
         return dataset, problems
+    if warnings is not None:
+        warnings.extend(version_findings(path, dataset.metadata))
     if overlaps:
         found = overlap_problems(dataset)
         if overlaps_expected(dataset.metadata):

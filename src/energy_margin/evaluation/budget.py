@@ -233,7 +233,7 @@ def budget_sweep(
         dataset, budgets=budgets, methods=methods, seed=seed, bootstrap=bootstrap, workers=workers, base=base
     )
     work = out_path.parent
-    with run_directory(work, budget_run(work, out_path), settings, overwrite=overwrite):
+    with run_directory(work, budget_run(work, out_path), settings, overwrite=overwrite, engine=base.engine):
         meta = {
             "dataset": str(directory),
             "task": dataset.metadata["task"],

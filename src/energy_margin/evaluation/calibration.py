@@ -210,7 +210,7 @@ def calibrate(
         "growth": [list(pair) for pair in growth],
     }
     out = Path(out)
-    with open_run(out, CALIBRATION_RUN, settings, overwrite=overwrite) as run:
+    with open_run(out, CALIBRATION_RUN, settings, overwrite=overwrite, engine=config.engine) as run:
         candidates: dict[tuple[float, float, float], dict[str, np.ndarray]] = {}
         for wrench, duration in growth:
             grown = dataclasses.replace(config, wrench_scale=wrench, duration_scale=duration)

@@ -774,7 +774,7 @@ def design_search(
         **(extra_settings or {}),
     }
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
-    with run_directory(out, DESIGN_RUN, settings, overwrite=overwrite) as run:
+    with run_directory(out, DESIGN_RUN, settings, overwrite=overwrite, engine=engine) as run:
         search = _Search(
             run.path, task, space, fixed, run.settings, scorer, verifier, workers, progress, say, on_evaluation
         )

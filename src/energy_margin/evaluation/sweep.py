@@ -353,5 +353,5 @@ def design_sweep(
     )
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     sweep = _Sweep(task, designs, settings, analyzer, counts, seed, workers, bootstrap, subsets, progress, say)
-    with run_directory(out, SWEEP_RUN, settings, overwrite=overwrite) as run:
+    with run_directory(out, SWEEP_RUN, settings, overwrite=overwrite, engine=engine) as run:
         return sweep.run(run.path)

@@ -28,7 +28,7 @@ import mujoco
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
-from energy_margin.errors import EnergyMarginError
+from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
 
@@ -53,16 +53,8 @@ align_dm_control_index()
 
 
 def physics_handles(physics: Any) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The MuJoCo ``MjModel`` and ``MjData`` behind a dm_control ``Physics`` (or an environment's)."""
-    physics = getattr(physics, "physics", physics)
-    model = getattr(getattr(physics, "model", None), "ptr", None)
-    data = getattr(getattr(physics, "data", None), "ptr", None)
-    if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
-        raise EnergyMarginError(
-            f"{type(physics).__name__} has no MuJoCo model: give a dm_control Physics or an environment with "
-            ".physics (physics.model.ptr must be a mujoco.MjModel)"
-        )
-    return model, data
+    """The ``MjModel`` and ``MjData`` behind a dm_control ``Physics`` or an environment holding one."""
+    return find_mujoco(physics)
 
 
 class PhysicsScorer(LiveModelScorer):
@@ -125,11 +117,9 @@ class MarginEnvironment:
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
     ) -> None:
-        if not hasattr(env, "physics"):
-            raise EnergyMarginError(f"{type(env).__name__} has no physics: give a dm_control environment")
         self.env = env
         self.scorer = PhysicsScorer(
-            env.physics,
+            env,
             objects=objects,
             capture=capture,
             success=success,
@@ -146,14 +136,14 @@ class MarginEnvironment:
     def reset(self) -> Any:
         """Reset the environment; a new episode's margins (the start state's first) and rows."""
         time_step = self.env.reset()
-        self.margin = self.session.reset(physics_handles(self.env.physics)[1])
+        self.margin = self.session.reset(physics_handles(self.env)[1])
         self.margins = [self.margin] if self.margin is not None else []
         return time_step
 
     def step(self, action: Any) -> Any:
         """Step the environment, then score the state it reached every ``every`` steps."""
         time_step = self.env.step(action)
-        margin = self.session.step(physics_handles(self.env.physics)[1])
+        margin = self.session.step(physics_handles(self.env)[1])
         if margin is not None:
             self.margin = margin
             self.margins.append(margin)

@@ -25,8 +25,9 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import atomic_path
+from energy_margin.sim.mujoco_index import object_owners
 from energy_margin.tasks.scene_file import scene_spec_from_tables, toml_value
-from energy_margin.tasks.scene_model import model_hash, object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import model_hash, resolve_scene
 
 #: Name fragments of an end effector's body or site, most specific first.
 END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")
@@ -186,14 +187,13 @@ def scene_from_environment(
         end_effector = ("body", body_names[max(robot, key=lambda b: _depth(model, b))])
     every_body = [b for b in range(1, model.nbody) if b not in chosen and body_names[b]]
     goal = _find(model, GOAL_WORDS, every_body)
-    geoms = np.flatnonzero(np.isin(model.geom_bodyid, chosen))
+    geoms = np.flatnonzero(object_owners(model, chosen)[model.geom_bodyid] >= 0)
     size = (
         float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms])) if geoms.size else 0.05
     )
     radius = capture_radius if capture_radius is not None else round(2.0 * size + 0.05, 3)
     steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
     duration = float(steps) * float(getattr(env.unwrapped, "dt", model.opt.timestep))
-    joints = object_joint_kind(model, patterns)
     capture = {"type": "distance", end_effector[0]: end_effector[1], "max": radius}
     if goal is not None:
         success = {"type": "distance", goal[0]: goal[1], "max": round(2.0 * size, 3)}
@@ -207,7 +207,6 @@ def scene_from_environment(
         "",
         "[objects]",
         f"bodies = {toml_value(patterns)}",
-        f"joints = {toml_value(joints)}",
         "",
         "# One episode; no keyframes: record a roll-out's own commands with the Gymnasium wrapper.",
         *_actuator_comments(model),

@@ -1,8 +1,10 @@
 """A Gymnasium wrapper that adds the energy margins of the current state to ``info``.
 
-``MarginWrapper(env, objects=..., capture=..., success=...)`` works on any environment whose
-``env.unwrapped`` holds a MuJoCo ``model`` and ``data`` (Gymnasium's own MuJoCo environments and
-those written the same way, as gymnasium-robotics' and Meta-World's are). Every
+``MarginWrapper(env, objects=..., capture=..., success=...)`` works on any Gymnasium environment
+in which :func:`~energy_margin.integrations.handles.find_mujoco` finds a MuJoCo ``MjModel`` and
+``MjData``: Gymnasium's own MuJoCo environments, gymnasium-robotics, Meta-World, robosuite's
+``GymWrapper`` (through ``env.sim``) and dm_control-based ones such as LeRobot's gym-aloha
+(through their ``physics``). Every
 ``every`` steps it scores the state reached by the step with
 :class:`~energy_margin.integrations.live_model.LiveModelScorer` (the tree within ``budget_s``, or a
 learned margin) and adds ``info["energy_margin"]``, a dict with ``capture_score``,
@@ -37,20 +39,48 @@ import mujoco
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.errors import EnergyMarginError
+from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
 
-def mujoco_handles(env: Any, *, what: str = "the environment") -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The ``MjModel`` and ``MjData`` of ``env.unwrapped`` (one line naming ``what`` when there are none)."""
-    inner = getattr(env, "unwrapped", env)
-    model, data = getattr(inner, "model", None), getattr(inner, "data", None)
-    if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
-        name = type(inner).__name__
+def mujoco_handles(env: Any, *, what: str | None = None) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The ``MjModel`` and ``MjData`` behind ``env`` (:func:`~energy_margin.integrations.handles.find_mujoco`)."""
+    return find_mujoco(env, what=what or environment_name(env))
+
+
+def make_environment(identifier: str, env_kwargs: Mapping[str, Any] | None = None) -> gymnasium.Env:
+    """``gymnasium.make`` of ``identifier`` (``ENV_ID`` or ``MODULE:ENV_ID``) with ``env_kwargs``.
+
+    ``MODULE`` is imported first: the package that registers the environment's namespace
+    (``metaworld:Meta-World/MT1``, ``gymnasium_robotics:FetchPickAndPlace-v4``,
+    ``gym_aloha:gym_aloha/AlohaInsertion-v0``).
+
+    Raises:
+        EnergyMarginError: a module that cannot be imported, an unknown id, keyword arguments the
+            environment refuses (one line each).
+
+    """
+    import importlib
+
+    module, _, name = identifier.rpartition(":")
+    if module:
+        try:
+            importlib.import_module(module)
+        except ImportError as error:
+            raise EnergyMarginError(
+                f"{identifier}: module {module!r} cannot be imported ({' '.join(str(error).split())}); install the "
+                "package that registers the environment"
+            ) from None
+    try:
+        return gymnasium.make(name, **dict(env_kwargs or {}))
+    except gymnasium.error.Error as error:
+        hint = "" if module else " (give the module that registers it: MODULE:ENV_ID, e.g. metaworld:Meta-World/MT1)"
+        raise EnergyMarginError(f"{identifier}: {' '.join(str(error).split())}{hint}") from None
+    except Exception as error:  # an environment's constructor raises what it likes for bad keyword arguments
+        given = f" with {dict(env_kwargs or {})}" if env_kwargs else ""
         raise EnergyMarginError(
-            f"{what} ({name}) has no MuJoCo model: env.unwrapped must hold a mujoco.MjModel 'model' and "
-            "mujoco.MjData 'data' (Gymnasium's MuJoCo environments do)"
-        )
-    return model, data
+            f"{identifier}{given}: {type(error).__name__}: {' '.join(str(error).split())}"
+        ) from None
 
 
 def environment_name(env: Any) -> str:
@@ -64,7 +94,7 @@ class MarginWrapper(gymnasium.Wrapper):
     """Adds ``info["energy_margin"]`` every ``every`` steps (see the module docstring).
 
     Args:
-        env: an environment whose ``unwrapped`` holds a MuJoCo ``model`` and ``data``.
+        env: an environment holding a MuJoCo model and data (see the module docstring).
         objects: object body names or glob patterns.
         capture: the capture set as a scene file's region table (or ``{"region", "at_least"}``).
         success: the success set, likewise.

@@ -42,7 +42,7 @@ from energy_margin.errors import EnergyMarginError, check_choice, check_positive
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
-from energy_margin.tasks.scene_model import object_joint_kind, resolve_scene
+from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
@@ -179,8 +179,8 @@ class LiveModelScorer:
             tables = scene_tables(
                 objects=objects, capture=capture, success=success, perturbation=perturbation, bounds=bounds
             )
-            patterns = tables["objects"]["bodies"]
-            tables["objects"]["joints"] = joints if joints is not None else object_joint_kind(model, patterns)
+            if joints is not None:
+                tables["objects"]["joints"] = joints
             spec = scene_spec_from_tables(tables, origin=origin)
         if options.hold == "still":
             spec = replace(spec, motion=replace(spec.motion, robot="still"))

@@ -308,7 +308,7 @@ def learn_pipeline(
     }
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     try:
-        run = open_run(work, LEARN_RUN, settings, overwrite=overwrite)
+        run = open_run(work, LEARN_RUN, settings, overwrite=overwrite, engine=analyzer.engine)
     except EnergyMarginError as error:
         # The run layer names --out, the directory of most commands; here it is --work.
         message = str(error).replace("choose another --out", "choose another --work")

@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin._version import __version__
 from energy_margin.analysis.run import write_scores
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE
@@ -34,6 +33,7 @@ from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.learning.margin_model import MarginModel, load_margin_model
 from energy_margin.runs import RunSpec, open_run, progress_bar
+from energy_margin.runs.directory import run_versions
 
 #: ``analyzer`` of ``analysis.json`` for learned scores (a tree analysis records its settings there).
 LEARNED_ANALYZER = "learned margin"
@@ -112,7 +112,7 @@ def learned_description(
         "dataset": dataset.identity(),
         "task_config": dataset.task.config.to_dict(),
         "frames_per_call": FRAMES_PER_CALL,
-        "versions": {"energy_margin": __version__, "numpy": np.__version__},
+        "versions": run_versions(),
     }
 
 

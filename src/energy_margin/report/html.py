@@ -349,7 +349,10 @@ def differences(table_one: dict[str, dict[str, Any]], ablation: list[dict[str, A
 def _provenance_html(described: dict[str, Any] | None) -> str:
     if not described:
         return ""
-    engines = ", ".join(f"{name} {version}" for name, version in described["engines"].items())
+    recorded = dict(described["engines"])
+    engine = recorded.pop("engine", None)
+    engines = ", ".join(f"{name} {version}" for name, version in recorded.items())
+    engines = f"{engine} ({engines})" if engine else engines
     stage_rows = "".join(
         f"<tr><td style='text-align:left'>{html.escape(entry['stage'])}</td><td>{entry['seconds']:.1f}</td>"
         f"<td style='text-align:left'>{'earlier run (resumed now)' if entry.get('resumed') else 'this run'}</td></tr>"

@@ -1,4 +1,8 @@
-"""Where a report came from: package version, git commit, engines, machine, command, stage times."""
+"""Where a report came from: package version, git commit, engines, machine, command, stage times.
+
+The engine versions are :func:`energy_margin.runs.versions.engine_versions`, the record of every
+dataset and run.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin._version import __version__
+from energy_margin.runs.versions import engine_versions
 
 
 def git_commit(directory: Path | None = None) -> str | None:
@@ -28,22 +33,6 @@ def git_commit(directory: Path | None = None) -> str | None:
     except (OSError, subprocess.SubprocessError):
         return None
     return f"{commit} + uncommitted changes" if status else commit
-
-
-def engine_versions(engine: str) -> dict[str, str]:
-    """Versions of MuJoCo, of the engine used when it is another, and of numpy."""
-    import mujoco
-    import numpy
-
-    versions = {"mujoco": str(mujoco.__version__), "numpy": str(numpy.__version__)}
-    if engine == "pybullet":
-        from importlib.metadata import PackageNotFoundError, version
-
-        try:
-            versions["pybullet"] = version("pybullet")
-        except PackageNotFoundError:
-            versions["pybullet"] = "not installed"
-    return versions
 
 
 def _cpu_model() -> str:

@@ -274,7 +274,7 @@ def reproduce(out: Path | str, config: ReproduceConfig, *, command: str | None =
     """
     check_int("workers", config.workers, minimum=1)
     out = Path(out)
-    with run_directory(out, REPRODUCE_RUN, dataclasses.asdict(config), overwrite=overwrite):
+    with run_directory(out, REPRODUCE_RUN, dataclasses.asdict(config), overwrite=overwrite, engine=config.engine):
         return _reproduce(out, config, command=command)
 
 

@@ -56,10 +56,10 @@ def describe_scene(task: SceneTask) -> list[str]:
     lines = [f"scene file {spec.path} (schema_version 1), model {spec.mjcf.name} (sha256 {loaded.model_sha256[:12]})"]
     lines.append(f"objects ({loaded.n_objects}, {spec.object_joints}):")
     for index, name in enumerate(loaded.object_names):
-        body = loaded.object_bodies[index]
-        inertia = ", ".join(f"{v:.3g}" for v in model.body_inertia[body])
+        mass, inertias = loaded.object_inertials
+        inertia = ", ".join(f"{v:.3g}" for v in inertias[index])
         lines.append(
-            f"  {name}: mass {model.body_mass[body]:.4g} kg, inertia ({inertia}) kg m^2, "
+            f"  {name}: mass {mass[index]:.4g} kg, inertia ({inertia}) kg m^2, "
             f"bounding radius {loaded.object_radius[index]:.3g} m"
         )
     actuators = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}" for i in range(model.nu)]

@@ -60,6 +60,7 @@ from energy_margin.robustness.resample import (
     perturb_frame,
 )
 from energy_margin.runs import RunSpec, progress_bar, run_directory
+from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 
 
 def perturb_dataset(
@@ -243,6 +244,8 @@ def _write_copy(
         "largest_growth": float(max(growths)),
         "frames_with_overlaps": int(overlapping),
         "deepest_penetration_m": float(max(depths)),
+        # The frames keep the source's record (``versions``); this is the software that moved them.
+        VERSIONS_KEY: engine_versions(),
     }
     dataset = Dataset(path=target, metadata=metadata, arrays=arrays)
     validate(dataset)

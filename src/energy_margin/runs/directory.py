@@ -13,7 +13,10 @@ Every long command (``analyze``, ``perturb``, ``budget``, ``study``, ``sweep``, 
 3. A directory without the settings file must be empty, unless the run lives beside other files
    (:attr:`RunSpec.shared_directory`: the analysis of a dataset writes into the dataset's folder);
    ``overwrite`` removes the run's outputs there too, and nothing else.
-4. The new settings are written (atomically) before any result, so a killed run resumes under them.
+4. The new settings are written (atomically) before any result, so a killed run resumes under them,
+   with the engine and the versions of MuJoCo and numpy (:func:`~energy_margin.runs.versions.engine_versions`)
+   under ``versions``: beside the settings, never compared. A run resumed under another engine
+   version says so in one line on standard error, since its results may mix the two.
 
 A writer killed during an atomic write leaves its temporary file (or staging folder) behind;
 the next writer, holding the lock, removes those of the run's own files first (:func:`remove_stale`),
@@ -24,15 +27,18 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from energy_margin._version import __version__
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import leftovers, read_json, remove_leftovers, write_json
 from energy_margin.runs.lock import LOCK_FILE, RunLock
+from energy_margin.runs.versions import VERSIONS_KEY, engine_difference, engine_versions, recorded_versions
 
 
 @dataclass(frozen=True)
@@ -74,6 +80,8 @@ class RunDirectory:
         settings: the run's resolved settings (as written).
         resumed: the directory held this very run (its outputs are kept).
         lock: the writer's lock, released by :meth:`close`.
+        versions: what the settings file records under ``versions``: the package's version and
+            :func:`~energy_margin.runs.versions.engine_versions` of the run's engine.
 
     """
 
@@ -82,6 +90,7 @@ class RunDirectory:
     settings: dict[str, Any]
     resumed: bool
     lock: RunLock
+    versions: dict[str, str] = field(default_factory=dict)
 
     @property
     def settings_path(self) -> Path:
@@ -90,7 +99,7 @@ class RunDirectory:
 
     def write_settings(self, extra: dict[str, Any] | None = None) -> None:
         """Rewrite the settings file (with ``extra`` beside the settings when they sit under a key)."""
-        write_json(self.settings_path, _document(self.spec, self.settings, extra))
+        write_json(self.settings_path, _document(self.spec, self.settings, extra, self.versions))
 
     def close(self) -> None:
         """Release the lock (idempotent)."""
@@ -103,10 +112,19 @@ class RunDirectory:
         self.close()
 
 
-def _document(spec: RunSpec, settings: dict[str, Any], extra: dict[str, Any] | None) -> dict[str, Any]:
+def _document(
+    spec: RunSpec, settings: dict[str, Any], extra: dict[str, Any] | None, versions: dict[str, str]
+) -> dict[str, Any]:
+    """The settings file's content: the settings, with the versions beside them (and ``extra``)."""
+    record = {VERSIONS_KEY: versions} if versions else {}
     if spec.settings_key is None:
-        return settings
-    return {**(extra or {}), spec.settings_key: settings}
+        return {**settings, **record}
+    return {**(extra or {}), **record, spec.settings_key: settings}
+
+
+def run_versions(engine: str = "mujoco") -> dict[str, str]:
+    """What a run's settings file records under ``versions``: the package's version and the engine's."""
+    return {"energy_margin": __version__, **engine_versions(engine)}
 
 
 def _plain(value: Any) -> Any:
@@ -121,7 +139,8 @@ def difference(spec: RunSpec, previous: dict[str, Any], current: dict[str, Any])
     previous, current = _plain(previous), _plain(current)
     keys = spec.compared if spec.compared is not None else sorted(set(previous) | set(current))
     for key in keys:
-        if key not in spec.may_differ:
+        # The versions are recorded beside the settings, never compared: a run may resume under others.
+        if key not in spec.may_differ and not (spec.compared is None and key == VERSIONS_KEY):
             found = _first_difference(key, previous.get(key), current.get(key))
             if found is not None:
                 return found
@@ -191,15 +210,19 @@ def _foreign(path: Path) -> list[str]:
     return sorted(entry.name for entry in path.iterdir() if entry.name != LOCK_FILE)
 
 
-def open_run(path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool = False) -> RunDirectory:
+def open_run(
+    path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool = False, engine: str = "mujoco"
+) -> RunDirectory:
     """Create or resume the run ``settings`` in ``path``, locked for this process.
 
     Args:
         path: the run directory (created with its parents when missing).
         spec: the kind of run.
-        settings: the resolved settings (JSON-serialisable).
+        settings: the resolved settings (JSON-serialisable); a ``versions`` entry in them is
+            replaced by the record of this run (:func:`run_versions`).
         overwrite: replace a run of other settings (or the run's files in a directory without
             its settings file) instead of refusing.
+        engine: the physics engine of the run, recorded with the versions.
 
     Returns:
         The open directory; close it (or use it as a context manager) to release the lock.
@@ -220,7 +243,12 @@ def open_run(path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overw
     try:
         remove_stale(path, spec)
         resumed, beside = _check(path, spec, settings, overwrite=overwrite)
-        run = RunDirectory(path, spec, _plain(settings), resumed, lock)
+        versions = run_versions(engine)
+        before = recorded_versions(beside)
+        if resumed and before is not None:
+            _say_other_versions(path, before, versions)
+        plain = {key: value for key, value in _plain(settings).items() if key != VERSIONS_KEY}
+        run = RunDirectory(path, spec, plain, resumed, lock, versions)
         # A resumed run keeps what sits beside its settings (a summary) while the settings update.
         run.write_settings(beside)
     except BaseException:
@@ -229,8 +257,24 @@ def open_run(path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overw
     return run
 
 
+def _say_other_versions(path: Path, before: dict[str, str], now: dict[str, str]) -> None:
+    """One line on standard error when a run resumes under another engine version."""
+    found = engine_difference(before, now)
+    if found is not None:
+        name, earlier, current = found
+        print(
+            f"note: {path} was started with {name} {earlier}; this is {name} {current}: "
+            "results of the two versions can differ",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool) -> tuple[bool, dict[str, Any]]:
     """Whether ``path`` holds this very run (and what its settings file holds beside the settings).
+
+    Beside the settings: the other entries of a file whose settings sit under a key, or the
+    ``versions`` record of one whose settings are the file.
 
     Clears another run (``overwrite``) or refuses it.
     """
@@ -239,6 +283,8 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
         previous, beside = _stored(spec, settings_path)
         reason = "its settings file cannot be read" if previous is None else difference(spec, previous, settings)
         if reason is None:
+            if spec.settings_key is None and previous is not None and VERSIONS_KEY in previous:
+                beside = {VERSIONS_KEY: previous[VERSIONS_KEY]}
             return True, beside
         if not overwrite:
             raise EnergyMarginError(
@@ -260,10 +306,10 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
 
 @contextmanager
 def run_directory(
-    path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool = False
+    path: Path | str, spec: RunSpec, settings: dict[str, Any], *, overwrite: bool = False, engine: str = "mujoco"
 ) -> Iterator[RunDirectory]:
     """:func:`open_run` as a context manager that releases the lock at the end."""
-    run = open_run(path, spec, settings, overwrite=overwrite)
+    run = open_run(path, spec, settings, overwrite=overwrite, engine=engine)
     try:
         yield run
     finally:

@@ -16,7 +16,14 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError
 from energy_margin.sim.base import ModelCommand
-from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command, rotate, rotate_inverse
+from energy_margin.sim.mujoco_index import (
+    ModelIndex,
+    apply_model_command,
+    object_inertials,
+    object_owners,
+    rotate,
+    rotate_inverse,
+)
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
 from energy_margin.sim.mujoco_spec import build_model, scene_index
 from energy_margin.world.scene import Scene
@@ -54,13 +61,11 @@ class MujocoSimulator:
         self.index = index
         self._propagators: dict[int, RolloutPropagator] = {}
         bodies = index.object_bodies
-        self._masses = model.body_mass[bodies].copy()
-        self._inertias = model.body_inertia[bodies].copy()
+        # An object is its body's rigid subtree: geoms and mass on welded child bodies count.
+        self._masses, self._inertias = object_inertials(model, bodies)
         self._gravity = np.asarray(model.opt.gravity, dtype=float).copy()
-        self._geom_is_object = np.isin(model.geom_bodyid, bodies)
-        body_object = np.full(model.nbody, -1)
-        body_object[bodies] = np.arange(len(bodies))
-        self._geom_object = body_object[model.geom_bodyid]
+        self._geom_object = object_owners(model, bodies)[model.geom_bodyid]
+        self._geom_is_object = self._geom_object >= 0
         self._state_buffer = np.empty(mujoco.mj_stateSize(model, _STATE_SPEC))
         self._spin_dof = np.zeros(model.nv, dtype=bool)
         if index.upright:

@@ -219,6 +219,64 @@ class ModelIndex:
         return pos, quat, np.concatenate([linear, angular], axis=-1)
 
 
+def object_owners(model: mujoco.MjModel, bodies: Sequence[int] | np.ndarray) -> np.ndarray:
+    """The object each body moves with as one rigid piece, shape (nbody,) (-1: none).
+
+    An object is the subtree of its body (the one carrying its joint): the body itself and every
+    descendant welded to it (reached without crossing a joint), as robosuite's and Meta-World's
+    objects hold their geoms on child bodies. MuJoCo numbers a parent before its children.
+    """
+    owner = np.full(int(model.nbody), -1, dtype=int)
+    owner[np.asarray(bodies, dtype=int)] = np.arange(len(bodies))
+    parents, joints = model.body_parentid, model.body_jntnum
+    for body in range(1, int(model.nbody)):
+        if owner[body] < 0 and int(joints[body]) == 0 and owner[int(parents[body])] >= 0:
+            owner[body] = owner[int(parents[body])]
+    return owner
+
+
+def object_geoms(model: mujoco.MjModel, bodies: Sequence[int] | np.ndarray) -> list[np.ndarray]:
+    """The geom ids of each object's rigid subtree (:func:`object_owners`), one array per object."""
+    owner = object_owners(model, bodies)[model.geom_bodyid]
+    return [np.flatnonzero(owner == index) for index in range(len(bodies))]
+
+
+def object_inertials(model: mujoco.MjModel, bodies: Sequence[int] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mass (n,), kg, and diagonal inertia (n, 3), kg m^2, of each object's rigid subtree.
+
+    An object of one body keeps that body's ``body_mass`` and ``body_inertia`` (principal
+    moments). An object whose welded descendants carry mass gets their sum and the composite
+    inertia about the subtree's centre of mass, expressed in the object body's frame (its
+    diagonal: the energy uses the body-frame angular velocity).
+    """
+    bodies = np.asarray(bodies, dtype=int)
+    owner = object_owners(model, bodies)
+    mass = np.array(model.body_mass[bodies], dtype=float)
+    inertia = np.array(model.body_inertia[bodies], dtype=float)
+    composite = [index for index in range(bodies.size) if np.count_nonzero(owner == index) > 1]
+    if not composite:
+        return mass, inertia
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    for index in composite:
+        members = np.flatnonzero(owner == index)
+        masses = model.body_mass[members]
+        total = float(np.sum(masses))
+        if total <= 0.0:
+            continue
+        centre = masses @ data.xipos[members] / total
+        world = np.zeros((3, 3))
+        for member, member_mass in zip(members, masses, strict=True):
+            rotation = data.ximat[member].reshape(3, 3)
+            offset = data.xipos[member] - centre
+            world += rotation @ np.diag(model.body_inertia[member]) @ rotation.T
+            world += member_mass * (float(offset @ offset) * np.eye(3) - np.outer(offset, offset))
+        frame = data.xmat[bodies[index]].reshape(3, 3)
+        mass[index] = total
+        inertia[index] = np.diag(frame.T @ world @ frame)
+    return mass, inertia
+
+
 #: The joints of an upright object in qpos order: slide x, slide y, slide z, hinge z.
 _UPRIGHT_AXES = (
     (mujoco.mjtJoint.mjJNT_SLIDE, (1.0, 0.0, 0.0)),
@@ -260,4 +318,27 @@ def _upright_axes(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndar
         qpos[axis] = model.jnt_qposadr[first + offset]
         qvel[axis] = model.jnt_dofadr[first + offset]
         mask[axis] = True
-    return qpos, qvel, mask, np.array(model.body_pos[body], dtype=float)
+    return qpos, qvel, mask, zero_joint_position(model, body)
+
+
+def zero_joint_position(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """World position (3,), m, of ``body`` at zero joint positions, its ancestors welded to the world.
+
+    A child of the world is at its ``body_pos``; a body under jointless holders is placed by them.
+    """
+    parent = int(model.body_parentid[body])
+    if parent == 0:
+        return np.array(model.body_pos[body], dtype=float)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    result: np.ndarray = data.xpos[parent] + data.xmat[parent].reshape(3, 3) @ model.body_pos[body]
+    return result
+
+
+def world_aligned(model: mujoco.MjModel, body: int) -> bool:
+    """Whether ``body``'s frame is parallel to the world's (its own and its ancestors' quaternions 1 0 0 0)."""
+    while body:
+        if np.any(model.body_quat[body] != [1, 0, 0, 0]):
+            return False
+        body = int(model.body_parentid[body])
+    return True

@@ -34,6 +34,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.sim.mujoco_index import object_geoms, object_inertials
 from energy_margin.tasks.scene_file import SceneSpec
 
 GRAVITY = 9.81  # m/s^2
@@ -79,7 +80,7 @@ def _friction(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> tup
     if spec.friction_range is not None:
         low, high = spec.friction_range
         return 0.5 * (low + high), f"the middle of randomize.friction [{low:g}, {high:g}]"
-    geoms = np.flatnonzero(np.isin(model.geom_bodyid, bodies))
+    geoms = np.sort(np.concatenate(object_geoms(model, bodies)))
     value = float(np.mean(model.geom_friction[geoms, 0]))
     return value, "the objects' geoms' mean sliding friction"
 
@@ -110,8 +111,9 @@ def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndar
         )
     derived: dict[str, str] = {}
     mass_scale = 1.0 if spec.mass_scale is None else 0.5 * sum(spec.mass_scale)
-    mass = model.body_mass[bodies] * mass_scale
-    inertia = model.body_inertia[bodies] * mass_scale
+    base_mass, base_inertia = object_inertials(model, bodies)
+    mass = base_mass * mass_scale
+    inertia = base_inertia * mass_scale
     spacing = spec.motion.duration / (FRAMES - 1)
     if spec.max_duration is None:
         max_duration = PROPAGATION_PER_FRAME * spacing

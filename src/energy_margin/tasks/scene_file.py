@@ -208,7 +208,8 @@ class SceneSpec:
         bodies: object body names or glob patterns (``None`` with a template).
         template: a body copied ``count`` times, or ``None``.
         count: copies of ``template``.
-        object_joints: ``"free"`` (a free joint) or ``"upright"`` (slide x, y, z and hinge z).
+        object_joints: ``"free"`` (a free joint) or ``"upright"`` (slide x, y, z and hinge z);
+            ``None`` (the key left out): read from the compiled model when the scene is resolved.
         motion: the robot's motion.
         friction_range: per-trajectory sliding friction of every geom, or ``None`` for the model's.
         mass_scale: per-trajectory object mass (and inertia) scale range, or ``None``.
@@ -244,7 +245,7 @@ class SceneSpec:
     bodies: tuple[str, ...] | None
     template: str | None
     count: int | None
-    object_joints: ObjectJoints
+    object_joints: ObjectJoints | None
     motion: MotionSpec
     friction_range: tuple[float, float] | None
     mass_scale: tuple[float, float] | None
@@ -481,7 +482,8 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
             raise read.fail("objects.count", "applies to objects.template only")
     else:
         raise read.fail("objects", "is missing: give objects.bodies (names or patterns) or objects.template and count")
-    joints = read.choice(objects.get("joints", "free"), "objects.joints", ("free", "upright"))
+    # Left out, the kind of the objects' joints is read from the compiled model.
+    joints = read.choice(objects["joints"], "objects.joints", ("free", "upright")) if "joints" in objects else None
 
     motion = _read_motion(read, document, path)
     randomize = read.table(document, "randomize", "", {"friction", "mass_scale", "time_scale", "start"})

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import fnmatch
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from energy_margin.compat import delete_body
 from energy_margin.runs.npz import NpzError, read_npz
-from energy_margin.sim.mujoco_index import upright_axes
+from energy_margin.sim.mujoco_index import object_geoms, object_inertials, upright_axes, world_aligned
 from energy_margin.sim.mujoco_spec import model_hash
 from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
 from energy_margin.tasks.scene_file import DesignEntry, SceneSpec, read_scene_file, region_names
@@ -156,6 +157,16 @@ class LoadedScene:
         """Number of objects."""
         return len(self.object_names)
 
+    @cached_property
+    def object_geoms(self) -> list[np.ndarray]:
+        """The geom ids of each object's rigid subtree (its body and the bodies welded to it)."""
+        return object_geoms(self.model, self.object_bodies)
+
+    @cached_property
+    def object_inertials(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mass (n,), kg, and diagonal inertia (n, 3), kg m^2, of each object's rigid subtree."""
+        return object_inertials(self.model, self.object_bodies)
+
 
 def _one_line(error: Exception) -> str:
     return " ".join(str(error).split())
@@ -198,7 +209,8 @@ def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tu
         )
         # Free copies start side by side along x; upright copies keep the template's zero origin
         # (their slide joints measure world positions from it) and take their places from the start draw.
-        spacing = 2.0 * radius + 0.01 if spec.object_joints == "free" else 0.0
+        kind = spec.object_joints or object_joint_kind(probe, [body])
+        spacing = 2.0 * radius + 0.01 if kind == "free" else 0.0
         model_spec.copy_during_attach = True
         try:
             for index in range(spec.count or 0):
@@ -365,8 +377,40 @@ def _object_bodies(spec: SceneSpec, model: mujoco.MjModel) -> list[int]:
         matches = [index + 1 for index, name in enumerate(names) if fnmatch.fnmatchcase(name, pattern)]
         if not matches:
             raise spec.error("objects.bodies", f"no body {pattern!r} in {spec.mjcf.name}")
-        chosen.extend(match for match in matches if match not in chosen)
+        for match in matches:
+            body = _moving_body(spec, model, match)
+            if body not in chosen:
+                chosen.append(body)
     return chosen
+
+
+def _jointed_descendants(model: mujoco.MjModel, body: int) -> list[int]:
+    """The bodies of ``body``'s subtree that carry a joint with none between them and ``body``."""
+    welded = {body}
+    found: list[int] = []
+    for child in range(body + 1, int(model.nbody)):
+        parent = int(model.body_parentid[child])
+        if parent in welded:
+            (found.append if int(model.body_jntnum[child]) else welded.add)(child)
+    return found
+
+
+def _moving_body(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
+    """The body that carries object ``body``'s joint: itself, or the one jointed body welded below it."""
+    if int(model.body_jntnum[body]):
+        return body
+    jointed = _jointed_descendants(model, body)
+    if len(jointed) == 1:
+        return jointed[0]
+    name = _name(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    if not jointed:
+        raise spec.error("objects", f"object body {name!r} in {spec.mjcf.name} has no joint: it cannot move")
+    names = ", ".join(repr(_name(model, mujoco.mjtObj.mjOBJ_BODY, b)) for b in jointed)
+    raise spec.error(
+        "objects",
+        f"object body {name!r} in {spec.mjcf.name} has no joint of its own but several jointed children "
+        f"({names}): name each of them as an object",
+    )
 
 
 def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
@@ -377,8 +421,12 @@ def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
         f"{_JOINT_KINDS.get(kind, '?')} {_name(model, mujoco.mjtObj.mjOBJ_JOINT, j)!r}"
         for j, kind in zip(range(first, first + count), kinds, strict=True)
     )
-    if model.body_parentid[body] != 0:
-        raise spec.error("objects", f"object body {name!r} must be a child of the worldbody")
+    ancestor = int(model.body_parentid[body])
+    while ancestor:
+        if int(model.body_jntnum[ancestor]):
+            moving = _name(model, mujoco.mjtObj.mjOBJ_BODY, ancestor)
+            raise spec.error("objects", f"object body {name!r} rides on body {moving!r}, which has a joint")
+        ancestor = int(model.body_parentid[ancestor])
     if spec.object_joints == "free":
         if kinds != [int(_FREE)]:
             raise spec.error(
@@ -387,10 +435,10 @@ def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
                 "give it a <freejoint/> or set objects.joints = 'upright' for slide x, y, z and hinge z",
             )
         return first
-    if np.any(model.body_quat[body] != [1, 0, 0, 0]):
+    if not world_aligned(model, body):
         raise spec.error(
             "objects.joints",
-            f"upright body {name!r} in {spec.mjcf.name} must not be rotated (quat 1 0 0 0): "
+            f"upright body {name!r} in {spec.mjcf.name} must not be rotated (quat 1 0 0 0, and its holders too): "
             "its slide joints then move it along the world axes",
         )
     if not kinds or upright_axes(model, body) is None:
@@ -501,19 +549,53 @@ def load_scene(path: Path | str, design: Mapping[str, Any] | None = None) -> Loa
     return resolve_scene(spec, model, design_values=values)
 
 
-def object_joint_kind(model: mujoco.MjModel, patterns: tuple[str, ...] | list[str]) -> str:
-    """``"free"`` when every body matching ``patterns`` has one free joint, else ``"upright"``.
+def object_joint_kind(model: mujoco.MjModel, bodies: list[int] | np.ndarray) -> str:
+    """``"free"`` when any of ``bodies`` (the objects' moving bodies) has a free joint, else ``"upright"``.
 
-    Used where no scene file says ``objects.joints`` (a wrapped environment's model); a body that
-    matches neither is refused later, naming its joints.
+    What a scene file without ``objects.joints`` gets; a body whose joints are not of that kind
+    is refused when the scene is resolved, naming its joints.
     """
-    names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
-    bodies = [i + 1 for i, name in enumerate(names) if any(fnmatch.fnmatchcase(name, p) for p in patterns)]
     free = [
         int(model.body_jntnum[body]) == 1 and int(model.jnt_type[model.body_jntadr[body]]) == int(_FREE)
         for body in bodies
     ]
-    return "free" if free and all(free) else "upright"
+    return "free" if any(free) else "upright"
+
+
+def _object_bounds(spec: SceneSpec, model: mujoco.MjModel, bodies: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding radius (n,) and box half extents (n, 3) of each object's geoms in its body frame, m.
+
+    The geoms are those of the object's rigid subtree (:func:`~energy_margin.sim.mujoco_index.object_geoms`);
+    a geom on a welded child body is placed by the model's reference configuration.
+    """
+    radius = np.zeros(len(bodies))
+    extents = np.zeros((len(bodies), 3))
+    kinematics: mujoco.MjData | None = None
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    for index, (body, geoms) in enumerate(zip(bodies, object_geoms(model, bodies), strict=True)):
+        if geoms.size == 0:
+            raise spec.error("objects", f"object {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} has no geom")
+        corners, positions = [], []
+        for geom in geoms:
+            flat = np.empty(9)
+            if int(model.geom_bodyid[geom]) == body:
+                position = np.array(model.geom_pos[geom])
+                mujoco.mju_quat2Mat(flat, model.geom_quat[geom])
+                matrix = flat.reshape(3, 3)
+            else:
+                if kinematics is None:
+                    kinematics = mujoco.MjData(model)
+                    mujoco.mj_kinematics(model, kinematics)
+                frame = kinematics.xmat[body].reshape(3, 3)
+                position = frame.T @ (kinematics.geom_xpos[geom] - kinematics.xpos[body])
+                matrix = frame.T @ kinematics.geom_xmat[geom].reshape(3, 3)
+            positions.append(position)
+            # geom_aabb: centre (3) and half sizes (3) in each geom's frame; bound them in the body frame.
+            centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+            corners.append(position + (centre + signs * half) @ matrix.T)
+        radius[index] = float(np.max(np.linalg.norm(np.array(positions), axis=1) + model.geom_rbound[geoms]))
+        extents[index] = np.max(np.abs(np.concatenate(corners)), axis=0)
+    return radius, extents
 
 
 def resolve_scene(
@@ -524,6 +606,9 @@ def resolve_scene(
     ``design_values``: the ``[design]`` values ``model`` was compiled with (recorded, not applied).
     """
     bodies = _object_bodies(spec, model)
+    if spec.object_joints is None:
+        # The kind of the objects' joints is read from the model unless the file declares it.
+        spec = replace(spec, object_joints=object_joint_kind(model, bodies))  # type: ignore[arg-type]
     joints = [_object_joint(spec, model, body) for body in bodies]
     if spec.capture_at_least is not None and spec.capture_at_least > len(bodies):
         raise spec.error("capture.at_least", f"is {spec.capture_at_least} but the scene has {len(bodies)} objects")
@@ -556,25 +641,7 @@ def resolve_scene(
                 "motion.initial_keyframe", f"no keyframe {spec.motion.initial_keyframe!r} in {spec.mjcf.name}"
             )
         initial = np.array(model.key_qpos[key], dtype=float)
-    radius = np.zeros(len(bodies))
-    extents = np.zeros((len(bodies), 3))
-    for index, body in enumerate(bodies):
-        geoms = np.flatnonzero(model.geom_bodyid == body)
-        if geoms.size == 0:
-            raise spec.error("objects", f"object body {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} has no geom")
-        radius[index] = float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms]))
-        # geom_aabb: centre (3) and half sizes (3) in each geom's frame; bound them in the body frame.
-        corners = []
-        for geom in geoms:
-            centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
-            rotation = model.geom_quat[geom]
-            flat = np.empty(9)
-            mujoco.mju_quat2Mat(flat, rotation)
-            matrix = flat.reshape(3, 3)
-            signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-            corners.append(model.geom_pos[geom] + (centre + signs * half) @ matrix.T)
-        points = np.concatenate(corners)
-        extents[index] = np.max(np.abs(points), axis=0)
+    radius, extents = _object_bounds(spec, model, bodies)
     names = tuple(_name(model, mujoco.mjtObj.mjOBJ_BODY, body) for body in bodies)
     return LoadedScene(
         spec=spec,

@@ -20,7 +20,7 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
-from energy_margin.sim.mujoco_index import ModelIndex
+from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
@@ -215,7 +215,7 @@ class SceneTask(Task):
         self.fixed_objects = loaded.n_objects
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
-        self._object_geoms = [np.flatnonzero(model.geom_bodyid == body) for body in loaded.object_bodies]
+        self._object_geoms = loaded.object_geoms
         # The objects' coordinates in the model (partially jointed upright objects included).
         self._index = ModelIndex.of(
             model,
@@ -283,7 +283,7 @@ class SceneTask(Task):
             RigidObject(
                 name=name,
                 geom=Geom("box", tuple(float(v) for v in np.maximum(loaded.object_half_extents[i], 1e-4))),
-                mass=float(loaded.model.body_mass[loaded.object_bodies[i]]) * scale,
+                mass=float(loaded.object_inertials[0][i]) * scale,
             )
             for i, name in enumerate(loaded.object_names)
         )
@@ -294,7 +294,7 @@ class SceneTask(Task):
             friction=friction,
             timestep=float(loaded.model.opt.timestep),
             gravity=tuple(float(g) for g in loaded.model.opt.gravity),  # type: ignore[arg-type]
-            object_motion=loaded.spec.object_joints,
+            object_motion=loaded.spec.object_joints or "free",  # resolved against the model
         )
 
     def compiled_model(self, friction: float, drive: np.ndarray | None = None) -> mujoco.MjModel:
@@ -304,7 +304,8 @@ class SceneTask(Task):
         if loaded.spec.friction_range is not None:
             model.geom_friction[:, 0] = friction
         if drive is not None and float(drive[1]) != 1.0:
-            bodies = loaded.object_bodies
+            # Every body of each object's rigid subtree.
+            bodies = np.flatnonzero(object_owners(model, loaded.object_bodies) >= 0)
             model.body_mass[bodies] *= float(drive[1])
             model.body_inertia[bodies] *= float(drive[1])
         return model
@@ -338,7 +339,7 @@ class SceneTask(Task):
     def default_friction(self) -> float:
         """The sliding friction of the first object geom of the model (used without a friction range)."""
         loaded = self.loaded
-        geom = int(np.flatnonzero(loaded.model.geom_bodyid == loaded.object_bodies[0])[0])
+        geom = int(loaded.object_geoms[0][0])
         return float(loaded.model.geom_friction[geom, 0])
 
     # -- the motion ------------------------------------------------------------------------
@@ -638,10 +639,9 @@ class SceneTask(Task):
         nothing, so objects with plain free joints keep ``m a`` and ``I alpha``.
         """
         loaded = self.loaded
-        model = loaded.model
-        base_mass = model.body_mass[loaded.object_bodies]
+        base_mass, base_inertia = loaded.object_inertials
         scale = scene.object_masses / base_mass
-        inertia = model.body_inertia[loaded.object_bodies] * scale[:, None]
+        inertia = base_inertia * scale[:, None]
         linear_armature, angular_armature = self._object_armature()
         perturbation = loaded.perturbation
         limits = np.zeros((scene.n_objects, 6))
