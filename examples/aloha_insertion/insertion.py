@@ -10,9 +10,9 @@
 2. Writes the scene file ``OUT/scene.toml`` for gym-aloha's own model file
    (``gym_aloha/assets/bimanual_viperx_insertion.xml``, named by its absolute path). The objects
    are ``peg`` and ``socket``, each with its free joint. Captured: each object's centre within
-   11 cm of a finger body of either arm (in a hand: a held object's centre is 8-9 cm from the finger
-   bodies' origins). Success: both objects at least 10 cm above the
-   table (lifted together, ready for the insertion).
+   11 cm of a finger body of either arm (in a hand: a held object's centre is 8-9 cm from the
+   finger bodies' origins). Success: both objects at least 10 cm above the table (lifted
+   together, ready for the insertion).
 3. Runs ``--episodes`` episodes of the scripted policy (``policy.py``; 150 steps, 3 s; the
    object poses come from gym-aloha's ``reset(seed)``, environment seed ``--env-seed`` + i, and
    the noise from ``(seed, episode)``). The wrapper scores the reset and every ``--every``-th
@@ -22,7 +22,7 @@
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
    ``energy-margin analyze`` (``--iterations`` expansions per frame; the scene holds the robot
    still, since a recording's joint targets are not replayed) and ``energy-margin evaluate``
-   (k-hat 0 and 2) on ``OUT/dataset``. It also writes the live scores into ``OUT/live`` (the
+   (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores into ``OUT/live`` (the
    same dataset) and evaluates them.
 5. Draws ``OUT/insertion.png`` with MuJoCo's renderer: three states of the first successful
    episode (else the first), each with its live scores and labels.
@@ -307,9 +307,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     assert cli(["analyze", str(dataset), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]) == 0
     evaluations: dict[str, Any] = {}
     for name, directory in (("analyze", dataset), ("live", live)):
-        print(f"\n== energy-margin evaluate {directory} --capture-window 2  ({name} scores)")
-        assert cli(["evaluate", str(directory), "--capture-window", "2"]) == 0
-        evaluations[name] = summary(evaluate(directory, capture_window=2))
+        print(f"\n== energy-margin evaluate {directory}  ({name} scores)")
+        assert cli(["evaluate", str(directory)]) == 0
+        evaluations[name] = summary(evaluate(directory))
     if not args.no_picture:
         shown = next((i for i, episode in enumerate(episodes) if episode["success"]), 0)
         render_picture(out / "insertion.png", physics_of(wrapper).model.ptr, files[shown], episodes[shown])

@@ -42,6 +42,8 @@ MEET_HEIGHT = 0.22
 ARMS = ("left", "right")
 #: Which object each arm picks.
 OBJECT = {"left": "socket", "right": "peg"}
+#: Each arm's six joints, after its ``vx300s_left/`` or ``vx300s_right/`` prefix.
+JOINT_NAMES = ("waist", "shoulder", "elbow", "forearm_roll", "wrist_angle", "wrist_rotate")
 
 
 def pinch_geoms(model: mujoco.MjModel, arm: str) -> tuple[int, int]:
@@ -84,6 +86,7 @@ class ScriptedInsertion:
         self.pads = {arm: pinch_geoms(model, arm) for arm in ARMS}
         self.solution: dict[str, np.ndarray] = {}
         self.grasp: dict[str, np.ndarray] = {}
+        self.start: dict[str, np.ndarray] = {}
 
     @property
     def phase(self) -> str:
@@ -118,10 +121,7 @@ class ScriptedInsertion:
             meet = np.array([sign * 0.12, 0.5, MEET_HEIGHT])
             inserted = np.array([sign * 0.07, 0.5, MEET_HEIGHT])
             if phase == "approach":
-                start = self._pinch(data, arm) if self.step == 0 else self._start[arm]
-                if self.step == 0:
-                    self._start = getattr(self, "_start", {})
-                    self._start[arm] = start
+                start = self.start.setdefault(arm, self._pinch(data, arm))
                 targets[arm] = start + fraction * (above - start)
             elif phase == "descend":
                 targets[arm] = above + fraction * (grasp - above)
@@ -173,6 +173,3 @@ class ScriptedInsertion:
             action[7 * index + 6] = opening
         self.step += 1
         return action
-
-
-JOINT_NAMES = ("waist", "shoulder", "elbow", "forearm_roll", "wrist_angle", "wrist_rotate")

@@ -17,7 +17,7 @@
    episode as ``OUT/episodes/episode_NNN.npz``.
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
    ``energy-margin analyze`` (``--iterations`` expansions per frame) and ``energy-margin evaluate``
-   (k-hat 0 and 2) on ``OUT/dataset``. It also writes the live scores into ``OUT/live`` (the same
+   (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores into ``OUT/live`` (the same
    dataset) and evaluates them.
 5. Draws ``OUT/pick_place.png`` with MuJoCo's renderer: three states of the first successful
    episode (else the first that lifts an object), each with its live scores and labels.
@@ -309,9 +309,9 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     assert cli(["analyze", str(dataset), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]) == 0
     evaluations: dict[str, Any] = {}
     for name, directory in (("analyze", dataset), ("live", live)):
-        print(f"\n== energy-margin evaluate {directory} --capture-window 2  ({name} scores)")
-        assert cli(["evaluate", str(directory), "--capture-window", "2"]) == 0
-        evaluations[name] = summary(evaluate(directory, capture_window=2))
+        print(f"\n== energy-margin evaluate {directory}  ({name} scores)")
+        assert cli(["evaluate", str(directory)]) == 0
+        evaluations[name] = summary(evaluate(directory))
     if not args.no_picture:
         shown = next((i for i, e in enumerate(episodes) if e["success"]), None)
         shown = shown if shown is not None else next((i for i, e in enumerate(episodes) if e["lifted"]), 0)
