@@ -17,8 +17,8 @@
    episode as ``OUT/episodes/episode_NNN.npz``.
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
    ``energy-margin analyze`` (``--iterations`` expansions per frame) and ``energy-margin evaluate``
-   (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores into ``OUT/live`` (the same
-   dataset) and evaluates them.
+   (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores
+   into ``OUT/live`` (the same dataset) and evaluates them.
 5. Draws ``OUT/pick_place.png`` with MuJoCo's renderer: three states of the first successful
    episode (else the first that lifts an object), each with its live scores and labels.
 
