@@ -11,6 +11,7 @@ Arguments after ``--`` go to pytest (``nox -s oldest -- -x tests/sim``).
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import nox
@@ -39,7 +40,7 @@ def oldest(session: nox.Session) -> None:
 
 
 @nox.session(python="3.11")
-@nox.parametrize("stack", STACKS)
+@nox.parametrize("stack", STACKS, ids=STACKS)
 def stack(session: nox.Session, stack: str) -> None:
     """One user stack beside the package, resolved by pip, and that stack's tests."""
     session.install(".", "-r", f"ci/stacks/{stack}.txt")
@@ -52,5 +53,6 @@ def stack(session: nox.Session, stack: str) -> None:
         "no:cacheprovider",
         f"tests/stacks/test_{stack}.py",
         *session.posargs,
-        env={"ENERGY_MARGIN_STACK_LEG": stack},
+        # gym-aloha renders its observations: MuJoCo's EGL renderer works headless.
+        env={"ENERGY_MARGIN_STACK_LEG": stack, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")},
     )

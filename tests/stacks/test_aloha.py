@@ -15,10 +15,10 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
-import pytest
+from stack_legs import require
 
-gym_aloha = pytest.importorskip(
-    "gym_aloha", reason="the gym-aloha stack leg only: pip install . -r ci/stacks/aloha.txt (MuJoCo < 3.9)"
+gym_aloha = require(
+    "gym_aloha", leg="aloha", reason="the gym-aloha stack leg only: pip install . -r ci/stacks/aloha.txt (MuJoCo < 3.9)"
 )
 
 import gymnasium  # noqa: E402

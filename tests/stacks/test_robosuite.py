@@ -13,10 +13,12 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
-import pytest
+from stack_legs import require
 
-robosuite = pytest.importorskip(
-    "robosuite", reason="the robosuite stack leg only: pip install . -r ci/stacks/robosuite.txt (MuJoCo < 3.10)"
+robosuite = require(
+    "robosuite",
+    leg="robosuite",
+    reason="the robosuite stack leg only: pip install . -r ci/stacks/robosuite.txt (MuJoCo < 3.10)",
 )
 
 from robosuite.wrappers import GymWrapper  # noqa: E402
