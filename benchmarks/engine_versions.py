@@ -43,13 +43,19 @@ QUESTIONS = {
 }
 
 
+class RefusedError(Exception):
+    """A command that exited with an error (its error line is the message)."""
+
+
 def run_cli(arguments: list[str]) -> str:
     """Run one energy-margin command in this process; its stdout (exit code checked)."""
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = cli(arguments)
+    sys.stderr.write(err.getvalue())
     if code != 0:
-        raise SystemExit(f"energy-margin {' '.join(arguments)} exited with {code}")
+        lines = [line for line in err.getvalue().splitlines() if "error" in line] or [f"exit code {code}"]
+        raise RefusedError(lines[-1])
     return out.getvalue()
 
 
@@ -73,7 +79,7 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
     folder = out / f"mujoco-{mujoco.__version__}"
     for name in SETS:
         target = folder / name
-        if (target / "scores.csv").exists():
+        if (target / "scores.csv").exists() or (folder / f"{name}.refused").exists():
             continue
         if target.exists():
             shutil.rmtree(target)
@@ -89,7 +95,13 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
             "--engine",
             "mujoco",
         ]
-        run_cli(["analyze", str(target), *settings, "--no-progress"])
+        try:
+            run_cli(["analyze", str(target), *settings, "--no-progress"])
+        except RefusedError as refusal:
+            # The set is refused under this version (e.g. its dataset check): recorded, not scored.
+            (folder / f"{name}.refused").write_text(f"{refusal}\n")
+            print(f"refused {target}: {refusal}", flush=True)
+            continue
         print(f"analysed {target} in {time.perf_counter() - started:.0f} s", flush=True)
 
 
@@ -121,6 +133,10 @@ def compare(out: Path, reference: str) -> None:
         results[name] = {}
         for version in versions:
             path = out / f"mujoco-{version}" / name
+            refused = out / f"mujoco-{version}" / f"{name}.refused"
+            if refused.exists():
+                results[name][version] = {"refused": refused.read_text().strip()}  # type: ignore[dict-item]
+                continue
             if not (path / "scores.csv").exists():
                 continue
             change = np.abs(_scores(path) - base)
@@ -139,6 +155,9 @@ def compare(out: Path, reference: str) -> None:
     ]
     for name, rows in results.items():
         for version, row in rows.items():
+            if "refused" in row:
+                lines.append(f"| {name} | {version} | – | refused: {row['refused']} |" + " |" * (len(QUESTIONS) + 1))
+                continue
             cells = [f"{row[q]:.3f} ({row[q] - rows[reference][q]:+.3f})" for q in QUESTIONS]
             lines.append(
                 f"| {name} | {version} | {row['frames']} | {row['max_capture_change']:.3f} | "
