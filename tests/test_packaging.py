@@ -81,3 +81,16 @@ def test_each_stack_leg_has_its_test_file() -> None:
     assert stacks, "no stack legs in ci/stacks"
     for stack in stacks:
         assert (ROOT / "tests" / "stacks" / f"test_{stack}.py").is_file(), f"ci/stacks/{stack}.txt has no test file"
+
+
+def test_reproduce_names_the_locked_mujoco(monkeypatch: pytest.MonkeyPatch) -> None:
+    import mujoco
+
+    from energy_margin.cli.reproduce import LOCKED_MUJOCO, locked_engine_note
+
+    assert Version(LOCKED_MUJOCO) == pins(ROOT / "requirements.lock")["mujoco"]
+    monkeypatch.setattr(mujoco, "__version__", LOCKED_MUJOCO)
+    assert locked_engine_note() is None
+    monkeypatch.setattr(mujoco, "__version__", "3.3.0")
+    note = locked_engine_note()
+    assert note is not None and "made with MuJoCo 4.0.0 (requirements.lock); this is MuJoCo 3.3.0" in note

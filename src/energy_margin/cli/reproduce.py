@@ -7,7 +7,10 @@ import shlex
 import sys
 from pathlib import Path
 
-from energy_margin.cli.common import add_engine, add_overwrite, add_seed, positive_int, require_matplotlib
+from energy_margin.cli.common import add_engine, add_overwrite, add_seed, positive_int, require_matplotlib, say_notes
+
+#: The MuJoCo of requirements.lock, with which the quoted figures were made (tests/test_packaging.py holds it).
+LOCKED_MUJOCO = "4.0.0"
 
 NAME = "reproduce"
 SUMMARY = "reproduce the paper: Table I, the number-of-objects ablation and an HTML report"
@@ -30,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.report.reproduce import reproduce
 
     require_matplotlib()
+    say_notes(locked_engine_note())
     plan = ReproduceConfig.create(quick=args.quick, workers=args.workers, engine=args.engine, seed=args.seed)
     out = args.out or ("runs/reproduce-quick" if args.quick else "runs/reproduce")
     # The command as typed when run from the shell; the equivalent command otherwise.
@@ -39,3 +43,15 @@ def run(args: argparse.Namespace) -> int:
     print(f"report: {index}")
     print(f"tables: {index.parent.parent / 'table1.md'}, {index.parent.parent / 'ablation.md'}")
     return 0
+
+
+def locked_engine_note() -> str | None:
+    """One line when this MuJoCo is not the locked one the documented figures were made with."""
+    import mujoco
+
+    if mujoco.__version__ == LOCKED_MUJOCO:
+        return None
+    return (
+        f"note: the documented figures were made with MuJoCo {LOCKED_MUJOCO} (requirements.lock); this is MuJoCo "
+        f"{mujoco.__version__}: scores can differ (install with pip install -c requirements.lock to match them)"
+    )
