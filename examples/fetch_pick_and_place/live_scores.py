@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,7 +30,6 @@ import numpy as np
 
 from energy_margin.integrations.gym_scene import scene_from_environment
 from energy_margin.integrations.gymnasium import MarginWrapper
-from energy_margin.sim.mujoco_spec import model_hash
 
 FOLDER = Path(__file__).resolve().parent
 
@@ -74,42 +72,22 @@ def make_env() -> gymnasium.Env:
 
 
 def write_scene(env: gymnasium.Env, out: Path) -> tuple[Path, bool]:
-    """``OUT/scene.toml`` and its model ``OUT/fetch.xml``; whether that compiles to the environment's model.
+    """``OUT/scene.toml`` and its model; whether that model is the one the environment runs.
 
-    The starter of ``energy-margin scene --from-gym`` copies the environment's model file, which
-    differs from the model the environment runs in two numbers that its Python code sets: the
-    weld of the mocap body to the gripper gets the identity as its relative pose at start-up, and
-    the goal marker ``target0`` is moved to the goal at reset. ``fetch.xml`` is the starter's copy
-    with both written in (the weld in a copy of the package's ``shared.xml``).
+    The environment edits its model in Python after loading its XML (the weld of the mocap body to
+    the gripper gets the identity as its relative pose, the goal marker ``target0`` moves to the
+    goal at reset, the offscreen buffer takes the render size), so ``energy-margin scene
+    --from-gym`` saves the environment's compiled model itself (``starter.mjb``) and the scene
+    names it.
     """
     starter = scene_from_environment(env, objects="object0", out=out / "starter.toml")
-    text = starter.model_file.read_text(encoding="utf-8")
-    found = re.search(r'<include file="([^"]*shared\.xml)"', text)
-    if found is None:
-        raise SystemExit(f"{starter.model_file} includes no shared.xml")
-    shared = Path(found.group(1)).read_text(encoding="utf-8")
-    weld = '<weld body1="robot0:mocap" body2="robot0:gripper_link"'
-    if shared.count(weld) != 1:
-        raise SystemExit(f"{found.group(1)}: no single weld of robot0:mocap")
-    (out / "fetch_shared.xml").write_text(shared.replace(weld, weld + ' relpose="0 0 0 1 0 0 0"'), encoding="utf-8")
-    text = text.replace(found.group(1), "fetch_shared.xml")
-    model = env.unwrapped.model
-    marker = " ".join(repr(float(value)) for value in model.site("target0").pos)
-    text, count = re.subn(r'(<site name="target0" pos=")[^"]*"', rf'\g<1>{marker}"', text)
-    if count != 1:
-        raise SystemExit(f"{starter.model_file}: no single site target0")
-    # The environment sets the offscreen buffer to its render size: the hash counts it.
-    size = model.vis.global_
-    buffer = f'<visual><global offwidth="{size.offwidth}" offheight="{size.offheight}" /></visual>'
-    text = text.replace("<mujoco>", "<mujoco>\n\t" + buffer, 1)
-    (out / "fetch.xml").write_text(text, encoding="utf-8")
-    same = model_hash(mujoco.MjModel.from_xml_path(str(out / "fetch.xml"))) == model_hash(model)
+    same = starter.same_model
     perturbation = "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nmax_duration = 0.1\n"
     scene = out / "scene.toml"
     scene.write_text(
         "# FetchPickAndPlace-v4 with the goal at "
         f"{policy.GOAL.tolist()} (examples/fetch_pick_and_place/live_scores.py).\n"
-        'schema_version = 1\nmjcf = "fetch.xml"\n\n[objects]\nbodies = ["object0"]\n\n'
+        f'schema_version = 1\nmjcf = "{starter.model_file.name}"\n\n[objects]\nbodies = ["object0"]\n\n'
         f"[motion]\nduration = {STEPS * env.unwrapped.dt!r}\n\n{perturbation}\n"
         f"[capture]\nregion = {_inline(CAPTURE)}\n\n[success]\nregion = {_inline(SUCCESS)}\n",
         encoding="utf-8",

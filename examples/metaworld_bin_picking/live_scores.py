@@ -34,7 +34,6 @@ from metaworld.policies import SawyerBinPickingV3Policy
 
 from energy_margin.integrations.gym_scene import scene_from_environment
 from energy_margin.integrations.gymnasium import MarginWrapper
-from energy_margin.sim.mujoco_spec import model_hash
 
 FOLDER = Path(__file__).resolve().parent
 
@@ -94,27 +93,19 @@ class NoisyExpert:
 
 
 def write_scene(env: gymnasium.Env, out: Path) -> tuple[Path, bool]:
-    """``OUT/scene.toml`` and its model ``OUT/bin_picking.xml``; whether that compiles to the environment's model.
+    """``OUT/scene.toml`` and its model; whether that model is the one the environment runs.
 
-    The starter of ``energy-margin scene --from-gym`` copies the environment's model file, whose
-    weld of the mocap body to the hand differs from the model the environment runs: Meta-World's
-    ``reset_mocap_welds`` sets its relative pose to the identity and its torque scale to 5 in
-    Python. ``bin_picking.xml`` is the starter's copy with the weld as the environment runs it.
+    Meta-World's ``reset_mocap_welds`` sets the weld of the mocap body to the hand (relative pose
+    the identity, torque scale 5) in Python after loading its XML, so ``energy-margin scene
+    --from-gym`` saves the environment's compiled model itself (``starter.mjb``) and the scene
+    names it.
     """
     starter = scene_from_environment(env, objects=OBJECT, out=out / "starter.toml")
-    text = starter.model_file.read_text(encoding="utf-8")
-    weld = '<weld body1="mocap" body2="hand" solref="0.02 1"'
-    if text.count(weld) != 1:
-        raise SystemExit(f"{starter.model_file}: no single weld of the mocap body")
-    model = env.unwrapped.model
-    relpose = " ".join(repr(float(value)) for value in model.eq_data[0][3:10])
-    text = text.replace(weld, f'{weld} relpose="{relpose}" torquescale="{float(model.eq_data[0][10])!r}"')
-    (out / "bin_picking.xml").write_text(text, encoding="utf-8")
-    same = model_hash(mujoco.MjModel.from_xml_path(str(out / "bin_picking.xml"))) == model_hash(model)
+    same = starter.same_model
     scene = out / "scene.toml"
     scene.write_text(
         f"# Meta-World {TASK} (examples/metaworld_bin_picking/live_scores.py).\n"
-        f'schema_version = 1\nmjcf = "bin_picking.xml"\n\n[objects]\nbodies = ["{OBJECT}"]\n\n'
+        f'schema_version = 1\nmjcf = "{starter.model_file.name}"\n\n[objects]\nbodies = ["{OBJECT}"]\n\n'
         f"[motion]\nduration = {STEPS * STEP_S!r}\n\n"
         "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nmax_duration = 0.1\n\n"
         f"[capture]\nregion = {_inline(CAPTURE)}\n\n[success]\nregion = {_inline(SUCCESS)}\n",
