@@ -34,12 +34,12 @@ SETS = {
     "scooping-5": ["--task", "scooping", "--objects", "5"],
     "authors-planepush-10": None,
 }
-#: The questions of ``evaluate --json`` compared per version: (evaluate arguments, JSON key).
+#: The questions of ``evaluate --json`` compared per version, by their JSON key.
 QUESTIONS = {
-    "capture AP, k=0": ([], "capture_ap"),
-    "capture AP, k=2": (["--capture-window", "2"], "capture_ap"),
-    "success AP, all frames": ([], "success_ap"),
-    "success AP, first 3 frames": (["--success-frames", "3"], "success_ap"),
+    "capture AP, k=0": "capture_ap",
+    "capture AP, k=2": "capture_ap_window2",
+    "success AP, last 3 frames": "success_ap",
+    "success AP, first half": "success_ap_first_half",
 }
 
 
@@ -108,15 +108,13 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
 def _scores(path: Path) -> np.ndarray:
     from energy_margin.data.scores_file import load_scores
 
-    scores = load_scores(path / "scores.csv")
+    scores = load_scores(path)
     return np.stack([scores["capture_score"], scores["success_score"]], axis=1)
 
 
 def _aps(path: Path) -> dict[str, float]:
-    values = {}
-    for question, (arguments, key) in QUESTIONS.items():
-        values[question] = float(json.loads(run_cli(["evaluate", str(path), "--json", *arguments]))[key])
-    return values
+    result = json.loads(run_cli(["evaluate", str(path), "--json"]))
+    return {question: float(result[key]) for question, key in QUESTIONS.items()}
 
 
 def compare(out: Path, reference: str) -> None:
