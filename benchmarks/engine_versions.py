@@ -76,7 +76,8 @@ def prepare(out: Path, trajectories: int, frames: int, seed: int) -> None:
 
 def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
     """Analyse a copy of every set under this interpreter's MuJoCo (``out/mujoco-VERSION/SET``)."""
-    folder = out / f"mujoco-{mujoco.__version__}"
+    # Another seed under the same version measures how far the tree's own randomness moves them.
+    folder = out / (f"mujoco-{mujoco.__version__}" + (f"-seed{seed}" if seed else ""))
     for name in SETS:
         target = folder / name
         if (target / "scores.csv").exists() or (folder / f"{name}.refused").exists():
@@ -121,7 +122,7 @@ def compare(out: Path, reference: str) -> None:
     """Print and write (``out/engine_versions.json``, ``.md``) score and AP changes against ``reference``."""
     versions = sorted(
         (p.name.removeprefix("mujoco-") for p in out.glob("mujoco-*") if p.is_dir()),
-        key=lambda v: tuple(int(x) for x in v.split(".")),
+        key=lambda v: (tuple(int(x) for x in v.split("-")[0].split(".")), v),
     )
     if reference not in versions:
         raise SystemExit(f"no analysis under MuJoCo {reference} in {out} (have {', '.join(versions)})")
@@ -146,7 +147,7 @@ def compare(out: Path, reference: str) -> None:
             }
     lines = [
         f"Scores of the same frames under each MuJoCo version against MuJoCo {reference} "
-        "(frames generated once; 300 expansions, seed 0).",
+        "(frames generated once; 300 expansions, seed 0; a -seedN row: the reference version with another seed).",
         "",
         "| set | MuJoCo | frames | max Δ capture | max Δ success | " + " | ".join(QUESTIONS) + " |",
         "|---|---|---|---|---|" + "---|" * len(QUESTIONS),
