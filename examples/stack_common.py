@@ -1,10 +1,12 @@
-"""What the stack examples share (fetch_pick_and_place, metaworld_bin_picking): pictures, timing, the CLI.
+"""What the stack examples share (Fetch, Meta-World, robosuite, gym-aloha): pictures, timing, results, the CLI.
 
 :class:`Canvas` draws an environment's ``MjModel`` / ``MjData`` with MuJoCo's own renderer
 (``mjr_render``) on the GL context ``MUJOCO_GL`` names, EGL (headless) when it is unset: the
 context is made here, so the choice holds even where MuJoCo was imported before the variable was
 read. :func:`save_episodes` puts the pictured moments of a few episodes side by side, each with its
-live scores. :func:`timing` sums up the live calls; :func:`cli` runs ``energy-margin``.
+live scores. :func:`timing` sums up the live calls; :func:`cli` runs ``energy-margin``;
+:func:`write_live_scores`, :func:`check_frames` and :func:`summary` put the live scores beside the
+recorded dataset and read ``evaluate``'s result.
 """
 
 from __future__ import annotations
@@ -18,6 +20,9 @@ from typing import Any
 
 import mujoco
 import numpy as np
+
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.scores_file import SCORES_FILE, format_row, header
 
 
 def _gl_context(width: int, height: int) -> Any:
@@ -141,6 +146,7 @@ def timing(episodes: list[dict[str, Any]]) -> dict[str, Any]:
         "max_ms": float(ms.max()),
         "mean_expansions": float(expansions.mean()),
         "median_expansions": float(np.median(expansions)),
+        "min_expansions": int(expansions.min()),
         "fraction_stopped_by_budget": float(np.mean([score["stopped_by"] == "budget" for score in calls])),
     }
 
@@ -165,3 +171,52 @@ def record_analyze_evaluate(
     )
     printed = cli("evaluate", str(dataset))
     return printed, json.loads(cli("evaluate", str(dataset), "--json", echo=False))
+
+
+def write_live_scores(directory: Path, episodes: list[dict[str, Any]]) -> None:
+    """The live scores as ``scores.csv`` of a dataset (trajectory = episode, frame = scored state)."""
+    lines = [header()]
+    for trajectory, episode in enumerate(episodes):
+        for frame, score in enumerate(episode["scores"]):
+            row = {
+                "trajectory": trajectory,
+                "frame": frame,
+                "capture_score": float(score["capture_score"]),
+                "success_score": float(score["success_score"]),
+                "nodes": int(score["nodes"]),
+                "iterations": int(score["expansions"]),
+                "runtime_s": float(score["ms"]) / 1000.0,
+                "physics_s": 0.0,
+                "seed": int(score["seed"]),
+            }
+            lines.append(format_row(row) + "\n")
+    (directory / SCORES_FILE).write_text("".join(lines), encoding="utf-8")
+
+
+def check_frames(directory: Path, files: list[Path], episodes: list[dict[str, Any]]) -> None:
+    """Refuse a dataset whose frames are not the scored steps, or whose labels differ from the live ones."""
+    dataset = load_dataset(directory)
+    for trajectory, (path, episode) in enumerate(zip(files, episodes, strict=True)):
+        with np.load(path) as rollout:
+            expected = rollout["time"][episode["steps"]]
+        found = dataset.arrays["frame_time"][trajectory]
+        if found.shape != expected.shape or not np.allclose(found, expected, rtol=0.0, atol=1e-9):
+            raise SystemExit(f"{path}: the dataset's frames {found} are not the scored steps {expected}")
+        live = np.array(episode["labels"], dtype=bool)
+        recorded = np.stack([dataset.arrays["captured"][trajectory], dataset.arrays["in_success"][trajectory]], 1)
+        if not np.array_equal(live, recorded):
+            raise SystemExit(f"{path}: the dataset's labels differ from the live ones")
+
+
+def summary(result: dict[str, Any]) -> dict[str, Any]:
+    """The AP of the energy margin and of the baselines, and the verdict, from ``evaluate``'s result."""
+    keys = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
+    baselines = {
+        name: {key: values.get(key) for key in keys if key in values}
+        for name, values in result.get("baselines", {}).items()
+    }
+    return {
+        **{key: result.get(key) for key in keys if key in result},
+        "baselines": baselines,
+        "verdict": result.get("verdict"),
+    }

@@ -50,8 +50,6 @@ import mujoco
 import numpy as np
 
 from energy_margin.cli import main as cli
-from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import SCORES_FILE, format_row, header
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.integrations.gymnasium import MarginWrapper
 
@@ -77,6 +75,20 @@ def policy_module() -> Any:
         sys.modules[name] = module
         spec.loader.exec_module(module)
     return sys.modules[name]
+
+
+def _stack_common() -> Any:
+    """``examples/stack_common.py`` (loaded once, as ``stack_common``)."""
+    if "stack_common" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("stack_common", HERE.parent / "stack_common.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["stack_common"] = module
+        spec.loader.exec_module(module)
+    return sys.modules["stack_common"]
+
+
+common = _stack_common()
 
 
 def physics_of(env: Any) -> Any:
@@ -144,70 +156,6 @@ def run_episode(wrapper: MarginWrapper, env_seed: int, steps: int, rng: np.rando
         "socket_lifted": bool(top[1] > LIFT_HEIGHT),
         "reward": float(reward),
         "success": bool(labels[-1][1]),
-    }
-
-
-def timing(episodes: list[dict[str, Any]]) -> dict[str, Any]:
-    """Wall time per scoring call (ms) and the trees' expansions."""
-    calls = [score for episode in episodes for score in episode["scores"]]
-    ms = np.array([score["ms"] for score in calls])
-    expansions = np.array([score["expansions"] for score in calls])
-    return {
-        "calls": len(calls),
-        "mean_ms": float(ms.mean()),
-        "p95_ms": float(np.percentile(ms, 95)),
-        "max_ms": float(ms.max()),
-        "mean_expansions": float(expansions.mean()),
-        "min_expansions": int(expansions.min()),
-    }
-
-
-def write_live_scores(directory: Path, episodes: list[dict[str, Any]]) -> None:
-    """The live scores as ``scores.csv`` of a dataset (trajectory = episode, frame = scored state)."""
-    lines = [header()]
-    for trajectory, episode in enumerate(episodes):
-        for frame, score in enumerate(episode["scores"]):
-            row = {
-                "trajectory": trajectory,
-                "frame": frame,
-                "capture_score": float(score["capture_score"]),
-                "success_score": float(score["success_score"]),
-                "nodes": int(score["nodes"]),
-                "iterations": int(score["expansions"]),
-                "runtime_s": float(score["ms"]) / 1000.0,
-                "physics_s": 0.0,
-                "seed": int(score["seed"]),
-            }
-            lines.append(format_row(row) + "\n")
-    (directory / SCORES_FILE).write_text("".join(lines), encoding="utf-8")
-
-
-def check_frames(directory: Path, files: list[Path], episodes: list[dict[str, Any]]) -> None:
-    """Refuse a dataset whose frames are not the scored steps, or whose labels differ from the live ones."""
-    dataset = load_dataset(directory)
-    for trajectory, (path, episode) in enumerate(zip(files, episodes, strict=True)):
-        with np.load(path) as rollout:
-            expected = rollout["time"][episode["steps"]]
-        found = dataset.arrays["frame_time"][trajectory]
-        if found.shape != expected.shape or not np.allclose(found, expected, rtol=0.0, atol=1e-9):
-            raise SystemExit(f"{path}: the dataset's frames {found} are not the scored steps {expected}")
-        live = np.array(episode["labels"], dtype=bool)
-        recorded = np.stack([dataset.arrays["captured"][trajectory], dataset.arrays["in_success"][trajectory]], 1)
-        if not np.array_equal(live, recorded):
-            raise SystemExit(f"{path}: the dataset's labels differ from the live ones")
-
-
-def summary(result: dict[str, Any]) -> dict[str, Any]:
-    """The AP of the energy margin and of the baselines, and the verdict, from ``evaluate``'s result."""
-    keys = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
-    baselines = {
-        name: {key: values.get(key) for key in keys if key in values}
-        for name, values in result.get("baselines", {}).items()
-    }
-    return {
-        **{key: result.get(key) for key in keys if key in result},
-        "baselines": baselines,
-        "verdict": result.get("verdict"),
     }
 
 
@@ -290,7 +238,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         )
     live_s = time.perf_counter() - started
     env.close()
-    calls = timing(episodes)
+    calls = common.timing(episodes)
     print(
         f"live scoring: {calls['calls']} calls, {calls['mean_ms']:.1f} ms mean (p95 {calls['p95_ms']:.1f}, "
         f"max {calls['max_ms']:.1f}), {calls['mean_expansions']:.1f} expansions per call; episodes {live_s:.1f} s"
@@ -299,17 +247,17 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     frames = args.steps // args.every + 1
     arguments = ["--scene", str(scene), *map(str, files), "--frames", str(frames), "--out", str(dataset)]
     assert cli(["record", *arguments, "--overwrite"]) == 0
-    check_frames(dataset, files, episodes)
+    common.check_frames(dataset, files, episodes)
     live = out / "live"
     shutil.rmtree(live, ignore_errors=True)
     shutil.copytree(dataset, live)
-    write_live_scores(live, episodes)
+    common.write_live_scores(live, episodes)
     assert cli(["analyze", str(dataset), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]) == 0
     evaluations: dict[str, Any] = {}
     for name, directory in (("analyze", dataset), ("live", live)):
         print(f"\n== energy-margin evaluate {directory}  ({name} scores)")
         assert cli(["evaluate", str(directory)]) == 0
-        evaluations[name] = summary(evaluate(directory))
+        evaluations[name] = common.summary(evaluate(directory))
     if not args.no_picture:
         shown = next((i for i, episode in enumerate(episodes) if episode["success"]), 0)
         render_picture(out / "insertion.png", physics_of(wrapper).model.ptr, files[shown], episodes[shown])
