@@ -130,20 +130,23 @@ class MarginEnvironment:
             origin=type(env).__name__,
         )
         self.session = LiveSession(self.scorer, every=every, record=record)
+        # Found once here and again at every reset (a composer task may rebuild its physics there), not per step.
+        self._data = physics_handles(env)[1]
         self.margin: dict[str, Any] | None = None
         self.margins: list[dict[str, Any]] = []
 
     def reset(self) -> Any:
         """Reset the environment; a new episode's margins (the start state's first) and rows."""
         time_step = self.env.reset()
-        self.margin = self.session.reset(physics_handles(self.env)[1])
+        self._data = physics_handles(self.env)[1]
+        self.margin = self.session.reset(self._data)
         self.margins = [self.margin] if self.margin is not None else []
         return time_step
 
     def step(self, action: Any) -> Any:
         """Step the environment, then score the state it reached every ``every`` steps."""
         time_step = self.env.step(action)
-        margin = self.session.step(physics_handles(self.env)[1])
+        margin = self.session.step(self._data)
         if margin is not None:
             self.margin = margin
             self.margins.append(margin)

@@ -131,7 +131,8 @@ class MarginWrapper(gymnasium.Wrapper):
         config: AnalyzerConfig | None = None,
     ) -> None:
         super().__init__(env)
-        mj_model, _ = mujoco_handles(env)
+        # Found once here and again at every reset (robosuite rebuilds its simulation there), not per step.
+        mj_model, self._data = mujoco_handles(env)
         scorer = LiveModelScorer(
             mj_model,
             objects=objects,
@@ -154,7 +155,8 @@ class MarginWrapper(gymnasium.Wrapper):
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         """Reset the environment (a new recorded episode); ``info["energy_margin"]`` scores the start state."""
         observation, info = self.env.reset(**kwargs)
-        margin = self.session.reset(mujoco_handles(self.env)[1])
+        self._data = mujoco_handles(self.env)[1]
+        margin = self.session.reset(self._data)
         if margin is not None:
             info = {**info, "energy_margin": margin}
         return observation, info
@@ -162,14 +164,14 @@ class MarginWrapper(gymnasium.Wrapper):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         """Step the environment, then score the state it reached every ``every`` steps."""
         observation, reward, terminated, truncated, info = self.env.step(action)
-        margin = self.session.step(mujoco_handles(self.env)[1])
+        margin = self.session.step(self._data)
         if margin is not None:
             info = {**info, "energy_margin": margin}
         return observation, reward, terminated, truncated, info
 
     def labels(self) -> tuple[bool, bool]:
         """Whether the current state is in the capture set and in the success set."""
-        return self.scorer.labels(mujoco_handles(self.env)[1])
+        return self.scorer.labels(self._data)
 
     def save_episode(self, path: str | Path) -> Path:
         """Write the recorded episode as an ``.npz`` roll-out for ``energy-margin record``."""
