@@ -9,7 +9,6 @@ file, the key and the body, actuator or site.
 
 from __future__ import annotations
 
-import fnmatch
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -21,16 +20,22 @@ import numpy as np
 
 from energy_margin.compat import compile_before_copying, copy_body
 from energy_margin.runs.npz import NpzError, read_npz
-from energy_margin.sim.mujoco_index import object_geoms, object_inertials, upright_axes, world_aligned
+from energy_margin.sim.mujoco_index import object_geoms, object_inertials
 from energy_margin.sim.mujoco_spec import model_hash
 from energy_margin.tasks.model_file import is_binary_model, load_binary_model
 from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
 from energy_margin.tasks.scene_file import DesignEntry, SceneSpec, read_scene_file, region_names
+from energy_margin.tasks.scene_objects import (
+    JOINT_KINDS,
+    element_name,
+    object_bodies,
+    object_bounds,
+    object_joint,
+    object_joint_kind,
+)
 
-_FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
 _HINGE = mujoco.mjtJoint.mjJNT_HINGE
-_JOINT_KINDS = {int(_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball", int(_SLIDE): "slide", int(_HINGE): "hinge"}
 
 
 @dataclass(frozen=True)
@@ -173,8 +178,7 @@ def _one_line(error: Exception) -> str:
     return " ".join(str(error).split())
 
 
-def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
-    return mujoco.mj_id2name(model, kind, index) or f"unnamed #{index}"
+_name = element_name
 
 
 def compile_spec(spec: SceneSpec, design: Mapping[str, Any] | None = None) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
@@ -374,90 +378,6 @@ def _check_file(spec: SceneSpec, key: str, path: Path, what: str = "") -> None:
     raise spec.error(key, f"{what}{path} {problem}")
 
 
-def _object_bodies(spec: SceneSpec, model: mujoco.MjModel) -> list[int]:
-    names = [_name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
-    if spec.template is not None:
-        return [
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{spec.template}_{i}") for i in range(spec.count or 0)
-        ]
-    chosen: list[int] = []
-    for pattern in spec.bodies or ():
-        matches = [index + 1 for index, name in enumerate(names) if fnmatch.fnmatchcase(name, pattern)]
-        if not matches:
-            raise spec.error("objects.bodies", f"no body {pattern!r} in {spec.mjcf.name}")
-        for match in matches:
-            body = _moving_body(spec, model, match)
-            if body not in chosen:
-                chosen.append(body)
-    return chosen
-
-
-def _jointed_descendants(model: mujoco.MjModel, body: int) -> list[int]:
-    """The bodies of ``body``'s subtree that carry a joint with none between them and ``body``."""
-    welded = {body}
-    found: list[int] = []
-    for child in range(body + 1, int(model.nbody)):
-        parent = int(model.body_parentid[child])
-        if parent in welded:
-            (found.append if int(model.body_jntnum[child]) else welded.add)(child)
-    return found
-
-
-def _moving_body(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
-    """The body that carries object ``body``'s joint: itself, or the one jointed body welded below it."""
-    if int(model.body_jntnum[body]):
-        return body
-    jointed = _jointed_descendants(model, body)
-    if len(jointed) == 1:
-        return jointed[0]
-    name = _name(model, mujoco.mjtObj.mjOBJ_BODY, body)
-    if not jointed:
-        raise spec.error("objects", f"object body {name!r} in {spec.mjcf.name} has no joint: it cannot move")
-    names = ", ".join(repr(_name(model, mujoco.mjtObj.mjOBJ_BODY, b)) for b in jointed)
-    raise spec.error(
-        "objects",
-        f"object body {name!r} in {spec.mjcf.name} has no joint of its own but several jointed children "
-        f"({names}): name each of them as an object",
-    )
-
-
-def _object_joint(spec: SceneSpec, model: mujoco.MjModel, body: int) -> int:
-    name = _name(model, mujoco.mjtObj.mjOBJ_BODY, body)
-    first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
-    kinds = [int(model.jnt_type[j]) for j in range(first, first + count)]
-    described = ", ".join(
-        f"{_JOINT_KINDS.get(kind, '?')} {_name(model, mujoco.mjtObj.mjOBJ_JOINT, j)!r}"
-        for j, kind in zip(range(first, first + count), kinds, strict=True)
-    )
-    ancestor = int(model.body_parentid[body])
-    while ancestor:
-        if int(model.body_jntnum[ancestor]):
-            moving = _name(model, mujoco.mjtObj.mjOBJ_BODY, ancestor)
-            raise spec.error("objects", f"object body {name!r} rides on body {moving!r}, which has a joint")
-        ancestor = int(model.body_parentid[ancestor])
-    if spec.object_joints == "free":
-        if kinds != [int(_FREE)]:
-            raise spec.error(
-                "objects.joints",
-                f"body {name!r} in {spec.mjcf.name} is not free (joints: {described or 'none'}); "
-                "give it a <freejoint/> or set objects.joints = 'upright' for slide x, y, z and hinge z",
-            )
-        return first
-    if not world_aligned(model, body):
-        raise spec.error(
-            "objects.joints",
-            f"upright body {name!r} in {spec.mjcf.name} must not be rotated (quat 1 0 0 0, and its holders too): "
-            "its slide joints then move it along the world axes",
-        )
-    if not kinds or upright_axes(model, body) is None:
-        raise spec.error(
-            "objects.joints",
-            f"body {name!r} in {spec.mjcf.name} does not have upright joints: slide x, slide y, slide z and "
-            f"hinge z, or some of them, one per axis (joints: {described or 'none'})",
-        )
-    return first
-
-
 def _motion(spec: SceneSpec, model: mujoco.MjModel) -> Motion:
     motion = spec.motion
     nu = int(model.nu)
@@ -565,55 +485,6 @@ def load_scene(path: Path | str, design: Mapping[str, Any] | None = None) -> Loa
     return resolve_scene(spec, model, design_values=values)
 
 
-def object_joint_kind(model: mujoco.MjModel, bodies: list[int] | np.ndarray) -> str:
-    """``"free"`` when any of ``bodies`` (the objects' moving bodies) has a free joint, else ``"upright"``.
-
-    What a scene file without ``objects.joints`` gets; a body whose joints are not of that kind
-    is refused when the scene is resolved, naming its joints.
-    """
-    free = [
-        int(model.body_jntnum[body]) == 1 and int(model.jnt_type[model.body_jntadr[body]]) == int(_FREE)
-        for body in bodies
-    ]
-    return "free" if any(free) else "upright"
-
-
-def _object_bounds(spec: SceneSpec, model: mujoco.MjModel, bodies: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Bounding radius (n,) and box half extents (n, 3) of each object's geoms in its body frame, m.
-
-    The geoms are those of the object's rigid subtree (:func:`~energy_margin.sim.mujoco_index.object_geoms`);
-    a geom on a welded child body is placed by the model's reference configuration.
-    """
-    radius = np.zeros(len(bodies))
-    extents = np.zeros((len(bodies), 3))
-    kinematics: mujoco.MjData | None = None
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    for index, (body, geoms) in enumerate(zip(bodies, object_geoms(model, bodies), strict=True)):
-        if geoms.size == 0:
-            raise spec.error("objects", f"object {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r} has no geom")
-        corners, positions = [], []
-        for geom in geoms:
-            flat = np.empty(9)
-            if int(model.geom_bodyid[geom]) == body:
-                position = np.array(model.geom_pos[geom])
-                mujoco.mju_quat2Mat(flat, model.geom_quat[geom])
-                matrix = flat.reshape(3, 3)
-            else:
-                if kinematics is None:
-                    kinematics = mujoco.MjData(model)
-                    mujoco.mj_kinematics(model, kinematics)
-                frame = kinematics.xmat[body].reshape(3, 3)
-                position = frame.T @ (kinematics.geom_xpos[geom] - kinematics.xpos[body])
-                matrix = frame.T @ kinematics.geom_xmat[geom].reshape(3, 3)
-            positions.append(position)
-            # geom_aabb: centre (3) and half sizes (3) in each geom's frame; bound them in the body frame.
-            centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
-            corners.append(position + (centre + signs * half) @ matrix.T)
-        radius[index] = float(np.max(np.linalg.norm(np.array(positions), axis=1) + model.geom_rbound[geoms]))
-        extents[index] = np.max(np.abs(np.concatenate(corners)), axis=0)
-    return radius, extents
-
-
 def resolve_scene(
     spec: SceneSpec, model: mujoco.MjModel, *, design_values: Mapping[str, float] | None = None
 ) -> LoadedScene:
@@ -621,11 +492,11 @@ def resolve_scene(
 
     ``design_values``: the ``[design]`` values ``model`` was compiled with (recorded, not applied).
     """
-    bodies = _object_bodies(spec, model)
+    bodies = object_bodies(spec, model)
     if spec.object_joints is None:
         # The kind of the objects' joints is read from the model unless the file declares it.
         spec = replace(spec, object_joints=object_joint_kind(model, bodies))  # type: ignore[arg-type]
-    joints = [_object_joint(spec, model, body) for body in bodies]
+    joints = [object_joint(spec, model, body) for body in bodies]
     if spec.capture_at_least is not None and spec.capture_at_least > len(bodies):
         raise spec.error("capture.at_least", f"is {spec.capture_at_least} but the scene has {len(bodies)} objects")
     if spec.success_at_least is not None and spec.success_at_least > len(bodies):
@@ -643,7 +514,7 @@ def resolve_scene(
             body_name = _name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.jnt_bodyid[joint]))
             raise spec.error(
                 "objects",
-                f"body {body_name!r} in {spec.mjcf.name} has a {_JOINT_KINDS.get(kind, '?')} joint but is not an "
+                f"body {body_name!r} in {spec.mjcf.name} has a {JOINT_KINDS.get(kind, '?')} joint but is not an "
                 "object: add it to objects.bodies (robot joints must be hinges or slides)",
             )
         robot.append(joint)
@@ -657,7 +528,7 @@ def resolve_scene(
                 "motion.initial_keyframe", f"no keyframe {spec.motion.initial_keyframe!r} in {spec.mjcf.name}"
             )
         initial = np.array(model.key_qpos[key], dtype=float)
-    radius, extents = _object_bounds(spec, model, bodies)
+    radius, extents = object_bounds(spec, model, bodies)
     names = tuple(_name(model, mujoco.mjtObj.mjOBJ_BODY, body) for body in bodies)
     return LoadedScene(
         spec=spec,
