@@ -13,6 +13,7 @@ from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost,
 from energy_margin.sim import Simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState
 
@@ -160,6 +161,9 @@ class PlaneTask(Task):
         limits = np.zeros((scene.n_objects, 6))
         limits[:, :2] = 1.0
         return WrenchLimits(max_wrench=limits, max_duration=self.config.max_duration)
+
+    def _state_box(self) -> StateBox:
+        return StateBox(low=(-10.0,) * 3, high=(10.0,) * 3, max_speed=100.0)
 
     def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
         self.bounds_checks += 1

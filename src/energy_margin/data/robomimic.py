@@ -553,7 +553,11 @@ def _scene_text(spec: SceneSpec, loaded: LoadedScene, duration: float) -> str:
             "max_duration": loaded.perturbation.max_duration,
             "lambda": loaded.perturbation.likelihood_lambda,
         },
-        "bounds": {"low": list(spec.bounds_low), "high": list(spec.bounds_high), "max_speed": spec.max_speed},
+        "bounds": {
+            **({"low": list(spec.bounds_low)} if spec.bounds_low is not None else {}),
+            **({"high": list(spec.bounds_high)} if spec.bounds_high is not None else {}),
+            "max_speed": spec.max_speed,
+        },
         "capture": _with_at_least(spec.capture, spec.capture_at_least),
         "success": _with_at_least(spec.success, spec.success_at_least),
     }

@@ -19,6 +19,7 @@ import numpy as np
 from energy_margin.errors import check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
+from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
@@ -617,8 +618,28 @@ class Task(ABC):
         """Perturbation ranges for ``scene`` (scaled by each object's mass and inertia)."""
 
     @abstractmethod
+    def _state_box(self) -> StateBox:
+        """The task's :class:`StateBox` (built once, by :attr:`state_box`)."""
+
+    @property
+    def state_box(self) -> StateBox:
+        """Where the objects of a sane state lie and how fast they move at most.
+
+        A tree rejects every reached state outside it, and no frame outside it becomes data.
+        """
+        box = self.__dict__.get("_state_box_cache")
+        if box is None:
+            box = self.__dict__["_state_box_cache"] = self._state_box()
+        return box
+
     def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
-        """Whether a reached state lies in the state box (states outside are rejected)."""
+        """Whether a reached state lies in :attr:`state_box` (states outside are rejected).
+
+        Args:
+            object_pos: positions, shape (n_objects, 3), m.
+            object_vel: velocities, shape (n_objects, 6), m/s and rad/s.
+        """
+        return self.state_box.contains(object_pos, object_vel)
 
     def is_captured(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the capture region built from ``frame``."""

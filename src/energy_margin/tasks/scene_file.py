@@ -29,6 +29,13 @@ SCHEMA_VERSION = 1
 MAX_COPIES = 1000
 #: Deepest nesting of arrays and tables in a scene file (regions nest through ``of`` and ``region``).
 MAX_DEPTH = 64
+#: ``bounds.max_speed`` when the file leaves it out, m/s: nothing on a table moves this fast (a
+#: fall of 2 m ends at 6.3 m/s), and every blown-up simulation does.
+DEFAULT_MAX_SPEED = 10.0
+#: Without ``bounds.low`` or ``bounds.high``, the box reaches this far past the model's extent on
+#: every side, m (around the bounding box of every geom at the initial state,
+#: :func:`energy_margin.tasks.scene_model.default_bounds`).
+BOUNDS_MARGIN = 1.0
 
 Interpolation = Literal["linear", "hold"]
 ObjectJoints = Literal["free", "upright"]
@@ -230,9 +237,11 @@ class SceneSpec:
             scene (tasks/scene_defaults.py) instead of taking the fixed defaults.
         success: the success region table.
         success_at_least: success needs at least this many objects inside, or ``None`` for every object.
-        bounds_low: reached states with an object below this corner are rejected, (3,), m.
-        bounds_high: and above this one, (3,), m.
-        max_speed: reached states with a faster object (m/s) are rejected.
+        bounds_low: reached states with an object below this corner are rejected, and frames too,
+            (3,), m; ``None`` when the file leaves it out (a box around the model, :data:`BOUNDS_MARGIN`).
+        bounds_high: and above this one, (3,), m, or ``None``.
+        max_speed: reached states and frames with a faster object (m/s) are rejected (default
+            :data:`DEFAULT_MAX_SPEED`).
         locator: line numbers of the file's keys.
         design: the ``[design]`` parameters, in the file's order (applied to the model with
             ``MjSpec`` before it is compiled, :func:`~energy_margin.tasks.scene_model.compile_spec`).
@@ -259,8 +268,8 @@ class SceneSpec:
     capture_at_least: int | None
     success: dict[str, Any]
     success_at_least: int | None
-    bounds_low: tuple[float, ...]
-    bounds_high: tuple[float, ...]
+    bounds_low: tuple[float, ...] | None
+    bounds_high: tuple[float, ...] | None
     max_speed: float
     locator: Locator = field(repr=False, compare=False)
     capture_follows: bool = False
@@ -537,11 +546,11 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
         sets[name] = (region, at_least)
 
     bounds = read.table(document, "bounds", "", {"low", "high", "max_speed"})
-    low = read.vector(bounds.get("low", [-100.0] * 3), "bounds.low")
-    high = read.vector(bounds.get("high", [100.0] * 3), "bounds.high")
-    if any(a >= b for a, b in zip(low, high, strict=True)):
+    low = read.vector(bounds["low"], "bounds.low") if "low" in bounds else None
+    high = read.vector(bounds["high"], "bounds.high") if "high" in bounds else None
+    if low is not None and high is not None and any(a >= b for a, b in zip(low, high, strict=True)):
         raise read.fail("bounds.high", f"must exceed bounds.low on every axis, got {list(low)} and {list(high)}")
-    max_speed = read.number(bounds.get("max_speed", 100.0), "bounds.max_speed", positive=True)
+    max_speed = read.number(bounds.get("max_speed", DEFAULT_MAX_SPEED), "bounds.max_speed", positive=True)
 
     return SceneSpec(
         path=path,

@@ -23,7 +23,9 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
 from energy_margin.tasks.regions import AtLeast, build_region
+from energy_margin.tasks.scene_file import BOUNDS_MARGIN
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
+from energy_margin.tasks.state_box import StateBox, box_around_model
 from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
@@ -664,9 +666,20 @@ class SceneTask(Task):
         angular[:, 2] = np.where(mask[:, 3], armature[index.yaw_rate_index], 0.0)
         return linear, angular
 
-    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
-        """Objects inside the bounds box and slower than ``bounds.max_speed``."""
+    def _state_box(self) -> StateBox:
+        """The scene file's ``[bounds]``; a side it leaves out is a box around the model (:data:`BOUNDS_MARGIN`)."""
         spec = self.loaded.spec
-        if np.any(object_pos < np.asarray(spec.bounds_low)) or np.any(object_pos > np.asarray(spec.bounds_high)):
-            return False
-        return bool(np.max(np.linalg.norm(object_vel[:, :3], axis=1)) <= spec.max_speed)
+        low, high = spec.bounds_low, spec.bounds_high
+        if low is None or high is None:
+            around_low, around_high = box_around_model(self.loaded.model, BOUNDS_MARGIN)
+            low = around_low if low is None else low
+            high = around_high if high is None else high
+        if any(a >= b for a, b in zip(low, high, strict=True)):
+            raise spec.error(
+                "bounds", f"leaves no room: low {list(low)} and high {list(high)} (one side from around the model)"
+            )
+        if spec.bounds_low is not None and spec.bounds_high is not None:
+            source = "the scene file's [bounds]"
+        else:
+            source = f"[bounds] partly left out: a box {BOUNDS_MARGIN:g} m around the model's geoms"
+        return StateBox(low=tuple(low), high=tuple(high), max_speed=spec.max_speed, source=source)  # type: ignore[arg-type]

@@ -54,6 +54,7 @@ from energy_margin.tasks.base import (
     require_ranges,
     sample_separated,
 )
+from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
 
@@ -631,15 +632,16 @@ class ScoopingTask(Task):
         limits[:, 3:] = scene.object_inertias * cfg.max_angular_acceleration
         return WrenchLimits(max_wrench=limits, max_duration=cfg.max_duration)
 
-    def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+    def _state_box(self) -> StateBox:
         """Boxes above the table top (not sunk through it), over the table, slower than ``max_speed``."""
         cfg = self.config
-        if np.abs(object_pos[:, :2]).max() > cfg.workspace_xy:
-            return False
-        z = object_pos[:, 2] - cfg.table_top
-        if z.min() < cfg.workspace_z[0] or z.max() > cfg.workspace_z[1]:
-            return False
-        return bool(np.abs(object_vel[:, :3]).max() <= cfg.max_speed)
+        xy, (z_low, z_high) = cfg.workspace_xy, cfg.workspace_z
+        return StateBox(
+            low=(-xy, -xy, cfg.table_top + z_low),
+            high=(xy, xy, cfg.table_top + z_high),
+            max_speed=cfg.max_speed,
+            source="scooping's workspace_xy, workspace_z and max_speed",
+        )
 
     def frame_steps(self, n_frames: int) -> np.ndarray:
         """Frames evenly spaced from ``record_start`` (during the closing) to the end, shape (K,)."""

@@ -1,0 +1,160 @@
+"""The physically sane states of a task: objects inside a box, slower than a speed bound.
+
+One :class:`StateBox` per task serves twice: a tree rejects every reached state outside it
+(:meth:`Task.within_bounds`), and no frame outside it becomes data (``generate``, ``record``, the
+wrappers' recorder and ``check``, :mod:`energy_margin.data.physical`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import mujoco
+
+#: Kinds of :class:`Violation`.
+OUTSIDE = "outside the bounds"
+TOO_FAST = "too fast"
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One object of one state outside its task's :class:`StateBox`.
+
+    Attributes:
+        object: the object's index.
+        kind: :data:`OUTSIDE` or :data:`TOO_FAST`.
+        value: the object's position (3,), m, or its speed, m/s.
+        message: the violation in words, with the value and the bound.
+    """
+
+    object: int
+    kind: str
+    value: tuple[float, ...]
+    message: str
+
+
+@dataclass(frozen=True)
+class StateBox:
+    """Objects' positions between ``low`` and ``high`` and speeds at most ``max_speed``.
+
+    Attributes:
+        low: lowest position of an object's origin on x, y, z, shape (3,), m (``-inf``: none).
+        high: highest position, shape (3,), m (``inf``: none).
+        max_speed: largest linear speed of an object (the norm of its velocity), m/s.
+        source: where the bounds come from, in words (e.g. "the scene file's [bounds]").
+    """
+
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    max_speed: float
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        """Check the box: three bounds per side, low < high, a positive speed."""
+        if len(self.low) != 3 or len(self.high) != 3:
+            raise ValueError(f"a state box needs three low and three high bounds, got {self.low} and {self.high}")
+        if any(not a < b for a, b in zip(self.low, self.high, strict=True)):
+            raise ValueError(f"a state box needs low < high on every axis, got {self.low} and {self.high}")
+        if not self.max_speed > 0:
+            raise ValueError(f"a state box needs a positive max_speed, got {self.max_speed!r}")
+        object.__setattr__(self, "_low", np.asarray(self.low, dtype=float))
+        object.__setattr__(self, "_high", np.asarray(self.high, dtype=float))
+
+    def contains(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
+        """Whether every object lies inside the box and moves no faster than ``max_speed``.
+
+        Args:
+            object_pos: positions, shape (n_objects, 3), m.
+            object_vel: velocities, linear first, shape (n_objects, 6) (or (n_objects, 3)), m/s.
+        """
+        low: np.ndarray = self._low  # type: ignore[attr-defined]
+        high: np.ndarray = self._high  # type: ignore[attr-defined]
+        if np.any(object_pos < low) or np.any(object_pos > high):
+            return False
+        linear = object_vel[:, :3]
+        return bool(np.max(np.einsum("ij,ij->i", linear, linear)) <= self.max_speed**2)
+
+    def violations(self, object_pos: np.ndarray, object_vel: np.ndarray) -> list[Violation]:
+        """Every object outside the box or faster than ``max_speed`` (NaN counts as outside), by object.
+
+        Args:
+            object_pos: positions, shape (n_objects, 3), m.
+            object_vel: velocities, linear first, shape (n_objects, 6), m/s.
+        """
+        low: np.ndarray = self._low  # type: ignore[attr-defined]
+        high: np.ndarray = self._high  # type: ignore[attr-defined]
+        found = []
+        speeds = np.linalg.norm(object_vel[:, :3], axis=1)
+        for index, (pos, speed) in enumerate(zip(object_pos, speeds, strict=True)):
+            if not (np.all(pos >= low) and np.all(pos <= high)):
+                found.append(
+                    Violation(
+                        index,
+                        OUTSIDE,
+                        tuple(float(x) for x in pos),
+                        f"object {index} at {_point(pos)} m lies outside the bounds {_point(low)} to "
+                        f"{_point(high)} m ({self.source or 'the task'})",
+                    )
+                )
+            if not speed <= self.max_speed:
+                found.append(
+                    Violation(
+                        index,
+                        TOO_FAST,
+                        (float(speed),),
+                        f"object {index} moves at {_number(speed)} m/s, faster than {_number(self.max_speed)} m/s "
+                        f"({self.source or 'the task'})",
+                    )
+                )
+        return found
+
+
+def _number(value: float) -> str:
+    return f"{value:.4g}"
+
+
+def _point(values: np.ndarray) -> str:
+    return "(" + ", ".join(_number(float(v)) for v in values) + ")"
+
+
+def box_around_model(model: mujoco.MjModel, margin: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The axis-aligned box around every bounded geom of ``model``, ``margin`` larger on every side.
+
+    Each geom counts with its bounding sphere, at the model's reference configuration and at every
+    keyframe; planes (unbounded) do not count.
+
+    Args:
+        model: a compiled model.
+        margin: added on every side, m.
+
+    Returns:
+        ``(low, high)``, each (3,), m.
+    """
+    import mujoco
+
+    data = mujoco.MjData(model)
+    bounded = (model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE) & (model.geom_rbound > 0)
+    lows, highs = [], []
+    for key in range(-1, int(model.nkey)):
+        if key < 0:
+            mujoco.mj_resetData(model, data)
+        else:
+            mujoco.mj_resetDataKeyframe(model, data, key)
+        mujoco.mj_kinematics(model, data)
+        centres = data.geom_xpos[bounded]
+        radii = model.geom_rbound[bounded][:, None]
+        if centres.size:
+            lows.append((centres - radii).min(axis=0))
+            highs.append((centres + radii).max(axis=0))
+    if not lows:
+        return (-margin,) * 3, (margin,) * 3
+    low = np.min(lows, axis=0) - margin
+    high = np.max(highs, axis=0) + margin
+    return tuple(float(x) for x in low), tuple(float(x) for x in high)
+
+
+__all__ = ["OUTSIDE", "TOO_FAST", "StateBox", "Violation", "box_around_model"]
