@@ -19,17 +19,21 @@ from releases import CROWD_REDRAWN, for_release
 
 def test_a_crowd_of_twenty_cylinders_is_redrawn_where_it_sinks_into_itself(tmp_path: Path) -> None:
     # Seed 43's trajectory 12 piles 20 cylinders 28 mm deep into a wall (limit 25 mm) with MuJoCo
-    # 4.0.0; MuJoCo 3.3.0's contacts sink trajectories 2 and 3 instead. Each is redrawn.
+    # 4.0.0, which then throws one a metre past the workspace; MuJoCo 3.3.0's contacts sink
+    # trajectories 2 and 3 instead. Each is redrawn, with the reason.
     expected = for_release(CROWD_REDRAWN, "the redrawn trajectories")
     dataset = generate_dataset("pushing", n_objects=20, n_trajectories=13, n_frames=10, seed=43, out=tmp_path / "d")
-    assert dataset.metadata[REDRAWN_KEY] == expected
+    redrawn = dataset.metadata[REDRAWN_KEY]
+    assert {index: entry["draw"] for index, entry in redrawn.items()} == expected
+    assert all(len(entry["reasons"]) == entry["draw"] for entry in redrawn.values())
+    assert all(reason.startswith("frame ") for entry in redrawn.values() for reason in entry["reasons"])
     assert check_dataset(tmp_path / "d") == []
     for trajectory in map(int, expected):
         first_draw = generate_module.record_trajectory(
             dataset.task, 20, 10, trajectory_rng(43, 13, trajectory), check_overlaps=False
         )
         assert not np.array_equal(first_draw["object_pos"], dataset.arrays["object_pos"][trajectory])
-        with pytest.raises(generate_module.DeepOverlapError):
+        with pytest.raises(generate_module.RefusedDrawError):
             generate_module.record_trajectory(
                 dataset.task, 20, 10, trajectory_rng(43, 13, trajectory), check_overlaps=True
             )
@@ -57,7 +61,8 @@ def test_a_redrawn_trajectory_is_recorded_and_replays(tmp_path: Path, monkeypatc
     _refuse_first_draws(monkeypatch, refused=2)
     redrawn = generate_dataset("pushing", n_objects=2, n_trajectories=3, n_frames=3, seed=5, out=tmp_path / "r")
     assert REDRAWN_KEY not in plain.metadata
-    assert redrawn.metadata[REDRAWN_KEY] == {"1": 2}
+    reason = "frame 0: object 0 overlaps object 1 by 30.0 mm (limit 25.0 mm)"
+    assert redrawn.metadata[REDRAWN_KEY] == {"1": {"draw": 2, "reasons": [reason, reason]}}
     for key in ("object_pos", "drive"):
         assert np.array_equal(redrawn.arrays[key][[0, 2]], plain.arrays[key][[0, 2]])
         assert not np.array_equal(redrawn.arrays[key][1], plain.arrays[key][1])
@@ -98,7 +103,8 @@ def test_a_roll_out_that_blows_up_is_drawn_again_then_refused(make_scene, tmp_pa
         )
         return
     assert error == [
-        "energy-margin: error: cannot generate scene trajectory 0: in each of 8 draws the simulation blew up "
-        "(a non-finite acceleration; the engine restarted it from the model's reference state); a smaller time "
-        "step, another integrator or softer contacts in the model may keep it stable"
+        "energy-margin: error: cannot generate scene trajectory 0: each of 8 draws failed (the last: MuJoCo warned "
+        "mjWARN_BADQACC 1x: a NaN, infinite or huge acceleration, and reset the simulation); the simulation is "
+        "unstable: a smaller time step (<option timestep>), another integrator (implicitfast, RK4) or softer "
+        "contacts in the model may keep it stable"
     ]

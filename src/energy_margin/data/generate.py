@@ -20,6 +20,7 @@ from energy_margin.data.dataset import (
     validate,
     write_directory,
 )
+from energy_margin.data.physical import RolloutWatch, count_reasons, reason_kind
 from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
@@ -44,10 +45,28 @@ def check_engine(task: Task, engine: str) -> None:
 #: Draws of one trajectory before generation gives up. A draw whose frames the dataset check would
 #: refuse is replaced by the next: in crowds (20 pushing cylinders driven into each other and the
 #: walls) MuJoCo's soft contacts let a pile sink up to 30 mm into itself, deeper than the limit
-#: with which ``analyze`` refuses a dataset (data/validation.py), in about one trajectory in 15.
+#: with which ``analyze`` refuses a dataset (data/validation.py), in about one trajectory in 15;
+#: and a roll-out that blew up, left the bounds or gained energy from nothing is drawn again
+#: (data/physical.py).
 MAX_DRAWS = 8
-#: Key of ``dataset.json`` that lists the redrawn trajectories: ``{"index": draw}``.
+#: Generation stops once this many draws failed and they are most of the draws so far: the
+#: scene, not bad luck, is at fault.
+MOST_DRAWS_FAIL = 10
+#: Key of ``dataset.json`` that lists the redrawn trajectories: ``{"index": {"draw": d, "reasons":
+#: [why draw 0 failed, ..., why draw d - 1 failed]}}`` (datasets of earlier versions: ``{"index": d}``).
 REDRAWN_KEY = "redrawn"
+#: What to change when most draws fail, by the kind of failure (:func:`~energy_margin.data.physical.reason_kind`).
+LIKELY_FIX = {
+    "warning": "the simulation is unstable: a smaller time step (<option timestep>), another integrator "
+    "(implicitfast, RK4) or softer contacts in the model may keep it stable",
+    "energy": "the simulation creates energy: a smaller time step (<option timestep>), another integrator "
+    "(implicitfast, RK4) or softer contacts in the model may keep it stable",
+    "bounds": "objects leave the scene's [bounds]: widen [bounds] if they belong there, otherwise keep them on "
+    "their support (start region, motion) or make the simulation stable (smaller time step)",
+    "speed": "objects move faster than bounds.max_speed: raise it if they really do, otherwise make the "
+    "simulation stable (smaller time step, another integrator)",
+    "overlap": "objects overlap deeper than the dataset check allows: use fewer objects or a larger workspace",
+}
 
 
 class RefusedDrawError(ValueError):
@@ -58,8 +77,8 @@ class DeepOverlapError(RefusedDrawError):
     """A recorded frame whose objects overlap deeper than the dataset check allows."""
 
 
-class DivergedError(RefusedDrawError):
-    """A roll-out whose simulation blew up (MuJoCo restarted it from the reference state)."""
+class UnphysicalError(RefusedDrawError):
+    """A roll-out that blew up, left the bounds, moved too fast or gained energy from nothing."""
 
 
 def trajectory_rng(seed: int, n_trajectories: int, index: int, draw: int = 0) -> np.random.Generator:
@@ -76,12 +95,19 @@ def trajectory_rng(seed: int, n_trajectories: int, index: int, draw: int = 0) ->
 
 
 def roll_out(
-    task: Task, trajectory: Trajectory, simulator: Simulator, rng: np.random.Generator, steps: np.ndarray
+    task: Task,
+    trajectory: Trajectory,
+    simulator: Simulator,
+    rng: np.random.Generator,
+    steps: np.ndarray,
+    *,
+    after_step: Callable[[], None] | None = None,
 ) -> Iterator[int]:
     """Run a scripted roll-out from ``trajectory.initial``, stopping at each of ``steps`` (sorted, >= 0).
 
     Yields each step number once the simulator has reached it (the simulator then holds that
-    state). The command of every step is drawn from ``rng``, as during generation.
+    state). The command of every step is drawn from ``rng``, as during generation;
+    ``after_step`` is called after every physics step.
     """
     simulator.reset(trajectory.initial)
     dt = simulator.timestep
@@ -90,6 +116,8 @@ def roll_out(
         while step < target:
             command_robot(task, simulator, trajectory.drive, step * dt, rng)
             simulator.step(1)
+            if after_step is not None:
+                after_step()
             step += 1
         yield step
 
@@ -106,60 +134,106 @@ def record_trajectory(
     """Run one scripted roll-out and record ``n_frames`` evenly spaced frames with their labels.
 
     Raises:
+        UnphysicalError: ``check_overlaps`` and the roll-out went wrong (data/physical.py): MuJoCo
+            warned (a blow-up, which it restarts by itself), a frame has an object outside the
+            task's state box or too fast, or the energy grew without work.
         DeepOverlapError: ``check_overlaps`` and a frame the dataset check would refuse (checked after
             the roll-out, each frame reset as ``analyze`` resets it, so the roll-out is unchanged).
-        DivergedError: ``check_overlaps`` and the roll-out's simulation blew up (its frames after
-            that would be the engine's restart, not the task).
     """
     trajectory = task.sample_trajectory(rng, n_objects)
     simulator = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, engine)
     dt = simulator.timestep
     frames: list[FrameState] = []
     times: list[float] = []
-    for step in roll_out(task, trajectory, simulator, rng, task.frame_steps(n_frames)):
-        frames.append(simulator.frame_state())
-        times.append(step * dt)
+    watch = None
     if check_overlaps:
-        if simulator.diverged():
-            raise DivergedError(
-                "the simulation blew up (a non-finite acceleration; the engine restarted it from the model's "
-                "reference state)"
-            )
+        simulator.reset(trajectory.initial)
+        watch = RolloutWatch(simulator, task.frame_box)
+    steps = task.frame_steps(n_frames)
+    for step in roll_out(task, trajectory, simulator, rng, steps, after_step=watch and watch.after_step):
+        frame = simulator.frame_state()
+        frames.append(frame)
+        times.append(step * dt)
+        if watch is not None:
+            watch.frame(frame)
+    if watch is not None:
+        found = watch.problems()
+        if found:
+            raise UnphysicalError(found[0])
         limits = overlap_limits(simulator.scene)
         for index, frame in enumerate(frames):
             simulator.reset(frame)
-            found = deep_overlaps(simulator, limits)
-            if found:
-                raise DeepOverlapError(f"frame {index}: {describe_overlap(*found[0])}")
+            overlapping = deep_overlaps(simulator, limits)
+            if overlapping:
+                raise DeepOverlapError(f"frame {index}: {describe_overlap(*overlapping[0])}")
     return trajectory_record(task, frames, times, trajectory.friction, trajectory.drive)
 
 
+class DrawTally:
+    """Draws made and refused so far in one generation, to stop when most draws fail."""
+
+    def __init__(self) -> None:
+        self.draws = 0
+        self.reasons: list[str] = []
+
+    def add(self, reason: str | None) -> None:
+        """Count one draw, refused for ``reason`` (``None``: accepted)."""
+        self.draws += 1
+        if reason is not None:
+            self.reasons.append(reason)
+
+    def stop_reason(self, task: Task) -> str | None:
+        """Why generation should stop, or ``None`` while most draws succeed."""
+        failed = len(self.reasons)
+        if failed < MOST_DRAWS_FAIL or 2 * failed <= self.draws:
+            return None
+        kind = count_reasons(self.reasons)
+        example = next(reason for reason in reversed(self.reasons) if reason_kind(reason) == kind)
+        return (
+            f"cannot generate {task.name} trajectories: {failed} of {self.draws} draws failed, most for the same "
+            f"cause (the last: {example}); {LIKELY_FIX[kind]}"
+        )
+
+
 def draw_trajectory(
-    task: Task, n_objects: int, n_frames: int, seed: int, n_trajectories: int, index: int, *, engine: str
-) -> tuple[dict[str, Any], int]:
+    task: Task,
+    n_objects: int,
+    n_frames: int,
+    seed: int,
+    n_trajectories: int,
+    index: int,
+    *,
+    engine: str,
+    tally: DrawTally | None = None,
+) -> tuple[dict[str, Any], list[str]]:
     """Trajectory ``index``'s record from the first of :data:`MAX_DRAWS` draws the dataset check accepts.
 
     Returns:
-        The record and its draw (0 unless earlier draws overlapped too deeply).
+        The record and why each earlier draw was refused (empty: the first draw was accepted).
 
     Raises:
-        EnergyMarginError: every draw was refused: objects overlapped too deeply (naming the last
-            overlap) or the simulation blew up.
+        EnergyMarginError: every draw was refused, or most draws of the generation so far
+            (``tally``), naming the cause and the likely fix.
     """
+    tally = tally if tally is not None else DrawTally()
+    reasons: list[str] = []
     for draw in range(MAX_DRAWS):
         rng = trajectory_rng(seed, n_trajectories, index, draw)
         try:
-            return record_trajectory(task, n_objects, n_frames, rng, engine=engine, check_overlaps=True), draw
+            record = record_trajectory(task, n_objects, n_frames, rng, engine=engine, check_overlaps=True)
         except RefusedDrawError as error:
-            last = error
-    if isinstance(last, DivergedError):
-        raise EnergyMarginError(
-            f"cannot generate {task.name} trajectory {index}: in each of {MAX_DRAWS} draws {last}; a smaller time "
-            "step, another integrator or softer contacts in the model may keep it stable"
-        )
+            reasons.append(str(error))
+            tally.add(str(error))
+            stop = tally.stop_reason(task)
+            if stop is not None:
+                raise EnergyMarginError(stop) from None
+            continue
+        tally.add(None)
+        return record, reasons
+    kind = count_reasons(reasons)
     raise EnergyMarginError(
-        f"cannot generate {task.name} trajectory {index}: each of {MAX_DRAWS} draws has objects overlapping "
-        f"deeper than the dataset check allows (the last: {last}); use fewer objects or a larger workspace"
+        f"cannot generate {task.name} trajectory {index}: each of {MAX_DRAWS} draws failed (the last: "
+        f"{reasons[-1]}); {LIKELY_FIX[kind]}"
     )
 
 
@@ -252,6 +326,14 @@ def records_dataset(
     return dataset
 
 
+def redrawn_draw(metadata: dict[str, Any], index: int) -> int:
+    """The draw that trajectory ``index`` of a generated dataset comes from (0 unless it was redrawn)."""
+    redrawn = metadata.get(REDRAWN_KEY) or {}
+    entry = redrawn.get(str(index), 0) if isinstance(redrawn, dict) else 0
+    draw = entry.get("draw", 0) if isinstance(entry, dict) else entry
+    return draw if isinstance(draw, int) and not isinstance(draw, bool) and draw >= 0 else 0
+
+
 def replay_trajectory(
     dataset: Dataset, index: int, steps: np.ndarray, *, simulator: Simulator | None = None
 ) -> Iterator[tuple[int, FrameState]]:
@@ -271,9 +353,7 @@ def replay_trajectory(
     if isinstance(seed, bool) or not isinstance(seed, int):
         raise EnergyMarginError(f"{dataset.path}: no generation seed in dataset.json; cannot run the roll-out again")
     task = dataset.task
-    redrawn = meta.get(REDRAWN_KEY) or {}
-    draw = redrawn.get(str(index), 0) if isinstance(redrawn, dict) else 0
-    rng = trajectory_rng(seed, dataset.n_trajectories, index, int(draw) if isinstance(draw, int) else 0)
+    rng = trajectory_rng(seed, dataset.n_trajectories, index, redrawn_draw(meta, index))
     trajectory = task.sample_trajectory(rng, dataset.n_objects)
     stored_drive = dataset.arrays["drive"][index]
     if trajectory.friction != float(dataset.arrays["friction"][index]) or not np.array_equal(
@@ -343,15 +423,18 @@ def generate_dataset(
             return existing
     check_target(out, overwrite=overwrite)
     records = []
-    redrawn: dict[str, int] = {}
+    redrawn: dict[str, dict[str, Any]] = {}
+    tally = DrawTally()
     for index in range(n_trajectories):
         try:
-            record, draw = draw_trajectory(task, n_objects, n_frames, seed, n_trajectories, index, engine=engine)
+            record, reasons = draw_trajectory(
+                task, n_objects, n_frames, seed, n_trajectories, index, engine=engine, tally=tally
+            )
         except ValueError as error:
             raise EnergyMarginError(f"cannot generate {task_name} trajectories: {error}") from None
         records.append(record)
-        if draw:
-            redrawn[str(index)] = draw
+        if reasons:
+            redrawn[str(index)] = {"draw": len(reasons), "reasons": reasons}
         if progress is not None:
             progress(1)
     extra: dict[str, Any] = {"seed": int(seed)}

@@ -632,6 +632,15 @@ class Task(ABC):
             box = self.__dict__["_state_box_cache"] = self._state_box()
         return box
 
+    @property
+    def frame_box(self) -> StateBox:
+        """Where the objects of a recorded frame may physically be, and how fast they move at most.
+
+        No frame outside it becomes data (data/physical.py). It is :attr:`state_box` unless the
+        task's state box is a narrower workspace for its trees (the built-in tasks widen theirs).
+        """
+        return self.state_box
+
     def within_bounds(self, object_pos: np.ndarray, object_vel: np.ndarray) -> bool:
         """Whether a reached state lies in :attr:`state_box` (states outside are rejected).
 

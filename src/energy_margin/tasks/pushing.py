@@ -51,6 +51,10 @@ _ARC_SEGMENTS = 4
 _MIN_PLATE = 0.01
 
 
+#: How far past the workspace a recorded frame's object may lie, m (:attr:`PushingTask.frame_box`).
+FRAME_MARGIN = 1.0
+
+
 @dataclass(frozen=True)
 class PushingConfig(TaskConfig):
     """Planar pushing settings (SI units).
@@ -658,4 +662,17 @@ class PushingTask(Task):
             high=(high, high, 1.0),
             max_speed=cfg.max_speed,
             source="pushing's workspace and max_speed",
+        )
+
+    @property
+    def frame_box(self) -> StateBox:
+        """The workspace widened by :data:`FRAME_MARGIN` on every side: a recorded frame may hold an object
+        pushed past the workspace's edge (the trees then reject every state), not one in the air.
+        """
+        box = self.state_box
+        return StateBox(
+            low=(box.low[0] - FRAME_MARGIN, box.low[1] - FRAME_MARGIN, -0.5),
+            high=(box.high[0] + FRAME_MARGIN, box.high[1] + FRAME_MARGIN, 1.0),
+            max_speed=box.max_speed,
+            source=f"pushing's workspace widened by {FRAME_MARGIN:g} m, heights -0.5 to 1 m",
         )

@@ -643,6 +643,17 @@ class ScoopingTask(Task):
             source="scooping's workspace_xy, workspace_z and max_speed",
         )
 
+    @property
+    def frame_box(self) -> StateBox:
+        """The workspace widened by 1 m on every side (a box may fall off the table), not through the floor."""
+        box = self.state_box
+        return StateBox(
+            low=(box.low[0] - 1.0, box.low[1] - 1.0, box.low[2] - 1.0),
+            high=(box.high[0] + 1.0, box.high[1] + 1.0, box.high[2] + 1.0),
+            max_speed=box.max_speed,
+            source="scooping's workspace widened by 1 m",
+        )
+
     def frame_steps(self, n_frames: int) -> np.ndarray:
         """Frames evenly spaced from ``record_start`` (during the closing) to the end, shape (K,)."""
         first = round(self.config.record_start / self.config.timestep)

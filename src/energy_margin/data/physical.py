@@ -1,0 +1,167 @@
+"""Physical sanity of the frames that become data: no impossible state is ever labelled.
+
+Two kinds of test. On frames alone, in any dataset (``check``, and every writer before it
+writes): each object inside its task's :class:`~energy_margin.tasks.state_box.StateBox` (the scene
+file's ``[bounds]``, or a box around the model) and no faster than its speed bound
+(:func:`state_problems`, :func:`frame_violations`). During a roll-out that this package steps
+(``generate``) or watches (the wrappers' recorder), :class:`RolloutWatch` also reads every
+warning MuJoCo raised and audits the energy (:mod:`energy_margin.sim.mujoco_audit`). Overlapping
+objects are the third test (:mod:`energy_margin.data.validation`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem
+from energy_margin.sim.base import CompiledModel, Simulator
+from energy_margin.tasks.state_box import OUTSIDE, StateBox, Violation
+from energy_margin.world.state import FrameState
+
+#: A roll-out whose energy grew by more than this beyond the work done on it, J, per kilogram
+#: of the model's moving mass, and by more than :data:`ENERGY_FLOOR`, gained energy from nothing.
+#: Sound roll-outs stay below 0.05 J/kg (the built-in tasks and every example, generation
+#: seeds 100-101); a blown-up one gains thousands.
+ENERGY_PER_KG = 1.0
+#: Smallest energy gain flagged, J.
+ENERGY_FLOOR = 1.0
+_MAX_PER_KIND = 5
+
+
+def frame_violations(box: StateBox, frame: FrameState) -> list[Violation]:
+    """The objects of ``frame`` outside ``box`` or too fast (a non-finite value counts as outside)."""
+    return box.violations(np.asarray(frame.object_pos, dtype=float), np.asarray(frame.object_vel, dtype=float))
+
+
+def state_problems(dataset: Dataset) -> list[Problem]:
+    """Frames of ``dataset`` with an object outside its task's state box or faster than its bound.
+
+    One problem per object and kind (at most five of each kind), naming the trajectory, the
+    frame, the object and the value. Non-finite values are left to the array checks.
+    """
+    try:
+        box = dataset.task.frame_box
+    except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
+        return [Problem("dataset.json", "task_config", "", f"cannot build the task's bounds ({error})")]
+    positions, velocities = dataset.arrays["object_pos"], dataset.arrays["object_vel"]
+    finite = np.isfinite(positions).all(axis=(2, 3)) & np.isfinite(velocities).all(axis=(2, 3))
+    problems: list[Problem] = []
+    counts = {"object_pos": 0, "object_vel": 0}
+    for trajectory, frame in zip(*np.nonzero(finite), strict=True):
+        pos, vel = positions[trajectory, frame], velocities[trajectory, frame]
+        if box.contains(pos, vel):
+            continue
+        for violation in box.violations(pos, vel):
+            field = "object_pos" if violation.kind == OUTSIDE else "object_vel"
+            if counts[field] >= _MAX_PER_KIND:
+                continue
+            counts[field] += 1
+            where = f"trajectory {trajectory}, frame {frame}, object {violation.object}"
+            problems.append(Problem(FRAMES_FILE, field, where, violation.message))
+        if min(counts.values()) >= _MAX_PER_KIND:
+            break
+    return problems
+
+
+class RolloutWatch:
+    """Watches one roll-out of ``simulator`` from its current state: warnings, energy, frames.
+
+    Call :meth:`after_step` after every physics step (or every environment step, for a roll-out
+    stepped elsewhere: the energy audit then only runs where it saw every step) and :meth:`frame`
+    at every recorded frame; :meth:`problems` lists what went wrong, in words.
+
+    Args:
+        simulator: the roll-out's simulator, reset to its start.
+        box: the task's state box.
+        audit_energy: follow the energy step by step (MuJoCo simulators only).
+    """
+
+    def __init__(self, simulator: Simulator, box: StateBox, *, audit_energy: bool = True) -> None:
+        self.simulator = simulator
+        self.box = box
+        self._model_data = simulator if isinstance(simulator, CompiledModel) else None
+        self._audit = None
+        if audit_energy and self._model_data is not None:
+            from energy_margin.sim.mujoco_audit import EnergyAudit
+
+            self._audit = EnergyAudit(self._model_data.model, self._model_data.data)
+        self._found: list[str] = []
+        self._frames = 0
+
+    def after_step(self) -> None:
+        """Account for the physics step just taken."""
+        if self._audit is not None:
+            self._audit.after_step()
+
+    def frame(self, frame: FrameState) -> None:
+        """Test a recorded frame: inside the state box, no faster than its bound."""
+        violations = frame_violations(self.box, frame)
+        if violations:
+            self._found.append(f"frame {self._frames}: {violations[0].message}")
+        self._frames += 1
+
+    def energy_limit(self) -> float:
+        """The largest energy gain accepted, J (:data:`ENERGY_PER_KG` of the moving mass, at least the floor)."""
+        if self._model_data is None:
+            return float("inf")
+        model = self._model_data.model
+        moving = float(np.sum(model.body_mass[model.body_weldid != 0]))
+        return max(ENERGY_FLOOR, ENERGY_PER_KG * moving)
+
+    def energy_gain(self) -> float | None:
+        """Energy gained so far beyond the work done, J (``None`` without an audit)."""
+        return None if self._audit is None else self._audit.gain()
+
+    def problems(self) -> list[str]:
+        """What went wrong in the roll-out so far, one sentence each (empty: nothing)."""
+        found = list(self._found[:1])
+        if self._model_data is not None:
+            from energy_margin.sim.mujoco_audit import describe_warnings, raised_warnings
+
+            raised = raised_warnings(self._model_data.data)
+            if raised:
+                found.insert(0, describe_warnings(raised))
+            if self._audit is not None:
+                gain, limit = self._audit.gain(), self.energy_limit()
+                if not gain <= limit:
+                    found.append(
+                        f"the simulation gained {gain:.4g} J without work done on it (more than {limit:.3g} J)"
+                    )
+        elif self.simulator.diverged():
+            found.insert(0, "the simulation diverged (a non-finite state)")
+        return found
+
+
+def count_reasons(reasons: Sequence[str]) -> str:
+    """The most common kind among ``reasons`` (their text before the first colon or parenthesis)."""
+    kinds: dict[str, int] = {}
+    for reason in reasons:
+        kind = reason_kind(reason)
+        kinds[kind] = kinds.get(kind, 0) + 1
+    return max(kinds, key=lambda kind: kinds[kind]) if kinds else ""
+
+
+def reason_kind(reason: str) -> str:
+    """The kind of a refused draw's reason: ``warning``, ``bounds``, ``speed``, ``energy`` or ``overlap``."""
+    if reason.startswith("MuJoCo warned") or reason.startswith("the simulation diverged"):
+        return "warning"
+    if "outside the bounds" in reason:
+        return "bounds"
+    if "m/s, faster than" in reason:
+        return "speed"
+    if "without work" in reason:
+        return "energy"
+    return "overlap"
+
+
+__all__ = [
+    "ENERGY_FLOOR",
+    "ENERGY_PER_KG",
+    "RolloutWatch",
+    "count_reasons",
+    "frame_violations",
+    "reason_kind",
+    "state_problems",
+]

@@ -1,0 +1,108 @@
+"""What a MuJoCo roll-out went through: the engine's warnings, and energy gained without work.
+
+MuJoCo counts every warning it raises in ``MjData.warning`` (and restarts a blown-up simulation
+from the model's reference state by itself), so a roll-out can end quietly after it went wrong:
+:func:`raised_warnings` reads the counters. :class:`EnergyAudit` follows the model's mechanical
+energy (kinetic, gravitational and spring) against the work done on it from outside: actuators,
+applied forces, gravity compensation and equality constraints (a mocap body drives a robot
+through one). Damping, friction and contacts only take energy out of a sound simulation, so a
+gain beyond the work done is energy from nothing: the mark of a blow-up, even one that leaves the
+objects inside their bounds (an object spinning up in place).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+#: The warnings that mean a roll-out went wrong, with what each means. ``mjWARN_VGEOMFULL``
+#: (the visual geom buffer is full) says nothing about the physics and is left out.
+PHYSICS_WARNINGS: dict[str, str] = {
+    "mjWARN_INERTIA": "an inertia matrix too close to singular",
+    "mjWARN_CONTACTFULL": "a full contact buffer, contacts dropped",
+    "mjWARN_CNSTRFULL": "a full constraint buffer, constraints dropped",
+    "mjWARN_BADQPOS": "a NaN, infinite or huge position, and reset the simulation",
+    "mjWARN_BADQVEL": "a NaN, infinite or huge velocity, and reset the simulation",
+    "mjWARN_BADQACC": "a NaN, infinite or huge acceleration, and reset the simulation",
+    "mjWARN_BADCTRL": "a NaN, infinite or huge control",
+}
+
+
+def raised_warnings(data: mujoco.MjData) -> dict[str, int]:
+    """The physics warnings MuJoCo raised on ``data`` since its last reset: name -> how many times."""
+    raised = {}
+    for name in PHYSICS_WARNINGS:
+        number = int(data.warning[getattr(mujoco.mjtWarning, name)].number)
+        if number:
+            raised[name] = number
+    return raised
+
+
+def describe_warnings(raised: dict[str, int]) -> str:
+    """:func:`raised_warnings` in words, e.g. ``"MuJoCo warned mjWARN_BADQACC 2x: a NaN, ..."``."""
+    parts = [f"{name} {count}x: {PHYSICS_WARNINGS.get(name, 'a warning')}" for name, count in raised.items()]
+    return "MuJoCo warned " + "; ".join(parts)
+
+
+class EnergyAudit:
+    """The mechanical energy of a roll-out on ``model``/``data`` against the work done on it.
+
+    Build it at the roll-out's start, call :meth:`after_step` after every ``mj_step``, and read
+    :meth:`gain` whenever: the energy gained since the start beyond the work done from outside, J.
+
+    Args:
+        model: the compiled model.
+        data: the roll-out's data, holding its start state (after ``mj_forward``).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self.model = model
+        self.data = data
+        self._scratch = mujoco.MjData(model)
+        self._equality_rows = mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        self._gravcomp = bool(np.any(model.body_gravcomp != 0))
+        self._qfrc = np.zeros(model.nv)
+        self._qvel = data.qvel.copy()
+        self.work = 0.0
+        self.start_energy = self.energy()
+
+    def energy(self) -> float:
+        """The model's mechanical energy in ``data``'s current state: kinetic, gravitational and springs, J."""
+        model, scratch = self.model, self._scratch
+        scratch.qpos[:] = self.data.qpos
+        scratch.qvel[:] = self.data.qvel
+        scratch.mocap_pos[:] = self.data.mocap_pos
+        scratch.mocap_quat[:] = self.data.mocap_quat
+        mujoco.mj_fwdPosition(model, scratch)
+        mujoco.mj_energyPos(model, scratch)
+        mujoco.mj_energyVel(model, scratch)
+        return float(scratch.energy[0] + scratch.energy[1])
+
+    def after_step(self) -> None:
+        """Add the work done on the model during the step just taken (forces of the step, mean velocity)."""
+        model, data = self.model, self.data
+        velocity = 0.5 * (self._qvel + data.qvel)
+        force = data.qfrc_actuator + data.qfrc_applied
+        if self._gravcomp:
+            force = force + data.qfrc_gravcomp
+        pushed = np.flatnonzero(np.any(data.xfrc_applied != 0, axis=1))
+        if pushed.size:
+            self._qfrc[:] = 0.0
+            for body in pushed:
+                wrench = data.xfrc_applied[body]
+                mujoco.mj_applyFT(model, data, wrench[:3], wrench[3:], data.xipos[body], int(body), self._qfrc)
+            force = force + self._qfrc
+        power = float(force @ velocity)
+        if data.nefc:
+            rows = data.efc_type[: data.nefc] == self._equality_rows
+            if rows.any():
+                power += float(data.efc_force[: data.nefc][rows] @ data.efc_vel[: data.nefc][rows])
+        self.work += power * float(model.opt.timestep)
+        self._qvel[:] = data.qvel
+
+    def gain(self) -> float:
+        """Energy gained since the start beyond the work done from outside, J (> 0: energy from nothing)."""
+        return self.energy() - self.start_energy - self.work
+
+
+__all__ = ["PHYSICS_WARNINGS", "EnergyAudit", "describe_warnings", "raised_warnings"]
