@@ -5,7 +5,8 @@ given generation seeds exactly as ``generate`` does and prints, per scene, the l
 beyond the work done (J and J per kg of moving mass), how many draws each test refuses, and what
 ``generate`` then does. Writes the table as JSON with ``--out``.
 
-    python benchmarks/physical_sanity.py --seeds 100 101 --trajectories 10 --frames 10 --out docs/figures/physical_sanity.json
+    python benchmarks/physical_sanity.py --seeds 100 101 --trajectories 10 --frames 10 \\
+        --out docs/figures/physical_sanity.json
 """
 
 from __future__ import annotations

@@ -666,8 +666,10 @@ class PushingTask(Task):
 
     @property
     def frame_box(self) -> StateBox:
-        """The workspace widened by :data:`FRAME_MARGIN` on every side: a recorded frame may hold an object
-        pushed past the workspace's edge (the trees then reject every state), not one in the air.
+        """The workspace widened by :data:`FRAME_MARGIN` on every side, heights -0.5 to 1 m.
+
+        A recorded frame may hold an object pushed past the workspace's edge (the trees then
+        reject every state it reaches), not one thrown into the air.
         """
         box = self.state_box
         return StateBox(
