@@ -190,13 +190,17 @@ def _cell(value: float | None) -> str:
 def verdict_cell(verdict: dict[str, Any], drawn: int | None = None) -> str:
     """One verdict as ``+0.100 [+0.020, +0.200] ahead (distance)``; ``n/a`` where it is undefined.
 
-    ``drawn``: the resamples drawn; when the interval rests on fewer (resamples whose labels are one
-    class have no AP), the cell says how many.
+    The difference is the margin's AP minus the best baseline's (named in brackets), then its paired
+    95 % interval and the word. ``drawn``: the resamples drawn; when the interval rests on fewer
+    (a resample whose labels are all one class has no AP, so no difference), the brackets say so:
+    ``(distance; interval from 998 of 1000 resamples, 2 had labels of one class: no AP)``.
     """
     if verdict["difference"] is None or verdict["low"] is None or verdict["high"] is None:
         return "n/a"
     used = verdict.get("resamples", drawn)
-    fewer = f"; {used} of {drawn} resamples" if drawn is not None and used is not None and used < drawn else ""
+    fewer = ""
+    if drawn is not None and used is not None and used < drawn:
+        fewer = f"; interval from {used} of {drawn} resamples, {drawn - used} had labels of one class: no AP"
     return (
         f"{verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}] "
         f"{verdict['word']} ({verdict['baseline']}{fewer})"
