@@ -10,6 +10,10 @@ only arm geoms that collide) is the pusher. Inverse kinematics with MuJoCo's Jac
 poses that move the tip along a straight line across the table, the U level and its opening facing
 the sweep; they are the control rows of the motion file.
 
+Both files are checked in beside ``gym_pusher.toml`` (no machine's paths in them), so the script
+writes to ``runs/examples/gym_pusher/`` under the current folder by default and leaves the
+checked-in copies as they are; ``--out examples/gym_pusher`` replaces them on purpose.
+
     python examples/gym_pusher/write_model.py [--out DIR]
 """
 
@@ -25,7 +29,8 @@ import numpy as np
 
 from energy_margin.compat import delete_element, set_joint_coefficient, set_to_position, spec_xml
 
-HERE = Path(__file__).resolve().parent
+#: Where the files go without ``--out``: not beside the scene file, whose copies are checked in.
+DEFAULT_OUT = Path("runs/examples/gym_pusher")
 ARM_JOINTS = (
     "r_shoulder_pan_joint",
     "r_shoulder_lift_joint",
@@ -149,7 +154,12 @@ IK_SEED = np.array([-0.98, 0.96, -1.5, -1.66, -1.03, -0.99, -1.43])
 def main() -> None:
     """Solve the sweep, then write the scene's model (with a start keyframe) and its motion file."""
     parser = argparse.ArgumentParser(description="write gym_pusher_scene.xml and gym_pusher_motion.npz")
-    parser.add_argument("--out", type=Path, default=HERE, help="folder to write them to (default: beside this script)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=DEFAULT_OUT,
+        help=f"folder to write them to (default: {DEFAULT_OUT}; examples/gym_pusher replaces the checked-in copies)",
+    )
     out = parser.parse_args().out
     out.mkdir(parents=True, exist_ok=True)
     spec = build_spec()

@@ -167,6 +167,31 @@ def test_scores_equal_to_the_labels_give_perfect_ap(labelled: Path) -> None:
     assert result["success_ap_first_half"] == pytest.approx(0.5)
 
 
+def test_each_capture_key_holds_one_window_and_the_table_one_line_per_k_hat(
+    labelled: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from energy_margin.cli import main
+
+    dataset = load_dataset(labelled)
+    write_scores(labelled, dataset.capture_labels(2).astype(float), IN_SUCCESS.astype(float))
+    # k-hat 0: capture_ap at 0 and capture_ap_window2 at 2, one line each.
+    result = evaluate(labelled, resamples=20)
+    assert result["capture_ap"] < 1.0 and result["capture_ap_window2"] == 1.0
+    assert result["capture_positive_rate_window2"] == pytest.approx(dataset.capture_labels(2).mean())
+    table = format_table(result)
+    assert table.count("capture AP, k-hat=0") == 1 and table.count("capture AP, k-hat=2") == 1
+    # k-hat 2: capture_ap is that question, and no second key (nor line) repeats it.
+    result = evaluate(labelled, capture_window=2, resamples=20)
+    assert result["capture_window"] == 2 and result["capture_ap"] == 1.0
+    assert "capture_ap_window2" not in result and "capture_positive_rate_window2" not in result
+    assert result["capture_positive_rate"] == pytest.approx(dataset.capture_labels(2).mean())
+    for values in (*result["baselines"].values(), result["verdict"]):
+        assert set(values) == QUESTIONS - {"capture_ap_window2"}
+    assert main(["evaluate", str(labelled), "--capture-window", "2", "--resamples", "20"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("capture AP, k-hat=") == 1 and "capture AP, k-hat=2" in out
+
+
 def test_inverted_scores_give_poor_ap(labelled: Path) -> None:
     write_scores(labelled, 1.0 - CAPTURED, 1.0 - IN_SUCCESS)
     result = evaluate(labelled)

@@ -104,4 +104,6 @@ def test_the_table_says_when_an_interval_rests_on_fewer_resamples() -> None:
 
     verdict = {"difference": 0.1, "low": 0.02, "high": 0.2, "word": "ahead", "baseline": "distance"}
     assert verdict_cell({**verdict, "resamples": 1000}, 1000) == "+0.100 [+0.020, +0.200] ahead (distance)"
-    assert verdict_cell({**verdict, "resamples": 640}, 1000).endswith("(distance; 640 of 1000 resamples)")
+    assert verdict_cell({**verdict, "resamples": 640}, 1000).endswith(
+        "(distance; interval from 640 of 1000 resamples, 360 had labels of one class: no AP)"
+    )

@@ -35,6 +35,22 @@ def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
     return float(np.sum(np.diff(np.r_[0.0, recall]) * precision))
 
 
+#: k-hat of ``evaluate``'s second capture question: do the objects stay captured two more frames?
+SECOND_CAPTURE_WINDOW = 2
+
+
+def evaluate_capture_windows(capture_window: int) -> dict[str, int]:
+    """``evaluate``'s capture questions, JSON key -> k-hat, one per distinct k-hat.
+
+    ``capture_ap`` at k-hat ``capture_window``, then ``capture_ap_window2`` at k-hat 2 unless
+    ``capture_window`` is 2 itself (then ``capture_ap`` is that question: no second key holds it).
+    """
+    windows = {"capture_ap": capture_window}
+    if capture_window != SECOND_CAPTURE_WINDOW:
+        windows["capture_ap_window2"] = SECOND_CAPTURE_WINDOW
+    return windows
+
+
 class Questions:
     """Labels of one dataset and the AP of score grids on a resample of its trajectories.
 
@@ -75,16 +91,16 @@ class Questions:
     def of_evaluate(
         cls, dataset: Dataset, *, capture_window: int = 0, success_frames: int = 3, weights: str = "linear"
     ) -> Questions:
-        """``evaluate``'s four questions, under its keys.
+        """``evaluate``'s questions, under its keys.
 
-        ``capture_ap`` (k-hat ``capture_window``), ``capture_ap_window2`` (k-hat 2), ``success_ap``
-        (all frames) and ``success_ap_first_half``.
+        The capture questions of :func:`evaluate_capture_windows`, then ``success_ap`` (all frames)
+        and ``success_ap_first_half``.
         """
         half = max(1, dataset.n_frames // 2)
         return cls(
             dataset,
             success_frames,
-            capture_windows={"capture_ap": capture_window, "capture_ap_window2": 2},
+            capture_windows=evaluate_capture_windows(capture_window),
             success_spans={"success_ap": (None, None), "success_ap_first_half": (0, half)},
             weights=weights,
         )

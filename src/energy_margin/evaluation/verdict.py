@@ -29,8 +29,8 @@ class Verdict:
     """The margin against the best baseline on one question.
 
     Attributes:
-        question: the question's key (``capture_ap``, ``capture_ap_window2``, ``success_ap``,
-            ``success_ap_first_half``).
+        question: the question's key (``capture_ap``, ``capture_ap_window2`` unless k-hat is 2,
+            ``success_ap``, ``success_ap_first_half``).
         baseline: the best baseline's name (``None`` when no baseline has an AP).
         difference: margin AP minus the baseline's, on all trajectories.
         low: lower end of the paired 95 % interval of the difference.
@@ -90,7 +90,7 @@ def verdicts(
         dataset: the scored dataset.
         margin: the margin's capture and success scores, each shape (T, K).
         baselines: baseline name -> its capture and success scores, each shape (T, K).
-        capture_window: k-hat of the first capture question (the second is k-hat = 2).
+        capture_window: k-hat of the first capture question (the second, k-hat = 2, only when this is not 2).
         success_frames: k-bar of the success questions.
         weights: ``"linear"`` or ``"uniform"``.
         resamples: bootstrap resamples of the trajectories, >= 1.
