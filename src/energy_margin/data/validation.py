@@ -6,7 +6,9 @@ and ``evaluate`` run the same checks first and stop on the first problem, before
 Checks: the format and schema version of ``dataset.json`` (a later schema version is refused),
 its sizes and task configuration; every array of ``frames.npz`` against n_o, T, K (shapes read
 from the headers before any allocation), NaN or infinite values, unit quaternions, labels in
-{0, 1}; objects interpenetrating each other, the end-effector or an obstacle at a frame; and,
+{0, 1}; objects outside their task's frame box or faster than its speed bound
+(:mod:`energy_margin.data.physical`); objects interpenetrating each other, the end-effector or an
+obstacle at a frame; and,
 when present, ``scores.csv`` (header, malformed lines, rows outside the dataset, duplicated or
 missing frames, scores outside [0, 1]). ``check`` also lists, as warnings, engine versions other
 than the installed ones or unknown (:mod:`energy_margin.data.provenance`).
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
+from energy_margin.data.physical import state_problems
 from energy_margin.data.provenance import version_findings
 from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
 from energy_margin.sim import Simulator
@@ -209,6 +212,7 @@ def _check(
         return dataset, problems
     if warnings is not None:
         warnings.extend(version_findings(path, dataset.metadata))
+    problems.extend(state_problems(dataset))
     if overlaps:
         found = overlap_problems(dataset)
         if overlaps_expected(dataset.metadata):
