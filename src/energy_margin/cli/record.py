@@ -63,6 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=positive_int, default=10, help="frames per roll-out (default 10)")
     parser.add_argument("--out", required=True, help="dataset directory to create")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory")
+    parser.add_argument(
+        "--drop-unphysical",
+        action="store_true",
+        help="leave out roll-outs with a physically impossible frame (an object outside the scene's bounds or "
+        "faster than bounds.max_speed), counted in dataset.json's dropped, instead of refusing them",
+    )
     robomimic = parser.add_argument_group("robomimic files (--format robomimic)")
     robomimic.add_argument(
         "--objects", metavar="PATTERN[,PATTERN]", help="object body names or glob patterns, without --scene"
@@ -124,10 +130,17 @@ def run(args: argparse.Namespace) -> int:
                 overwrite=args.overwrite,
                 progress=bar.update,
                 file_format=args.format,
+                drop_unphysical=args.drop_unphysical,
             )
         finally:
             bar.close()
     labels = dataset.arrays
+    dropped = dataset.metadata.get("dropped") or []
+    if dropped:
+        print(
+            f"left out {len(dropped)} roll-out(s) with a physically impossible frame (listed in dataset.json's "
+            f"dropped; the first: {dropped[0]['rollout']}: {dropped[0]['reason']})"
+        )
     print(
         f"dataset {args.out}: {dataset.n_trajectories} roll-outs x {dataset.n_frames} frames, "
         f"{dataset.n_objects} objects; captured frames {labels['captured'].mean():.2f}, "
@@ -158,6 +171,7 @@ def _run_robomimic(args: argparse.Namespace) -> Dataset:
             dt=args.dt,
             overwrite=args.overwrite,
             progress=bar.update,
+            drop_unphysical=args.drop_unphysical,
         )
     finally:
         bar.close()

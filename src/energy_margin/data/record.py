@@ -25,14 +25,18 @@ import numpy as np
 
 from energy_margin.data.dataset import Dataset, check_target
 from energy_margin.data.generate import trajectory_record, write_records
+from energy_margin.data.physical import frame_violations
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_int
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.base import CompiledModel, require
+from energy_margin.sim.mujoco_audit import PHYSICS_WARNINGS, WARNINGS_ARRAY
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
 _HDF5_SUFFIXES = (".h5", ".hdf5")
+#: Key of ``dataset.json`` listing the roll-outs left out for a physically impossible frame.
+DROPPED_KEY = "dropped"
 
 
 #: What h5py raises for a file, group or dataset it cannot read.
@@ -154,6 +158,7 @@ def check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjMode
         "ctrl": (n, int(model.nu)),
         "mocap_pos": (n, int(model.nmocap), 3),
         "mocap_quat": (n, int(model.nmocap), 4),
+        WARNINGS_ARRAY: (n, len(PHYSICS_WARNINGS)),
     }
     for name, shape in widths.items():
         if name in arrays and arrays[name].shape != shape:
@@ -170,6 +175,19 @@ def check_rollout(path: str, arrays: dict[str, np.ndarray], model: mujoco.MjMode
         row = int(np.flatnonzero(steps <= 0)[0]) + 1
         raise EnergyMarginError(f"{path}: time: is not increasing (row {row}: {time[row]} after {time[row - 1]})")
     return {name: value.astype(float) for name, value in arrays.items()}
+
+
+def _warned(arrays: dict[str, np.ndarray]) -> str | None:
+    """Where a recorded roll-out's MuJoCo warning counts first grew, in words (``None``: they never did)."""
+    counts = arrays.get(WARNINGS_ARRAY)
+    if counts is None:
+        return None
+    grown = np.argwhere(counts > counts[0])
+    if not grown.size:
+        return None
+    row, column = (int(i) for i in grown[0])
+    name = list(PHYSICS_WARNINGS)[column]
+    return f"row {row}: MuJoCo warned {name} during the roll-out ({PHYSICS_WARNINGS[name]})"
 
 
 def _frame_rows(time: np.ndarray, n_frames: int) -> np.ndarray:
@@ -191,6 +209,7 @@ def record_dataset(
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
     file_format: str | None = None,
+    drop_unphysical: bool = False,
 ) -> Dataset:
     """Turn recorded roll-outs of a scene file's model into a dataset directory.
 
@@ -203,6 +222,8 @@ def record_dataset(
         overwrite: replace an existing ``out``.
         progress: called with 1 after each roll-out.
         file_format: ``"npz"`` or ``"hdf5"`` for every file; ``None`` decides by each file's suffix.
+        drop_unphysical: leave out the roll-outs with a physically impossible frame (listed under
+            ``dropped`` in ``dataset.json``) instead of refusing them.
 
     """
     check_positive_int("n_frames", n_frames)
@@ -221,8 +242,10 @@ def record_dataset(
         path = Path(item)
         loaded_rollouts.extend(read_rollout_file(path, model, file_format=file_format))
         sources.append({"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()})
-    records = rollout_records(task, loaded_rollouts, n_frames=n_frames, progress=progress)
-    return write_records(task, records, out, engine="mujoco", extra={"recorded_from": sources}, overwrite=overwrite)
+    dropped: list[dict[str, str]] | None = [] if drop_unphysical else None
+    records = rollout_records(task, loaded_rollouts, n_frames=n_frames, progress=progress, dropped=dropped)
+    extra: dict[str, Any] = {"recorded_from": sources, **({DROPPED_KEY: dropped} if dropped else {})}
+    return write_records(task, records, out, engine="mujoco", extra=extra, overwrite=overwrite)
 
 
 def rollout_records(
@@ -231,8 +254,13 @@ def rollout_records(
     *,
     n_frames: int,
     progress: Callable[[int], None] | None = None,
+    dropped: list[dict[str, str]] | None = None,
 ) -> list[dict[str, Any]]:
     """The frames and labels of checked roll-outs, one :func:`trajectory_record` each.
+
+    A roll-out with a frame outside the task's frame box (an object outside the scene's bounds or
+    faster than its speed bound: data/physical.py) is refused; with ``dropped`` it is left out and
+    ``{"rollout": name, "reason": ...}`` appended to ``dropped`` instead.
 
     Args:
         task: the scene task whose model recorded the roll-outs.
@@ -240,10 +268,12 @@ def rollout_records(
             roll-out in errors.
         n_frames: frames K per roll-out, taken at the rows nearest to K evenly spaced times.
         progress: called with 1 after each roll-out.
+        dropped: receives the roll-outs left out (``None``: refuse them).
 
     Raises:
-        EnergyMarginError: a roll-out with fewer rows than ``n_frames``, or an object quaternion
-            that is not a unit quaternion.
+        EnergyMarginError: a roll-out with fewer rows than ``n_frames``, an object quaternion
+            that is not a unit quaternion, or a physically impossible frame (without ``dropped``),
+            or every roll-out dropped.
     """
     loaded = task.loaded
     friction = task.default_friction()
@@ -251,6 +281,7 @@ def rollout_records(
     simulator = task.make_simulator(loaded.n_objects, friction, drive)
     compiled = require(simulator, CompiledModel, purpose="record")
     model, data = compiled.model, compiled.data
+    box = task.frame_box
     records = []
     for name, arrays in rollouts:
         time = arrays["time"]
@@ -258,6 +289,17 @@ def rollout_records(
             raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than --frames {n_frames}")
         frames: list[FrameState] = []
         times: list[float] = []
+        warned = _warned(arrays)
+        if warned is not None:
+            if dropped is None:
+                raise EnergyMarginError(
+                    f"{name}: {WARNINGS_ARRAY}: {warned}; a physically impossible frame never becomes data "
+                    "(record --drop-unphysical leaves such roll-outs out)"
+                )
+            dropped.append({"rollout": name, "reason": warned})
+            if progress is not None:
+                progress(1)
+            continue
         for row in _frame_rows(time, n_frames):
             mujoco.mj_resetData(model, data)
             data.qpos[:] = arrays["qpos"][row]
@@ -278,7 +320,23 @@ def rollout_records(
                 )
             frames.append(frame)
             times.append(float(time[row]))
-        records.append(trajectory_record(task, frames, times, friction, drive))
+            violations = frame_violations(box, frame)
+            if violations:
+                reason = f"row {row} (frame {len(frames) - 1}): {violations[0].message}"
+                if dropped is None:
+                    raise EnergyMarginError(
+                        f"{name}: qpos: {reason}; a physically impossible frame never becomes data "
+                        "(record --drop-unphysical leaves such roll-outs out)"
+                    )
+                dropped.append({"rollout": name, "reason": reason})
+                break
+        else:
+            records.append(trajectory_record(task, frames, times, friction, drive))
         if progress is not None:
             progress(1)
+    if not records:
+        raise EnergyMarginError(
+            f"every roll-out has a physically impossible frame (the first: {dropped[0]['rollout'] if dropped else ''}: "
+            f"{dropped[0]['reason'] if dropped else ''})"
+        )
     return records

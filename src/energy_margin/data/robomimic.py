@@ -45,7 +45,7 @@ import numpy as np
 
 from energy_margin.data.dataset import Dataset, check_target, write_directory
 from energy_margin.data.generate import records_dataset
-from energy_margin.data.record import check_rollout, rollout_records
+from energy_margin.data.record import DROPPED_KEY, check_rollout, rollout_records
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_float, check_positive_int
 from energy_margin.runs.files import staging_directory
 from energy_margin.tasks import get_task
@@ -115,6 +115,7 @@ def record_robomimic(
     dt: float | None = None,
     overwrite: bool = False,
     progress: Callable[[int], None] | None = None,
+    drop_unphysical: bool = False,
 ) -> Dataset:
     """Turn the demonstrations of a robomimic / robosuite HDF5 file into a dataset directory.
 
@@ -134,6 +135,8 @@ def record_robomimic(
         dt: seconds between rows for states without the time column (default: 1 /
             ``env_kwargs.control_freq`` of the file's ``env_args``).
         overwrite: replace an existing ``out``.
+        drop_unphysical: leave out the demonstrations with a physically impossible frame (listed
+            under ``dropped`` in ``dataset.json``) instead of refusing them.
         progress: called with 1 after each demonstration.
 
     Returns:
@@ -171,7 +174,17 @@ def record_robomimic(
             "demos": [demo.key for demo in raw_demos],
         }
     ]
-    return _write(out, built[0], scene_text, rollouts, n_frames, sources, overwrite=overwrite, progress=progress)
+    return _write(
+        out,
+        built[0],
+        scene_text,
+        rollouts,
+        n_frames,
+        sources,
+        overwrite=overwrite,
+        progress=progress,
+        drop_unphysical=drop_unphysical,
+    )
 
 
 # -- arguments ---------------------------------------------------------------------------------
@@ -589,6 +602,7 @@ def _write(
     *,
     overwrite: bool,
     progress: Callable[[int], None] | None,
+    drop_unphysical: bool = False,
 ) -> Dataset:
     """Build the dataset in a sibling of ``out`` with its ``source`` scene, then rename it onto ``out``."""
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -605,8 +619,10 @@ def _write(
                 f"{out}: the model written to {SOURCE_FOLDER}/{MODEL_FILE} does not compile to the recorded model "
                 f"(sha256 {task.loaded.model_sha256[:12]}…, recorded {built.sha256[:12]}…)"
             )
-        records = rollout_records(task, rollouts, n_frames=n_frames, progress=progress)
-        dataset = records_dataset(task, records, out, engine="mujoco", extra={"recorded_from": sources})
+        dropped: list[dict[str, str]] | None = [] if drop_unphysical else None
+        records = rollout_records(task, rollouts, n_frames=n_frames, progress=progress, dropped=dropped)
+        extra: dict[str, Any] = {"recorded_from": sources, **({DROPPED_KEY: dropped} if dropped else {})}
+        dataset = records_dataset(task, records, out, engine="mujoco", extra=extra)
         metadata = dict(dataset.metadata)
         metadata["task_config"] = {
             **metadata["task_config"],

@@ -41,6 +41,7 @@ from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
+from energy_margin.sim.mujoco_audit import WARNINGS_ARRAY, warning_numbers
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
 from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
@@ -327,6 +328,8 @@ class EpisodeRecorder:
             "ctrl": np.array(data.ctrl, dtype=float),
             "mocap_pos": np.array(data.mocap_pos, dtype=float),
             "mocap_quat": np.array(data.mocap_quat, dtype=float),
+            # MuJoCo's counts of its physics warnings: ``record`` refuses a roll-out that raised one.
+            WARNINGS_ARRAY: warning_numbers(data).astype(float),
         }
         for name, value in values.items():
             self.rows.setdefault(name, []).append(value)
@@ -335,7 +338,7 @@ class EpisodeRecorder:
         return len(self.rows.get("time", ()))
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The recorded arrays: time (n,), qpos (n, nq), qvel (n, nv), ctrl (n, nu), mocap_pos/quat."""
+        """The recorded arrays: time (n,), qpos (n, nq), qvel (n, nv), ctrl (n, nu), mocap_pos/quat, warnings (n, 7)."""
         if not self.rows:
             raise EnergyMarginError("no step has been recorded: reset the environment and step it first")
         return {name: np.stack(rows) for name, rows in self.rows.items()}

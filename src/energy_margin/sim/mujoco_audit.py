@@ -27,6 +27,9 @@ PHYSICS_WARNINGS: dict[str, str] = {
     "mjWARN_BADCTRL": "a NaN, infinite or huge control",
 }
 
+#: The roll-out array of :func:`warning_numbers` per row (``(n, 7)``), as the wrappers record it.
+WARNINGS_ARRAY = "mujoco_warnings"
+
 
 def raised_warnings(data: mujoco.MjData) -> dict[str, int]:
     """The physics warnings MuJoCo raised on ``data`` since its last reset: name -> how many times."""
@@ -36,6 +39,11 @@ def raised_warnings(data: mujoco.MjData) -> dict[str, int]:
         if number:
             raised[name] = number
     return raised
+
+
+def warning_numbers(data: mujoco.MjData) -> np.ndarray:
+    """How many times MuJoCo raised each of :data:`PHYSICS_WARNINGS` on ``data`` since its reset, shape (7,)."""
+    return np.array([data.warning[getattr(mujoco.mjtWarning, name)].number for name in PHYSICS_WARNINGS], dtype=int)
 
 
 def describe_warnings(raised: dict[str, int]) -> str:
@@ -105,4 +113,11 @@ class EnergyAudit:
         return self.energy() - self.start_energy - self.work
 
 
-__all__ = ["PHYSICS_WARNINGS", "EnergyAudit", "describe_warnings", "raised_warnings"]
+__all__ = [
+    "PHYSICS_WARNINGS",
+    "WARNINGS_ARRAY",
+    "EnergyAudit",
+    "describe_warnings",
+    "raised_warnings",
+    "warning_numbers",
+]
