@@ -479,14 +479,15 @@ def test_wrench_bounds_count_the_armature_of_the_objects_joints(tmp_path: Path) 
     scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=with_armature)
     task = get_task("scene", {"scene_file": str(scene)})
     limits = task.wrench_limits(task.build_scene(1, 0.5)).max_wrench
-    # (0.1 kg + armature) x the linear bound (the default: 2 m/s^2 per axis).
+    # (0.1 kg + armature) x the linear bound (the default: 2 m/s^2 in x and y, none along z).
     bound = task.loaded.perturbation.linear_acceleration
-    assert bound == (2.0, 2.0, 2.0)
-    np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * bound[0], 0.1 * bound[1], 0.1 * bound[2]])
-    # An upright puck takes no torque about x and y; about z its inertia times the derived bound.
+    assert bound == (2.0, 2.0, 0.0)
+    np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * bound[0], 0.1 * bound[1], 0.0])
+    # An upright puck takes no torque about x and y; about z its inertia times the default bound.
     np.testing.assert_allclose(limits[0, 3:5], 0.0)
     body = int(task.loaded.object_bodies[0])
     alpha_z = task.loaded.perturbation.angular_acceleration[2]
+    assert alpha_z == 20.0
     assert limits[0, 5] == pytest.approx(task.loaded.model.body_inertia[body, 2] * alpha_z)
 
 
