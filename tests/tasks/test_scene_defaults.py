@@ -79,6 +79,7 @@ def test_a_file_without_perturbation_gets_the_planar_default(make_scene) -> None
     settings = loaded.perturbation
     assert settings.linear_acceleration == (2.0, 2.0, 0.0)
     assert settings.angular_acceleration == (0.0, 0.0, 20.0)
+    assert {"perturbation.linear_acceleration", "perturbation.angular_acceleration"} <= loaded.spec.defaulted
     # A file that gives one bound keeps it; only the other takes its default.
     given = load_scene(make_scene(replace={SET_KEYS: "[perturbation]\nlinear_acceleration = [1.0, 1.0, 1.0]\n"}))
     assert given.perturbation.linear_acceleration == (1.0, 1.0, 1.0)
@@ -142,6 +143,7 @@ def test_an_example_scene_keeps_the_perturbation_it_writes(path: Path) -> None:
     assert not written.get("derive", False) and settings.derived == {}
     for key, value in written.items():
         assert expected[key] == (tuple(value) if isinstance(value, list) else value), key
+    assert not {f"perturbation.{key}" for key in written} & spec.defaulted
 
 
 @pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*/*.py")), ids=lambda path: f"{path.parent.name}/{path.name}")
