@@ -115,6 +115,7 @@ robot = "still"
 
 [perturbation]
 linear_acceleration = [2.0, 2.0, 2.0]
+angular_acceleration = [0.0, 0.0, 0.0]
 max_duration = 0.1
 
 # Captured: each object's centre within {CAPTURE_RADIUS} m of a finger of either arm.

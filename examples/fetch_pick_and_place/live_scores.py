@@ -82,7 +82,10 @@ def write_scene(env: gymnasium.Env, out: Path) -> tuple[Path, bool]:
     """
     starter = scene_from_environment(env, objects="object0", out=out / "starter.toml")
     same = starter.same_model
-    perturbation = "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nmax_duration = 0.1\n"
+    perturbation = (
+        "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nangular_acceleration = [0.0, 0.0, 0.0]\n"
+        "max_duration = 0.1\n"
+    )
     scene = out / "scene.toml"
     scene.write_text(
         "# FetchPickAndPlace-v4 with the goal at "

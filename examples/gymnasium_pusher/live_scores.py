@@ -116,6 +116,7 @@ duration = {STEPS * 0.05}
 # The puck only slides in the plane.
 [perturbation]
 linear_acceleration = [2.0, 2.0, 0.0]
+angular_acceleration = [0.0, 0.0, 0.0]
 max_duration = 0.1
 {lam}
 # Captured: the puck's centre within {CAPTURE_RADIUS} m of the fingertip (the fork's bar touches it).

@@ -107,7 +107,8 @@ def write_scene(env: gymnasium.Env, out: Path) -> tuple[Path, bool]:
         f"# Meta-World {TASK} (examples/metaworld_bin_picking/live_scores.py).\n"
         f'schema_version = 1\nmjcf = "{starter.model_file.name}"\n\n[objects]\nbodies = ["{OBJECT}"]\n\n'
         f"[motion]\nduration = {STEPS * STEP_S!r}\n\n"
-        "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nmax_duration = 0.1\n\n"
+        "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\nangular_acceleration = [0.0, 0.0, 0.0]\n"
+        "max_duration = 0.1\n\n"
         f"[capture]\nregion = {_inline(CAPTURE)}\n\n[success]\nregion = {_inline(SUCCESS)}\n",
         encoding="utf-8",
     )

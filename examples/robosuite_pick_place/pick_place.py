@@ -113,6 +113,7 @@ robot = "still"
 
 [perturbation]
 linear_acceleration = [2.0, 2.0, 2.0]
+angular_acceleration = [0.0, 0.0, 0.0]
 max_duration = 0.1
 
 # Captured: at least one object's centre within {CAPTURE_RADIUS} m of the grasp site (in the hand).

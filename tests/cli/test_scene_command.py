@@ -19,8 +19,9 @@ def test_scene_prints_what_it_understood_and_draws_it(tiny_scene: Path, tmp_path
     assert "mocap bodies (1): pusher" in out
     assert "duration 1.5 s (150 steps of 0.01 s)" in out
     assert "force (0.2, 0.2, 0) N" in out  # 0.1 kg x 2 m/s^2
-    assert "capture: every object in box[body=pusher" in out
-    assert "success: every object in all(distance[site=goal, max=0.16], height[max=0.1])" in out
+    # The tiny scene leaves at_least out: "every object" is the default.
+    assert "capture: every object (default) in box[body=pusher" in out
+    assert "success: every object (default) in all(distance[site=goal, max=0.16], height[max=0.1])" in out
     import matplotlib.image
 
     image = matplotlib.image.imread(picture)
@@ -89,3 +90,48 @@ def test_the_camera_option_draws_the_picture(tiny_scene: Path, tmp_path: Path) -
         pictures[name] = matplotlib.image.imread(picture)
     assert pictures["default"].shape == pictures["side"].shape
     assert not np.array_equal(pictures["default"], pictures["side"])  # another viewpoint
+
+
+def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -> None:
+    # Without [perturbation], [bounds] and most optional keys, each value left out says so.
+    perturbation = "[perturbation]\nlinear_acceleration = [2.0, 2.0, 0.0]\nangular_acceleration = [0.0, 0.0, 5.0]\n"
+    scene = make_scene(replace={perturbation + "max_duration = 0.1\n": ""})
+    assert main(["scene", str(scene), "--no-picture"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "perturbation: linear acceleration (2, 2, 0) m/s^2 (default), angular acceleration (0, 0, 20) rad/s^2 "
+        "(default), longest propagation 0.1 s (default), lambda 5 1/J (default)\n"
+        "  the default bounds act in the world x-y plane with a torque about z" in out
+    )
+    assert "objects (2, free (default: read from the model)):" in out
+    assert "linear (default) interpolation, duration 1.5 s (150 steps" in out
+    assert "command every 0.01 s (default) in analysis" in out
+    assert "robot during analysis declared (default)" in out
+    assert "friction 0.3-0.6, mass scale 1 (default), time scale 1 (default), start ranges (default) " in out
+    assert "x [-0.12, 0.12] m, y [-0.02, 0.08] m, z the model's (default), yaw [-0.3, 0.3] rad" in out
+    assert "min separation 0.104 m, twice the largest bounding radius (default)" in out
+    assert "built at the analysed frame (default)" in out
+    assert (
+        "bounds: low (-100, -100, -100) m (default), high (100, 100, 100) m (default), max speed 100 m/s (default)"
+        in out
+    )
+    width = '\n[design]\nwidth = { geom = "pusher", attribute = "size", index = 0, low = 0.1, high = 0.2 }\n'
+    assert main(["scene", str(make_scene(append=width)), "--no-picture"]) == 0
+    assert "design width = 0.15 (default: the model's): size[0] of geom 'pusher'" in capsys.readouterr().out
+    # Values the file gives carry no mark.
+    given = make_scene(
+        replace={
+            perturbation: perturbation.replace("[2.0, 2.0, 0.0]", "[1.0, 1.0, 0.0]") + "lambda = 7.0\n",
+            "[capture]\n": "[capture]\nat_least = 1\nfollow = false\n",
+        },
+        append="\n[bounds]\nlow = [-1.0, -1.0, -1.0]\nhigh = [1.0, 1.0, 1.0]\nmax_speed = 5.0\n",
+    )
+    assert main(["scene", str(given), "--no-picture"]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "perturbation: linear acceleration (1, 1, 0) m/s^2, angular acceleration (0, 0, 5) rad/s^2, "
+        "longest propagation 0.1 s, lambda 7 1/J\n" in out
+    )
+    assert "the default bounds" not in out
+    assert "capture: at least 1 objects in box[" in out and ", built at the analysed frame\n" in out
+    assert "bounds: low (-1, -1, -1) m, high (1, 1, 1) m, max speed 5 m/s\n" in out

@@ -98,7 +98,9 @@ def test_the_command_prints_its_guesses(tmp_path: Path, capsys: pytest.CaptureFi
     printed = capsys.readouterr().out
     assert f"wrote {out}\nwrote {out.with_suffix('.xml')} (the environment's model file, same model)\n" in printed
     assert "capture (a guess, edit it): within 0.191 m of body 'tips_arm'" in printed
-    assert "objects (1, upright)" in printed
+    assert "objects (1, upright (default: read from the model))" in printed
+    # The starter writes the default perturbation itself, so that it can be edited: nothing marked.
+    assert "perturbation: linear acceleration (2, 2, 0) m/s^2, angular acceleration (0, 0, 20) rad/s^2, " in printed
 
 
 @pytest.mark.parametrize(

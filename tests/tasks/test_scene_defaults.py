@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import mujoco
 import numpy as np
 import pytest
 
@@ -15,7 +20,10 @@ from energy_margin.tasks.scene_defaults import (
     PROPAGATION_PER_FRAME,
     resolve_perturbation,
 )
+from energy_margin.tasks.scene_file import read_scene_file
 from energy_margin.tasks.scene_model import load_scene
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 SET_KEYS = """[perturbation]
 linear_acceleration = [2.0, 2.0, 0.0]
@@ -63,6 +71,104 @@ def test_without_derive_a_key_left_out_takes_the_fixed_default(make_scene) -> No
     assert settings.angular_acceleration == DEFAULTS["angular_acceleration"]
     assert (settings.max_duration, settings.likelihood_lambda) == (0.1, 5.0)
     assert settings.derived == {}
+
+
+def test_a_file_without_perturbation_gets_the_planar_default(make_scene) -> None:
+    # Objects resting on a surface: pushes in its plane (world x-y) and a torque about its normal (z).
+    loaded = load_scene(make_scene(replace={SET_KEYS: ""}))
+    settings = loaded.perturbation
+    assert settings.linear_acceleration == (2.0, 2.0, 0.0)
+    assert settings.angular_acceleration == (0.0, 0.0, 20.0)
+    assert {"perturbation.linear_acceleration", "perturbation.angular_acceleration"} <= loaded.spec.defaulted
+    # A file that gives one bound keeps it; only the other takes its default.
+    given = load_scene(make_scene(replace={SET_KEYS: "[perturbation]\nlinear_acceleration = [1.0, 1.0, 1.0]\n"}))
+    assert given.perturbation.linear_acceleration == (1.0, 1.0, 1.0)
+    assert given.perturbation.angular_acceleration == (0.0, 0.0, 20.0)
+
+
+@pytest.mark.parametrize("gravity", ["0 0 0", "0 0 9.81", "0 0 -1"])
+def test_gravity_along_z_or_none_takes_the_planar_default(make_scene, gravity: str) -> None:
+    model = {'<option timestep="0.01"/>': f'<option timestep="0.01" gravity="{gravity}"/>'}
+    settings = load_scene(make_scene(replace={SET_KEYS: ""}, model_replace=model)).perturbation
+    assert (settings.linear_acceleration, settings.angular_acceleration) == ((2.0, 2.0, 0.0), (0.0, 0.0, 20.0))
+
+
+def test_a_tilted_gravity_refuses_the_planar_default_in_one_line(make_scene) -> None:
+    # Per-axis bounds cannot lie in a tilted plane: the file must give the bounds it leaves out.
+    model = {'<option timestep="0.01"/>': '<option timestep="0.01" gravity="0 -4.9 -8.5"/>'}
+    with pytest.raises(EnergyMarginError) as error:
+        load_scene(make_scene(replace={SET_KEYS: ""}, model_replace=model))
+    message = str(error.value)
+    assert "\n" not in message
+    assert message.endswith(
+        "scene.toml: perturbation: the default bounds act in the world x-y plane with a torque about z, but "
+        "model.xml's gravity (0, -4.9, -8.5) m/s^2 is not along z: give perturbation.linear_acceleration and "
+        "perturbation.angular_acceleration"
+    )
+    only_linear = make_scene(
+        replace={SET_KEYS: "[perturbation]\nlinear_acceleration = [2.0, 2.0, 2.0]\n"}, model_replace=model
+    )
+    with pytest.raises(EnergyMarginError, match=r"scene.toml:\d+: perturbation.angular_acceleration: .*give "):
+        load_scene(only_linear)
+    # Both bounds given: the file's own, whatever the gravity.
+    settings = load_scene(make_scene(model_replace=model)).perturbation
+    assert settings.linear_acceleration == (2.0, 2.0, 0.0)
+
+
+def _written_perturbation(path: Path) -> dict[str, Any]:
+    return tomllib.loads(path.read_text(encoding="utf-8")).get("perturbation", {})
+
+
+EXAMPLE_SCENES = sorted(path for path in EXAMPLES.glob("*/*.toml") if _written_perturbation(path))
+
+
+def test_every_example_scene_with_a_perturbation_table_is_found() -> None:
+    assert len(EXAMPLE_SCENES) >= 8 and EXAMPLES / "pushing" / "pushing.toml" in EXAMPLE_SCENES
+
+
+@pytest.mark.parametrize("path", EXAMPLE_SCENES, ids=lambda path: path.name)
+def test_an_example_scene_keeps_the_perturbation_it_writes(path: Path) -> None:
+    # Resolved against a stand-in model (gravity along -z; the examples' models are written by
+    # scripts): the values come from the file alone, whatever the defaults.
+    spec = read_scene_file(path)
+    written = _written_perturbation(path)
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    settings = resolve_perturbation(spec, model, np.zeros(0, dtype=int))
+    expected = {
+        "linear_acceleration": settings.linear_acceleration,
+        "angular_acceleration": settings.angular_acceleration,
+        "max_duration": settings.max_duration,
+        "lambda": settings.likelihood_lambda,
+    }
+    assert not written.get("derive", False) and settings.derived == {}
+    for key, value in written.items():
+        assert expected[key] == (tuple(value) if isinstance(value, list) else value), key
+    assert not {f"perturbation.{key}" for key in written} & spec.defaulted
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*/*.py")), ids=lambda path: f"{path.parent.name}/{path.name}")
+def test_an_example_script_that_writes_a_perturbation_table_gives_both_bounds(path: Path) -> None:
+    # Its bounds then never come from the default (the scripts need their own stacks to run).
+    text = path.read_text(encoding="utf-8")
+    if "[perturbation]" in text:
+        assert "linear_acceleration = " in text and "angular_acceleration = " in text
+
+
+def test_the_built_in_tasks_set_their_own_perturbation() -> None:
+    # The paper's pushing bounds (2 m/s^2 in x and y, 0.667 rad/s^2 about z) and the scooping task's,
+    # in their configurations: no scene default reaches them.
+    from energy_margin.tasks.pushing import PushingConfig, PushingTask
+    from energy_margin.tasks.scooping import ScoopingConfig
+
+    pushing, scooping = PushingConfig(), ScoopingConfig()
+    assert (pushing.max_linear_acceleration, pushing.max_angular_acceleration) == (2.0, 0.667)
+    assert (scooping.max_linear_acceleration, scooping.max_angular_acceleration) == (2.0, 3.0)
+    task = PushingTask()
+    scene = task.build_scene(3, 0.5)
+    limits = task.wrench_limits(scene).max_wrench
+    np.testing.assert_allclose(limits[:, :2], np.repeat(scene.object_masses[:, None] * 2.0, 2, axis=1))
+    np.testing.assert_allclose(limits[:, 2:5], 0.0)
+    np.testing.assert_allclose(limits[:, 5], scene.object_inertias[:, 2] * 0.667)
 
 
 def test_derive_must_be_a_boolean(make_scene) -> None:

@@ -11,7 +11,7 @@ import pytest
 from energy_margin.cli import main
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks import get_task
-from energy_margin.tasks.scene_file import Locator, read_scene_file
+from energy_margin.tasks.scene_file import DEFAULTED_KEYS, Locator, read_scene_file
 from energy_margin.tasks.scene_model import load_scene
 
 
@@ -479,14 +479,15 @@ def test_wrench_bounds_count_the_armature_of_the_objects_joints(tmp_path: Path) 
     scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=with_armature)
     task = get_task("scene", {"scene_file": str(scene)})
     limits = task.wrench_limits(task.build_scene(1, 0.5)).max_wrench
-    # (0.1 kg + armature) x the linear bound (the default: 2 m/s^2 per axis).
+    # (0.1 kg + armature) x the linear bound (the default: 2 m/s^2 in x and y, none along z).
     bound = task.loaded.perturbation.linear_acceleration
-    assert bound == (2.0, 2.0, 2.0)
-    np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * bound[0], 0.1 * bound[1], 0.1 * bound[2]])
-    # An upright puck takes no torque about x and y; about z its inertia times the derived bound.
+    assert bound == (2.0, 2.0, 0.0)
+    np.testing.assert_allclose(limits[0, :3], [(0.1 + 0.4) * bound[0], 0.1 * bound[1], 0.0])
+    # An upright puck takes no torque about x and y; about z its inertia times the default bound.
     np.testing.assert_allclose(limits[0, 3:5], 0.0)
     body = int(task.loaded.object_bodies[0])
     alpha_z = task.loaded.perturbation.angular_acceleration[2]
+    assert alpha_z == 20.0
     assert limits[0, 5] == pytest.approx(task.loaded.model.body_inertia[body, 2] * alpha_z)
 
 
@@ -647,3 +648,31 @@ def test_a_zero_separation_layout_failure_is_still_one_line(make_scene) -> None:
     with pytest.raises(ValueError, match="cannot place 2 objects 0 m apart") as error:
         task.sample_trajectory(np.random.default_rng(0), 2)
     assert "grid" not in str(error.value)
+
+
+def test_the_spec_records_which_keys_the_file_leaves_to_their_defaults(tiny_scene: Path) -> None:
+    spec = read_scene_file(tiny_scene)
+    assert isinstance(spec.defaulted, frozenset)
+    # The keys with a default that the tiny scene writes; it leaves the others out.
+    written = {
+        "motion.duration",
+        "randomize.friction",
+        "randomize.start.x",
+        "randomize.start.y",
+        "randomize.start.yaw",
+        "perturbation.linear_acceleration",
+        "perturbation.angular_acceleration",
+        "perturbation.max_duration",
+    }
+    assert not written & spec.defaulted
+    assert spec.defaulted == (set(DEFAULTED_KEYS) | {"randomize.start.z"}) - written
+    # A pile has no per-axis ranges; a design parameter without a default takes the model's value.
+    pile = tiny_scene.read_text().replace(
+        "x = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n",
+        'mode = "pile"\nlow = [-0.1, -0.1, 0.03]\nhigh = [0.1, 0.1, 0.03]\n',
+    )
+    pile += '\n[design]\nwidth = { geom = "pusher", attribute = "size", index = 0, low = 0.1, high = 0.2 }\n'
+    tiny_scene.write_text(pile)
+    spec = read_scene_file(tiny_scene)
+    assert "randomize.start.mode" not in spec.defaulted and "randomize.start.x" not in spec.defaulted
+    assert "design.width.default" in spec.defaulted

@@ -31,6 +31,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.files import atomic_path, file_mode
 from energy_margin.sim.mujoco_index import object_owners
 from energy_margin.tasks.model_file import BINARY_SUFFIX, model_differences, save_binary_model
+from energy_margin.tasks.scene_defaults import DEFAULTS
 from energy_margin.tasks.scene_file import scene_spec_from_tables, toml_value
 from energy_margin.tasks.scene_model import model_hash, resolve_scene
 
@@ -258,9 +259,12 @@ def scene_from_environment(
         f"duration = {toml_value(duration)}",
         *_actuator_names(model),
         "",
+        "# The default perturbation: pushes in the world x-y plane and a torque about z, for objects resting",
+        "# on a horizontal surface (docs/scenes.md); give z a bound for objects that are lifted.",
         "[perturbation]",
-        "linear_acceleration = [2.0, 2.0, 2.0]",
-        "max_duration = 0.1",
+        f"linear_acceleration = {toml_value(list(DEFAULTS['linear_acceleration']))}",
+        f"angular_acceleration = {toml_value(list(DEFAULTS['angular_acceleration']))}",
+        f"max_duration = {toml_value(DEFAULTS['max_duration'])}",
         "",
         f"# Captured: every object within {radius} m of {end_effector[0]} {end_effector[1]!r} (a guess).",
         "[capture]",

@@ -1,7 +1,11 @@
 """Perturbation settings a scene file leaves out: fixed defaults, or derived from the scene.
 
-A key of ``[perturbation]`` left out takes the fixed default (:data:`DEFAULTS`: 2 m/s² per axis, no
-torque, 0.1 s, λ = 5 1/J). With ``derive = true`` it is derived from the scene instead, by rules
+A key of ``[perturbation]`` left out takes the fixed default (:data:`DEFAULTS`: 2 m/s² in x and y,
+20 rad/s² about z, 0.1 s, λ = 5 1/J): pushes in the plane of a horizontal surface and a torque about
+its normal, for objects resting on it, as every example sets by hand. The plane is the one normal to
+gravity, so a model whose gravity has an x or y component gets no default bounds: it must give both
+(:func:`check_planar_gravity`; without gravity, MuJoCo's up axis z is taken). With ``derive = true``
+a key left out is derived from the scene instead, by rules
 anchored on the paper's planar pushing task (10 cylinders of 0.2 kg, radius 5 cm, friction 0.1–0.3,
 2 s roll-outs analysed at 10 frames; 2 m/s² in x and y, 0.667 rad/s² about z, 0.1 s, λ = 5 1/J):
 
@@ -38,10 +42,11 @@ from energy_margin.sim.mujoco_index import object_geoms, object_inertials
 from energy_margin.tasks.scene_file import SceneSpec
 
 GRAVITY = 9.81  # m/s^2
-#: What a key left out takes without ``derive = true``.
+#: What a key left out takes without ``derive = true``: the bounds act in the world x-y plane (normal
+#: to gravity along z) with a torque about z, as on objects resting on a horizontal surface.
 DEFAULTS: dict[str, Any] = {
-    "linear_acceleration": (2.0, 2.0, 2.0),
-    "angular_acceleration": (0.0, 0.0, 0.0),
+    "linear_acceleration": (2.0, 2.0, 0.0),
+    "angular_acceleration": (0.0, 0.0, 20.0),
     "max_duration": 0.1,
     "lambda": 5.0,
 }
@@ -89,6 +94,36 @@ def _three(values: Any) -> tuple[float, float, float]:
     return (float(values[0]), float(values[1]), float(values[2]))
 
 
+def check_planar_gravity(spec: SceneSpec, model: mujoco.MjModel) -> None:
+    """Refuse the planar default bounds on a model whose gravity is not along z.
+
+    The default bounds (:data:`DEFAULTS`) act in the world x-y plane with a torque about z, the
+    plane of a surface normal to gravity. Per-axis bounds cannot describe a tilted plane, so a model
+    whose gravity has an x or y component must give both bounds. Without gravity, z (MuJoCo's up
+    axis) is taken.
+
+    Raises:
+        EnergyMarginError: the file leaves a bound out and the gravity is not along z (one line).
+    """
+    missing = [
+        key
+        for key, value in (
+            ("linear_acceleration", spec.linear_acceleration),
+            ("angular_acceleration", spec.angular_acceleration),
+        )
+        if value is None
+    ]
+    gravity = np.asarray(model.opt.gravity, dtype=float)
+    if not missing or float(np.hypot(gravity[0], gravity[1])) <= 1e-9 * float(np.linalg.norm(gravity)):
+        return
+    raise spec.error(
+        f"perturbation.{missing[0]}" if len(missing) == 1 else "perturbation",
+        f"the default bounds act in the world x-y plane with a torque about z, but {spec.mjcf.name}'s gravity "
+        f"({', '.join(f'{g:g}' for g in gravity)}) m/s^2 is not along z: give "
+        + " and ".join(f"perturbation.{key}" for key in missing),
+    )
+
+
 def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndarray) -> PerturbationSettings:
     """The scene's perturbation: the file's keys, and defaults or derived values for the others.
 
@@ -96,11 +131,16 @@ def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndar
 
     Args:
         spec: the validated scene file (``None`` for a perturbation key it leaves out).
-        model: the compiled model (its object masses, inertias and friction).
+        model: the compiled model (its object masses, inertias, friction and gravity).
         bodies: body id of each object, shape (n_objects,).
+
+    Raises:
+        EnergyMarginError: a bound left out without ``derive = true`` on a model whose gravity is
+            not along z (:func:`check_planar_gravity`).
 
     """
     if not spec.derive_perturbation:
+        check_planar_gravity(spec, model)
         return PerturbationSettings(
             linear_acceleration=_three(spec.linear_acceleration or DEFAULTS["linear_acceleration"]),
             angular_acceleration=_three(spec.angular_acceleration or DEFAULTS["angular_acceleration"]),

@@ -34,7 +34,7 @@ MAX_DEPTH = 64
 DEFAULT_MAX_SPEED = 10.0
 #: Without ``bounds.low`` or ``bounds.high``, the box reaches this far past the model's extent on
 #: every side, m (around the bounding box of every geom at the initial state,
-#: :func:`energy_margin.tasks.scene_model.default_bounds`).
+#: :func:`energy_margin.tasks.state_box.box_around_model`).
 BOUNDS_MARGIN = 1.0
 
 Interpolation = Literal["linear", "hold"]
@@ -245,6 +245,10 @@ class SceneSpec:
         locator: line numbers of the file's keys.
         design: the ``[design]`` parameters, in the file's order (applied to the model with
             ``MjSpec`` before it is compiled, :func:`~energy_margin.tasks.scene_model.compile_spec`).
+        defaulted: the keys of :data:`DEFAULTED_KEYS` (and ``randomize.start.x`` ... ``yaw`` in
+            mode ``"ranges"``, ``design.NAME.default``) that the file leaves out, so that their
+            values come from a default, the model or, with ``derive_perturbation``, the scene
+            (``energy-margin scene`` marks them); dotted, e.g. ``"perturbation.lambda"``.
 
     """
 
@@ -275,6 +279,7 @@ class SceneSpec:
     capture_follows: bool = False
     derive_perturbation: bool = False
     design: tuple[DesignEntry, ...] = ()
+    defaulted: frozenset[str] = frozenset()
 
     def error(self, key: str, message: str) -> EnergyMarginError:
         """An error naming this file, the line of ``key`` and ``key``."""
@@ -393,6 +398,52 @@ _TOP_KEYS = {
     "bounds",
     "design",
 }
+
+
+#: Keys a scene file may leave out, whose value then comes from a default (docs/scenes.md "Every key");
+#: besides these, an axis of ``randomize.start`` in mode ``"ranges"`` and a design parameter's ``default``.
+DEFAULTED_KEYS = (
+    "objects.joints",
+    "motion.duration",
+    "motion.interpolation",
+    "motion.actuators",
+    "motion.initial_keyframe",
+    "motion.control_period",
+    "motion.robot",
+    "randomize.friction",
+    "randomize.mass_scale",
+    "randomize.time_scale",
+    "randomize.start.mode",
+    "randomize.start.min_separation",
+    "perturbation.linear_acceleration",
+    "perturbation.angular_acceleration",
+    "perturbation.max_duration",
+    "perturbation.lambda",
+    "perturbation.derive",
+    "capture.at_least",
+    "capture.follow",
+    "success.at_least",
+    "bounds.low",
+    "bounds.high",
+    "bounds.max_speed",
+)
+
+
+def _left_out(document: Mapping[str, Any], start: StartSpec, design: tuple[DesignEntry, ...]) -> frozenset[str]:
+    """The keys with a default that the validated ``document`` leaves out (``SceneSpec.defaulted``)."""
+    keys = list(DEFAULTED_KEYS)
+    if start.mode == "ranges":
+        keys.extend(f"randomize.start.{axis}" for axis in ("x", "y", "z", "yaw"))
+    keys.extend(f"{entry.key}.default" for entry in design)
+    left_out = set()
+    for key in keys:
+        table: Any = document
+        for part in key.split("."):
+            if not isinstance(table, Mapping) or part not in table:
+                left_out.add(key)
+                break
+            table = table[part]
+    return frozenset(left_out)
 
 
 def read_scene_file(path: Path | str) -> SceneSpec:
@@ -551,6 +602,7 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
     if low is not None and high is not None and any(a >= b for a, b in zip(low, high, strict=True)):
         raise read.fail("bounds.high", f"must exceed bounds.low on every axis, got {list(low)} and {list(high)}")
     max_speed = read.number(bounds.get("max_speed", DEFAULT_MAX_SPEED), "bounds.max_speed", positive=True)
+    design = _read_design(read, document)
 
     return SceneSpec(
         path=path,
@@ -579,7 +631,8 @@ def _read_document(document: Mapping[str, Any], path: Path, locator: Locator, di
         locator=locator,
         capture_follows=follows,
         derive_perturbation=derive,
-        design=_read_design(read, document),
+        design=design,
+        defaulted=_left_out(document, start, design),
     )
 
 
