@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -111,9 +112,12 @@ def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -
     assert "x [-0.12, 0.12] m, y [-0.02, 0.08] m, z the model's (default), yaw [-0.3, 0.3] rad" in out
     assert "min separation 0.104 m, twice the largest bounding radius (default)" in out
     assert "built at the analysed frame (default)" in out
-    assert (
-        "bounds: low (-100, -100, -100) m (default), high (100, 100, 100) m (default), max speed 100 m/s (default)"
-        in out
+    bounds = next(line for line in out.splitlines() if line.startswith("bounds: "))
+    assert re.fullmatch(
+        r"bounds: low \(\S+, \S+, \S+\) m \(default: 1 m around the model's geoms\), high \(\S+, \S+, \S+\) m "
+        r"\(default: 1 m around the model's geoms\), max speed 10 m/s \(default\); trees reject states outside, "
+        r"and no frame outside becomes data",
+        bounds,
     )
     width = '\n[design]\nwidth = { geom = "pusher", attribute = "size", index = 0, low = 0.1, high = 0.2 }\n'
     assert main(["scene", str(make_scene(append=width)), "--no-picture"]) == 0
@@ -134,4 +138,4 @@ def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -
     )
     assert "the default bounds" not in out
     assert "capture: at least 1 objects in box[" in out and ", built at the analysed frame\n" in out
-    assert "bounds: low (-1, -1, -1) m, high (1, 1, 1) m, max speed 5 m/s\n" in out
+    assert "bounds: low (-1, -1, -1) m, high (1, 1, 1) m, max speed 5 m/s;" in out
