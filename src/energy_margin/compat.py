@@ -318,6 +318,13 @@ def compile_refuses_warnings() -> bool:
     return not mujoco_at_least(COMPILE_WARNINGS_SINCE)
 
 
+def has_warning_hook() -> bool:
+    """Whether the bindings let a process take MuJoCo's warnings (``mujoco.set_mju_user_warning``)."""
+    import mujoco
+
+    return hasattr(mujoco, "set_mju_user_warning")
+
+
 def save_npz(
     file: str | os.PathLike[str] | IO[bytes], arrays: Mapping[str, np.ndarray], *, compressed: bool = False
 ) -> None:

@@ -168,3 +168,59 @@ def test_recorded_mocap_arrays_override_the_declared_motion(tiny_scene: Path, tm
     declared_capture = load_scores(tmp_path / "without")["capture_score"]
     assert turned_capture.max() <= 0.01
     assert declared_capture.min() >= 0.5
+
+
+def _fly_away(arrays: dict[str, np.ndarray], row: int) -> None:
+    """Put object 0 19 km/s and 11,500 km away from ``row`` on, as a blown-up simulation leaves it."""
+    arrays["qpos"][row:, 0:3] = [1.15e7, 0.0, 0.03]
+    arrays["qvel"][row:, 0:3] = [1.9e4, 0.0, 0.0]
+
+
+def test_a_physically_impossible_roll_out_is_refused_in_one_line(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    log = tmp_path / "run.npz"
+    arrays = _log_rollout(tiny_scene, log, shift=0.0)
+    _fly_away(arrays, 60)
+    np.savez(log, **arrays)
+    out = tmp_path / "recorded"
+    assert main(["record", "--scene", str(tiny_scene), str(log), "--frames", "4", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1, error
+    assert f"{log}: qpos: row 79 (frame 3): object 0 at (1.15e+07, 0, 0.03) m lies outside the bounds" in error
+    assert "--drop-unphysical" in error
+    assert not out.exists()
+
+
+def test_drop_unphysical_leaves_the_roll_out_out_and_lists_it(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    logs = [tmp_path / f"run{i}.npz" for i in range(3)]
+    for index, log in enumerate(logs):
+        arrays = _log_rollout(tiny_scene, log, shift=0.02 * index)
+        if index == 1:
+            _fly_away(arrays, 30)
+            arrays["qpos"][30:, 0:3] = [0.0, 0.0, 0.03]  # in place, but 19 km/s
+            np.savez(log, **arrays)
+    out = tmp_path / "recorded"
+    command = ["record", "--scene", str(tiny_scene), *map(str, logs), "--frames", "4", "--out", str(out)]
+    assert main([*command, "--drop-unphysical"]) == 0
+    printed = capsys.readouterr().out
+    assert "left out 1 roll-out(s) with a physically impossible frame" in printed
+    dataset = load_dataset(out)
+    assert dataset.n_trajectories == 2
+    (dropped,) = dataset.metadata["dropped"]
+    assert dropped["rollout"] == str(logs[1])
+    assert "object 0 moves at 1.9e+04 m/s, faster than 10 m/s" in dropped["reason"]
+    assert main(["check", str(out)]) == 0
+
+
+def test_a_roll_out_during_which_mujoco_warned_is_refused(tiny_scene: Path, tmp_path: Path, capsys) -> None:
+    from energy_margin.sim.mujoco_audit import PHYSICS_WARNINGS, WARNINGS_ARRAY
+
+    log = tmp_path / "run.npz"
+    arrays = _log_rollout(tiny_scene, log, shift=0.0)
+    counts = np.zeros((80, len(PHYSICS_WARNINGS)))
+    counts[50:, list(PHYSICS_WARNINGS).index("mjWARN_BADQVEL")] = 1
+    np.savez(log, **arrays, **{WARNINGS_ARRAY: counts})
+    out = tmp_path / "recorded"
+    assert main(["record", "--scene", str(tiny_scene), str(log), "--frames", "4", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert f"{log}: {WARNINGS_ARRAY}: row 50: MuJoCo warned mjWARN_BADQVEL during the roll-out" in error
+    assert not out.exists()

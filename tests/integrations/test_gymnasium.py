@@ -122,6 +122,8 @@ def test_recorded_episode_becomes_a_dataset(tmp_path: Path) -> None:
     rows = np.load(episode)
     assert rows["qpos"].shape == (21, 11) and rows["time"][0] == 0.0
     assert np.allclose(np.diff(rows["time"]), wrapper.unwrapped.dt)
+    # MuJoCo's warning counts ride along, for record to refuse a roll-out that went wrong.
+    assert rows["mujoco_warnings"].shape == (21, 7) and not rows["mujoco_warnings"].any()
     out = tmp_path / "dataset"
     assert (
         main(["record", "--scene", str(tmp_path / "pusher.toml"), str(episode), "--frames", "5", "--out", str(out)])

@@ -20,7 +20,12 @@ import os
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from energy_margin.sim.mujoco_audit import WarningLog
 
 from energy_margin._version import __version__
 from energy_margin.cli import (
@@ -130,6 +135,35 @@ def _joined_camera(argv: list[str]) -> list[str]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status (0, 1 unexpected error, 2 bad input, 130 interrupted)."""
     args = build_parser().parse_args(_joined_camera(sys.argv[1:] if argv is None else list(argv)))
+    from energy_margin.sim.mujoco_audit import WarningLog
+
+    with WarningLog() as log:
+        status = _run(args, argv)
+    _keep_warnings(log, args, status)
+    return status
+
+
+def _keep_warnings(log: WarningLog, args: argparse.Namespace, status: int) -> None:
+    """MuJoCo's warnings of the command into its output directory, never the working directory.
+
+    Without an output directory, a command that succeeded says how often MuJoCo warned in one
+    line on stderr; a failed one has said why in its error line.
+    """
+    if not log.messages:
+        return
+    for name in ("out", "dataset"):
+        value = getattr(args, name, None)
+        if isinstance(value, str | os.PathLike):
+            path = log.write(Path(value))
+            if path is not None:
+                return
+    if status != 0:
+        return
+    print(f"{PROG}: MuJoCo warned {len(log.messages)} time(s), the first: {one_line(log.messages[0])}", file=sys.stderr)
+
+
+def _run(args: argparse.Namespace, argv: Sequence[str] | None) -> int:
+    """Run the parsed command; map every error to its exit status."""
     try:
         return int(args.run(args))
     except EnergyMarginError as error:

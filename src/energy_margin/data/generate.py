@@ -150,7 +150,9 @@ def record_trajectory(
         simulator.reset(trajectory.initial)
         watch = RolloutWatch(simulator, task.frame_box)
     steps = task.frame_steps(n_frames)
-    for step in roll_out(task, trajectory, simulator, rng, steps, after_step=watch and watch.after_step):
+    for step in roll_out(
+        task, trajectory, simulator, rng, steps, after_step=None if watch is None else watch.after_step
+    ):
         frame = simulator.frame_state()
         frames.append(frame)
         times.append(step * dt)

@@ -12,8 +12,12 @@ objects inside their bounds (an object spinning up in place).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mujoco
 import numpy as np
+
+from energy_margin.compat import has_warning_hook
 
 #: The warnings that mean a roll-out went wrong, with what each means. ``mjWARN_VGEOMFULL``
 #: (the visual geom buffer is full) says nothing about the physics and is left out.
@@ -50,6 +54,45 @@ def describe_warnings(raised: dict[str, int]) -> str:
     """:func:`raised_warnings` in words, e.g. ``"MuJoCo warned mjWARN_BADQACC 2x: a NaN, ..."``."""
     parts = [f"{name} {count}x: {PHYSICS_WARNINGS.get(name, 'a warning')}" for name, count in raised.items()]
     return "MuJoCo warned " + "; ".join(parts)
+
+
+#: File of :class:`WarningLog` in a run's directory.
+LOG_FILE = "mujoco_log.txt"
+
+
+class WarningLog:
+    """MuJoCo's warning messages of this process, kept for the run's directory.
+
+    Without it MuJoCo appends every warning to ``MUJOCO_LOG.TXT`` in the working directory (and
+    prints it). Inside ``with WarningLog() as log:`` the messages go to ``log.messages`` (worker
+    processes forked inside keep their own, unwritten, copy), and :meth:`write` appends them to
+    :data:`LOG_FILE` in a directory. MuJoCo releases without the hook keep their own behaviour.
+    """
+
+    def __init__(self) -> None:
+        self.messages: list[str] = []
+        self._previous: object = None
+
+    def __enter__(self) -> WarningLog:
+        """Take MuJoCo's warnings from here on."""
+        if has_warning_hook():
+            self._previous = mujoco.get_mju_user_warning()
+            mujoco.set_mju_user_warning(self.messages.append)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Give MuJoCo's warnings back to whoever had them."""
+        if has_warning_hook():
+            mujoco.set_mju_user_warning(self._previous)
+
+    def write(self, directory: Path) -> Path | None:
+        """Append the messages to ``directory/mujoco_log.txt`` when both exist; its path, or ``None``."""
+        if not self.messages or not directory.is_dir():
+            return None
+        path = directory / LOG_FILE
+        with path.open("a", encoding="utf-8") as stream:
+            stream.writelines(f"{message}\n" for message in self.messages)
+        return path
 
 
 class EnergyAudit:
@@ -114,9 +157,11 @@ class EnergyAudit:
 
 
 __all__ = [
+    "LOG_FILE",
     "PHYSICS_WARNINGS",
     "WARNINGS_ARRAY",
     "EnergyAudit",
+    "WarningLog",
     "describe_warnings",
     "raised_warnings",
     "warning_numbers",
