@@ -15,6 +15,6 @@ def write_scores(directory: Path, capture: np.ndarray, success: np.ndarray, *, r
     for t in range(capture.shape[0]):
         for k in range(capture.shape[1]):
             lines.append(
-                f"{t},{k},{float(capture[t, k])!r},{float(success[t, k])!r},31,30,{runtime!r},0.25,{t * 10 + k}"
+                f"{t},{k},{float(capture[t, k])!r},{float(success[t, k])!r},31,30,{runtime!r},0.25,{t * 10 + k},0,0"
             )
     (directory / SCORES_FILE).write_text("\n".join(lines) + "\n")

@@ -139,7 +139,11 @@ def test_analyze_writes_one_row_per_frame(tiny_dataset: Path) -> None:
     assert np.all((scores["capture_score"] >= 0) & (scores["capture_score"] <= 1 + 1e-12))
     assert np.all((scores["success_score"] >= 0) & (scores["success_score"] <= 1 + 1e-12))
     # The seed column is exact in the file (load_scores loses precision: see the xfail below).
-    assert [int(line.rsplit(",", 1)[1]) for line in lines[1:]] == frame_seeds(0, 6)
+    seed_column = COLUMNS.index("seed")
+    assert [int(line.split(",")[seed_column]) for line in lines[1:]] == frame_seeds(0, 6)
+    # Every state a tree reached was kept, rejected for leaving the state box, or diverged.
+    assert np.all(scores["nodes"] - 1 + scores["rejected"] + scores["diverged"] <= scores["iterations"])
+    assert np.all((scores["rejected"] >= 0) & (scores["diverged"] >= 0))
     description = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert description["analyzer"]["iterations"] == 30
     assert description["seed"] == 0
@@ -236,7 +240,7 @@ def test_resume_after_a_torn_journal(copy_dataset: Callable[[str], Path], count_
     journal = interrupted / JOURNAL_FILE
     lines = journal.read_text().splitlines(keepends=True)
     kept = lines[1:3]
-    torn = lines[3][:-5]  # every column present, the seed cut short, no newline
+    torn = lines[3][:-1]  # every column present, no newline: the write was cut short
     assert torn.count(",") == len(COLUMNS) - 1
     journal.write_text(lines[0] + "".join(kept) + torn)
     with pytest.raises(EnergyMarginError, match="run analyze again to resume"):
@@ -284,9 +288,9 @@ def test_resume_after_an_interrupt(
 
 
 def test_read_journal_drops_torn_foreign_and_duplicate_lines(tmp_path: Path) -> None:
-    row = "0,1,0.5,0.25,31,30,0.01,0.005,123\n"
-    duplicate = "0,1,0.9,0.9,31,30,0.01,0.005,123\n"
-    other = "1,0,1.0,0.0,5,30,0.01,0.005,7\n"
+    row = "0,1,0.5,0.25,31,30,0.01,0.005,123,0,0\n"
+    duplicate = "0,1,0.9,0.9,31,30,0.01,0.005,123,0,0\n"
+    other = "1,0,1.0,0.0,5,30,0.01,0.005,7,2,0\n"
     journal = tmp_path / JOURNAL_FILE
     journal.write_text(
         ",".join(COLUMNS)
@@ -294,14 +298,14 @@ def test_read_journal_drops_torn_foreign_and_duplicate_lines(tmp_path: Path) -> 
         + row
         + "garbage\n"
         + duplicate
-        + "1,0,1.0,0.0,5.5,30,0.01,0.005,7\n"
+        + "1,0,1.0,0.0,5.5,30,0.01,0.005,7,0,0\n"
         + other
         + "1,2,0.3"
     )
     rows = read_journal(journal)
     assert rows.keys() == {(0, 1), (1, 0)}
     assert rows[(0, 1)]["capture_score"] == 0.5  # the first complete line wins
-    assert rows[(1, 0)]["nodes"] == 5
+    assert rows[(1, 0)]["nodes"] == 5 and rows[(1, 0)]["rejected"] == 2
     assert read_journal(tmp_path / "missing.csv") == {}
 
 
@@ -382,12 +386,12 @@ def test_load_scores_errors(tiny_dataset: Path) -> None:
     with pytest.raises(EnergyMarginError, match="unexpected header"):
         load_scores(tiny_dataset)
     (tiny_dataset / SCORES_FILE).write_text(
-        ",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5\n0,1,x,1.0,31,30,0.1,0.1,5\n"
+        ",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0\n0,1,x,1.0,31,30,0.1,0.1,5,0,0\n"
     )
     with pytest.raises(EnergyMarginError, match="line 3 is malformed"):
         load_scores(tiny_dataset)
     # A missing final newline is fine in scores.csv.
-    (tiny_dataset / SCORES_FILE).write_text(",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5")
+    (tiny_dataset / SCORES_FILE).write_text(",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0")
     assert load_scores(tiny_dataset)["seed"].tolist() == [5]
 
 

@@ -15,7 +15,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.data.dataset import FRAMES_FILE, Problem, load_dataset
-from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE
+from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, load_scores
 from energy_margin.data.validation import OVERLAP_FRACTION, check_dataset, overlap_problems, require_valid
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
@@ -288,7 +288,7 @@ def _write_and_check(directory: Path, lines: list[str]) -> list[str]:
         (
             lambda lines: [*lines[:3], "0,2,0.5", *lines[4:]],
             [
-                "scores.csv: row [line 4]: has 3 fields, expected 9",
+                "scores.csv: row [line 4]: has 3 fields, expected 11",
                 "scores.csv: row [trajectory 0, frame 2]: is missing",
             ],
         ),
@@ -302,7 +302,7 @@ def _write_and_check(directory: Path, lines: list[str]) -> list[str]:
         ),
         (lambda lines: [], ["scores.csv: header [line 1]: expected " + HEADER]),
         (
-            lambda lines: [*lines, "2,0,0.5,0.5,31,30,0.01,0.005,7"],
+            lambda lines: [*lines, "2,0,0.5,0.5,31,30,0.01,0.005,7,0,0"],
             ["scores.csv: trajectory [line 8]: frame (2, 0) is outside the dataset"],
         ),
         (
@@ -319,6 +319,29 @@ def test_scores_problems(scored: Path, edit: Callable[[list[str]], list[str]], e
         evaluate(scored)
 
 
+def test_a_scores_file_without_the_tree_counts_is_still_read(scored: Path) -> None:
+    # Written before the trees' rejections were counted: the counts read as -1 (unknown).
+    lines = [",".join(line.split(",")[:9]) for line in _scores_lines(scored)]
+    assert _write_and_check(scored, lines) == []
+    scores = load_scores(scored)
+    assert (scores["rejected"] == -1).all() and (scores["diverged"] == -1).all()
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (
+            lambda lines: [*lines[:2], lines[2].rsplit(",", 1)[0] + ",-2"],
+            ["scores.csv: diverged [line 3]: -2 is not a count (-1: unknown)"],
+        ),
+    ],
+    ids=["negative-count"],
+)
+def test_tree_count_problems(scored: Path, edit: Callable[[list[str]], list[str]], expected: list[str]) -> None:
+    lines = edit(_scores_lines(scored))
+    assert _write_and_check(scored, lines)[:1] == expected
+
+
 def test_several_scores_problems_at_once(scored: Path) -> None:
     lines = _scores_lines(scored)
     fields = lines[1].split(",")
@@ -327,7 +350,7 @@ def test_several_scores_problems_at_once(scored: Path) -> None:
     lines = [*lines[:5], "garbage", lines[2]]  # drops trajectory 1, frame 1 and 2; duplicates line 3
     assert _write_and_check(scored, lines) == [
         "scores.csv: capture_score [line 2]: 1.5 is outside [0, 1]",
-        "scores.csv: row [line 6]: has 1 fields, expected 9",
+        "scores.csv: row [line 6]: has 1 fields, expected 11",
         "scores.csv: row [line 7]: duplicates line 3 (trajectory 0, frame 1)",
         "scores.csv: row [trajectory 1, frame 1]: is missing",
         "scores.csv: row [trajectory 1, frame 2]: is missing",

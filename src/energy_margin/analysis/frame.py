@@ -148,6 +148,8 @@ class FrameScores:
         iterations: expansions performed.
         runtime_s: wall time of tree growth and scoring, s.
         physics_s: part of it spent in the simulator, s.
+        rejected: reached states the tree rejected for leaving the task's state box.
+        diverged: reached states the tree rejected for a non-finite number (a blow-up).
 
     """
 
@@ -157,6 +159,8 @@ class FrameScores:
     iterations: int
     runtime_s: float
     physics_s: float
+    rejected: int = 0
+    diverged: int = 0
 
 
 def frame_seeds(seed: int, count: int) -> list[int]:
@@ -338,7 +342,9 @@ def analyze_frame(
     )
     capture, success = score_field(task, frame, field, lam)
     runtime = time.perf_counter() - started
-    scores = FrameScores(capture, success, field.nodes, field.iterations, runtime, field.physics_s)
+    scores = FrameScores(
+        capture, success, field.nodes, field.iterations, runtime, field.physics_s, field.rejected, field.diverged
+    )
     return scores, field
 
 
@@ -399,4 +405,6 @@ class FrameAnalyzer:
             "runtime_s": scores.runtime_s,
             "physics_s": scores.physics_s,
             "seed": self.seeds[index],
+            "rejected": scores.rejected,
+            "diverged": scores.diverged,
         }, field

@@ -244,6 +244,9 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
+    from energy_margin.data.scores_file import load_scores, rejection_note
+
+    say_notes(rejection_note(load_scores(args.dataset)))
     print(f"wrote {path}")
     return 0
 

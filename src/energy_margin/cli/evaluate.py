@@ -58,6 +58,16 @@ def run(args: argparse.Namespace) -> int:
     else:
         result = evaluate(args.dataset, **options, **verdict)
         text = format_table(result)
+    from energy_margin.data.scores_file import load_scores, tree_rejections
+
+    rejections = tree_rejections(load_scores(args.dataset))
+    if rejections is not None:
+        result["tree_rejections"] = rejections
+        text += (
+            f"\ntree states rejected per frame: {rejections['rejected_per_frame']:.1f} outside the state box, "
+            f"{rejections['diverged_per_frame']:.1f} diverged ({100 * rejections['rejected_share']:.1f}% and "
+            f"{100 * rejections['diverged_share']:.1f}% of the expansions)"
+        )
     if args.json:
         print_json(result)
     else:

@@ -52,7 +52,7 @@ from energy_margin._version import __version__
 from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
-from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE
+from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE, UNKNOWN_COUNT
 from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
@@ -508,6 +508,8 @@ def _write_scores(out: Path, ref: ReferenceSet, n_frames: int) -> None:
             "runtime_s": float(row[index["runtime"]]),
             "physics_s": 0.0,
             "seed": 0,
+            "rejected": UNKNOWN_COUNT,
+            "diverged": UNKNOWN_COUNT,
         }
         lines.append(",".join(repr(v) if isinstance(v, float) else str(v) for v in (values[c] for c in COLUMNS)))
     atomic_write_text(out / SCORES_FILE, "\n".join(lines) + "\n")

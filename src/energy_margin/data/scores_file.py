@@ -1,7 +1,10 @@
 """The scores file: ``scores.csv``, its append-only journal and the analysis record beside it.
 
 ``scores.csv`` has one row per frame, sorted by trajectory and frame, with the columns
-:data:`COLUMNS`; floats are written by ``repr`` so a read gives back the exact values. While an
+:data:`COLUMNS`; floats are written by ``repr`` so a read gives back the exact values.
+``rejected`` and ``diverged`` count the states each frame's tree rejected for leaving the task's
+state box and for a non-finite number; -1 where unknown (a file written before they were counted,
+read with :data:`EARLIER_COLUMNS`, or scores that no tree produced). While an
 analysis runs, rows are appended to ``scores.journal.csv`` (same columns) as frames finish;
 ``analysis.json`` records the resolved configuration that produced them.
 """
@@ -20,8 +23,9 @@ SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
 CONFIG_FILE = "analysis.json"
 #: Columns of scores.csv written as integers.
-INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "iterations", "seed")
-COLUMNS = (
+INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "iterations", "seed", "rejected", "diverged")
+#: The columns of scores files written before the trees' rejections were counted (still read).
+EARLIER_COLUMNS = (
     "trajectory",
     "frame",
     "capture_score",
@@ -32,6 +36,9 @@ COLUMNS = (
     "physics_s",
     "seed",
 )
+COLUMNS = (*EARLIER_COLUMNS, "rejected", "diverged")
+#: ``rejected`` and ``diverged`` where unknown.
+UNKNOWN_COUNT = -1
 
 
 def format_row(row: dict[str, Any]) -> str:
@@ -39,14 +46,18 @@ def format_row(row: dict[str, Any]) -> str:
     return ",".join(repr(float(row[c])) if isinstance(row[c], float) else str(row[c]) for c in COLUMNS)
 
 
-def parse_row(line: str) -> dict[str, Any] | None:
-    """A journal line as a row, or ``None`` for a torn or foreign line."""
+def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] | None:
+    """A journal line as a row, or ``None`` for a torn or foreign line.
+
+    ``columns`` are the file's (:data:`COLUMNS` or :data:`EARLIER_COLUMNS`); the counts an
+    earlier file lacks are :data:`UNKNOWN_COUNT`.
+    """
     fields = line.rstrip("\n").split(",")
-    if len(fields) != len(COLUMNS) or not line.endswith("\n"):
+    if len(fields) != len(columns) or not line.endswith("\n"):
         return None
     try:
-        row: dict[str, Any] = {}
-        for name, text in zip(COLUMNS, fields, strict=True):
+        row: dict[str, Any] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
+        for name, text in zip(columns, fields, strict=True):
             row[name] = int(text) if name in INTEGER_COLUMNS else float(text)
     except ValueError:
         return None
@@ -69,6 +80,14 @@ def read_journal(path: Path) -> dict[tuple[int, int], dict[str, Any]]:
     return scores_journal(Path(path).parent, path=path).read()
 
 
+def file_columns(first_line: str) -> tuple[str, ...] | None:
+    """The columns a scores file's header line declares (current or earlier), or ``None``."""
+    for columns in (COLUMNS, EARLIER_COLUMNS):
+        if first_line.rstrip("\n") == ",".join(columns):
+            return columns
+    return None
+
+
 def header() -> str:
     """The header line of ``scores.csv`` and of the journal, with its newline."""
     return ",".join(COLUMNS) + "\n"
@@ -84,16 +103,63 @@ def load_scores(path: Path | str) -> dict[str, np.ndarray]:
         )
         raise EnergyMarginError(f"{directory} has no {SCORES_FILE}; run `energy-margin analyze` first{hint}")
     lines = scores_path.read_text(encoding="utf-8", errors="replace").splitlines(keepends=True)
-    if not lines or lines[0] != header():
+    columns = file_columns(lines[0] if lines else "")
+    if columns is None:
         raise EnergyMarginError(f"{scores_path}: unexpected header (expected {','.join(COLUMNS)})")
     rows = []
     for number, line in enumerate(lines[1:], start=2):
-        row = parse_row(line if line.endswith("\n") else line + "\n")
+        row = parse_row(line if line.endswith("\n") else line + "\n", columns)
         if row is None:
             raise EnergyMarginError(f"{scores_path}: line {number} is malformed")
         rows.append(row)
-    dtypes = {"seed": np.uint64, "trajectory": np.int64, "frame": np.int64, "nodes": np.int64, "iterations": np.int64}
+    dtypes = {name: np.int64 for name in INTEGER_COLUMNS} | {"seed": np.uint64}
     try:
         return {name: np.array([row[name] for row in rows], dtype=dtypes.get(name, np.float64)) for name in COLUMNS}
     except OverflowError:
         raise EnergyMarginError(f"{scores_path}: a count or seed is out of range") from None
+
+
+#: ``analyze`` says so when more than this share of a dataset's expansions diverged.
+DIVERGED_SHARE = 0.01
+#: ``analyze`` says so when more than this share of a dataset's expansions left the state box.
+REJECTED_SHARE = 0.25
+
+
+def tree_rejections(scores: dict[str, np.ndarray]) -> dict[str, float] | None:
+    """The states the trees rejected: per frame on average, and as shares of the expansions.
+
+    Returns:
+        ``rejected_per_frame``, ``diverged_per_frame``, ``rejected_share``, ``diverged_share``;
+        ``None`` when the counts are unknown (:data:`UNKNOWN_COUNT`) or nothing was expanded.
+    """
+    rejected, diverged = scores["rejected"], scores["diverged"]
+    known = (rejected >= 0) & (diverged >= 0)
+    expansions = float(scores["iterations"][known].sum())
+    if not known.any() or expansions <= 0:
+        return None
+    return {
+        "rejected_per_frame": float(rejected[known].mean()),
+        "diverged_per_frame": float(diverged[known].mean()),
+        "rejected_share": float(rejected[known].sum()) / expansions,
+        "diverged_share": float(diverged[known].sum()) / expansions,
+    }
+
+
+def rejection_note(scores: dict[str, np.ndarray]) -> str | None:
+    """One line when the trees diverged or left the state box often, with the likely cause; else ``None``."""
+    summary = tree_rejections(scores)
+    if summary is None:
+        return None
+    if summary["diverged_share"] > DIVERGED_SHARE:
+        return (
+            f"note: {100 * summary['diverged_share']:.1f}% of the trees' expansions diverged "
+            f"({summary['diverged_per_frame']:.1f} per frame): the perturbation wrenches may be too large for light "
+            "objects, or the time step too long for them (lower [perturbation], or a smaller time step)"
+        )
+    if summary["rejected_share"] > REJECTED_SHARE:
+        return (
+            f"note: {100 * summary['rejected_share']:.1f}% of the trees' expansions left the state box "
+            f"({summary['rejected_per_frame']:.1f} per frame): objects reach the task's bounds or speed bound "
+            "often (widen [bounds] if they belong there, or lower [perturbation])"
+        )
+    return None

@@ -23,7 +23,7 @@ from typing import Any
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.data.physical import state_problems
 from energy_margin.data.provenance import version_findings
-from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE
+from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE, UNKNOWN_COUNT, file_columns
 from energy_margin.sim import Simulator
 from energy_margin.world.scene import Scene
 
@@ -114,20 +114,20 @@ def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
     except (OSError, UnicodeDecodeError) as error:
         return [Problem(SCORES_FILE, "file", "", f"cannot be read ({error})")]
     lines = text.splitlines()
-    header = ",".join(COLUMNS)
-    if not lines or lines[0] != header:
-        return [Problem(SCORES_FILE, "header", "line 1", f"expected {header}")]
+    columns = file_columns(lines[0] if lines else "")
+    if columns is None:
+        return [Problem(SCORES_FILE, "header", "line 1", f"expected {','.join(COLUMNS)}")]
     problems: list[Problem] = []
     seen: dict[tuple[int, int], int] = {}
     for number, line in enumerate(lines[1:], start=2):
         fields = line.split(",")
-        if len(fields) != len(COLUMNS):
+        if len(fields) != len(columns):
             problems.append(
-                Problem(SCORES_FILE, "row", f"line {number}", f"has {len(fields)} fields, expected {len(COLUMNS)}")
+                Problem(SCORES_FILE, "row", f"line {number}", f"has {len(fields)} fields, expected {len(columns)}")
             )
             continue
-        row: dict[str, float] = {}
-        for name, value in zip(COLUMNS, fields, strict=True):
+        row: dict[str, float] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
+        for name, value in zip(columns, fields, strict=True):
             try:
                 row[name] = int(value) if name in INTEGER_COLUMNS else float(value)
             except ValueError:
@@ -168,6 +168,9 @@ def _row_problems(
             problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a non-negative time"))
     if not (1 <= row["nodes"] < 2**63 and 0 <= row["iterations"] < 2**63 and 0 <= row["seed"] < 2**64):
         problems.append(Problem(SCORES_FILE, "nodes", where, "nodes, iterations or seed out of range"))
+    for name in ("rejected", "diverged"):
+        if not UNKNOWN_COUNT <= row[name] < 2**63:
+            problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a count (-1: unknown)"))
     return problems
 
 

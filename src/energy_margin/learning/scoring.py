@@ -28,7 +28,7 @@ import numpy as np
 
 from energy_margin.analysis.run import write_scores
 from energy_margin.data.dataset import Dataset
-from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE
+from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, UNKNOWN_COUNT
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.learning.margin_model import MarginModel, load_margin_model
@@ -175,6 +175,8 @@ def predict_rows(
                     "runtime_s": float(seconds),
                     "physics_s": 0.0,
                     "seed": 0,
+                    "rejected": UNKNOWN_COUNT,
+                    "diverged": UNKNOWN_COUNT,
                 }
             bar.update(len(keys))
     finally:

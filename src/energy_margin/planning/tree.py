@@ -95,6 +95,9 @@ class CostField:
         robot_q: the robot's coordinates at every node (as ``FrameState.robot_q``), shape
             (M, n_robot); ``None`` when not kept (batched expansion of a model whose propagator
             does not return them). Regions that follow the robot use them.
+        rejected: reached states rejected for leaving the task's state box (an object outside
+            its bounds or faster than its speed bound).
+        diverged: reached states rejected for holding a non-finite number (the simulation blew up).
 
     """
 
@@ -108,6 +111,8 @@ class CostField:
     total_s: float
     object_quat: np.ndarray | None = None
     robot_q: np.ndarray | None = None
+    rejected: int = 0
+    diverged: int = 0
 
     @property
     def nodes(self) -> int:
@@ -188,6 +193,8 @@ class _Tree:
         self.capacity = capacity
         self.count = 0
         self.costed = 0
+        self.rejected = 0
+        self.diverged = 0
         self.task = task
         self.cost_model = cost_model
 
@@ -207,8 +214,10 @@ class _Tree:
             return None
         pos, vel = outcome.pos, outcome.vel
         if not np.isfinite(pos.sum() + vel.sum()):
+            self.diverged += 1
             return None
         if not self.task.within_bounds(pos, vel):
+            self.rejected += 1
             return None
         node = self.count
         self.states[node] = outcome.state
@@ -279,6 +288,8 @@ class _Tree:
             physics_s=0.0,
             total_s=0.0,
             robot_q=self._robot_q(count, copy=False),
+            rejected=self.rejected,
+            diverged=self.diverged,
         )
 
     def field(self, iterations: int, physics_s: float, started: float) -> CostField:
@@ -295,6 +306,8 @@ class _Tree:
             physics_s=physics_s,
             total_s=time.perf_counter() - started,
             robot_q=self._robot_q(count, copy=True),
+            rejected=self.rejected,
+            diverged=self.diverged,
         )
 
 
