@@ -246,7 +246,8 @@ def run(args: argparse.Namespace) -> int:
     )
     from energy_margin.data.scores_file import load_scores, rejection_note
 
-    say_notes(rejection_note(load_scores(args.dataset)))
+    if Path(path).is_file():
+        say_notes(rejection_note(load_scores(Path(path).parent)))
     print(f"wrote {path}")
     return 0
 
