@@ -8,6 +8,7 @@ write ``scores.csv`` beside the dataset.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from energy_margin.analysis.executors import EXECUTORS
