@@ -111,7 +111,8 @@ class EnergyAudit:
         self.data = data
         self._scratch = mujoco.MjData(model)
         self._equality_rows = mujoco.mjtConstraint.mjCNSTR_EQUALITY
-        self._gravcomp = bool(np.any(model.body_gravcomp != 0))
+        # Gravity compensation does work on the robot; releases without the separate array keep it in qfrc_passive.
+        self._gravcomp = bool(np.any(model.body_gravcomp != 0)) and hasattr(data, "qfrc_gravcomp")
         self._qfrc = np.zeros(model.nv)
         self._qvel = data.qvel.copy()
         self.work = 0.0
