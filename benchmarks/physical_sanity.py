@@ -70,69 +70,12 @@ def _measure(task: Task, n_objects: int, seeds: list[int], trajectories: int, fr
     }
 
 
-#: panda_tray as MuJoCo Menagerie's arms are set up (implicitfast, 2 ms) with five boxes.
-MENAGERIE_OPTIONS = {
-    '<option timestep="0.004" integrator="implicit"/>': '<option timestep="0.002" integrator="implicitfast"/>'
-}
-
-
-def _unstable_tray(folder: Path, seeds: list[int], trajectories: int, frames: int) -> dict[str, object]:
-    """First draws as written before the roll-out tests, then what ``generate`` does now."""
-    from energy_margin.data.generate import generate_dataset
-    from energy_margin.errors import EnergyMarginError
-
-    task = _scene_task("panda_tray", folder, MENAGERIE_OPTIONS)
-    scene = Path(task.config.to_dict()["scene_file"])
-    scene.write_text(scene.read_text(encoding="utf-8").replace("count = 4", "count = 5"), encoding="utf-8")
-    task = get_task("scene", {"scene_file": str(scene)})
-    n_objects = task.fixed_objects or 5
-    box = task.frame_box
-    before = {"frames": 0, "frames_outside_or_too_fast": 0, "farthest_m": 0.0, "fastest_m_s": 0.0}
-    after: dict[str, object] = {}
-    for seed in seeds:
-        for index in range(trajectories):
-            record = record_trajectory(task, n_objects, frames, trajectory_rng(seed, trajectories, index))
-            for pos, vel in zip(record["object_pos"], record["object_vel"], strict=True):
-                before["frames"] += 1
-                if not box.contains(pos, vel):
-                    before["frames_outside_or_too_fast"] += 1
-                before["farthest_m"] = max(before["farthest_m"], float(np.abs(pos).max()))
-                before["fastest_m_s"] = max(before["fastest_m_s"], float(np.linalg.norm(vel[:, :3], axis=1).max()))
-        out = folder / f"tray-{seed}"
-        try:
-            dataset = generate_dataset(
-                "scene",
-                n_objects=None,
-                n_trajectories=trajectories,
-                n_frames=frames,
-                seed=seed,
-                out=out,
-                task_config={"scene_file": str(scene)},
-            )
-        except EnergyMarginError as error:
-            after[str(seed)] = {"stopped": str(error)}
-            continue
-        redrawn = dataset.metadata.get("redrawn", {})
-        kinds: dict[str, int] = {}
-        for entry in redrawn.values():
-            for reason in entry["reasons"]:
-                kinds[reason_kind(reason)] = kinds.get(reason_kind(reason), 0) + 1
-        after[str(seed)] = {
-            "frames_written": int(dataset.arrays["frame_time"].size),
-            "trajectories_redrawn": len(redrawn),
-            "refused_draws_by_kind": kinds,
-            "example_reasons": [entry["reasons"][0] for entry in list(redrawn.values())[:3]],
-        }
-    return {"before": before, "after": after}
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[200, 201])
     parser.add_argument("--trajectories", type=int, default=10)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--out", type=Path)
-    parser.add_argument("--tray-trajectories", type=int, default=30, help="per seed, for the unstable tray")
     args = parser.parse_args()
     rows: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory() as folder:

@@ -89,4 +89,11 @@ def test_mujoco_warnings_go_to_the_run_directory_not_the_working_one(
     run.mkdir()
     assert log.write(run) == run / LOG_FILE
     assert (run / LOG_FILE).read_text(encoding="utf-8").splitlines() == log.messages
-    assert mujoco.get_mju_user_warning() is None
+    # Leaving gives the warnings back to whoever had them before.
+    with WarningLog() as outer:
+        with WarningLog() as inner:
+            mujoco.mj_resetData(model, data)
+            mujoco.mj_step(model, data)
+        mujoco.mj_resetData(model, data)
+        mujoco.mj_step(model, data)
+    assert len(inner.messages) == 1 and len(outer.messages) == 1

@@ -42,8 +42,13 @@ UNKNOWN_COUNT = -1
 
 
 def format_row(row: dict[str, Any]) -> str:
-    """One scores row as a CSV line without its newline (floats by ``repr``: exact round trip)."""
-    return ",".join(repr(float(row[c])) if isinstance(row[c], float) else str(row[c]) for c in COLUMNS)
+    """One scores row as a CSV line without its newline (floats by ``repr``: exact round trip).
+
+    A row without ``rejected`` or ``diverged`` (scores no tree of this package grew) gets
+    :data:`UNKNOWN_COUNT`.
+    """
+    values = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT, **row}
+    return ",".join(repr(float(values[c])) if isinstance(values[c], float) else str(values[c]) for c in COLUMNS)
 
 
 def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] | None:

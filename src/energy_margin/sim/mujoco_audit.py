@@ -144,17 +144,22 @@ class EnergyAudit:
                 wrench = data.xfrc_applied[body]
                 mujoco.mj_applyFT(model, data, wrench[:3], wrench[3:], data.xipos[body], int(body), self._qfrc)
             force = force + self._qfrc
-        power = float(force @ velocity)
-        if data.nefc:
-            rows = data.efc_type[: data.nefc] == self._equality_rows
-            if rows.any():
-                power += float(data.efc_force[: data.nefc][rows] @ data.efc_vel[: data.nefc][rows])
-        self.work += power * float(model.opt.timestep)
+        with np.errstate(all="ignore"):  # a blown-up step's power is not finite: the gain says so
+            power = float(force @ velocity)
+            if data.nefc:
+                rows = data.efc_type[: data.nefc] == self._equality_rows
+                if rows.any():
+                    power += float(data.efc_force[: data.nefc][rows] @ data.efc_vel[: data.nefc][rows])
+            self.work += power * float(model.opt.timestep)
         self._qvel[:] = data.qvel
 
     def gain(self) -> float:
-        """Energy gained since the start beyond the work done from outside, J (> 0: energy from nothing)."""
-        return self.energy() - self.start_energy - self.work
+        """Energy gained since the start beyond the work done from outside, J.
+
+        Above 0: energy from nothing; NaN after a blow-up.
+        """
+        with np.errstate(all="ignore"):
+            return self.energy() - self.start_energy - self.work
 
 
 __all__ = [
