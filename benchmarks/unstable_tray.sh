@@ -15,7 +15,7 @@ python=${PYTHON:-$here/.venv/bin/python}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$python" "$here/examples/panda_tray/write_model.py" --out "$work/scene" > /dev/null
-sed -e 's/^count = 4 /count = 5 /' "$here/examples/panda_tray/panda_tray.toml" > "$work/scene/panda_tray.toml"
+sed -e 's/^count = 4$/count = 5/' "$here/examples/panda_tray/panda_tray.toml" > "$work/scene/panda_tray.toml"
 sed -i 's/<option timestep="0.004" integrator="implicit"\/>/<option timestep="0.002" integrator="implicitfast"\/>/' "$work/scene/panda_scene.xml"
 {
   echo "# $(date -u +%FT%TZ); $("$python" -c 'import mujoco, numpy; print("MuJoCo", mujoco.__version__, "numpy", numpy.__version__)')"

@@ -92,3 +92,16 @@ def test_check_finds_every_corruption(sound: Path, tmp_path: Path) -> None:
     assert sum(found.values()) == CASES
     assert set(found) == set(KINDS)
     print(json.dumps({"corruptions": CASES, "found": dict(found), "missed": len(missed)}))
+
+
+def test_check_counts_what_it_does_not_list(sound: Path, tmp_path: Path) -> None:
+    with np.load(sound / FRAMES_FILE) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    arrays["object_pos"][:, :, :, 0] = 1e7  # every object of every frame: 12, five listed
+    folder = tmp_path / "far"
+    folder.mkdir()
+    shutil.copy(sound / METADATA_FILE, folder / METADATA_FILE)
+    np.savez(folder / FRAMES_FILE, **arrays)
+    problems = [str(problem) for problem in check_dataset(folder, overlaps=False)]
+    assert len(problems) == 6
+    assert problems[-1] == "frames.npz: object_pos: 7 more object(s) outside the bounds in other frames"

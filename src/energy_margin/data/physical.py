@@ -39,8 +39,9 @@ def frame_violations(box: StateBox, frame: FrameState) -> list[Violation]:
 def state_problems(dataset: Dataset) -> list[Problem]:
     """Frames of ``dataset`` with an object outside its task's state box or faster than its bound.
 
-    One problem per object and kind (at most five of each kind), naming the trajectory, the
-    frame, the object and the value. Non-finite values are left to the array checks.
+    One problem per object and kind, naming the trajectory, the frame, the object and the value:
+    the first five of each kind, then one that counts the rest. Non-finite values are left to the
+    array checks.
     """
     try:
         box = dataset.task.frame_box
@@ -56,13 +57,14 @@ def state_problems(dataset: Dataset) -> list[Problem]:
             continue
         for violation in box.violations(pos, vel):
             field = "object_pos" if violation.kind == OUTSIDE else "object_vel"
-            if counts[field] >= _MAX_PER_KIND:
-                continue
             counts[field] += 1
-            where = f"trajectory {trajectory}, frame {frame}, object {violation.object}"
-            problems.append(Problem(FRAMES_FILE, field, where, violation.message))
-        if min(counts.values()) >= _MAX_PER_KIND:
-            break
+            if counts[field] <= _MAX_PER_KIND:
+                where = f"trajectory {trajectory}, frame {frame}, object {violation.object}"
+                problems.append(Problem(FRAMES_FILE, field, where, violation.message))
+    for field, what in (("object_pos", "outside the bounds"), ("object_vel", "too fast")):
+        if counts[field] > _MAX_PER_KIND:
+            more = counts[field] - _MAX_PER_KIND
+            problems.append(Problem(FRAMES_FILE, field, "", f"{more} more object(s) {what} in other frames"))
     return problems
 
 
