@@ -105,8 +105,30 @@ def test_a_roll_out_that_blows_up_is_drawn_again_then_refused(make_scene, tmp_pa
     assert error == [
         "energy-margin: error: cannot generate scene trajectory 0: each of 8 draws failed (the last: MuJoCo warned "
         "mjWARN_BADQACC 1x: a NaN, infinite or huge acceleration, and reset the simulation); the simulation is "
-        "unstable: a smaller time step (<option timestep>), another integrator (implicitfast, RK4) or softer "
+        "unstable: a smaller time step (<option timestep>), another integrator (implicit, RK4) or softer "
         "contacts in the model may keep it stable"
     ]
     if compat.has_warning_hook():
         assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_generation_stops_in_one_line_when_most_draws_fail(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Two of every three draws leave the bounds: after ten failures generation blames the scene.
+    real = generate_module.record_trajectory
+    calls: list[int] = []
+
+    def record(task, n_objects, n_frames, rng, *, engine="mujoco", check_overlaps=False):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) % 3:
+            raise generate_module.UnphysicalError(
+                "frame 4: object 0 at (55, 66, 1.9) m lies outside the bounds (-1.5, -1.5, -0.1) to (1.5, 1.5, 2) m"
+            )
+        return real(task, n_objects, n_frames, rng, engine=engine, check_overlaps=check_overlaps)
+
+    monkeypatch.setattr(generate_module, "record_trajectory", record)
+    with pytest.raises(EnergyMarginError) as error:
+        generate_dataset("pushing", n_objects=2, n_trajectories=10, n_frames=3, seed=5, out=tmp_path / "r")
+    message = str(error.value)
+    assert message.startswith("cannot generate pushing trajectories: 10 of 14 draws failed, most for the same cause")
+    assert "objects leave the scene's [bounds]" in message and "\n" not in message
+    assert not (tmp_path / "r").exists()

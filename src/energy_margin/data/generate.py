@@ -58,13 +58,13 @@ REDRAWN_KEY = "redrawn"
 #: What to change when most draws fail, by the kind of failure (:func:`~energy_margin.data.physical.reason_kind`).
 LIKELY_FIX = {
     "warning": "the simulation is unstable: a smaller time step (<option timestep>), another integrator "
-    "(implicitfast, RK4) or softer contacts in the model may keep it stable",
+    "(implicit, RK4) or softer contacts in the model may keep it stable",
     "energy": "the simulation creates energy: a smaller time step (<option timestep>), another integrator "
-    "(implicitfast, RK4) or softer contacts in the model may keep it stable",
-    "bounds": "objects leave the scene's [bounds]: widen [bounds] if they belong there, otherwise keep them on "
-    "their support (start region, motion) or make the simulation stable (smaller time step)",
-    "speed": "objects move faster than bounds.max_speed: raise it if they really do, otherwise make the "
-    "simulation stable (smaller time step, another integrator)",
+    "(implicit, RK4) or softer contacts in the model may keep it stable",
+    "bounds": "objects leave the scene's [bounds]: widen [bounds] if they belong there; objects thrown far "
+    "away mean an unstable simulation (a smaller time step, another integrator such as implicit)",
+    "speed": "objects move faster than bounds.max_speed: raise it if they really do; otherwise the simulation "
+    "is unstable (a smaller time step, another integrator such as implicit)",
     "overlap": "objects overlap deeper than the dataset check allows: use fewer objects or a larger workspace",
 }
 
