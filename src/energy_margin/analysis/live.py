@@ -50,6 +50,8 @@ class LiveScore:
         seconds: wall time of the call, s (building a simulator included when none was given).
         stopped_by: ``"budget"`` (the deadline passed), ``"max_expansions"`` (the cap was
             reached first) or ``"learned"`` (a regressor's estimate, no tree).
+        rejected: reached states the tree rejected for leaving the state box (-1: no tree).
+        diverged: reached states the tree rejected for a non-finite number (-1: no tree).
 
     """
 
@@ -59,6 +61,8 @@ class LiveScore:
     nodes: int
     seconds: float
     stopped_by: str
+    rejected: int = -1
+    diverged: int = -1
 
 
 class Deadline:
@@ -141,4 +145,6 @@ def score_state(
         nodes=scores.nodes,
         seconds=time.perf_counter() - started,
         stopped_by="budget" if deadline is not None and deadline.reached else "max_expansions",
+        rejected=scores.rejected,
+        diverged=scores.diverged,
     )

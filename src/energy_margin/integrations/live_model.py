@@ -41,7 +41,7 @@ from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
-from energy_margin.sim.mujoco_audit import WARNINGS_ARRAY, warning_numbers
+from energy_margin.sim.mujoco_audit import WARNINGS_ARRAY, WarningLog, warning_numbers
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
 from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
@@ -53,7 +53,7 @@ Hold = Literal["action", "still"]
 OVERRUN_WINDOW = 20
 
 #: Keys of the ``info["energy_margin"]`` dictionary (and of :meth:`LiveModelScorer.score`).
-INFO_KEYS = ("capture_score", "success_score", "expansions", "nodes", "ms", "stopped_by", "seed")
+INFO_KEYS = ("capture_score", "success_score", "expansions", "nodes", "ms", "stopped_by", "seed", "rejected", "diverged")
 
 
 class HeldCommandTask(SceneTask):
@@ -195,6 +195,8 @@ class LiveModelScorer:
         self._seeds = np.random.SeedSequence(options.seed)
         self.margin_model = _load_model(margin_model, loaded.model_sha256)
         self._overruns: list[float] = []
+        #: MuJoCo's warnings raised while growing trees (its log file is not written in the working directory).
+        self.warning_log = WarningLog()
 
     @property
     def object_names(self) -> tuple[str, ...]:
@@ -247,17 +249,8 @@ class LiveModelScorer:
         if self.margin_model is not None:
             result = self.margin_model.score_state(self.task, state)
         else:
-            result = score_state(
-                self.task,
-                state,
-                friction=self.friction,
-                drive=self.drive,
-                budget_s=tree_budget,
-                seed=seed,
-                max_expansions=self.options.max_expansions,
-                simulator=self.simulator,
-                config=self.options.config,
-            )
+            with self.warning_log:  # MuJoCo's warnings of the trees, not MUJOCO_LOG.TXT in the cwd
+                result = self._grow(state, tree_budget, seed)
         seconds = time.perf_counter() - started
         if tree_budget is not None and self.margin_model is None:
             self._overruns.append(max(seconds - tree_budget, 0.0))
@@ -270,7 +263,23 @@ class LiveModelScorer:
             "ms": 1000.0 * seconds,
             "stopped_by": result.stopped_by,
             "seed": seed,
+            "rejected": int(getattr(result, "rejected", -1)),
+            "diverged": int(getattr(result, "diverged", -1)),
         }
+
+    def _grow(self, state: FrameState, tree_budget: float | None, seed: int) -> LiveScore:
+        """One tree from ``state`` within the budget."""
+        return score_state(
+            self.task,
+            state,
+            friction=self.friction,
+            drive=self.drive,
+            budget_s=tree_budget,
+            seed=seed,
+            max_expansions=self.options.max_expansions,
+            simulator=self.simulator,
+            config=self.options.config,
+        )
 
     def labels(self, data: mujoco.MjData) -> tuple[bool, bool]:
         """Whether the state in ``data`` is in the capture set and in the success set."""

@@ -69,15 +69,24 @@ class WarningLog:
     :data:`LOG_FILE` in a directory. MuJoCo releases without the hook keep their own behaviour.
     """
 
+    #: Messages kept; later ones are only counted (:attr:`count`).
+    MAX_MESSAGES = 1000
+
     def __init__(self) -> None:
         self.messages: list[str] = []
+        self.count = 0
         self._previous: object = None
+
+    def _add(self, message: str) -> None:
+        self.count += 1
+        if len(self.messages) < self.MAX_MESSAGES:
+            self.messages.append(message)
 
     def __enter__(self) -> WarningLog:
         """Take MuJoCo's warnings from here on."""
         if has_warning_hook():
             self._previous = mujoco.get_mju_user_warning()
-            mujoco.set_mju_user_warning(self.messages.append)
+            mujoco.set_mju_user_warning(self._add)
         return self
 
     def __exit__(self, *exc: object) -> None:
