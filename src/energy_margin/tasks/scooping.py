@@ -645,7 +645,7 @@ class ScoopingTask(Task):
 
     @property
     def frame_box(self) -> StateBox:
-        """The workspace widened by 1 m on every side (a box may fall off the table), not through the floor."""
+        """The workspace widened by 1 m on every side: a box may fall off the table, not fly away."""
         box = self.state_box
         return StateBox(
             low=(box.low[0] - 1.0, box.low[1] - 1.0, box.low[2] - 1.0),
