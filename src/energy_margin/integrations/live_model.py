@@ -53,7 +53,17 @@ Hold = Literal["action", "still"]
 OVERRUN_WINDOW = 20
 
 #: Keys of the ``info["energy_margin"]`` dictionary (and of :meth:`LiveModelScorer.score`).
-INFO_KEYS = ("capture_score", "success_score", "expansions", "nodes", "ms", "stopped_by", "seed", "rejected", "diverged")
+INFO_KEYS = (
+    "capture_score",
+    "success_score",
+    "expansions",
+    "nodes",
+    "ms",
+    "stopped_by",
+    "seed",
+    "rejected",
+    "diverged",
+)
 
 
 class HeldCommandTask(SceneTask):
