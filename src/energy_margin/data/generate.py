@@ -20,7 +20,7 @@ from energy_margin.data.dataset import (
     validate,
     write_directory,
 )
-from energy_margin.data.physical import RolloutWatch, count_reasons, reason_kind
+from energy_margin.data.physical import LIKELY_FIX, DrawTally, RolloutWatch, count_reasons
 from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
@@ -49,24 +49,9 @@ def check_engine(task: Task, engine: str) -> None:
 #: and a roll-out that blew up, left the bounds or gained energy from nothing is drawn again
 #: (data/physical.py).
 MAX_DRAWS = 8
-#: Generation stops once this many draws failed and they are most of the draws so far: the
-#: scene, not bad luck, is at fault.
-MOST_DRAWS_FAIL = 10
 #: Key of ``dataset.json`` that lists the redrawn trajectories: ``{"index": {"draw": d, "reasons":
 #: [why draw 0 failed, ..., why draw d - 1 failed]}}`` (datasets of earlier versions: ``{"index": d}``).
 REDRAWN_KEY = "redrawn"
-#: What to change when most draws fail, by the kind of failure (:func:`~energy_margin.data.physical.reason_kind`).
-LIKELY_FIX = {
-    "warning": "the simulation is unstable: a smaller time step (<option timestep>), another integrator "
-    "(implicit, RK4) or softer contacts in the model may keep it stable",
-    "energy": "the simulation creates energy: a smaller time step (<option timestep>), another integrator "
-    "(implicit, RK4) or softer contacts in the model may keep it stable",
-    "bounds": "objects leave the scene's [bounds]: widen [bounds] if they belong there; objects thrown far "
-    "away mean an unstable simulation (a smaller time step, another integrator such as implicit)",
-    "speed": "objects move faster than bounds.max_speed: raise it if they really do; otherwise the simulation "
-    "is unstable (a smaller time step, another integrator such as implicit)",
-    "overlap": "objects overlap deeper than the dataset check allows: use fewer objects or a larger workspace",
-}
 
 
 class RefusedDrawError(ValueError):
@@ -169,32 +154,6 @@ def record_trajectory(
             if overlapping:
                 raise DeepOverlapError(f"frame {index}: {describe_overlap(*overlapping[0])}")
     return trajectory_record(task, frames, times, trajectory.friction, trajectory.drive)
-
-
-class DrawTally:
-    """Draws made and refused so far in one generation, to stop when most draws fail."""
-
-    def __init__(self) -> None:
-        self.draws = 0
-        self.reasons: list[str] = []
-
-    def add(self, reason: str | None) -> None:
-        """Count one draw, refused for ``reason`` (``None``: accepted)."""
-        self.draws += 1
-        if reason is not None:
-            self.reasons.append(reason)
-
-    def stop_reason(self, task: Task) -> str | None:
-        """Why generation should stop, or ``None`` while most draws succeed."""
-        failed = len(self.reasons)
-        if failed < MOST_DRAWS_FAIL or 2 * failed <= self.draws:
-            return None
-        kind = count_reasons(self.reasons)
-        example = next(reason for reason in reversed(self.reasons) if reason_kind(reason) == kind)
-        return (
-            f"cannot generate {task.name} trajectories: {failed} of {self.draws} draws failed, most for the same "
-            f"cause (the last: {example}); {LIKELY_FIX[kind]}"
-        )
 
 
 def draw_trajectory(

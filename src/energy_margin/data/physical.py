@@ -17,6 +17,7 @@ import numpy as np
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem
 from energy_margin.sim.base import CompiledModel, Simulator
+from energy_margin.tasks.base import Task
 from energy_margin.tasks.state_box import OUTSIDE, StateBox, Violation
 from energy_margin.world.state import FrameState
 
@@ -159,9 +160,55 @@ def reason_kind(reason: str) -> str:
     return "overlap"
 
 
+#: Generation stops once this many draws failed and they are most of the draws so far: the
+#: scene, not bad luck, is at fault.
+MOST_DRAWS_FAIL = 10
+#: What to change when most draws fail, by the kind of failure (:func:`~energy_margin.data.physical.reason_kind`).
+LIKELY_FIX = {
+    "warning": "the simulation is unstable: a smaller time step (<option timestep>), another integrator "
+    "(implicit, RK4) or softer contacts in the model may keep it stable",
+    "energy": "the simulation creates energy: a smaller time step (<option timestep>), another integrator "
+    "(implicit, RK4) or softer contacts in the model may keep it stable",
+    "bounds": "objects leave the scene's [bounds]: widen [bounds] if they belong there; objects thrown far "
+    "away mean an unstable simulation (a smaller time step, another integrator such as implicit)",
+    "speed": "objects move faster than bounds.max_speed: raise it if they really do; otherwise the simulation "
+    "is unstable (a smaller time step, another integrator such as implicit)",
+    "overlap": "objects overlap deeper than the dataset check allows: use fewer objects or a larger workspace",
+}
+
+
+class DrawTally:
+    """Draws made and refused so far in one generation, to stop when most draws fail."""
+
+    def __init__(self) -> None:
+        self.draws = 0
+        self.reasons: list[str] = []
+
+    def add(self, reason: str | None) -> None:
+        """Count one draw, refused for ``reason`` (``None``: accepted)."""
+        self.draws += 1
+        if reason is not None:
+            self.reasons.append(reason)
+
+    def stop_reason(self, task: Task) -> str | None:
+        """Why generation should stop, or ``None`` while most draws succeed."""
+        failed = len(self.reasons)
+        if failed < MOST_DRAWS_FAIL or 2 * failed <= self.draws:
+            return None
+        kind = count_reasons(self.reasons)
+        example = next(reason for reason in reversed(self.reasons) if reason_kind(reason) == kind)
+        return (
+            f"cannot generate {task.name} trajectories: {failed} of {self.draws} draws failed, most for the same "
+            f"cause (the last: {example}); {LIKELY_FIX[kind]}"
+        )
+
+
 __all__ = [
     "ENERGY_FLOOR",
     "ENERGY_PER_KG",
+    "LIKELY_FIX",
+    "MOST_DRAWS_FAIL",
+    "DrawTally",
     "RolloutWatch",
     "count_reasons",
     "frame_violations",
