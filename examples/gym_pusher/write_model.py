@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import shutil
 import sys
 from pathlib import Path
 
@@ -179,6 +180,11 @@ def main() -> None:
     spec.add_key(name="start", qpos=start.tolist())
     (out / "gym_pusher_scene.xml").write_text(spec_xml(spec))
     np.savez(out / "gym_pusher_motion.npz", time=times, ctrl=ctrl)
+    scene = Path(__file__).with_name("gym_pusher.toml")
+    if out.resolve() != scene.parent.resolve():
+        # The scene file beside the fresh copies reads them: the model as this MuJoCo writes it
+        # (the checked-in one is MuJoCo 4.0's, which MuJoCo 3.x does not read).
+        shutil.copy(scene, out / scene.name)
     print(f"wrote {out / 'gym_pusher_scene.xml'} and {out / 'gym_pusher_motion.npz'} ({len(times)} control rows)")
 
 

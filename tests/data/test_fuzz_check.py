@@ -55,10 +55,13 @@ def _corrupt(arrays: dict[str, np.ndarray], kind: str, rng: np.random.Generator,
         arrays["object_vel"][trajectory, frame, obj, :3] = speed * direction / np.linalg.norm(direction)
         return "object_vel", where
     if kind == "overlap":
+        # The other cylinder (radius 5 cm) 3 to 7 cm from this one's axis: 30 to 70 mm deep, past
+        # the 25 mm limit. (Nearly coincident cylinders are left out: MuJoCo 3.3's convex
+        # collision finds no contact between them.)
         other = 1 - obj
-        arrays["object_pos"][trajectory, frame, other, :2] = arrays["object_pos"][
-            trajectory, frame, obj, :2
-        ] + rng.uniform(-0.02, 0.02, size=2)
+        angle, distance = rng.uniform(0.0, 2.0 * np.pi), rng.uniform(0.03, 0.07)
+        offset = distance * np.array([np.cos(angle), np.sin(angle)])
+        arrays["object_pos"][trajectory, frame, other, :2] = arrays["object_pos"][trajectory, frame, obj, :2] + offset
         return "object_pos", f"trajectory {trajectory}, frame {frame}"
     name = str(rng.choice(["object_pos", "object_vel", "robot_q", "captured", "frame_time"]))
     array = arrays[name]
