@@ -1,12 +1,14 @@
 """Physical sanity of the frames that become data: no impossible state is ever labelled.
 
-Two kinds of test. On frames alone, in any dataset (``check``, and every writer before it
-writes): each object inside its task's :class:`~energy_margin.tasks.state_box.StateBox` (the scene
-file's ``[bounds]``, or a box around the model) and no faster than its speed bound
-(:func:`state_problems`, :func:`frame_violations`). During a roll-out that this package steps
-(``generate``) or watches (the wrappers' recorder), :class:`RolloutWatch` also reads every
-warning MuJoCo raised and audits the energy (:mod:`energy_margin.sim.mujoco_audit`). Overlapping
-objects are the third test (:mod:`energy_margin.data.validation`).
+Two kinds of test. On frames alone, in any dataset (``check``, and ``generate`` and ``record``
+before they write): each object inside its task's frame box (a
+:class:`~energy_margin.tasks.state_box.StateBox`: the scene file's ``[bounds]``, or a box around
+the model) and no faster than its speed bound (:func:`state_problems`, :func:`frame_violations`).
+During a roll-out this package steps (``generate``), :class:`RolloutWatch` also reads every
+warning MuJoCo raised and audits the energy (:mod:`energy_margin.sim.mujoco_audit`); a recorded
+roll-out brings MuJoCo's warning counts along when the wrappers recorded it. Overlapping objects
+are the third test (:mod:`energy_margin.data.validation`); :class:`DrawTally` stops a generation
+whose draws mostly fail, with :data:`LIKELY_FIX`.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ def frame_violations(box: StateBox, frame: FrameState) -> list[Violation]:
 
 
 def state_problems(dataset: Dataset) -> list[Problem]:
-    """Frames of ``dataset`` with an object outside its task's state box or faster than its bound.
+    """Frames of ``dataset`` with an object outside its task's frame box or faster than its bound.
 
     One problem per object and kind, naming the trajectory, the frame, the object and the value:
     the first five of each kind, then one that counts the rest. Non-finite values are left to the
