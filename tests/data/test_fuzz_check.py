@@ -108,3 +108,22 @@ def test_check_counts_what_it_does_not_list(sound: Path, tmp_path: Path) -> None
     problems = [str(problem) for problem in check_dataset(folder, overlaps=False)]
     assert len(problems) == 6
     assert problems[-1] == "frames.npz: object_pos: 7 more object(s) outside the bounds in other frames"
+
+
+def test_check_says_where_it_stopped_looking_for_overlaps(
+    sound: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("energy_margin.data.validation._MAX_PER_KIND", 2)
+    with np.load(sound / FRAMES_FILE) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    arrays["object_pos"][:, :, 1, :2] = arrays["object_pos"][:, :, 0, :2] + [0.05, 0.0]  # every frame overlaps
+    folder = tmp_path / "crowded"
+    folder.mkdir()
+    shutil.copy(sound / METADATA_FILE, folder / METADATA_FILE)
+    np.savez(folder / FRAMES_FILE, **arrays)
+    problems = check_dataset(folder)
+    assert len(problems) == 3 and all("overlaps object" in problem.message for problem in problems[:2])
+    trajectory, frame = (int(part.split()[-1]) for part in problems[1].row.split(", "))
+    left = 2 * 3 - (trajectory * 3 + frame + 1)
+    assert str(problems[-1]) == f"frames.npz: object_pos: not looked for in the {left} frame(s) after these"
+    assert left > 0

@@ -102,6 +102,12 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
                     )
                 )
                 if len(problems) >= _MAX_PER_KIND:
+                    checked = trajectory * dataset.n_frames + frame + 1
+                    left = dataset.n_trajectories * dataset.n_frames - checked
+                    if left:
+                        problems.append(
+                            Problem(FRAMES_FILE, "object_pos", "", f"not looked for in the {left} frame(s) after these")
+                        )
                     return problems
     return problems
 
