@@ -89,3 +89,17 @@ def test_close_all_ends_the_line_of_a_bar_left_open(capsys: pytest.CaptureFixtur
     assert bar.disable
     assert capsys.readouterr().err.endswith("\n")
     close_all()  # nothing open: nothing happens
+
+
+def test_close_all_skips_a_bar_interrupted_while_it_was_built() -> None:
+    # An interrupt inside tqdm's constructor (starting its monitor thread) leaves a registered,
+    # half-built bar whose close() raises AttributeError; the command's last line must still come.
+    from tqdm import tqdm
+
+    from energy_margin.runs.progress import close_all
+
+    half_built = tqdm.__new__(tqdm)
+    assert half_built in tqdm._instances and not hasattr(half_built, "disable")
+    close_all()
+    assert half_built not in tqdm._instances
+    half_built.close()  # as when it is collected: nothing to raise

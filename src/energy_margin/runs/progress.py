@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from typing import Any
 
@@ -45,4 +46,12 @@ def close_all() -> None:
     if tqdm_module is None:
         return
     for bar in list(getattr(tqdm_module.tqdm, "_instances", ())):
+        if not hasattr(bar, "disable"):
+            # Interrupted inside tqdm's own constructor (while it started its monitor thread): the
+            # bar is registered but half built, and its close() (also run when it is collected)
+            # would raise. Nothing was drawn: mark it closed and forget it.
+            bar.disable = True
+            with contextlib.suppress(KeyError, TypeError):
+                tqdm_module.tqdm._instances.remove(bar)
+            continue
         bar.close()
