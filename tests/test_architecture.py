@@ -31,6 +31,8 @@ STAGES = (
     "robustness",
     "learning",
     "control",
+    "design",
+    "experiments",
     "integrations",
     "report",
     "cli",
@@ -209,6 +211,13 @@ def test_a_cycle_is_found() -> None:
         ("energy_margin.reproduce", "ReproduceConfig"),
         ("energy_margin.reproduce", "PAPER_TABLE_I"),
         ("energy_margin.io", "atomic_write_text"),
+        ("energy_margin.evaluation.design_search", "design_search"),
+        ("energy_margin.evaluation.design_space", "parse_search_param"),
+        ("energy_margin.evaluation.designs", "design_grid"),
+        ("energy_margin.evaluation.sweep", "design_sweep"),
+        ("energy_margin.control.verification", "EpisodeVerifier"),
+        ("energy_margin.evaluation.study", "run_study"),
+        ("energy_margin.evaluation.budget", "copy_dataset"),
     ],
 )
 def test_old_import_paths_still_resolve_with_a_warning(old: str, name: str) -> None:

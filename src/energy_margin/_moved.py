@@ -42,7 +42,24 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     "energy_margin.perturb": ("energy_margin.robustness.perturb",),
     "energy_margin.robustness": ("energy_margin.robustness.compare",),
     "energy_margin.baselines": ("energy_margin.evaluation.baselines",),
-    "energy_margin.budget": ("energy_margin.evaluation.budget",),
+    "energy_margin.budget": ("energy_margin.experiments.budget",),
+    # 0.2: design and the research protocols left evaluation.
+    "energy_margin.evaluation.designs": ("energy_margin.design.grid", "energy_margin.design.params"),
+    "energy_margin.evaluation.design_space": ("energy_margin.design.space", "energy_margin.design.params"),
+    "energy_margin.evaluation.design_optimizers": ("energy_margin.design.optimizers",),
+    "energy_margin.evaluation.design_search": ("energy_margin.design.search",),
+    "energy_margin.evaluation.design_display": ("energy_margin.design.search_display",),
+    "energy_margin.evaluation.sweep": ("energy_margin.design.sweep",),
+    "energy_margin.evaluation.sweep_display": ("energy_margin.design.sweep_display",),
+    "energy_margin.evaluation.sweep_results": ("energy_margin.design.sweep_results",),
+    "energy_margin.evaluation.rank": ("energy_margin.design.rank",),
+    "energy_margin.control.verification": ("energy_margin.design.verification",),
+    "energy_margin.evaluation.budget": ("energy_margin.experiments.budget", "energy_margin.data.dataset"),
+    "energy_margin.evaluation.budget_display": ("energy_margin.experiments.budget_display",),
+    "energy_margin.evaluation.study": ("energy_margin.experiments.study",),
+    "energy_margin.evaluation.study_display": ("energy_margin.experiments.study_display",),
+    "energy_margin.evaluation.study_result": ("energy_margin.experiments.study_result",),
+    "energy_margin.evaluation.study_state": ("energy_margin.experiments.study_state",),
     "energy_margin.plots": ("energy_margin.report.plots",),
     "energy_margin.report": ("energy_margin.report.html",),
     "energy_margin.reproduce": (
@@ -59,6 +76,7 @@ RENAMED = {
     "_format_row": "format_row",
     "_parse_row": "parse_row",
     "_header": "header",
+    "parse_search_param": "parse_param",
 }
 
 

@@ -16,10 +16,10 @@ from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.control import commands
 from energy_margin.control.episodes import run_control
-from energy_margin.control.verification import EpisodeVerifier
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.evaluation.design_search import PICTURE_FILE, RESULT_JSON
+from energy_margin.design.search import PICTURE_FILE, RESULT_JSON
+from energy_margin.design.verification import EpisodeVerifier
 from energy_margin.learning.margin_model import fit_margin_model
 from energy_margin.tasks import DesignParameter, PushingTask, register_task
 

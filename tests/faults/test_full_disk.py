@@ -20,7 +20,7 @@ from fault_harness import LOCK_FILE, compare_trees, hidden_entries
 import energy_margin.runs.journal as journal_module
 from energy_margin.cli import main
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE
-from energy_margin.evaluation.sweep_display import SweepDisplay
+from energy_margin.design.sweep_display import SweepDisplay
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.journal import Journal
 

@@ -13,9 +13,9 @@ import pytest
 from energy_margin import tasks
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.reference import import_reference, read_reference, reference_tasks
+from energy_margin.design.sweep import design_grid
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.study import TASKS, StudyTask
-from energy_margin.evaluation.sweep import design_grid
+from energy_margin.experiments.study import TASKS, StudyTask
 from energy_margin.planning.tree import CostField
 from energy_margin.report import estimate, plots
 from energy_margin.tasks import (

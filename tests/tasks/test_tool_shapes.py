@@ -11,8 +11,8 @@ import pytest
 
 from energy_margin.cli import main
 from energy_margin.data.generate import generate_dataset, record_trajectory, trajectory_rng
+from energy_margin.design.grid import design_grid
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.designs import design_grid
 from energy_margin.sim.mujoco_spec import build_model, model_hash
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_file import read_scene_file

@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the sweep and print its table."""
     from energy_margin.analysis.frame import AnalyzerConfig
-    from energy_margin.evaluation.budget import budget_sweep, format_table
+    from energy_margin.experiments.budget import budget_sweep, format_table
 
     try:
         base = AnalyzerConfig(batch=args.batch, threads=args.threads)

@@ -31,7 +31,7 @@ EXAMPLES = (
     "energy-margin design --task pushing --param pusher_width=0.4:1.0 --objective learned --model runs/push.margin "
     "--optimizer grid --evaluations 12 --objects 5 --verify 50 --out runs/design-push-learned",
 )
-#: Keyword arguments of :func:`~energy_margin.evaluation.design_search.design_search` named otherwise here.
+#: Keyword arguments of :func:`~energy_margin.design.search.design_search` named otherwise here.
 PARAMETER_FLAGS = {
     "n_trajectories": "--trajectories",
     "n_frames": "--frames",
@@ -46,8 +46,8 @@ SCORES = {"success": "success_score", "early": "early_success_score", "capture":
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``design``."""
     from energy_margin.control.disturbances import DISTURBANCES
-    from energy_margin.control.verification import VERIFY_POLICIES
-    from energy_margin.evaluation.design_optimizers import OPTIMIZERS
+    from energy_margin.design.optimizers import OPTIMIZERS
+    from energy_margin.design.verification import VERIFY_POLICIES
     from energy_margin.planning.costs import COST_MODELS
     from energy_margin.planning.methods import METHODS
     from energy_margin.tasks import available_tasks
@@ -144,11 +144,11 @@ def _task(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     """Search, verify, print the table (or the JSON object)."""
     from energy_margin.analysis.frame import AnalyzerConfig
-    from energy_margin.control.verification import EpisodeVerifier
-    from energy_margin.evaluation.design_search import RESULT_JSON, TreeScorer, design_search, format_result
-    from energy_margin.evaluation.design_space import parse_search_param
+    from energy_margin.design.params import parse_param
+    from energy_margin.design.search import RESULT_JSON, TreeScorer, design_search, format_result
+    from energy_margin.design.verification import EpisodeVerifier
 
-    params = [parse_search_param(text) for text in args.param]
+    params = [parse_param(text) for text in args.param]
     task_name, fixed = _task(args)
     extra: dict[str, Any] = {}
     if args.objective == "learned":

@@ -18,7 +18,7 @@ EXAMPLES = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``study``."""
-    from energy_margin.evaluation.study import DEFAULT_BUDGETS, TASKS
+    from energy_margin.experiments.study import DEFAULT_BUDGETS, TASKS
 
     parser.add_argument("out", help="output directory (datasets, analyses, study.{csv,json}, figures); resumes")
     parser.add_argument(
@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run or resume the study (its tables, then its figures) and print its tables."""
-    from energy_margin.evaluation.study import format_study, run_study
+    from energy_margin.experiments.study import format_study, run_study
 
     result = run_study(
         args.out,

@@ -22,7 +22,7 @@ EXAMPLES = (
     "energy-margin sweep --task scooping --param finger_stiffness=100,400,2000 --trajectories 20 --objects 5 "
     "--out runs/sweep-stiffness",
 )
-#: Keyword arguments of :func:`~energy_margin.evaluation.sweep.design_sweep` named otherwise here.
+#: Keyword arguments of :func:`~energy_margin.design.sweep.design_sweep` named otherwise here.
 PARAMETER_FLAGS = {
     "n_trajectories": "--trajectories",
     "n_frames": "--frames",
@@ -76,7 +76,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the sweep and print its table."""
     from energy_margin.analysis.frame import AnalyzerConfig
-    from energy_margin.evaluation.sweep import RESULTS_FILE, design_sweep, format_table, parse_param
+    from energy_margin.design.params import parse_param
+    from energy_margin.design.sweep import RESULTS_FILE, design_sweep, format_table
 
     params = [parse_param(text) for text in args.param]
     repeated = [name for index, (name, _) in enumerate(params) if name in {n for n, _ in params[:index]}]

@@ -47,6 +47,15 @@ _FLOAT_ARRAYS = ("object_pos", "object_quat", "object_vel", "robot_q", "robot_v"
 _BOOL_ARRAYS = ("captured", "in_success")
 
 
+def copy_dataset(directory: Path, work: Path) -> None:
+    """Copy the dataset files of ``directory`` into the working directory ``work`` (kept if there)."""
+    work.mkdir(parents=True, exist_ok=True)
+    for name in (METADATA_FILE, FRAMES_FILE):
+        target = work / name
+        if not target.exists():
+            shutil.copyfile(directory / name, target)
+
+
 def frame_from_arrays(arrays: dict[str, Any], *index: int) -> FrameState:
     """The frame state at ``index`` of arrays laid out as ``frames.npz`` (or one trajectory's record).
 

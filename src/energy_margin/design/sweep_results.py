@@ -2,10 +2,10 @@
 
 :func:`design_row` is the table row of an analysed design, :func:`failed_row` that of a design
 that was not analysed; :func:`summarize` gathers the analysed designs' rows, the rank statistics of
-:mod:`~energy_margin.evaluation.rank` and the per-trajectory values into the contents of
+:mod:`~energy_margin.design.rank` and the per-trajectory values into the contents of
 ``results.json``; :func:`write_results` writes the table (``results.csv``), that object
 (``results.json``) and the figure (``results.png``, a
-:class:`~energy_margin.evaluation.sweep_display.SweepDisplay`); :func:`format_table` is the text
+:class:`~energy_margin.design.sweep_display.SweepDisplay`); :func:`format_table` is the text
 the command prints.
 """
 
@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.data.dataset import load_dataset
+from energy_margin.design.grid import Design
+from energy_margin.design.rank import MARGIN_LABELS, MARGINS, DesignOutcome, rank_convergence, rank_correlations
+from energy_margin.design.sweep_display import SweepDisplay
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.designs import Design
-from energy_margin.evaluation.rank import MARGIN_LABELS, MARGINS, DesignOutcome, rank_convergence, rank_correlations
 from energy_margin.evaluation.statistics import wilson_interval
-from energy_margin.evaluation.sweep_display import SweepDisplay
 from energy_margin.runs.tables import Column, field, fmt, write_csv, write_json
 from energy_margin.runs.tables import format_table as text_table
 

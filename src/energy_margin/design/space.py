@@ -1,12 +1,13 @@
-"""The space a design search explores: ``--param NAME=LOW:HIGH | NAME=A,B,C``, resolved against a task.
+"""The space a design search explores: parameters ``NAME=LOW:HIGH | NAME=A,B,C``, resolved against a task.
 
 A design search varies some of a task's settings (configuration fields, or the aliases a task
 declares, :meth:`~energy_margin.tasks.base.Task.design_aliases`) over a box of numeric ranges and
 sets of categorical values, each axis a :class:`~energy_margin.tasks.base.DesignParameter`. The
-axes come from the command line (:func:`parse_search_param`, then :func:`resolve_space`) or, without
-``--param``, from the task's documented tool family (:meth:`~energy_margin.tasks.base.Task.design_space`).
+axes come from the command line (:func:`~energy_margin.design.params.parse_param`, then
+:func:`resolve_space`) or, without any, from the task's documented tool family
+(:meth:`~energy_margin.tasks.base.Task.design_space`).
 
-:func:`point_design` turns one point of the space into a :class:`~energy_margin.evaluation.designs.Design`
+:func:`point_design` turns one point of the space into a :class:`~energy_margin.design.grid.Design`
 (the configuration overrides it stands for, checked by the task's configuration, as ``sweep``'s
 grid does); :func:`check_models` compiles the models of the space's corners and categorical values
 before a search starts, so a design whose MuJoCo model does not compile is refused in one line
@@ -26,56 +27,14 @@ from typing import Any
 import numpy as np
 
 from energy_margin.data.generate import trajectory_rng
-from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.designs import Design, design_grid
+from energy_margin.design.grid import Design, design_grid
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import DesignParameter, Task, available_tasks, get_task
 
 #: Significant digits of a numeric design value (what is simulated, written and compared on resume).
 DIGITS = 6
 #: The most corner combinations :func:`check_models` compiles; beyond it, each axis's ends alone.
 MAX_CORNERS = 64
-
-
-def parse_search_param(text: str) -> tuple[str, tuple[float, float] | list[Any]]:
-    """``NAME=LOW:HIGH`` as ``(name, (low, high))``; ``NAME=A,B,C`` as ``(name, [A, B, C])`` (JSON values).
-
-    Raises:
-        EnergyMarginError: no ``=``, an empty name, bounds that are not numbers, an empty or
-            inverted range, values that are not comma-separated JSON, fewer than two values or a
-            value listed twice.
-
-    """
-    name, sep, body = text.partition("=")
-    name = name.strip()
-    if not sep or not name:
-        raise EnergyMarginError(f"--param expects NAME=LOW:HIGH or NAME=A,B,C, got {text!r}")
-    if ":" in body and not body.lstrip().startswith(("[", "{", '"')):
-        low_text, _, high_text = body.partition(":")
-        try:
-            low, high = float(low_text), float(high_text)
-        except ValueError:
-            raise EnergyMarginError(f"--param {name}: {body!r} is not a range LOW:HIGH of two numbers") from None
-        if not (math.isfinite(low) and math.isfinite(high)):
-            raise EnergyMarginError(f"--param {name}: the range {body!r} must have finite bounds")
-        if low == high:
-            raise EnergyMarginError(f"--param {name}: the range {low:g}:{high:g} is empty (LOW must be below HIGH)")
-        if low > high:
-            raise EnergyMarginError(f"--param {name}: the range {low:g}:{high:g} is inverted (LOW must be below HIGH)")
-        return name, (low, high)
-    try:
-        values = json.loads(f"[{body}]")
-    except json.JSONDecodeError:
-        raise EnergyMarginError(
-            f"--param {name}: {body!r} is neither a range LOW:HIGH nor comma-separated values A,B,C (JSON)"
-        ) from None
-    if len(values) < 2:
-        raise EnergyMarginError(
-            f"--param {name}: give a range LOW:HIGH or at least two values A,B (fix one value with --set)"
-        )
-    for index, value in enumerate(values):
-        if value in values[:index]:
-            raise EnergyMarginError(f"--param {name}: value {json.dumps(value)} is listed twice")
-    return name, values
 
 
 def _fields(task: Task) -> dict[str, Any]:
@@ -160,6 +119,10 @@ def resolve_space(
                     )
             space.append(DesignParameter(name, doc, low=low, high=high, integer=integer))
         else:
+            if len(spec) < 2:
+                raise InvalidParameterError(
+                    "param", f"{name}: give a range LOW:HIGH or at least two values A,B (fix one value with --set)"
+                )
             if declared is not None and declared.choices is not None:
                 outside = [value for value in spec if value not in declared.choices]
                 if outside:

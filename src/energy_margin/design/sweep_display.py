@@ -4,7 +4,7 @@
 (with its 95 % Wilson interval) against its mean early success score, titled with their Spearman
 rho; on the right the mean rho of each margin column, and of the success rate itself, against the
 success rate of all trajectories when t trajectories per design are used. It is built from the
-results of :func:`~energy_margin.evaluation.sweep.design_sweep` by :meth:`SweepDisplay.from_result`
+results of :func:`~energy_margin.design.sweep.design_sweep` by :meth:`SweepDisplay.from_result`
 and draws only when asked (:meth:`~energy_margin.runs.display.Display.save`).
 """
 
@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.design.rank import MARGIN_LABELS, MARGINS
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.rank import MARGIN_LABELS, MARGINS
 from energy_margin.runs.display import Display
 from energy_margin.runs.tables import fmt
 

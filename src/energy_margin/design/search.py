@@ -1,7 +1,7 @@
 """Design search: black-box optimisation of a task's design by the energy margin, then verification.
 
-``design_search`` searches the space of :mod:`~energy_margin.evaluation.design_space` with an
-optimiser of :mod:`~energy_margin.evaluation.design_optimizers`. One evaluation of a design
+``design_search`` searches the space of :mod:`~energy_margin.design.space` with an
+optimiser of :mod:`~energy_margin.design.optimizers`. One evaluation of a design
 generates T randomised roll-outs of F frames of it (``generate``), scores their frames (the tree of
 ``analyze`` at a budget of expansions, or a learned margin: the ``scorer``) and takes the mean over
 the T trajectories of one score column (the success score by default). Every design is generated
@@ -20,7 +20,7 @@ verified designs.
 The verifier and the scorer are given by the caller (:class:`Scorer`, :class:`Verifier`): the
 tree scorer lives here (:class:`TreeScorer`), the learned one in
 :mod:`energy_margin.learning.scoring` and the episode verifier in
-:mod:`energy_margin.control.verification`, stages after this one.
+:mod:`energy_margin.design.verification`, stages after this one.
 
 Layout of the output directory, a run directory (:func:`~energy_margin.runs.open_run`)::
 
@@ -54,10 +54,11 @@ from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
-from energy_margin.evaluation.design_display import DesignSearchDisplay
-from energy_margin.evaluation.design_optimizers import OPTIMIZERS, make_optimizer, require_optimizer
-from energy_margin.evaluation.design_space import (
+from energy_margin.design.grid import Design
+from energy_margin.design.optimizers import OPTIMIZERS, make_optimizer, require_optimizer
+from energy_margin.design.rank import MARGIN_LABELS, MARGINS, design_outcome
+from energy_margin.design.search_display import DesignSearchDisplay
+from energy_margin.design.space import (
     check_models,
     compile_design,
     default_design,
@@ -68,10 +69,9 @@ from energy_margin.evaluation.design_space import (
     resolve_space,
     round_value,
 )
-from energy_margin.evaluation.designs import Design
-from energy_margin.evaluation.rank import MARGIN_LABELS, MARGINS, design_outcome
+from energy_margin.design.sweep import task_settings
+from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
 from energy_margin.evaluation.statistics import spearman, wilson_interval
-from energy_margin.evaluation.sweep import task_settings
 from energy_margin.runs import Journal, RunSpec, progress_bar, run_directory
 from energy_margin.runs.tables import Column, fmt, write_csv, write_json
 from energy_margin.runs.tables import format_table as text_table
@@ -692,7 +692,7 @@ def design_search(
     Args:
         task: a registered task (``"scene"`` with ``fixed={"scene_file": ...}`` for a scene file).
         params: ``(name, (low, high))`` or ``(name, [values])`` per axis
-            (:func:`~energy_margin.evaluation.design_space.parse_search_param`); empty: the
+            (:func:`~energy_margin.design.params.parse_param`); empty: the
             task's tool family (:meth:`~energy_margin.tasks.base.Task.design_space`).
         optimizer: ``"cma"``, ``"tpe"`` or ``"grid"``.
         evaluations: the optimiser's evaluations N, >= 1 (the grid's at most N).

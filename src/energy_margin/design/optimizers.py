@@ -5,7 +5,7 @@
   dimensions at least: a one-axis space gets an inert second coordinate.
 * ``tpe``: Optuna's ``TPESampler`` (seeded; its default 10 random start-up trials, then the
   tree-structured Parzen estimator), numeric and categorical axes.
-* ``grid``: the even grid of :func:`~energy_margin.evaluation.design_space.even_grid`, no library.
+* ``grid``: the even grid of :func:`~energy_margin.design.space.even_grid`, no library.
 
 Every optimiser maximises: :meth:`Optimizer.ask` gives the next point (a value per axis) and
 :meth:`Optimizer.tell` its objective. The libraries are imported when an optimiser is made, so
@@ -23,8 +23,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from energy_margin.design.space import even_grid
 from energy_margin.errors import EnergyMarginError, check_choice
-from energy_margin.evaluation.design_space import even_grid
 from energy_margin.tasks import DesignParameter
 
 #: The optimisers of ``design --optimizer``.

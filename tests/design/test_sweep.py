@@ -16,18 +16,18 @@ from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import JOURNAL_FILE, SCORES_FILE, load_scores
-from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.statistics import wilson_interval
-from energy_margin.evaluation.sweep import (
+from energy_margin.design.params import parse_param
+from energy_margin.design.sweep import (
     DESIGNS_DIR,
     SweepDisplay,
     design_grid,
     design_sweep,
     format_table,
-    parse_param,
     rank_convergence,
     rank_correlations,
 )
+from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs.lock import LOCK_FILE
 
 # The smallest sweep: 2 pusher widths, 2 trajectories of 2 frames, 2 cylinders, 8 expansions a frame.
@@ -53,10 +53,10 @@ def test_parse_param() -> None:
     assert parse_param("scoop_angle=1.2,1.31") == ("scoop_angle", [1.2, 1.31])
     assert parse_param("friction_range=[0.1,0.2],[0.3,0.4]") == ("friction_range", [[0.1, 0.2], [0.3, 0.4]])
     for text, message in (
-        ("scoop_angle", "expects NAME=V1,V2"),
-        ("=1,2", "expects NAME=V1,V2"),
-        ("scoop_angle=1,,2", "not a comma-separated list"),
-        ("scoop_angle=abc", "not a comma-separated list"),
+        ("scoop_angle", "expects NAME=LOW:HIGH or NAME=A,B,C"),
+        ("=1,2", "expects NAME=LOW:HIGH or NAME=A,B,C"),
+        ("scoop_angle=1,,2", "neither a range"),
+        ("scoop_angle=abc", "neither a range"),
         ("scoop_angle=", "no values"),
         ("scoop_angle=1,1.0", "listed twice"),
     ):
@@ -159,7 +159,7 @@ def test_tiny_sweep_table(tiny_sweep: tuple[Path, dict, list[str]]) -> None:
 
 
 def test_rank_statistics_on_known_outcomes() -> None:
-    from energy_margin.evaluation.sweep import DesignOutcome
+    from energy_margin.design.sweep import DesignOutcome
 
     def outcome(success: list[int], margin: list[float]) -> DesignOutcome:
         values = np.array(margin)

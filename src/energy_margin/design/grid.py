@@ -1,10 +1,11 @@
-"""The designs of a sweep: the ``--param NAME=V1,V2,...`` grammar and the grid of task configurations.
+"""The designs of a sweep: the grid of task configurations over listed parameter values.
 
-A design is one setting of a task's configuration. :func:`parse_param` reads one swept parameter
-and its values from the command line; :func:`design_grid` makes the Cartesian product of the
-swept values, each point a :class:`Design` with the task configuration overrides it stands for
-(a parameter is a configuration field, or an alias the task declares (``Task.design_aliases``) that sets one), and
-checks every design's configuration before anything runs.
+A design is one setting of a task's configuration. :func:`design_grid` makes the Cartesian
+product of the swept values (each parameter read by
+:func:`~energy_margin.design.params.parse_param`), each point a :class:`Design` with the task
+configuration overrides it stands for (a parameter is a configuration field, or an alias the task
+declares (``Task.design_aliases``) that sets one), and checks every design's configuration before
+anything runs.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.design.params import is_range
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import Task, available_tasks, get_task
 
 
@@ -40,34 +42,6 @@ class Design:
     def label(self) -> str:
         """The design as people read it, e.g. ``scoop_angle=1.31, open_gap=0.09``."""
         return _label(self.values)
-
-
-def parse_param(text: str) -> tuple[str, list[Any]]:
-    """``NAME=V1,V2,...`` as the name and its list of values (each value JSON: a number or a list).
-
-    Raises:
-        EnergyMarginError: no ``=``, an empty name, values that are not comma-separated JSON, an
-            empty list or a value given twice.
-
-    """
-    name, sep, values_text = text.partition("=")
-    name = name.strip()
-    if not sep or not name:
-        raise EnergyMarginError(f"--param expects NAME=V1,V2,..., got {text!r}")
-    try:
-        values = json.loads(f"[{values_text}]")
-    except json.JSONDecodeError:
-        raise EnergyMarginError(
-            f"--param {name}: {values_text!r} is not a comma-separated list of values (numbers, or JSON lists)"
-        ) from None
-    if not values:
-        raise EnergyMarginError(f"--param {name}: no values given")
-    seen: list[Any] = []
-    for value in values:
-        if value in seen:
-            raise EnergyMarginError(f"--param {name}: value {json.dumps(value)} is listed twice")
-        seen.append(value)
-    return name, values
 
 
 def _config_fields(task: Task) -> dict[str, Any]:
@@ -97,7 +71,7 @@ def _unknown_parameter(task_name: str, name: str, known: set[str]) -> EnergyMarg
 
 
 def design_grid(
-    task_name: str, params: Sequence[tuple[str, Sequence[Any]]], *, fixed: dict[str, Any] | None = None
+    task_name: str, params: Sequence[tuple[str, Any]], *, fixed: dict[str, Any] | None = None
 ) -> list[Design]:
     """Every design of the Cartesian product of ``params``, validated against the task's configuration.
 
@@ -128,8 +102,12 @@ def design_grid(
             raise EnergyMarginError(f"--param {name} sets {field}, as --param {targets[field]} does")
         if field in fixed:
             raise EnergyMarginError(f"--param {name} sets {field}, which --set fixes for every design")
+        if is_range(values):
+            raise InvalidParameterError(
+                "param", f"{name}: a sweep lists its values NAME=A,B,C; a range LOW:HIGH is searched by design"
+            )
         if not values:
-            raise EnergyMarginError(f"--param {name}: no values given")
+            raise InvalidParameterError("param", f"{name}: no values given")
         targets[field] = name
     designs: list[Design] = []
     slugs: dict[str, str] = {}

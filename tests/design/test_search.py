@@ -14,10 +14,9 @@ import pytest
 from energy_margin import tasks
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.control import commands
-from energy_margin.control.verification import EpisodeVerifier
-from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.design_optimizers import make_optimizer
-from energy_margin.evaluation.design_search import (
+from energy_margin.design.optimizers import make_optimizer
+from energy_margin.design.params import parse_param
+from energy_margin.design.search import (
     EVALUATIONS_JOURNAL,
     FIGURE_FILE,
     RESULT_JSON,
@@ -27,13 +26,14 @@ from energy_margin.evaluation.design_search import (
     design_search,
     format_result,
 )
-from energy_margin.evaluation.design_space import (
+from energy_margin.design.space import (
     axis_values,
     even_grid,
     grid_counts,
-    parse_search_param,
     resolve_space,
 )
+from energy_margin.design.verification import EpisodeVerifier
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import DesignParameter, PushingTask, register_task
 
 
@@ -118,24 +118,27 @@ def reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str,
     return out, _search(out)
 
 
-def test_parse_search_param() -> None:
-    assert parse_search_param("scoop_angle=1.0:1.5") == ("scoop_angle", (1.0, 1.5))
-    assert parse_search_param('ground_contact="geometry","footprint"') == (
+def test_parse_param() -> None:
+    assert parse_param("scoop_angle=1.0:1.5") == ("scoop_angle", (1.0, 1.5))
+    assert parse_param('ground_contact="geometry","footprint"') == (
         "ground_contact",
         ["geometry", "footprint"],
     )
-    assert parse_search_param("friction_range=[0.1,0.2],[0.2,0.4]") == ("friction_range", [[0.1, 0.2], [0.2, 0.4]])
+    assert parse_param("friction_range=[0.1,0.2],[0.2,0.4]") == ("friction_range", [[0.1, 0.2], [0.2, 0.4]])
     for text, message in [
         ("pusher_width", "expects NAME=LOW:HIGH or NAME=A,B,C"),
         ("pusher_width=0.5:0.5", "is empty"),
         ("pusher_width=0.9:0.5", "is inverted"),
         ("pusher_width=a:b", "not a range LOW:HIGH"),
-        ("pusher_width=0.5", "at least two values"),
         ("pusher_width=0.5,0.5", "listed twice"),
         ("pusher_width=0.5,", "neither a range"),
     ]:
         with pytest.raises(EnergyMarginError, match=message):
-            parse_search_param(text)
+            parse_param(text)
+    assert parse_param("pusher_width=0.5") == ("pusher_width", [0.5])
+    with pytest.raises(InvalidParameterError, match="at least two values") as raised:
+        resolve_space("pushing", [parse_param("pusher_width=0.5")])
+    assert raised.value.parameter == "param"
 
 
 def test_resolve_space_checks_names_kinds_and_the_family(family: str) -> None:
@@ -353,7 +356,7 @@ def test_the_default_design_keeps_the_task_values(tmp_path: Path) -> None:
 def test_a_scene_search_takes_only_its_design_parameters(tiny_scene: Path) -> None:
     # The scene file pins its other settings (its hash): a search over them would score one model
     # under many labels.
-    from energy_margin.evaluation.design_space import resolve_space
+    from energy_margin.design.space import resolve_space
 
     with pytest.raises(EnergyMarginError, match=r"'timestep'.*known: none \(a scene file declares its own"):
         resolve_space("scene", [("timestep", (0.001, 0.01))], fixed={"scene_file": str(tiny_scene)})

@@ -6,7 +6,7 @@ through :func:`energy_margin.analysis.run.analyze`, so every configuration write
 finish and an interrupted sweep resumes where it stopped. The work directory is a run
 (:func:`energy_margin.runs.open_run`): ``budget_settings.json`` first, one writer at a time, one
 resume rule and ``overwrite``. After each configuration the summary CSV and JSON are rewritten; the
-figure (:class:`~energy_margin.evaluation.budget_display.BudgetDisplay`, with matplotlib installed,
+figure (:class:`~energy_margin.experiments.budget_display.BudgetDisplay`, with matplotlib installed,
 a PNG beside them) is drawn once the tables are written.
 
 Questions: capture at k-hat = 0 and k-hat = 2, and trajectory success predicted from the first half
@@ -19,7 +19,6 @@ every row, so rows are paired); a resample whose labels hold a single class is s
 from __future__ import annotations
 
 import re
-import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -30,7 +29,7 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
-from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
+from energy_margin.data.dataset import Dataset, copy_dataset, load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_int, check_seed
 from energy_margin.evaluation.baselines import baseline_grids
@@ -41,8 +40,8 @@ from energy_margin.evaluation.bootstrap import (
     percentile_interval,
     summarize,
 )
-from energy_margin.evaluation.budget_display import BudgetDisplay
 from energy_margin.evaluation.metrics import score_grid
+from energy_margin.experiments.budget_display import BudgetDisplay
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import RunSpec, run_directory, tables
 from energy_margin.runs.tables import Column, fmt, write_csv, write_json
@@ -59,7 +58,6 @@ __all__ = [
     "bootstrap_answers",
     "budget_run",
     "budget_sweep",
-    "copy_dataset",
     "cost_summary",
     "format_table",
     "percentile_interval",
@@ -87,15 +85,6 @@ QUESTION_LABELS = {
     "capture_ap_window2": "capture, k-hat = 2",
     "success_ap_first_half": "success from first half",
 }
-
-
-def copy_dataset(directory: Path, work: Path) -> None:
-    """Copy the dataset files of ``directory`` into the working directory ``work`` (kept if there)."""
-    work.mkdir(parents=True, exist_ok=True)
-    for name in (METADATA_FILE, FRAMES_FILE):
-        target = work / name
-        if not target.exists():
-            shutil.copyfile(directory / name, target)
 
 
 #: The settings file of a sweep, written first in its work directory.
@@ -157,7 +146,7 @@ def plot(
     questions: Sequence[str] = QUESTIONS,
     labels: dict[str, str] | None = None,
 ) -> Path | None:
-    """Write the :class:`~energy_margin.evaluation.budget_display.BudgetDisplay` of ``rows`` to ``path``.
+    """Write the :class:`~energy_margin.experiments.budget_display.BudgetDisplay` of ``rows`` to ``path``.
 
     Args:
         rows: summary rows (``method``, ``budget`` and each question with ``_low``/``_high``);

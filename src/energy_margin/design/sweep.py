@@ -2,7 +2,7 @@
 
 A design is one setting of a task's configuration (e.g. the scooping blade angle and finger gap).
 ``design_sweep`` walks the Cartesian product of the swept values (:func:`design_grid`, from the
-``--param NAME=V1,V2,...`` grammar of :func:`parse_param`); for every design it generates T
+``NAME=A,B,C`` values of :func:`~energy_margin.design.params.parse_param`); for every design it generates T
 randomised trajectories (:func:`~energy_margin.data.generate.generate_dataset`), analyses their frames
 (:func:`~energy_margin.analysis.run.analyze`) and reports
 
@@ -15,9 +15,9 @@ Across designs it reports Spearman's rank correlation of each margin column with
 rate (permutation p-value, and a 95 % interval from paired trajectory resamples), and how that
 correlation grows with the number of trajectories t the margin is computed from, beside the rank
 correlation of the success rate measured on t trajectories: the answer to "does the margin rank
-designs as their outcomes do, from fewer trajectories?" (:mod:`~energy_margin.evaluation.rank`).
-The results are written, and printed, by :mod:`~energy_margin.evaluation.sweep_results`, the
-figure drawn by :class:`~energy_margin.evaluation.sweep_display.SweepDisplay`.
+designs as their outcomes do, from fewer trajectories?" (:mod:`~energy_margin.design.rank`).
+The results are written, and printed, by :mod:`~energy_margin.design.sweep_results`, the
+figure drawn by :class:`~energy_margin.design.sweep_display.SweepDisplay`.
 
 Seeds: every design is generated with the same seed and analysed with the same seed, so trajectory
 i of every design starts from the same random draws (box positions, yaw, friction, drive; the draws
@@ -54,9 +54,8 @@ from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import check_engine, generate_dataset
 from energy_margin.data.scores_file import SCORES_FILE, load_scores
-from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
-from energy_margin.evaluation.designs import Design, design_grid, parse_param
-from energy_margin.evaluation.rank import (
+from energy_margin.design.grid import Design, design_grid
+from energy_margin.design.rank import (
     EARLY_SUCCESS_FRAMES,
     MARGIN_LABELS,
     MARGINS,
@@ -66,8 +65,8 @@ from energy_margin.evaluation.rank import (
     rank_convergence,
     rank_correlations,
 )
-from energy_margin.evaluation.sweep_display import SweepDisplay
-from energy_margin.evaluation.sweep_results import (
+from energy_margin.design.sweep_display import SweepDisplay
+from energy_margin.design.sweep_results import (
     FIGURE_FILE,
     RESULTS_FILE,
     RESULTS_JSON,
@@ -78,6 +77,7 @@ from energy_margin.evaluation.sweep_results import (
     table_fields,
     write_results,
 )
+from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.sim import ENGINES
 from energy_margin.tasks import Task, get_task
@@ -100,7 +100,6 @@ __all__ = [
     "design_sweep",
     "failed_row",
     "format_table",
-    "parse_param",
     "rank_convergence",
     "rank_correlations",
     "summarize",

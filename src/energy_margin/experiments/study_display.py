@@ -1,7 +1,7 @@
 """The study's figures, built from its result: AP against budget and AP against lambda per task.
 
-:func:`draw_study` writes, for every task of a :class:`~energy_margin.evaluation.study_result.StudyResult`,
-``study_<task>.png`` (a :class:`~energy_margin.evaluation.budget_display.BudgetDisplay` of the six
+:func:`draw_study` writes, for every task of a :class:`~energy_margin.experiments.study_result.StudyResult`,
+``study_<task>.png`` (a :class:`~energy_margin.experiments.budget_display.BudgetDisplay` of the six
 questions) and ``study_lambda_<task>.png`` (a :class:`LambdaDisplay`) into ``OUT`` and ``OUT/<task>``,
 once the tables are written. Without matplotlib nothing is drawn.
 """
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from energy_margin.evaluation.budget_display import BudgetDisplay
-from energy_margin.evaluation.study_result import LABELS, QUESTION_NAMES, StudyResult
+from energy_margin.experiments.budget_display import BudgetDisplay
+from energy_margin.experiments.study_result import LABELS, QUESTION_NAMES, StudyResult
 from energy_margin.runs.display import Display
 
 

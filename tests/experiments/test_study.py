@@ -23,8 +23,8 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.budget_display import BudgetDisplay
-from energy_margin.evaluation.study import (
+from energy_margin.experiments.budget_display import BudgetDisplay
+from energy_margin.experiments.study import (
     DIFFERENCE_FIELDS,
     FIELDS,
     LAMBDA_FIELDS,

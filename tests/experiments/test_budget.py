@@ -12,7 +12,7 @@ from sklearn.metrics import average_precision_score
 
 from energy_margin.cli import main
 from energy_margin.errors import EnergyMarginError
-from energy_margin.evaluation.budget import (
+from energy_margin.experiments.budget import (
     QUESTION_LABELS,
     QUESTIONS,
     SETTINGS_FILE,
@@ -20,7 +20,7 @@ from energy_margin.evaluation.budget import (
     budget_sweep,
     plot,
 )
-from energy_margin.evaluation.budget_display import BudgetDisplay
+from energy_margin.experiments.budget_display import BudgetDisplay
 
 
 @pytest.mark.parametrize("seed", range(5))

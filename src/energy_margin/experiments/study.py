@@ -2,7 +2,7 @@
 
 For every task, :func:`run_study` generates a dataset (``OUT/<task>/dataset``), analyses it with
 every tree method at every budget (``OUT/<task>/runs/<method>-<budget>/``, through
-:func:`energy_margin.evaluation.budget.analyze_configuration`, so every configuration has its own
+:func:`energy_margin.experiments.budget.analyze_configuration`, so every configuration has its own
 journal and resumes), and answers six questions with 95 % bootstrap intervals over trajectories:
 capture at k-hat = 0, 2 and 4, and trajectory success predicted from the first 3 frames, the first
 5 and the last 3 (each the weighted last ``success_frames`` = 3 frame scores of that span). Beside
@@ -21,8 +21,8 @@ first and ``OUT`` stays locked while the study runs. The settings record, per ta
 in ``OUT``, what decides its datasets and analyses (objects, dataset seed, trajectories, frames,
 analysis seed): a study of other tasks, budgets, methods or lambdas adds to ``OUT``, one that
 changes a task's entry is refused unless ``overwrite``. The questions and the tables are in
-:mod:`~energy_margin.evaluation.study_result`, the figures in
-:mod:`~energy_margin.evaluation.study_display`.
+:mod:`~energy_margin.experiments.study_result`, the figures in
+:mod:`~energy_margin.experiments.study_display`.
 
 Outputs (rewritten as configurations finish): ``OUT/study.csv`` (AP with intervals),
 ``OUT/study_differences.csv``, ``OUT/study_lambda.csv``, ``OUT/study.json`` (all of them with the
@@ -52,10 +52,10 @@ from energy_margin.errors import (
     check_seed,
 )
 from energy_margin.evaluation.bootstrap import Scored, paired_difference, score_questions
-from energy_margin.evaluation.budget import analyze_configuration, cost_summary
 from energy_margin.evaluation.lambda_rescoring import LambdaRescorer, lambda_directory, rescore_lambdas, result_root
-from energy_margin.evaluation.study_display import LambdaDisplay, draw_study, plot_lambda
-from energy_margin.evaluation.study_result import (
+from energy_margin.experiments.budget import analyze_configuration, cost_summary
+from energy_margin.experiments.study_display import LambdaDisplay, draw_study, plot_lambda
+from energy_margin.experiments.study_result import (
     BASELINES,
     CAPTURE_WINDOWS,
     DIFFERENCE_FIELDS,
@@ -73,7 +73,7 @@ from energy_margin.evaluation.study_result import (
     positive_rates,
     study_questions,
 )
-from energy_margin.evaluation.study_state import TaskState
+from energy_margin.experiments.study_state import TaskState
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import RunDirectory, RunSpec, open_run
 from energy_margin.runs.files import read_json

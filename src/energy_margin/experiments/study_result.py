@@ -17,7 +17,7 @@ from typing import Any
 
 from energy_margin.data.dataset import Dataset
 from energy_margin.evaluation.bootstrap import Questions, Scored, paired_difference
-from energy_margin.evaluation.budget import format_table
+from energy_margin.experiments.budget import format_table
 from energy_margin.runs.tables import write_csv, write_json
 
 #: Capture questions: name -> k-hat.

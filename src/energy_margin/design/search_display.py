@@ -5,7 +5,7 @@ evaluation against its number, the best so far as a step line, the equal-cost gr
 (against their own number) and its best as a dashed line, the default design's objective as a
 dotted one; on the right, once verified, each verified design's success rate (95 % Wilson
 interval, every disturbance level) against its objective, titled with Spearman's rho. It is built
-from the result of :func:`~energy_margin.evaluation.design_search.design_search` by
+from the result of :func:`~energy_margin.design.search.design_search` by
 :meth:`DesignSearchDisplay.from_result` and draws only when asked.
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.evaluation.rank import MARGIN_LABELS
+from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.runs.display import Display
 from energy_margin.runs.tables import fmt
 

@@ -13,9 +13,9 @@ from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.bootstrap import Questions, Scored, score_questions
-from energy_margin.evaluation.budget import baseline_grids
 from energy_margin.evaluation.metrics import score_grid
-from energy_margin.evaluation.study_result import BASELINES, positive_rates, study_questions
+from energy_margin.experiments.budget import baseline_grids
+from energy_margin.experiments.study_result import BASELINES, positive_rates, study_questions
 
 
 @dataclass
