@@ -1,0 +1,67 @@
+"""What a design search is given: a :class:`Scorer` of a design's frames and a :class:`Verifier` of its episodes.
+
+The tree scorer of ``analyze`` is here (:class:`TreeScorer`); the learned one is
+:class:`energy_margin.learning.scoring.LearnedFrameScorer` and the episode verifier
+:class:`energy_margin.design.verification.EpisodeVerifier`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.run import analyze
+
+__all__ = ["Scorer", "TreeScorer", "Verifier"]
+
+
+class Scorer(Protocol):
+    """Scores every frame of a dataset directory: writes its ``scores.csv``."""
+
+    def settings(self) -> dict[str, Any]:
+        """What decides the scores (saved in ``design.json`` under ``objective``)."""
+
+    def score(self, directory: Path, *, seed: int, workers: int) -> None:
+        """Write ``scores.csv`` in ``directory`` (resuming what is there)."""
+
+
+class Verifier(Protocol):
+    """Runs closed-loop episodes of a design."""
+
+    def settings(self) -> dict[str, Any]:
+        """What decides the episodes besides design, level and seeds (saved under ``verify``)."""
+
+    def check(self, task_name: str, levels: Sequence[str], *, fixed: dict[str, Any], n_objects: int) -> None:
+        """Refuse a task, a scene or a level it cannot run, before anything is written."""
+
+    def successes(
+        self,
+        task_name: str,
+        overrides: dict[str, Any],
+        *,
+        n_objects: int,
+        level: str,
+        seeds: Sequence[tuple[int, np.random.SeedSequence]],
+        workers: int = 1,
+    ) -> Iterator[tuple[int, bool]]:
+        """``(index, success)`` of each episode, in any order."""
+
+
+@dataclass(frozen=True)
+class TreeScorer:
+    """The energy margin of ``analyze``: a tree of ``analyzer.iterations`` expansions per frame."""
+
+    analyzer: AnalyzerConfig = field(default_factory=AnalyzerConfig)
+
+    def settings(self) -> dict[str, Any]:
+        """``{"kind": "margin", "analyzer": ...}``."""
+        return {"kind": "margin", "analyzer": self.analyzer.to_dict()}
+
+    def score(self, directory: Path, *, seed: int, workers: int) -> None:
+        """``analyze`` the dataset (its journal resumes an interrupted analysis)."""
+        analyze(directory, self.analyzer, seed=seed, workers=workers, progress=False)
