@@ -21,7 +21,7 @@ from energy_margin.data.generate import generate_dataset
 from energy_margin.design.search import PICTURE_FILE, RESULT_JSON
 from energy_margin.design.verification import EpisodeVerifier
 from energy_margin.learning.margin_model import fit_margin_model
-from energy_margin.tasks import DesignParameter, PushingTask, register_task
+from energy_margin.tasks import DesignParameter, PushingTask, get_task, register_task
 
 TINY = ["--objects", "2", "--trajectories", "2", "--frames", "3", "--iterations", "10", "--verify", "2", "--seed", "1"]
 
@@ -71,7 +71,7 @@ def broken(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
     [
         (
             ["--task", "pushing", "--param", "tip_length=0.05:0.1"],
-            "unknown pushing design parameter 'tip_length' (a setting of task 'scooping'); known: ",
+            "--param tip_length: unknown pushing design parameter (a setting of task 'scooping'); known: ",
         ),
         (["--task", "pushing", "--param", "pusher_width=0.6:0.6"], "the range 0.6:0.6 is empty"),
         (["--task", "pushing", "--param", "pusher_width=0.9:0.5"], "the range 0.9:0.5 is inverted"),
@@ -96,7 +96,10 @@ def broken(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
             ["--task", "pushing", "--param", "pusher_width=0.5,0.7", "--optimizer", "cma"],
             "--optimizer cma searches numeric ranges only and pusher_width is categorical; use --optimizer tpe or grid",
         ),
-        (["--task", "no_family"], "task 'no_family' declares no tool family (Task.design_space)"),
+        (
+            ["--task", "no_family"],
+            "--param must give the axes, NAME=LOW:HIGH or NAME=A,B,C: task 'no_family' declares no tool family",
+        ),
         (
             ["--task", "pushing", "--param", "pusher_width=0.4:1.0", "--objective", "learned"],
             "--objective learned needs --model MODEL",
@@ -178,7 +181,7 @@ def test_verification_episodes_are_those_of_control(tmp_path: Path) -> None:
     """Episode i of a design's verification is episode i of ``control --policy scripted --seed S``."""
     overrides = {"pusher_half_extents": [0.3, 0.1, 0.015]}
     seeds = list(enumerate(np.random.SeedSequence(4).spawn(3)))
-    found = dict(EpisodeVerifier().successes("pushing", overrides, n_objects=2, level="hard", seeds=seeds))
+    found = dict(EpisodeVerifier().successes(get_task("pushing"), overrides, n_objects=2, level="hard", seeds=seeds))
     summary, dataset = run_control(
         "pushing",
         n_objects=2,

@@ -34,7 +34,7 @@ from energy_margin.design.space import (
 )
 from energy_margin.design.verification import EpisodeVerifier
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
-from energy_margin.tasks import DesignParameter, PushingTask, register_task
+from energy_margin.tasks import DesignParameter, PushingTask, get_task, register_task
 
 
 class FamilyPushing(PushingTask):
@@ -137,35 +137,37 @@ def test_parse_param() -> None:
             parse_param(text)
     assert parse_param("pusher_width=0.5") == ("pusher_width", [0.5])
     with pytest.raises(InvalidParameterError, match="at least two values") as raised:
-        resolve_space("pushing", [parse_param("pusher_width=0.5")])
-    assert raised.value.parameter == "param"
+        resolve_space(get_task("pushing"), [parse_param("pusher_width=0.5")])
+    assert raised.value.parameter == "params"
 
 
 def test_resolve_space_checks_names_kinds_and_the_family(family: str) -> None:
-    space = resolve_space("pushing", [("pusher_width", (0.4, 1.0)), ("lateral_contact", ["geometry", "sphere"])])
+    space = resolve_space(
+        get_task("pushing"), [("pusher_width", (0.4, 1.0)), ("lateral_contact", ["geometry", "sphere"])]
+    )
     assert [(p.name, p.low, p.high, p.choices, p.integer) for p in space] == [
         ("pusher_width", 0.4, 1.0, None, False),
         ("lateral_contact", None, None, ("geometry", "sphere"), False),
     ]
     # Without --param: the task's tool family.
-    assert [p.name for p in resolve_space(family, [])] == ["pusher_width", "ground_contact"]
+    assert [p.name for p in resolve_space(get_task(family), [])] == ["pusher_width", "ground_contact"]
     for task, params, fixed, message in [
         ("familyless_pushing", [], {}, r"declares no tool family .*known: pusher_width, duration"),
-        ("pushing", [("scoop_angle", (1.0, 1.5))], {}, r"unknown pushing design parameter 'scoop_angle' \(a setting"),
+        ("pushing", [("scoop_angle", (1.0, 1.5))], {}, r"scoop_angle: unknown pushing design parameter \(a setting"),
         ("pushing", [("pusher_width", (0.4, 1.0)), ("pusher_width", (0.5, 0.6))], {}, "given twice"),
         (
             "pushing",
             [("pusher_width", (0.4, 1.0)), ("pusher_half_extents", [[0.3, 0.1, 0.01], [0.4, 0.1, 0.01]])],
             {},
-            "sets pusher_half_extents, as --param pusher_width does",
+            "sets pusher_half_extents, as pusher_width does",
         ),
-        ("pushing", [("drive_jitter", (0.1, 0.3))], {"drive_jitter": 0.2}, "which --set fixes"),
+        ("pushing", [("drive_jitter", (0.1, 0.3))], {"drive_jitter": 0.2}, "which is fixed for every design"),
         ("pushing", [("friction_range", (0.1, 0.3))], {}, "is not a number"),
         (family, [("ground_contact", ["geometry", "sphere"])], {}, r'"sphere" is not in the family_pushing family'),
         (family, [("ground_contact", (0.0, 1.0))], {}, "is categorical in the family_pushing family"),
     ]:
         with pytest.raises(EnergyMarginError, match=message):
-            resolve_space(task, params, fixed=fixed)
+            resolve_space(get_task(task), params, fixed=fixed)
 
 
 def test_the_even_grid_fills_the_budget_evenly() -> None:
@@ -358,5 +360,12 @@ def test_a_scene_search_takes_only_its_design_parameters(tiny_scene: Path) -> No
     # under many labels.
     from energy_margin.design.space import resolve_space
 
-    with pytest.raises(EnergyMarginError, match=r"'timestep'.*known: none \(a scene file declares its own"):
-        resolve_space("scene", [("timestep", (0.001, 0.01))], fixed={"scene_file": str(tiny_scene)})
+    with pytest.raises(
+        EnergyMarginError,
+        match=r"timestep: unknown scene design parameter .*; known: none \(a scene file declares its own",
+    ):
+        resolve_space(
+            get_task("scene", {"scene_file": str(tiny_scene)}),
+            [("timestep", (0.001, 0.01))],
+            fixed={"scene_file": str(tiny_scene)},
+        )

@@ -29,6 +29,7 @@ from energy_margin.design.sweep import (
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs.lock import LOCK_FILE
+from energy_margin.tasks import get_task
 
 # The smallest sweep: 2 pusher widths, 2 trajectories of 2 frames, 2 cylinders, 8 expansions a frame.
 TINY = {"n_trajectories": 2, "n_frames": 2, "n_objects": 2, "seed": 3, "bootstrap": 20, "subsets": 5}
@@ -65,7 +66,7 @@ def test_parse_param() -> None:
 
 
 def test_design_grid_is_the_product_with_aliases() -> None:
-    designs = design_grid("scooping", [("scoop_angle", [1.2, 1.4]), ("finger_stiffness", [200, 800, 1600])])
+    designs = design_grid(get_task("scooping"), [("scoop_angle", [1.2, 1.4]), ("finger_stiffness", [200, 800, 1600])])
     assert len(designs) == 6
     assert [d.values for d in designs[:2]] == [
         {"scoop_angle": 1.2, "finger_stiffness": 200},
@@ -74,7 +75,7 @@ def test_design_grid_is_the_product_with_aliases() -> None:
     assert designs[1].overrides == {"scoop_angle": 1.2, "stiffness_range": [800, 800]}
     assert designs[1].slug == "scoop_angle-1.2__finger_stiffness-800"
     assert len({d.slug for d in designs}) == 6
-    (push,) = design_grid("pushing", [("pusher_width", [0.6])], fixed={"pusher_mass": 3.0})
+    (push,) = design_grid(get_task("pushing"), [("pusher_width", [0.6])], fixed={"pusher_mass": 3.0})
     assert push.overrides == {"pusher_mass": 3.0, "pusher_half_extents": [0.3, 0.1, 0.015]}
 
 
@@ -83,17 +84,22 @@ def test_design_grid_is_the_product_with_aliases() -> None:
     [
         ("pushing", [("scoop_angle", [1.0])], {}, "is a setting of task 'scooping', not of 'pushing'"),
         ("scooping", [("pusher_width", [0.5])], {}, "is a setting of task 'pushing', not of 'scooping'"),
-        ("scooping", [("tip_angle", [1.0])], {}, "unknown scooping parameter 'tip_angle'"),
+        ("scooping", [("tip_angle", [1.0])], {}, "tip_angle: unknown scooping parameter"),
         ("scooping", [("finger_stiffness", [0, 100])], {}, "design finger_stiffness=0: .*stiffness_range must be > 0"),
         ("scooping", [("open_gap", ["wide"])], {}, 'design open_gap="wide": .*open_gap must be a number'),
-        ("pushing", [("pusher_width", [0.5])], {"pusher_half_extents": [0.3, 0.1, 0.01]}, "which --set fixes"),
-        ("scooping", [("finger_stiffness", [100]), ("stiffness_range", [[1, 2]])], {}, "as --param finger_stiffness"),
-        ("scooping", [], {}, "at least one --param"),
+        (
+            "pushing",
+            [("pusher_width", [0.5])],
+            {"pusher_half_extents": [0.3, 0.1, 0.01]},
+            "which is fixed for every design",
+        ),
+        ("scooping", [("finger_stiffness", [100]), ("stiffness_range", [[1, 2]])], {}, "as finger_stiffness does"),
+        ("scooping", [], {}, "at least one parameter"),
     ],
 )
 def test_design_grid_errors(task: str, params: list, fixed: dict, message: str) -> None:
     with pytest.raises(EnergyMarginError, match=message):
-        design_grid(task, params, fixed=fixed)
+        design_grid(get_task(task), params, fixed=fixed)
 
 
 @pytest.mark.parametrize(

@@ -131,10 +131,10 @@ def test_plots_draw_a_registered_planar_task_from_the_top(
 
 
 def test_a_registered_task_sweeps_its_design_aliases(shoving: str) -> None:
-    designs = design_grid(shoving, [("pusher_width", [0.4, 0.6])])
+    designs = design_grid(get_task(shoving), [("pusher_width", [0.4, 0.6])])
     assert [design.overrides["pusher_half_extents"][0] for design in designs] == [0.2, 0.3]
     with pytest.raises(EnergyMarginError, match="sweepable: pusher_width or a shoving setting"):
-        design_grid(shoving, [("finger_stiffness_typo", [1])])
+        design_grid(get_task(shoving), [("finger_stiffness_typo", [1])])
 
 
 def test_a_registered_task_imports_the_authors_files(shoving: str, tmp_path: Path) -> None:

@@ -167,7 +167,7 @@ def test_design_space_corners_are_valid_compile_and_roll_out(task: str) -> None:
     space = get_task(task).design_space()
     assert space
     params = [(p.name, list(p.choices) if p.choices is not None else [p.low, p.high]) for p in space]
-    designs = design_grid(task, params)
+    designs = design_grid(get_task(task), params)
     assert len(designs) == int(np.prod([len(values) for _, values in params]))
     hashes = set()
     for index, design in enumerate(designs):
@@ -226,7 +226,9 @@ def test_scene_design_parameter_sets_the_model_and_its_hash(make_scene) -> None:
 
 def test_scene_design_sweeps_as_a_setting(make_scene) -> None:
     path = make_scene(append=_DESIGN)
-    designs = design_grid("scene", [("pusher_width", [0.1, 0.2])], fixed={"scene_file": str(path)})
+    designs = design_grid(
+        get_task("scene", {"scene_file": str(path)}), [("pusher_width", [0.1, 0.2])], fixed={"scene_file": str(path)}
+    )
     hashes = {get_task("scene", design.overrides).loaded.model_sha256 for design in designs}
     assert len(hashes) == 2
 

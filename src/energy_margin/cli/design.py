@@ -38,6 +38,8 @@ PARAMETER_FLAGS = {
     "n_objects": "--objects",
     "score": "--score",
     "policy": "--policy",
+    "params": "--param",
+    "fixed": "--set",
 }
 #: ``--score`` names and the score columns they stand for.
 SCORES = {"success": "success_score", "early": "early_success_score", "capture": "capture_score"}
@@ -147,13 +149,14 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.design.params import parse_param
     from energy_margin.design.search import RESULT_JSON, TreeScorer, design_search, format_result
     from energy_margin.design.verification import EpisodeVerifier
+    from energy_margin.tasks import resolve_task
 
     params = [parse_param(text) for text in args.param]
     task_name, fixed = _task(args)
+    task = resolve_task(task_name, fixed)
     extra: dict[str, Any] = {}
     if args.objective == "learned":
         from energy_margin.learning.scoring import LearnedFrameScorer
-        from energy_margin.tasks import get_task
 
         if args.scene:
             # Every --scene search sets the file's [design] values, and each design compiles to its own
@@ -165,11 +168,10 @@ def run(args: argparse.Namespace) -> int:
             )
         if args.model is None:
             raise EnergyMarginError("--objective learned needs --model MODEL (made by energy-margin learn)")
-        task = get_task(task_name, fixed or None)
         n_objects = task.fixed_objects or args.objects
         if n_objects is None:
             raise EnergyMarginError(f"{task.label} needs the number of objects (--objects)")
-        scorer: Any = LearnedFrameScorer(args.model, task_name=task_name, n_objects=n_objects)
+        scorer: Any = LearnedFrameScorer(args.model, task_name=task.name, n_objects=n_objects)
         extra["model_path"] = os.path.abspath(args.model)
     else:
         if args.model is not None:
@@ -189,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
         and (sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1")
     )
     result = design_search(
-        task_name,
+        task,
         params,
         optimizer=args.optimizer,
         evaluations=args.evaluations,

@@ -28,6 +28,8 @@ PARAMETER_FLAGS = {
     "n_frames": "--frames",
     "n_objects": "--objects",
     "trajectory_counts": "--counts",
+    "params": "--param",
+    "fixed": "--set",
 }
 
 

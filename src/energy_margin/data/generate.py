@@ -333,7 +333,7 @@ def replay_trajectory(
 
 
 def generate_dataset(
-    task_name: str,
+    task_name: str | Task,
     *,
     n_objects: int | None,
     n_trajectories: int,
@@ -352,7 +352,8 @@ def generate_dataset(
     directory is written to a temporary sibling and renamed, so an error leaves nothing behind.
 
     Args:
-        task_name: a registered task.
+        task_name: a registered task's name, or a resolved task (its configuration is kept,
+            ``task_config`` applied over it).
         n_objects: objects per scene, >= 1 (``None`` for a task that fixes them, e.g. a scene file).
         n_trajectories: roll-outs T, >= 1.
         n_frames: frames K per roll-out, >= 1.
@@ -366,7 +367,7 @@ def generate_dataset(
     """
     if engine not in ENGINES:
         raise EnergyMarginError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
-    task = get_task(task_name, task_config)
+    task = task_name.configured(task_config) if isinstance(task_name, Task) else get_task(task_name, task_config)
     check_engine(task, engine)
     if task.fixed_objects is not None:
         if n_objects is not None and n_objects != task.fixed_objects:
@@ -392,7 +393,7 @@ def generate_dataset(
                 task, n_objects, n_frames, seed, n_trajectories, index, engine=engine, tally=tally
             )
         except ValueError as error:
-            raise EnergyMarginError(f"cannot generate {task_name} trajectories: {error}") from None
+            raise EnergyMarginError(f"cannot generate {task.name} trajectories: {error}") from None
         records.append(record)
         if reasons:
             redrawn[str(index)] = {"draw": len(reasons), "reasons": reasons}

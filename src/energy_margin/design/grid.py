@@ -57,58 +57,43 @@ def _design_names(task_name: str) -> set[str] | None:
     return set(_config_fields(task)) | {alias.name for alias in task.design_aliases()}
 
 
-def _unknown_parameter(task_name: str, name: str, known: set[str]) -> EnergyMarginError:
-    owners = [other for other in available_tasks() if other != task_name and name in (_design_names(other) or set())]
+def _unknown_parameter(task: Task, name: str, known: set[str]) -> InvalidParameterError:
+    # Only to word the error: which other registered task has this setting.
+    owners = [other for other in available_tasks() if other != task.name and name in (_design_names(other) or set())]
     if owners:
-        return EnergyMarginError(
-            f"--param {name} is a setting of task {owners[0]!r}, not of {task_name!r} (sweep --task {owners[0]})"
+        return InvalidParameterError(
+            "params", f"{name} is a setting of task {owners[0]!r}, not of {task.name!r} (sweep task {owners[0]})"
         )
-    aliases = [alias.name for alias in get_task(task_name).design_aliases()]
-    hint = f"{', '.join(aliases)} or a {task_name} setting" if aliases else f"a {task_name} setting"
-    return EnergyMarginError(
-        f"unknown {task_name} parameter {name!r}; sweepable: {hint} ({', '.join(sorted(known - set(aliases)))})"
+    aliases = [alias.name for alias in task.design_aliases()]
+    hint = f"{', '.join(aliases)} or a {task.name} setting" if aliases else f"a {task.name} setting"
+    return InvalidParameterError(
+        "params",
+        f"{name}: unknown {task.name} parameter; sweepable: {hint} ({', '.join(sorted(known - set(aliases)))})",
     )
 
 
-def design_grid(
-    task_name: str, params: Sequence[tuple[str, Any]], *, fixed: dict[str, Any] | None = None
-) -> list[Design]:
+def design_grid(task: Task, params: Sequence[tuple[str, Any]], *, fixed: dict[str, Any] | None = None) -> list[Design]:
     """Every design of the Cartesian product of ``params``, validated against the task's configuration.
 
     Args:
-        task_name: a registered task.
+        task: the resolved task (``fixed`` is applied to it; each design is :meth:`Task.configured`
+            from it).
         params: ``(name, values)`` per swept parameter: a configuration field or an alias of
             :meth:`~energy_margin.tasks.base.Task.design_aliases`.
-        fixed: configuration overrides shared by every design (``--set``).
+        fixed: configuration overrides shared by every design (``--set``), part of every design's
+            ``overrides``.
 
     Raises:
-        EnergyMarginError: an unknown task or parameter, a parameter of another task, a parameter
-            given twice or also fixed, or a design whose configuration is invalid (named).
+        InvalidParameterError: (``params``) no parameter, an unknown one, a parameter of another
+            task, one given twice or also fixed, a range instead of values.
+        EnergyMarginError: a design whose configuration is invalid (named).
 
     """
     fixed = dict(fixed or {})
-    base = get_task(task_name, fixed)
-    fields = _config_fields(base)
-    aliases = {alias.name: alias for alias in base.design_aliases()}
-    known = set(fields) | set(aliases)
-    if not params:
-        raise EnergyMarginError("a sweep needs at least one --param NAME=V1,V2,...")
-    targets: dict[str, str] = {}
-    for name, values in params:
-        if name not in known:
-            raise _unknown_parameter(task_name, name, known)
-        field = aliases[name].field if name in aliases else name
-        if field in targets:
-            raise EnergyMarginError(f"--param {name} sets {field}, as --param {targets[field]} does")
-        if field in fixed:
-            raise EnergyMarginError(f"--param {name} sets {field}, which --set fixes for every design")
-        if is_range(values):
-            raise InvalidParameterError(
-                "param", f"{name}: a sweep lists its values NAME=A,B,C; a range LOW:HIGH is searched by design"
-            )
-        if not values:
-            raise InvalidParameterError("param", f"{name}: no values given")
-        targets[field] = name
+    task = task.configured(fixed)
+    fields = _config_fields(task)
+    aliases = {alias.name: alias for alias in task.design_aliases()}
+    _check_params(task, params, fixed, set(fields) | set(aliases), aliases)
     designs: list[Design] = []
     slugs: dict[str, str] = {}
     for combination in itertools.product(*(values for _, values in params)):
@@ -125,7 +110,7 @@ def design_grid(
             else:
                 overrides[name] = value
         try:
-            get_task(task_name, overrides)
+            task.configured(overrides)
         except EnergyMarginError as error:
             raise EnergyMarginError(f"design {label}: {error}") from None
         slug = "__".join(f"{name}-{_token(value)}" for name, value in chosen.items())
@@ -134,6 +119,30 @@ def design_grid(
         slugs[slug] = label
         designs.append(Design(values=chosen, overrides=overrides, slug=slug))
     return designs
+
+
+def _check_params(
+    task: Task, params: Sequence[tuple[str, Any]], fixed: dict[str, Any], known: set[str], aliases: dict[str, Any]
+) -> None:
+    """Refuse no parameter, an unknown one, one given twice or also fixed, a range instead of values."""
+    if not params:
+        raise InvalidParameterError("params", "must hold at least one parameter NAME=A,B,C")
+    targets: dict[str, str] = {}
+    for name, values in params:
+        if name not in known:
+            raise _unknown_parameter(task, name, known)
+        field = aliases[name].field if name in aliases else name
+        if field in targets:
+            raise InvalidParameterError("params", f"{name} sets {field}, as {targets[field]} does")
+        if field in fixed:
+            raise InvalidParameterError("params", f"{name} sets {field}, which is fixed for every design")
+        if is_range(values):
+            raise InvalidParameterError(
+                "params", f"{name}: a sweep lists its values NAME=A,B,C; a range LOW:HIGH is searched by design"
+            )
+        if not values:
+            raise InvalidParameterError("params", f"{name}: no values given")
+        targets[field] = name
 
 
 def _label(values: dict[str, Any]) -> str:

@@ -32,7 +32,7 @@ def parse_param(text: str) -> tuple[str, tuple[float, float] | list[Any]]:
     caller's to say (a sweep takes it, a search needs two).
 
     Raises:
-        InvalidParameterError: (``param``) no ``=``, an empty name, bounds that are not finite
+        InvalidParameterError: (``params``) no ``=``, an empty name, bounds that are not finite
             numbers, an empty or inverted range, values that are not comma-separated JSON, no values
             or a value listed twice.
 
@@ -40,35 +40,35 @@ def parse_param(text: str) -> tuple[str, tuple[float, float] | list[Any]]:
     name, sep, body = text.partition("=")
     name = name.strip()
     if not sep or not name:
-        raise InvalidParameterError("param", f"expects NAME=LOW:HIGH or NAME=A,B,C, got {text!r}")
+        raise InvalidParameterError("params", f"expects NAME=LOW:HIGH or NAME=A,B,C, got {text!r}")
     if not body.strip():
-        raise InvalidParameterError("param", f"{name}: no values given")
+        raise InvalidParameterError("params", f"{name}: no values given")
     if ":" in body and not body.lstrip().startswith(("[", "{", '"')):
         low_text, _, high_text = body.partition(":")
         try:
             low, high = float(low_text), float(high_text)
         except ValueError:
-            raise InvalidParameterError("param", f"{name}: {body!r} is not a range LOW:HIGH of two numbers") from None
+            raise InvalidParameterError("params", f"{name}: {body!r} is not a range LOW:HIGH of two numbers") from None
         if not (math.isfinite(low) and math.isfinite(high)):
-            raise InvalidParameterError("param", f"{name}: the range {body!r} must have finite bounds")
+            raise InvalidParameterError("params", f"{name}: the range {body!r} must have finite bounds")
         if low == high:
             raise InvalidParameterError(
-                "param", f"{name}: the range {low:g}:{high:g} is empty (LOW must be below HIGH)"
+                "params", f"{name}: the range {low:g}:{high:g} is empty (LOW must be below HIGH)"
             )
         if low > high:
             raise InvalidParameterError(
-                "param", f"{name}: the range {low:g}:{high:g} is inverted (LOW must be below HIGH)"
+                "params", f"{name}: the range {low:g}:{high:g} is inverted (LOW must be below HIGH)"
             )
         return name, (low, high)
     try:
         values = json.loads(f"[{body}]")
     except json.JSONDecodeError:
         raise InvalidParameterError(
-            "param",
+            "params",
             f"{name}: {body!r} is neither a range LOW:HIGH nor comma-separated values A,B,C "
             "(numbers, strings in double quotes or JSON lists)",
         ) from None
     for index, value in enumerate(values):
         if value in values[:index]:
-            raise InvalidParameterError("param", f"{name}: value {json.dumps(value)} is listed twice")
+            raise InvalidParameterError("params", f"{name}: value {json.dumps(value)} is listed twice")
     return name, values

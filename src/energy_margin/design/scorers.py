@@ -16,6 +16,7 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
+from energy_margin.tasks import Task
 
 __all__ = ["Scorer", "TreeScorer", "Verifier"]
 
@@ -36,12 +37,12 @@ class Verifier(Protocol):
     def settings(self) -> dict[str, Any]:
         """What decides the episodes besides design, level and seeds (saved under ``verify``)."""
 
-    def check(self, task_name: str, levels: Sequence[str], *, fixed: dict[str, Any], n_objects: int) -> None:
-        """Refuse a task, a scene or a level it cannot run, before anything is written."""
+    def check(self, task: Task, levels: Sequence[str], *, n_objects: int) -> None:
+        """Refuse a task (its fixed settings applied), a scene or a level it cannot run, before anything is written."""
 
     def successes(
         self,
-        task_name: str,
+        task: Task,
         overrides: dict[str, Any],
         *,
         n_objects: int,
@@ -49,7 +50,7 @@ class Verifier(Protocol):
         seeds: Sequence[tuple[int, np.random.SeedSequence]],
         workers: int = 1,
     ) -> Iterator[tuple[int, bool]]:
-        """``(index, success)`` of each episode, in any order."""
+        """``(index, success)`` of each episode of ``task.configured(overrides)``, in any order."""
 
 
 @dataclass(frozen=True)

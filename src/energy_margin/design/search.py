@@ -75,7 +75,7 @@ from energy_margin.design.sweep import task_settings
 from energy_margin.errors import InvalidParameterError, check_choice, check_int, check_seed
 from energy_margin.runs import RunSpec, run_directory
 from energy_margin.runs.tables import write_json
-from energy_margin.tasks import get_task
+from energy_margin.tasks import Task, resolve_task
 
 #: A design search's run directory. Every setting decides the results but the learned model's
 #: path (its contents, by SHA-256, do).
@@ -100,7 +100,7 @@ DESIGN_RUN = RunSpec(
 
 
 def design_search(
-    task: str,
+    task: str | Task,
     params: Sequence[tuple[str, tuple[float, float] | list[Any]]] = (),
     *,
     optimizer: str = "tpe",
@@ -132,7 +132,8 @@ def design_search(
     is written; the search then holds the lock of ``out`` until it returns.
 
     Args:
-        task: a registered task (``"scene"`` with ``fixed={"scene_file": ...}`` for a scene file).
+        task: a registered task's name (``"scene"`` with ``fixed={"scene_file": ...}`` for a scene
+            file), or a task object (:func:`~energy_margin.tasks.resolve_task`).
         params: ``(name, (low, high))`` or ``(name, [values])`` per axis
             (:func:`~energy_margin.design.params.parse_param`); empty: the
             task's tool family (:meth:`~energy_margin.tasks.base.Task.design_space`).
@@ -180,22 +181,23 @@ def design_search(
     if not levels:
         raise InvalidParameterError("disturbances", "must name at least one disturbance level")
     fixed = dict(fixed or {})
+    task = resolve_task(task, fixed)
     space = resolve_space(task, params, fixed=fixed)
     require_optimizer(optimizer, space)
     scorer = scorer if scorer is not None else TreeScorer()
     analyzer = scorer.analyzer if isinstance(scorer, TreeScorer) else None
-    n_objects, analyzer = task_settings(get_task(task, fixed or None), n_objects, engine, analyzer)
+    n_objects, analyzer = task_settings(task, n_objects, engine, analyzer)
     if isinstance(scorer, TreeScorer):
         scorer = TreeScorer(analyzer)
     if verifier is not None:
-        verifier.check(task, levels, fixed=fixed, n_objects=n_objects)
+        verifier.check(task, levels, n_objects=n_objects)
     check_models(task, space, fixed, n_objects=n_objects, seed=seed, n_trajectories=n_trajectories)
     compile_design(
         task, default_design(task, space, fixed), n_objects=n_objects, seed=seed, n_trajectories=n_trajectories
     )
     used = evaluations if optimizer != "grid" else min(evaluations, math.prod(grid_counts(space, evaluations)))
     settings: dict[str, Any] = {
-        "task": task,
+        "task": task.name,
         "fixed": fixed,
         "n_objects": n_objects,
         "n_trajectories": n_trajectories,

@@ -38,7 +38,7 @@ from energy_margin.design.space import default_design, even_grid, point_design, 
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs import Journal, progress_bar
 from energy_margin.runs.tables import write_csv, write_json
-from energy_margin.tasks import DesignParameter
+from energy_margin.tasks import DesignParameter, Task
 
 __all__ = ["DesignSearchRun", "directory_name"]
 
@@ -101,7 +101,7 @@ class DesignSearchRun:
     """A search under way: its settings, what it has measured and where it writes."""
 
     out: Path
-    task: str
+    task: Task
     space: list[DesignParameter]
     fixed: dict[str, Any]
     settings: dict[str, Any]

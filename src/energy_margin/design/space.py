@@ -54,12 +54,12 @@ def known_names(task: Task) -> list[str]:
 
 
 def resolve_space(
-    task_name: str,
+    task: Task,
     params: Sequence[tuple[str, tuple[float, float] | list[Any]]],
     *,
     fixed: dict[str, Any] | None = None,
 ) -> list[DesignParameter]:
-    """The axes of a search of ``task_name``: the parsed ``--param``s, or the task's tool family without any.
+    """The axes of a search of ``task`` (``fixed`` applied): the parsed parameters, or its tool family without any.
 
     A range over a field whose value is a whole number (or an axis the family declares
     ``integer``) takes whole values only. A categorical parameter the family declares accepts
@@ -67,18 +67,19 @@ def resolve_space(
 
     Raises:
         EnergyMarginError: an unknown parameter (listing the known ones), a parameter given twice
-            or also fixed with ``--set``, a range of a categorical parameter or of a setting that
+            or also in ``fixed``, a range of a categorical parameter or of a setting that
             is not a number, a value outside the family's, or no axes at all.
 
     """
     fixed = dict(fixed or {})
-    task = get_task(task_name, fixed or None)
+    task = task.configured(fixed)
     family = {parameter.name: parameter for parameter in task.design_space()}
     if not params:
         if not family:
-            raise EnergyMarginError(
-                f"{task.label} declares no tool family (Task.design_space); give the axes with "
-                f"--param NAME=LOW:HIGH or NAME=A,B,C (known: {', '.join(known_names(task))})"
+            raise InvalidParameterError(
+                "params",
+                f"must give the axes, NAME=LOW:HIGH or NAME=A,B,C: {task.label} declares no tool family "
+                f"(Task.design_space; known: {', '.join(known_names(task))})",
             )
         return list(family.values())
     fields = _fields(task)
@@ -91,50 +92,53 @@ def resolve_space(
             raise _unknown(task, name, known)
         field = aliases[name].field if name in aliases else name
         if field in targets:
-            what = "is given twice" if targets[field] == name else f"sets {field}, as --param {targets[field]} does"
-            raise EnergyMarginError(f"--param {name} {what}")
+            what = "is given twice" if targets[field] == name else f"sets {field}, as {targets[field]} does"
+            raise InvalidParameterError("params", f"{name} {what}")
         if field in fixed:
-            raise EnergyMarginError(f"--param {name} sets {field}, which --set fixes for every design")
+            raise InvalidParameterError("params", f"{name} sets {field}, which is fixed for every design")
         targets[field] = name
         declared = family.get(name)
         doc = declared.doc if declared is not None else (aliases[name].doc if name in aliases else f"{name} setting")
         if isinstance(spec, tuple):
             low, high = spec
             if declared is not None and declared.choices is not None:
-                raise EnergyMarginError(
-                    f"--param {name} is categorical in the {task.name} family "
-                    f"({', '.join(json.dumps(c) for c in declared.choices)}); give NAME=A,B,..."
+                raise InvalidParameterError(
+                    "params",
+                    f"{name} is categorical in the {task.name} family "
+                    f"({', '.join(json.dumps(c) for c in declared.choices)}); give NAME=A,B,...",
                 )
             if name not in aliases and not _is_number(fields[name]):
-                raise EnergyMarginError(
-                    f"--param {name}: {task.name}'s {name} is not a number ({json.dumps(fields[name])}); "
-                    "give its values as NAME=A,B,..."
+                raise InvalidParameterError(
+                    "params",
+                    f"{name}: {task.name}'s {name} is not a number ({json.dumps(fields[name])}); "
+                    "give its values as NAME=A,B,...",
                 )
             integer = declared.integer if declared is not None else isinstance(fields.get(name), int)
             if integer:
                 low, high = float(math.ceil(low)), float(math.floor(high))
                 if low >= high:
-                    raise EnergyMarginError(
-                        f"--param {name}: takes whole values and {spec[0]:g}:{spec[1]:g} holds fewer than two"
+                    raise InvalidParameterError(
+                        "params", f"{name}: takes whole values and {spec[0]:g}:{spec[1]:g} holds fewer than two"
                     )
             space.append(DesignParameter(name, doc, low=low, high=high, integer=integer))
         else:
             if len(spec) < 2:
                 raise InvalidParameterError(
-                    "param", f"{name}: give a range LOW:HIGH or at least two values A,B (fix one value with --set)"
+                    "params", f"{name}: give a range LOW:HIGH or at least two values A,B (or fix its one value)"
                 )
             if declared is not None and declared.choices is not None:
                 outside = [value for value in spec if value not in declared.choices]
                 if outside:
-                    raise EnergyMarginError(
-                        f"--param {name}: {json.dumps(outside[0])} is not in the {task.name} family "
-                        f"(choices: {', '.join(json.dumps(c) for c in declared.choices)})"
+                    raise InvalidParameterError(
+                        "params",
+                        f"{name}: {json.dumps(outside[0])} is not in the {task.name} family "
+                        f"(choices: {', '.join(json.dumps(c) for c in declared.choices)})",
                     )
             space.append(DesignParameter(name, doc, choices=tuple(spec)))
     return space
 
 
-def _unknown(task: Task, name: str, known: list[str]) -> EnergyMarginError:
+def _unknown(task: Task, name: str, known: list[str]) -> InvalidParameterError:
     """An unknown parameter: the task whose setting it is, if another one's, and the known ones."""
     owners = []
     for other in available_tasks():
@@ -146,7 +150,7 @@ def _unknown(task: Task, name: str, known: list[str]) -> EnergyMarginError:
                 continue
     where = f" (a setting of task {owners[0]!r})" if owners else ""
     listed = ", ".join(known) if known else "none (a scene file declares its own in a [design] table)"
-    return EnergyMarginError(f"unknown {task.name} design parameter {name!r}{where}; known: {listed}")
+    return InvalidParameterError("params", f"{name}: unknown {task.name} design parameter{where}; known: {listed}")
 
 
 def round_value(parameter: DesignParameter, value: Any) -> Any:
@@ -160,9 +164,7 @@ def round_value(parameter: DesignParameter, value: Any) -> Any:
     return float(f"{number:.{DIGITS}g}")
 
 
-def point_design(
-    task_name: str, space: Sequence[DesignParameter], values: Sequence[Any], fixed: dict[str, Any]
-) -> Design:
+def point_design(task: Task, space: Sequence[DesignParameter], values: Sequence[Any], fixed: dict[str, Any]) -> Design:
     """The design of one point (a value per axis), its configuration checked.
 
     Raises:
@@ -171,30 +173,30 @@ def point_design(
     """
     rounded = [round_value(parameter, value) for parameter, value in zip(space, values, strict=True)]
     params = [(parameter.name, [value]) for parameter, value in zip(space, rounded, strict=True)]
-    return design_grid(task_name, params, fixed=fixed)[0]
+    return design_grid(task, params, fixed=fixed)[0]
 
 
-def default_design(task_name: str, space: Sequence[DesignParameter], fixed: dict[str, Any]) -> Design:
-    """The task's own design (its configuration with ``--set``), labelled by its values on the searched axes.
+def default_design(task: Task, space: Sequence[DesignParameter], fixed: dict[str, Any]) -> Design:
+    """The task's own design (its configuration with ``fixed``), labelled by its values on the searched axes.
 
     An axis that is an alias has no inverse from the configuration; it is labelled ``"default"``.
     """
-    fields = _fields(get_task(task_name, fixed or None))
+    fields = _fields(task.configured(fixed))
     values = {p.name: fields.get(p.name, "default") for p in space}
     return Design(values=values, overrides=dict(fixed), slug="default")
 
 
-def compile_design(task_name: str, design: Design, *, n_objects: int, seed: int, n_trajectories: int) -> None:
+def compile_design(task: Task, design: Design, *, n_objects: int, seed: int, n_trajectories: int) -> None:
     """Build the simulator of the design's first trajectory (its MuJoCo model compiled).
 
     Raises:
         EnergyMarginError: the model does not compile: MuJoCo's message, naming the design.
 
     """
-    task = get_task(task_name, design.overrides or None)
+    variant = task.configured(design.overrides)
     try:
-        trajectory = task.sample_trajectory(trajectory_rng(seed, n_trajectories, 0), n_objects)
-        task.make_simulator(n_objects, trajectory.friction, trajectory.drive)
+        trajectory = variant.sample_trajectory(trajectory_rng(seed, n_trajectories, 0), n_objects)
+        variant.make_simulator(n_objects, trajectory.friction, trajectory.drive)
     except (ValueError, RuntimeError) as error:
         raise EnergyMarginError(f"the model of design {design.label} does not compile: {error}") from None
 
@@ -213,7 +215,7 @@ def _middle(parameter: DesignParameter) -> Any:
 
 
 def check_models(
-    task_name: str,
+    task: Task,
     space: Sequence[DesignParameter],
     fixed: dict[str, Any],
     *,
@@ -238,8 +240,8 @@ def check_models(
         middle = [_middle(parameter) for parameter in space]
         points = [[*middle[:axis], value, *middle[axis + 1 :]] for axis, values in enumerate(ends) for value in values]
     for point in points:
-        design = point_design(task_name, space, point, fixed)
-        compile_design(task_name, design, n_objects=n_objects, seed=seed, n_trajectories=n_trajectories)
+        design = point_design(task, space, point, fixed)
+        compile_design(task, design, n_objects=n_objects, seed=seed, n_trajectories=n_trajectories)
     return len(points)
 
 

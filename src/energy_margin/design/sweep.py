@@ -80,7 +80,7 @@ from energy_margin.design.sweep_results import (
 from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.sim import ENGINES
-from energy_margin.tasks import Task, get_task
+from energy_margin.tasks import Task, resolve_task
 
 __all__ = [
     "DESIGNS_DIR",
@@ -122,7 +122,7 @@ SWEEP_RUN = RunSpec(
 
 
 def _settings(
-    task: str,
+    task: Task,
     params: Sequence[tuple[str, Sequence[Any]]],
     designs: Sequence[Design],
     *,
@@ -136,7 +136,7 @@ def _settings(
 ) -> dict[str, Any]:
     """The contents of ``sweep.json``: the settings of :data:`RESUME_KEYS`, then the grid."""
     settings: dict[str, Any] = {
-        "task": task,
+        "task": task.name,
         "n_objects": n_objects,
         "n_trajectories": n_trajectories,
         "n_frames": n_frames,
@@ -146,7 +146,7 @@ def _settings(
         "analyzer": analyzer.to_dict(),
     }
     settings["params"] = [{"name": name, "values": list(values)} for name, values in params]
-    settings["aliases"] = {alias.name: alias.doc for alias in get_task(task).design_aliases()}
+    settings["aliases"] = {alias.name: alias.doc for alias in task.design_aliases()}
     settings["designs"] = [{"design": d.slug, "values": d.values, "task_config": d.overrides} for d in designs]
     return settings
 
@@ -197,7 +197,7 @@ def _objects(task: Task, n_objects: int | None) -> int:
     return check_int("n_objects", n_objects, minimum=1)
 
 
-def _generate(task: str, design: Design, directory: Path, settings: dict[str, Any], *, progress: bool) -> Dataset:
+def _generate(task: Task, design: Design, directory: Path, settings: dict[str, Any], *, progress: bool) -> Dataset:
     pending = not (directory / SCORES_FILE).is_file()
     bar = progress_bar(settings["n_trajectories"], desc="generate", unit="traj", enabled=progress and pending)
     try:
@@ -220,7 +220,7 @@ def _generate(task: str, design: Design, directory: Path, settings: dict[str, An
 class _Sweep:
     """A sweep under way: what it runs, and the designs analysed (or not) so far."""
 
-    task: str
+    task: Task
     designs: list[Design]
     settings: dict[str, Any]
     analyzer: AnalyzerConfig
@@ -284,7 +284,7 @@ class _Sweep:
 
 
 def design_sweep(
-    task: str,
+    task: str | Task,
     params: Sequence[tuple[str, Sequence[Any]]],
     *,
     n_trajectories: int,
@@ -309,7 +309,7 @@ def design_sweep(
     then holds the lock of ``out`` until it returns, so a second sweep writing there is refused.
 
     Args:
-        task: a registered task.
+        task: a registered task's name, or a task object (:func:`~energy_margin.tasks.resolve_task`).
         params: ``(name, values)`` per swept parameter (see :func:`design_grid`).
         n_trajectories: trajectories T per design, >= 2.
         n_frames: frames per trajectory, >= 1.
@@ -345,12 +345,13 @@ def design_sweep(
     numbers = {"n_trajectories": n_trajectories, "n_frames": n_frames, "seed": seed}
     counts = _check_numbers(**numbers, workers=workers, bootstrap=bootstrap, subsets=subsets, counts=trajectory_counts)
     fixed = dict(fixed or {})
-    designs = design_grid(task, params, fixed=fixed)
-    n_objects, analyzer = task_settings(get_task(task, fixed), n_objects, engine, analyzer)
+    resolved = resolve_task(task, fixed)
+    designs = design_grid(resolved, params, fixed=fixed)
+    n_objects, analyzer = task_settings(resolved, n_objects, engine, analyzer)
     settings = _settings(
-        task, params, designs, n_objects=n_objects, **numbers, engine=engine, fixed=fixed, analyzer=analyzer
+        resolved, params, designs, n_objects=n_objects, **numbers, engine=engine, fixed=fixed, analyzer=analyzer
     )
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
-    sweep = _Sweep(task, designs, settings, analyzer, counts, seed, workers, bootstrap, subsets, progress, say)
+    sweep = _Sweep(resolved, designs, settings, analyzer, counts, seed, workers, bootstrap, subsets, progress, say)
     with run_directory(out, SWEEP_RUN, settings, overwrite=overwrite, engine=engine) as run:
         return sweep.run(run.path)

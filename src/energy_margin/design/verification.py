@@ -22,7 +22,7 @@ from energy_margin.control.commands import command_space, controllable_tasks
 from energy_margin.control.disturbances import get_disturbance
 from energy_margin.control.episodes import ControlSettings, run_episode
 from energy_margin.errors import EnergyMarginError, check_choice
-from energy_margin.tasks import get_task
+from energy_margin.tasks import Task
 
 #: The policies a design is verified with: its own script (the default), or MPPI with the task cost.
 VERIFY_POLICIES = ("scripted", "task")
@@ -48,24 +48,24 @@ class EpisodeVerifier:
         """What decides the episodes besides the design, the level and the seeds (saved with the run)."""
         return {"policy": self.policy, "frames": VERIFY_FRAMES}
 
-    def check(self, task_name: str, levels: Sequence[str], *, fixed: dict[str, Any], n_objects: int) -> None:
+    def check(self, task: Task, levels: Sequence[str], *, n_objects: int) -> None:
         """Refuse a task without a command space, or an unknown disturbance level, before anything runs.
 
-        The command space is built for the task with ``fixed``: a scene whose motion moves mocap
-        bodies has none, and is refused here rather than after the search.
+        The command space is built for ``task`` (its fixed settings applied): a scene whose motion
+        moves mocap bodies has none, and is refused here rather than after the search.
         """
-        if task_name not in controllable_tasks():
+        if task.name not in controllable_tasks():
             raise EnergyMarginError(
-                f"task {task_name!r} cannot be verified by control episodes; controllable tasks: "
+                f"task {task.name!r} cannot be verified by control episodes; controllable tasks: "
                 f"{', '.join(controllable_tasks())}"
             )
-        command_space(get_task(task_name, fixed or None), n_objects)
+        command_space(task, n_objects)
         for level in levels:
             get_disturbance(level)
 
     def successes(
         self,
-        task_name: str,
+        task: Task,
         overrides: dict[str, Any],
         *,
         n_objects: int,
@@ -74,7 +74,7 @@ class EpisodeVerifier:
         workers: int = 1,
     ) -> Iterator[tuple[int, bool]]:
         """``(index, success)`` of each episode ``(index, seed)``, in completion order."""
-        task = get_task(task_name, overrides or None)
+        task = task.configured(overrides)
         settings = ControlSettings(
             task=task.name,
             task_config=task.config.to_dict(),

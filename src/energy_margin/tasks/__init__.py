@@ -106,6 +106,17 @@ def get_recorded_task(name: str, config: dict[str, Any] | None) -> Task:
     return get_task(name, recorded)
 
 
+def resolve_task(task: str | Task, config: dict[str, Any] | None = None) -> Task:
+    """The task an entry point works on, resolved once, with ``config`` applied.
+
+    A registered task's name is built with ``config``; a task object gets ``config`` through
+    :meth:`Task.configured`. Every stage after the entry point is given the object, never the name to look up again.
+    """
+    if isinstance(task, Task):
+        return task.configured(config)
+    return get_task(task, config)
+
+
 register_task(PushingTask)
 register_task(ScoopingTask)
 register_task(SceneTask)
@@ -132,6 +143,7 @@ __all__ = [
     "get_task",
     "load_plugin_tasks",
     "register_task",
+    "resolve_task",
     "task_class",
     "with_contacts",
 ]

@@ -16,7 +16,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.errors import check_choice
+from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.tasks.state_box import StateBox
@@ -507,6 +507,28 @@ class Task(ABC):
         An instance method: a scene file's family is its ``[design]`` table.
         """
         return ()
+
+    def configured(self, overrides: dict[str, Any] | None) -> Task:
+        """This task with ``overrides`` applied to its configuration (one design of it); itself without any.
+
+        A design, a sweep's grid point or a verification episode is the resolved task with some
+        settings changed: it is built from this object (:meth:`from_dict` of its settings and
+        ``overrides``), not looked up by name again.
+
+        Raises:
+            EnergyMarginError: an unknown setting or an invalid configuration, naming the task.
+
+        """
+        if not overrides:
+            return self
+        try:
+            return type(self).from_dict({**self._settings(), **overrides})
+        except (TypeError, ValueError) as error:
+            raise EnergyMarginError(f"bad configuration for task {self.name!r}: {error}") from None
+
+    def _settings(self) -> dict[str, Any]:
+        """The settings :meth:`configured` builds a variant from: every configuration field."""
+        return self.config.to_dict()
 
     def model_sha256(self, n_objects: int) -> str:
         """SHA-256 of the task's compiled MuJoCo model with ``n_objects`` objects (``dataset.json``).

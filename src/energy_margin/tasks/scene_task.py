@@ -249,6 +249,10 @@ class SceneTask(Task):
         # Keys the file does not declare in [design] are refused by name where the model is compiled.
         return cls(config, design={key: value for key, value in values.items() if key not in known})
 
+    def _settings(self) -> dict[str, Any]:
+        """The scene file and its ``[design]`` values; the hashes pin this model, not a variant's."""
+        return {"scene_file": self.config.scene_file, **dict(self.loaded.design_values)}
+
     def model_sha256(self, n_objects: int) -> str:
         """SHA-256 of the compiled model (with the file's templates and design), as ``task_config`` records it."""
         self._check_objects(n_objects)
