@@ -258,7 +258,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     for name, directory in (("analyze", dataset), ("live", live)):
         print(f"\n== energy-margin evaluate {directory}  ({name} scores)")
         assert cli(["evaluate", str(directory)]) == 0
-        evaluations[name] = common.summary(evaluate(directory))
+        evaluations[name] = common.summary(evaluate(directory).to_dict())
     if not args.no_picture:
         shown = next((i for i, episode in enumerate(episodes) if episode["success"]), 0)
         render_picture(out / "insertion.png", physics_of(wrapper).model.ptr, files[shown], episodes[shown])

@@ -223,8 +223,8 @@ def positive_rates(dataset: Dataset) -> dict[str, float]:
 def evaluate_check(directory: Path, rows: dict[str, dict[str, float | None]]) -> dict[str, Any]:
     """Call ``evaluate`` on the dataset; whether it agrees with :func:`table`, or why it refused."""
     try:
-        first = evaluate(directory, capture_window=0, success_frames=3)
-        fifth = evaluate(directory, capture_window=0, success_frames=5)
+        first = evaluate(directory, capture_window=0, success_frames=3).to_dict()
+        fifth = evaluate(directory, capture_window=0, success_frames=5).to_dict()
     except EnergyMarginError as error:
         return {"evaluated": False, "refused": str(error)}
     pairs = {

@@ -260,7 +260,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     for name, directory in (("analyze", dataset), ("live", live)):
         print(f"\n== energy-margin evaluate {directory}  ({name} scores)")
         assert cli(["evaluate", str(directory)]) == 0
-        evaluations[name] = common.summary(evaluate(directory))
+        evaluations[name] = common.summary(evaluate(directory).to_dict())
     if not args.no_picture:
         shown = next((i for i, e in enumerate(episodes) if e["success"]), None)
         shown = shown if shown is not None else next((i for i, e in enumerate(episodes) if e["lifted"]), 0)

@@ -27,11 +27,11 @@ def test_the_margin_beats_both_baselines_on_capture_two_frames_ahead(tmp_path: P
     energy_margin.analyze(out, AnalyzerConfig(iterations=20), seed=0, progress=False)
     result = energy_margin.evaluate(out)
     # Both classes among the k̂ = 2 labels, so every AP below is defined and informative.
-    assert 0.1 < result["capture_positive_rate_window2"] < 0.9
-    margin = result["capture_ap_window2"]
-    current = result["baselines"]["current_state"]["capture_ap_window2"]
-    distance = result["baselines"]["distance"]["capture_ap_window2"]
+    assert 0.1 < result.capture_positive_rate_window2 < 0.9
+    margin = result.capture_ap_window2
+    current = result.baselines["current_state"]["capture_ap_window2"]
+    distance = result.baselines["distance"]["capture_ap_window2"]
     assert margin >= current + MARGIN, (margin, current)
     assert margin >= distance + MARGIN, (margin, distance)
     # At k̂ = 0 the label is the frame's own indicator, which the margin must match.
-    assert result["capture_ap"] >= 0.95
+    assert result.capture_ap >= 0.95

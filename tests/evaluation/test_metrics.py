@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -126,20 +127,21 @@ def test_evaluate_an_analyzed_dataset(tiny_dataset: Path) -> None:
     result = evaluate(tiny_dataset)
     assert set(result) >= REQUIRED
     assert set(result) >= QUESTIONS
-    assert set(result["baselines"]) == {"current_state", "chance", "distance"}
+    assert set(result.baselines) == {"current_state", "chance", "distance"}
     for name in ("current_state", "chance", "distance"):
-        assert set(result["baselines"][name]) == QUESTIONS
+        assert set(result.baselines[name]) == QUESTIONS
     dataset = load_dataset(tiny_dataset)
-    assert result["n_frames"] == 6
-    assert result["n_trajectories"] == 2
-    assert result["n_objects"] == 2
-    assert result["task"] == "pushing"
-    assert result["capture_positive_rate"] == pytest.approx(dataset.capture_labels(0).mean())
-    assert result["success_positive_rate"] == pytest.approx(dataset.success_labels().mean())
-    assert result["runtime_per_frame_s"] == pytest.approx(load_scores(tiny_dataset)["runtime_s"].mean())
-    assert result["runtime_per_frame_s"] > 0
+    assert result.n_frames == 6
+    assert result.n_trajectories == 2
+    assert result.n_objects == 2
+    assert result.task == "pushing"
+    assert result.capture_positive_rate == pytest.approx(dataset.capture_labels(0).mean())
+    assert result.success_positive_rate == pytest.approx(dataset.success_labels().mean())
+    assert result.runtime_per_frame_s == pytest.approx(load_scores(tiny_dataset)["runtime_s"].mean())
+    assert result.runtime_per_frame_s > 0
     for key in QUESTIONS:
-        assert result[key] is None or 0.0 <= result[key] <= 1.0
+        value = getattr(result, key)
+        assert value is None or 0.0 <= value <= 1.0
     table = format_table(result)
     assert "capture AP, k-hat=0" in table
     assert "current_state" in table
@@ -151,20 +153,20 @@ def test_scores_equal_to_the_labels_give_perfect_ap(labelled: Path) -> None:
     # trajectory score its final label.
     write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float), runtime=0.5)
     result = evaluate(labelled)
-    assert result["capture_ap"] == 1.0
-    assert result["success_ap"] == 1.0
-    assert result["capture_positive_rate"] == pytest.approx(4 / 6)
-    assert result["success_positive_rate"] == pytest.approx(0.5)
-    assert result["capture_positive_rate_window2"] == pytest.approx(dataset.capture_labels(2).mean())
-    assert result["runtime_per_frame_s"] == 0.5
-    assert result["physics_per_frame_s"] == 0.25
+    assert result.capture_ap == 1.0
+    assert result.success_ap == 1.0
+    assert result.capture_positive_rate == pytest.approx(4 / 6)
+    assert result.success_positive_rate == pytest.approx(0.5)
+    assert result.capture_positive_rate_window2 == pytest.approx(dataset.capture_labels(2).mean())
+    assert result.runtime_per_frame_s == 0.5
+    assert result.physics_per_frame_s == 0.25
     # The current-state baseline is the capture label itself at k-hat = 0.
-    assert result["baselines"]["current_state"]["capture_ap"] == 1.0
+    assert result.baselines["current_state"]["capture_ap"] == 1.0
     # A constant score's AP is the positive rate.
-    assert result["baselines"]["chance"]["capture_ap"] == pytest.approx(4 / 6)
-    assert result["baselines"]["chance"]["success_ap"] == pytest.approx(0.5)
+    assert result.baselines["chance"]["capture_ap"] == pytest.approx(4 / 6)
+    assert result.baselines["chance"]["success_ap"] == pytest.approx(0.5)
     # The first half of the frames (frame 0) holds no success yet: constant scores.
-    assert result["success_ap_first_half"] == pytest.approx(0.5)
+    assert result.success_ap_first_half == pytest.approx(0.5)
 
 
 def test_each_capture_key_holds_one_window_and_the_table_one_line_per_k_hat(
@@ -176,16 +178,16 @@ def test_each_capture_key_holds_one_window_and_the_table_one_line_per_k_hat(
     write_scores(labelled, dataset.capture_labels(2).astype(float), IN_SUCCESS.astype(float))
     # k-hat 0: capture_ap at 0 and capture_ap_window2 at 2, one line each.
     result = evaluate(labelled, resamples=20)
-    assert result["capture_ap"] < 1.0 and result["capture_ap_window2"] == 1.0
-    assert result["capture_positive_rate_window2"] == pytest.approx(dataset.capture_labels(2).mean())
+    assert result.capture_ap < 1.0 and result.capture_ap_window2 == 1.0
+    assert result.capture_positive_rate_window2 == pytest.approx(dataset.capture_labels(2).mean())
     table = format_table(result)
     assert table.count("capture AP, k-hat=0") == 1 and table.count("capture AP, k-hat=2") == 1
     # k-hat 2: capture_ap is that question, and no second key (nor line) repeats it.
     result = evaluate(labelled, capture_window=2, resamples=20)
-    assert result["capture_window"] == 2 and result["capture_ap"] == 1.0
+    assert result.capture_window == 2 and result.capture_ap == 1.0
     assert "capture_ap_window2" not in result and "capture_positive_rate_window2" not in result
-    assert result["capture_positive_rate"] == pytest.approx(dataset.capture_labels(2).mean())
-    for values in (*result["baselines"].values(), result["verdict"]):
+    assert result.capture_positive_rate == pytest.approx(dataset.capture_labels(2).mean())
+    for values in (*result.baselines.values(), result.verdict):
         assert set(values) == QUESTIONS - {"capture_ap_window2"}
     assert main(["evaluate", str(labelled), "--capture-window", "2", "--resamples", "20"]) == 0
     out = capsys.readouterr().out
@@ -195,23 +197,23 @@ def test_each_capture_key_holds_one_window_and_the_table_one_line_per_k_hat(
 def test_inverted_scores_give_poor_ap(labelled: Path) -> None:
     write_scores(labelled, 1.0 - CAPTURED, 1.0 - IN_SUCCESS)
     result = evaluate(labelled)
-    assert result["capture_ap"] < 0.7
-    assert result["success_ap"] == pytest.approx(0.5)
+    assert result.capture_ap < 0.7
+    assert result.success_ap == pytest.approx(0.5)
 
 
 def test_capture_window_and_success_frames(labelled: Path) -> None:
     dataset = load_dataset(labelled)
     window1 = dataset.capture_labels(1)
     write_scores(labelled, window1.astype(float), IN_SUCCESS.astype(float))
-    assert evaluate(labelled, capture_window=1)["capture_ap"] == 1.0
-    assert evaluate(labelled, capture_window=1)["capture_positive_rate"] == pytest.approx(window1.mean())
-    assert evaluate(labelled)["capture_ap"] < 1.0
+    assert evaluate(labelled, capture_window=1).capture_ap == 1.0
+    assert evaluate(labelled, capture_window=1).capture_positive_rate == pytest.approx(window1.mean())
+    assert evaluate(labelled).capture_ap < 1.0
     # Success scores that only look right early: with k-bar = 3 (all frames) the ranking is right,
     # with k-bar = 1 (last frame only) it is wrong.
     early = np.array([[1.0, 1.0, 0.0], [0.0, 0.0, 0.5]])
     write_scores(labelled, window1.astype(float), early)
-    assert evaluate(labelled, success_frames=3, weights="uniform")["success_ap"] == 1.0
-    assert evaluate(labelled, success_frames=1)["success_ap"] == pytest.approx(0.5)
+    assert evaluate(labelled, success_frames=3, weights="uniform").success_ap == 1.0
+    assert evaluate(labelled, success_frames=1).success_ap == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize(
@@ -238,3 +240,27 @@ def test_evaluate_needs_scores(tiny_dataset: Path) -> None:
 def test_evaluate_missing_dataset(tmp_path: Path) -> None:
     with pytest.raises(EnergyMarginError, match="does not exist"):
         evaluate(tmp_path / "nope")
+
+
+def test_the_evaluation_is_typed_and_its_dictionary_is_the_json(labelled: Path) -> None:
+    import warnings
+
+    from energy_margin.evaluation.metrics import Evaluation
+
+    write_scores(labelled, CAPTURED.astype(float), IN_SUCCESS.astype(float))
+    result = evaluate(labelled, resamples=20)
+    assert isinstance(result, Evaluation) and result.capture_ap == 1.0
+    values = result.to_dict()
+    assert list(values)[:5] == ["capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half", "baselines"]
+    assert list(values)[5:8] == ["verdict", "verdict_resamples", "seed"]
+    assert Evaluation.from_dict(json.loads(json.dumps(values))).to_dict() == json.loads(json.dumps(values))
+    # No verdict, k-hat 2: those keys are absent from the dictionary and None on the object.
+    plain = evaluate(labelled, capture_window=2, resamples=0)
+    assert plain.verdict is None and plain.capture_ap_window2 is None
+    assert not {"verdict", "seed", "capture_ap_window2", "capture_positive_rate_window2"} & set(plain.to_dict())
+    # Reading it as the dictionary of earlier releases still works, with a warning naming the attribute.
+    with pytest.warns(DeprecationWarning, match=r"use \.capture_ap"):
+        assert result["capture_ap"] == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "capture_ap" in result and len(result) == len(values) and set(result) == set(values)

@@ -84,13 +84,13 @@ def test_evaluate_reports_the_verdict_in_the_table_and_in_json(
     rng = np.random.default_rng(2)
     write_scores(dataset.path, rng.random((12, 6)), rng.random((12, 6)))
     result = evaluate(dataset.path, resamples=100, seed=1)
-    assert set(result["verdict"]) == set(QUESTIONS)
-    assert {v["word"] for v in result["verdict"].values()} <= {"ahead", "level", "behind", "n/a"}
-    assert result["verdict_resamples"] == 100
+    assert set(result.verdict) == set(QUESTIONS)
+    assert {v["word"] for v in result.verdict.values()} <= {"ahead", "level", "behind", "n/a"}
+    assert result.verdict_resamples == 100
     assert "verdict" not in evaluate(dataset.path, resamples=0)
     assert main(["evaluate", str(dataset.path), "--resamples", "100", "--seed", "1", "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
-    assert printed["verdict"] == json.loads(json.dumps(result["verdict"]))
+    assert printed["verdict"] == json.loads(json.dumps(result.verdict))
     assert main(["evaluate", str(dataset.path), "--resamples", "100"]) == 0
     table = capsys.readouterr().out
     assert "margin - best baseline [95 %]" in table

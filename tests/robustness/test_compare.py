@@ -42,8 +42,8 @@ def test_table_one_keys_and_values(table_one: tuple[Path, list[Path]]) -> None:
     true, copies = table_one
     result = compare_perturbed(true, copies)
     plain = evaluate(true)
-    assert result["capture_ap"] == plain["capture_ap"] and result["success_ap"] == plain["success_ap"]
-    aps = [evaluate(c)["capture_ap"] for c in copies]
+    assert result["capture_ap"] == plain.capture_ap and result["success_ap"] == plain.success_ap
+    aps = [evaluate(c).capture_ap for c in copies]
     assert aps[0] == 1.0
     assert result["capture_ap_perturbed"]["mean"] == pytest.approx(np.mean(aps))
     assert result["capture_ap_perturbed"]["std"] == pytest.approx(np.std(aps))

@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         result = compare_perturbed(args.dataset, args.compare, **options, **verdict)
         text = format_table(result) + "\n\n" + format_robustness_table(result)
     else:
-        result = evaluate(args.dataset, **options, **verdict)
+        result = evaluate(args.dataset, **options, **verdict).to_dict()
         text = format_table(result)
     from energy_margin.data.scores_file import load_scores, tree_rejections
 

@@ -15,6 +15,7 @@ smallest signed distance of an object to the capture or success region, :mod:`en
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,9 @@ from energy_margin.errors import EnergyMarginError, check_choice, check_int, che
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import evaluate_capture_windows
 from energy_margin.evaluation.verdict import verdicts
+from energy_margin.runs.results import TypedResult
+
+__all__ = ["Evaluation", "average_precision", "check_options", "evaluate", "score_grid"]
 
 
 def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
@@ -41,6 +45,77 @@ def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return float(average_precision_score(labels, scores))
+
+
+@dataclass(frozen=True)
+class Evaluation(TypedResult):
+    """What :func:`evaluate` measured: the margin's AP per question, its baselines', the verdict.
+
+    ``to_dict()`` is the JSON of ``evaluate --json`` (documented in ``docs/results.md``). An AP is
+    ``None`` when the labels of its question hold a single class.
+
+    Attributes:
+        capture_ap: AP of the capture score at k-hat ``capture_window``.
+        capture_ap_window2: AP at k-hat 2; absent when ``capture_window`` is 2.
+        success_ap: AP of the trajectory success score (the last ``success_frames`` frames).
+        success_ap_first_half: the same from the first half of the frames (an early prediction).
+        baselines: the same questions per baseline (``current_state``, ``chance``, ``distance``).
+        verdict: per question, the margin against the best baseline (paired bootstrap); ``None``
+            without resamples.
+        verdict_resamples: the resamples behind the verdict; ``None`` without one.
+        seed: the resamples' seed; ``None`` without a verdict.
+        capture_window: k-hat of ``capture_ap``.
+        success_frames: k-bar of the success score.
+        weights: the success score's weighting (``linear`` or ``uniform``).
+        capture_positive_rate: share of frames captured at k-hat ``capture_window``.
+        capture_positive_rate_window2: the share at k-hat 2; absent when ``capture_window`` is 2.
+        success_positive_rate: share of successful trajectories.
+        n_frames: frames scored.
+        n_trajectories: trajectories of the dataset.
+        n_objects: objects per scene.
+        task: the dataset's task.
+        runtime_per_frame_s: mean wall time of a frame's analysis, s.
+        runtime_per_frame_std_s: its standard deviation, s.
+        physics_per_frame_s: mean time of a frame spent in the physics engine, s.
+
+    """
+
+    capture_ap: float | None
+    capture_ap_window2: float | None
+    success_ap: float | None
+    success_ap_first_half: float | None
+    baselines: dict[str, dict[str, float | None]]
+    verdict: dict[str, dict[str, Any]] | None
+    verdict_resamples: int | None
+    seed: int | None
+    capture_window: int
+    success_frames: int
+    weights: str
+    capture_positive_rate: float
+    capture_positive_rate_window2: float | None
+    success_positive_rate: float
+    n_frames: int
+    n_trajectories: int
+    n_objects: int
+    task: str
+    runtime_per_frame_s: float
+    runtime_per_frame_std_s: float
+    physics_per_frame_s: float
+
+    def absent(self) -> set[str]:
+        """The k-hat 2 fields when ``capture_window`` is 2, the verdict's without one."""
+        left_out = set()
+        if self.capture_window == 2:
+            left_out |= {"capture_ap_window2", "capture_positive_rate_window2"}
+        if self.verdict is None:
+            left_out |= {"verdict", "verdict_resamples", "seed"}
+        return left_out
+
+    @classmethod
+    def from_dict(cls, values: Any) -> Evaluation:
+        """The evaluation of ``evaluate --json``'s dictionary (absent fields ``None``)."""
+        optional = ("capture_ap_window2", "capture_positive_rate_window2", "verdict", "verdict_resamples", "seed")
+        return cls(**{**dict.fromkeys(optional), **dict(values)})
 
 
 def score_grid(dataset: Dataset, scores: dict[str, np.ndarray], column: str) -> np.ndarray:
@@ -114,7 +189,7 @@ def evaluate(
     weights: str = "linear",
     resamples: int = 1000,
     seed: int = 0,
-) -> dict[str, Any]:
+) -> Evaluation:
     """AP of a scored dataset, its baselines' and the verdict of the margin against the best of them.
 
     Args:
@@ -127,10 +202,7 @@ def evaluate(
         seed: seeds the resamples.
 
     Returns:
-        A JSON-compatible dictionary (keys documented in the README's "The three steps" and in
-        ``docs/results.md``): ``capture_ap`` is the AP at k-hat ``capture_window``;
-        ``capture_ap_window2`` (and ``capture_positive_rate_window2``), at k-hat 2, is there only
-        when ``capture_window`` is not 2.
+        The :class:`Evaluation`; ``.to_dict()`` is the JSON of ``evaluate --json``.
 
     """
     check_int("capture_window", capture_window, minimum=0)
@@ -180,7 +252,7 @@ def evaluate(
             "physics_per_frame_s": float(physics.mean()),
         }
     )
-    return result
+    return Evaluation.from_dict(result)
 
 
 def _cell(value: float | None) -> str:
@@ -207,8 +279,10 @@ def verdict_cell(verdict: dict[str, Any], drawn: int | None = None) -> str:
     )
 
 
-def format_table(result: dict[str, Any]) -> str:
-    """A human-readable table of :func:`evaluate`'s result."""
+def format_table(result: Evaluation | dict[str, Any]) -> str:
+    """A human-readable table of :func:`evaluate`'s result (or its dictionary)."""
+    if isinstance(result, Evaluation):
+        result = result.to_dict()
     k_hat, k_bar = result["capture_window"], result["success_frames"]
     rows = [
         *((f"capture AP, k-hat={window}", key) for key, window in evaluate_capture_windows(k_hat).items()),

@@ -125,14 +125,14 @@ def _ablation_row(out: Path, n_objects: int, config: ReproduceConfig, step: Call
     return {
         "n_objects": n_objects,
         "dataset": str(path.relative_to(out)),
-        "capture_ap": result["capture_ap"],
-        "success_ap": result["success_ap"],
-        "capture_ap_window2": result["capture_ap_window2"],
-        "success_ap_first_half": result["success_ap_first_half"],
-        "capture_positive_rate": result["capture_positive_rate"],
-        "success_positive_rate": result["success_positive_rate"],
-        "runtime_per_frame_s": result["runtime_per_frame_s"],
-        "runtime_per_frame_std_s": result["runtime_per_frame_std_s"],
+        "capture_ap": result.capture_ap,
+        "success_ap": result.success_ap,
+        "capture_ap_window2": result.capture_ap_window2,
+        "success_ap_first_half": result.success_ap_first_half,
+        "capture_positive_rate": result.capture_positive_rate,
+        "success_positive_rate": result.success_positive_rate,
+        "runtime_per_frame_s": result.runtime_per_frame_s,
+        "runtime_per_frame_std_s": result.runtime_per_frame_std_s,
     }
 
 

@@ -99,7 +99,7 @@ def compare_perturbed(
 
     """
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
-    result = evaluate(path, **options, resamples=resamples, seed=seed)
+    result = evaluate(path, **options, resamples=resamples, seed=seed).to_dict()
     others = expand_compare_paths(list(compare))
     if not others:
         raise EnergyMarginError("--compare needs at least one perturbed dataset")
@@ -132,9 +132,9 @@ def compare_perturbed(
         scores = load_scores(other_path)
         capture_errors.append(score_grid(other, scores, "capture_score") - true_capture)
         success_errors.append(score_grid(other, scores, "success_score") - true_success)
-        capture_aps.append(other_result["capture_ap"])
-        success_aps.append(other_result["success_ap"])
-        runtimes.append(other_result["runtime_per_frame_s"])
+        capture_aps.append(other_result.capture_ap)
+        success_aps.append(other_result.success_ap)
+        runtimes.append(other_result.runtime_per_frame_s)
     capture_error = np.stack(capture_errors)
     success_error = np.stack(success_errors)
     result.update(
