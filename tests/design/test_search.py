@@ -26,6 +26,7 @@ from energy_margin.design.search import (
     design_search,
     format_result,
 )
+from energy_margin.design.search_result import DesignSearchResult
 from energy_margin.design.space import (
     axis_values,
     even_grid,
@@ -86,7 +87,7 @@ PARAMS: list[tuple[str, Any]] = [("pusher_width", (0.4, 1.0))]
 
 def _search(out: Path, *, optimizer: str = "tpe", evaluations: int = 3, **options: Any) -> dict[str, Any]:
     settings = {**TINY, **options}
-    return design_search(
+    result = design_search(
         "pushing",
         settings.pop("params", PARAMS),
         optimizer=optimizer,
@@ -97,6 +98,8 @@ def _search(out: Path, *, optimizer: str = "tpe", evaluations: int = 3, **option
         log=settings.pop("log", lambda line: None),
         **settings,
     )
+    assert isinstance(result, DesignSearchResult)
+    return result.to_dict()
 
 
 def _essence(result: dict[str, Any]) -> Any:

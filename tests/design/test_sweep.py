@@ -26,6 +26,7 @@ from energy_margin.design.sweep import (
     rank_convergence,
     rank_correlations,
 )
+from energy_margin.design.sweep_results import SweepResult
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs.lock import LOCK_FILE
@@ -38,9 +39,11 @@ PARAMS = [("pusher_width", [0.6, 0.8])]
 
 def _sweep(out: Path, *, workers: int = 1, log: list[str] | None = None) -> dict:
     lines = log if log is not None else []
-    return design_sweep(
+    results = design_sweep(
         "pushing", PARAMS, out=out, workers=workers, analyzer=AnalyzerConfig(iterations=8), log=lines.append, **TINY
     )
+    assert isinstance(results, SweepResult)
+    return results.to_dict()
 
 
 @pytest.fixture(scope="module")
@@ -250,7 +253,7 @@ def test_a_design_that_cannot_be_generated_is_reported_and_skipped(tmp_path: Pat
         analyzer=AnalyzerConfig(iterations=4),
         log=log.append,
         **{**TINY, "n_frames": 1},
-    )
+    ).to_dict()
     assert [row["min_separation"] for row in results["rows"]] == [0.1]
     (failed,) = results["failed"]
     assert failed["min_separation"] == 5.0 and "cannot place 2 objects 5.0 m apart" in failed["error"]

@@ -215,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
         extra_settings=extra,
     )
     if args.json:
-        print_json(result)
+        print_json(result.to_dict())
     else:
         print(format_result(result))
         print(

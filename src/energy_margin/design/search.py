@@ -47,6 +47,7 @@ from energy_margin.design.optimizers import OPTIMIZERS, require_optimizer
 from energy_margin.design.rank import MARGINS
 from energy_margin.design.scorers import Scorer, TreeScorer, Verifier
 from energy_margin.design.search_result import (
+    DesignSearchResult,
     format_result,
 )
 from energy_margin.design.search_run import (
@@ -125,7 +126,7 @@ def design_search(
     picture: Callable[[Path, Path], Path | None] | None = None,
     extra_settings: dict[str, Any] | None = None,
     on_evaluation: Callable[[str, int], None] | None = None,
-) -> dict[str, Any]:
+) -> DesignSearchResult:
     """Search the design of ``task`` by its energy margin, verify the result; write and return it.
 
     Every argument is checked, and the models of the space's corners compiled, before anything
@@ -163,7 +164,8 @@ def design_search(
         on_evaluation: called with ``(phase, index)`` after each new evaluation is journalled.
 
     Returns:
-        The contents of ``result.json``.
+        The :class:`~energy_margin.design.search_result.DesignSearchResult`, whose ``to_dict()``
+        is ``result.json``.
 
     Raises:
         EnergyMarginError: a bad argument, parameter, range, value or design (one line each),
@@ -220,7 +222,7 @@ def design_search(
         result = search.run()
         if picture is not None and result["chosen"] is not None:
             _draw_chosen(run.path, result, picture)
-        return result
+        return DesignSearchResult.from_dict(result)
 
 
 def _verify_settings(
@@ -234,8 +236,9 @@ def _verify_settings(
 def _draw_chosen(out: Path, result: dict[str, Any], picture: Callable[[Path, Path], Path | None]) -> None:
     """Draw the chosen design into ``tool.png`` and say so in ``result.json``."""
     written = picture(out / EVALUATIONS_DIR / directory_name(result["chosen"]["design"]), out / PICTURE_FILE)
-    result["picture"] = None if written is None else PICTURE_FILE
-    write_json(out / RESULT_JSON, result)
+    if written is not None:
+        result["picture"] = PICTURE_FILE
+        write_json(out / RESULT_JSON, result)
 
 
 __all__ = [
@@ -245,6 +248,7 @@ __all__ = [
     "PICTURE_FILE",
     "RESULT_JSON",
     "SETTINGS_FILE",
+    "DesignSearchResult",
     "Scorer",
     "TreeScorer",
     "Verifier",

@@ -18,6 +18,7 @@ import numpy as np
 
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.runs.display import Display
+from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import fmt
 
 
@@ -49,8 +50,10 @@ class DesignSearchDisplay(Display):
     correlation: dict[str, Any]
 
     @classmethod
-    def from_result(cls, result: dict[str, Any]) -> DesignSearchDisplay:
-        """The figure of a design search's result (``result.json``)."""
+    def from_result(cls, result: TypedResult | dict[str, Any]) -> DesignSearchDisplay:
+        """The figure of a design search's result (or ``result.json``)."""
+        if isinstance(result, TypedResult):
+            result = result.to_dict()
         settings = result["settings"]
         return cls(
             task=settings["task"],

@@ -11,16 +11,19 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.evaluation.statistics import spearman, wilson_interval
+from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import Column, fmt
 from energy_margin.runs.tables import format_table as text_table
 
 __all__ = [
+    "DesignSearchResult",
     "best_evaluation",
     "format_result",
     "objective_correlations",
@@ -28,6 +31,48 @@ __all__ = [
     "result_csv_row",
     "verified_entry",
 ]
+
+
+@dataclass(frozen=True)
+class DesignSearchResult(TypedResult):
+    """What :func:`~energy_margin.design.search.design_search` found; ``to_dict()`` is ``result.json``.
+
+    Attributes:
+        settings: the search's resolved settings (``design.json``).
+        chosen: the verified entry of the search's best design (``None`` when every evaluation failed).
+        default: the verified entry of the task's own design.
+        grid: the verified entry of the equal-cost grid's best design.
+        verified: every verified design (:func:`verified_entry`): values, objective, roll-outs,
+            success rate and Wilson interval per disturbance level and pooled.
+        search: the optimiser's evaluations, in order.
+        grid_evaluations: the equal-cost grid's evaluations.
+        default_evaluation: the evaluation of the task's own design.
+        evaluations_used: the optimiser's evaluations.
+        grid_size: the grid's designs.
+        margin_evaluations: distinct designs scored.
+        correlation: Spearman's rho of the objective with the verified success rate per level and
+            pooled (``None`` without verification).
+        picture: ``tool.png`` when the chosen design was drawn (``None`` otherwise).
+
+    """
+
+    settings: dict[str, Any]
+    chosen: dict[str, Any] | None
+    default: dict[str, Any] | None
+    grid: dict[str, Any] | None
+    verified: list[dict[str, Any]]
+    search: list[dict[str, Any]]
+    grid_evaluations: list[dict[str, Any]]
+    default_evaluation: dict[str, Any]
+    evaluations_used: int
+    grid_size: int
+    margin_evaluations: int
+    correlation: dict[str, Any] | None = None
+    picture: str | None = None
+
+    def absent(self) -> set[str]:
+        """The correlation without verification, the picture when none was drawn."""
+        return {name for name in ("correlation", "picture") if getattr(self, name) is None}
 
 
 def best_evaluation(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
@@ -141,8 +186,10 @@ def _level_cell(level: str) -> Callable[[dict[str, Any]], str]:
     return lambda entry: _rate_text(entry["levels"].get(level))
 
 
-def format_result(result: dict[str, Any]) -> str:
+def format_result(result: DesignSearchResult | dict[str, Any]) -> str:
     """The verified designs as a table, then what was searched and the rank correlation, as text."""
+    if isinstance(result, DesignSearchResult):
+        result = result.to_dict()
     settings = result["settings"]
     names = [p["name"] for p in settings["space"]]
     levels = list(settings["verify"]["disturbances"])

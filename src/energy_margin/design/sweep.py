@@ -70,6 +70,7 @@ from energy_margin.design.sweep_results import (
     FIGURE_FILE,
     RESULTS_FILE,
     RESULTS_JSON,
+    SweepResult,
     design_row,
     failed_row,
     format_table,
@@ -93,6 +94,7 @@ __all__ = [
     "Design",
     "DesignOutcome",
     "SweepDisplay",
+    "SweepResult",
     "default_trajectory_counts",
     "design_grid",
     "design_outcome",
@@ -302,7 +304,7 @@ def design_sweep(
     overwrite: bool = False,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
-) -> dict[str, Any]:
+) -> SweepResult:
     """Generate, analyse and compare every design of the grid; write and return the results.
 
     Every argument is checked, and every design built, before anything is written; the sweep
@@ -331,7 +333,8 @@ def design_sweep(
         log: receives one line per design (standard error by default).
 
     Returns:
-        The contents of ``results.json``: ``settings``, ``rows`` (one per analysed design),
+        The :class:`~energy_margin.design.sweep_results.SweepResult`, whose ``to_dict()`` is
+        ``results.json``: ``settings``, ``rows`` (one per analysed design),
         ``correlations`` and ``convergence`` (with at least two), ``trajectories`` (per-trajectory
         values of each design) and ``failed`` (designs that could not be generated or analysed,
         each with its error and, when its roll-outs exist, the labels' success rate).
@@ -354,4 +357,4 @@ def design_sweep(
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     sweep = _Sweep(resolved, designs, settings, analyzer, counts, seed, workers, bootstrap, subsets, progress, say)
     with run_directory(out, SWEEP_RUN, settings, overwrite=overwrite, engine=engine) as run:
-        return sweep.run(run.path)
+        return SweepResult.from_dict(sweep.run(run.path))

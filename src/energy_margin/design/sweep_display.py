@@ -19,6 +19,7 @@ import numpy as np
 from energy_margin.design.rank import MARGIN_LABELS, MARGINS
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.display import Display
+from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import fmt
 
 
@@ -48,13 +49,15 @@ class SweepDisplay(Display):
     n_objects: int | None
 
     @classmethod
-    def from_result(cls, results: dict[str, Any]) -> SweepDisplay:
-        """The figure of a sweep's results (``results.json``); they must rank at least two designs.
+    def from_result(cls, results: TypedResult | dict[str, Any]) -> SweepDisplay:
+        """The figure of a sweep's results (or ``results.json``); they must rank at least two designs.
 
         Raises:
             EnergyMarginError: the results have no correlations (fewer than two analysed designs).
 
         """
+        if isinstance(results, TypedResult):
+            results = results.to_dict()
         if "correlations" not in results:
             raise EnergyMarginError("a sweep's figure needs at least two analysed designs")
         settings = results["settings"]

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +24,7 @@ from energy_margin.design.rank import MARGIN_LABELS, MARGINS, DesignOutcome, ran
 from energy_margin.design.sweep_display import SweepDisplay
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
+from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import Column, field, fmt, write_csv, write_json
 from energy_margin.runs.tables import format_table as text_table
 
@@ -67,6 +70,33 @@ def failed_row(design: Design, directory: Path, error: str) -> dict[str, Any]:
         )
     row["error"] = error
     return row
+
+
+@dataclass(frozen=True)
+class SweepResult(TypedResult):
+    """What :func:`~energy_margin.design.sweep.design_sweep` measured; ``to_dict()`` is ``results.json``.
+
+    Attributes:
+        settings: the sweep's resolved settings (``sweep.json``).
+        rows: one row per analysed design (:func:`design_row`).
+        correlations: the rank correlations of each margin with the designs' success
+            (``None`` with fewer than two analysed designs).
+        convergence: the rank correlation against the trajectories per design (``None`` likewise).
+        trajectories: per design, every trajectory's success and margins.
+        failed: the designs that could not be generated or analysed (:func:`failed_row`).
+
+    """
+
+    settings: dict[str, Any]
+    rows: list[dict[str, Any]]
+    correlations: dict[str, Any] | None = None
+    convergence: dict[str, Any] | None = None
+    trajectories: dict[str, Any] = dataclass_field(default_factory=dict)
+    failed: list[dict[str, Any]] = dataclass_field(default_factory=list)
+
+    def absent(self) -> set[str]:
+        """The rank statistics before two designs are analysed."""
+        return {name for name in ("correlations", "convergence") if getattr(self, name) is None}
 
 
 def summarize(
@@ -142,8 +172,10 @@ CONVERGENCE_COLUMNS = (
 )
 
 
-def format_table(results: dict[str, Any]) -> str:
+def format_table(results: SweepResult | dict[str, Any]) -> str:
     """The design table, the rank correlations and the convergence table as text."""
+    if isinstance(results, SweepResult):
+        results = results.to_dict()
     names = [param["name"] for param in results["settings"]["params"]]
     failed = results.get("failed", [])
     everyone = [*results["rows"], *failed]
