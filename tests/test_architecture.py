@@ -254,9 +254,27 @@ def test_the_public_api_is_where_it_was() -> None:
         "min_volume_ellipsoid",
         "perturb_dataset",
         "compare_perturbed",
+        # The verbs of every stage a user calls, and their typed results.
+        "calibrate",
+        "learn",
+        "design_search",
+        "design_sweep",
+        "score_state",
+        "LiveModelScorer",
+        "resolve_task",
+        "Evaluation",
+        "SweepResult",
+        "DesignSearchResult",
+        "LearnResult",
+        "LiveScore",
     ):
         assert callable(getattr(energy_margin, name)), name
     assert callable(register_task)
+    assert energy_margin.generate is energy_margin.generate_dataset
+    assert energy_margin.learn is energy_margin.learn_pipeline
+    assert sorted(energy_margin.__all__) == energy_margin.__all__
+    for name in energy_margin.__all__:
+        assert getattr(energy_margin, name) is not None, name
 
 
 #: Built-in task names that code outside ``tasks/`` may still spell out, as (module path under the

@@ -192,7 +192,7 @@ def test_markdown_tables_put_the_paper_beside_ours() -> None:
 
 
 def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) -> None:
-    from energy_margin.report.estimate import Calibration, estimate_seconds, planned_analyses, work_left
+    from energy_margin.report.estimate import StepTimes, estimate_seconds, planned_analyses, work_left
 
     quick = ReproduceConfig.create(quick=True, workers=2, engine="mujoco", seed=0)
     plan = planned_analyses(quick, {"pushing": 10, "scooping": 5})
@@ -202,7 +202,7 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
     frames, to_write = work_left(tmp_path, plan)
     assert sum(frames.values()) == sum(e.trajectories * e.frames for e in plan)
     assert len(to_write) == len(plan)
-    calibration = Calibration(
+    calibration = StepTimes(
         {"pushing": 0.2, "scooping": 0.5},
         {"pushing": 0.1, "scooping": 0.3},
         {"pushing": 0.05, "scooping": 0.04},
@@ -225,7 +225,7 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
     )
     assert seconds == pytest.approx(expected)
     # Twice the calibrated frame time: about twice as long.
-    slower = Calibration(
+    slower = StepTimes(
         {"pushing": 0.4, "scooping": 1.0},
         {"pushing": 0.1, "scooping": 0.3},
         {"pushing": 0.05, "scooping": 0.04},
@@ -236,9 +236,9 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
 
 
 def test_calibration_measures_this_machine() -> None:
-    from energy_margin.report.estimate import calibrate
+    from energy_margin.report.estimate import measure_step_times
 
-    calibration = calibrate(ReproduceConfig(iterations=20, workers=1), ["pushing", "scooping"])
+    calibration = measure_step_times(ReproduceConfig(iterations=20, workers=1), ["pushing", "scooping"])
     assert set(calibration.frame_s) == set(calibration.perturb_s) == {"pushing", "scooping"}
     assert all(0 < value < 30 for value in calibration.frame_s.values())
     assert 0 < calibration.picture_s < 5 and calibration.measured_s < 60
@@ -259,3 +259,12 @@ def test_reproduce_quick_runs_end_to_end(tmp_path: Path) -> None:
     assert (out / "report" / "index.html").is_file()
     table = json.loads((out / "table1.json").read_text(encoding="utf-8"))
     assert table["pushing"]["capture_ap"] is not None
+
+
+def test_the_step_times_old_names_resolve_with_a_warning() -> None:
+    from energy_margin.report import estimate
+
+    with pytest.warns(DeprecationWarning, match="now measure_step_times"):
+        assert estimate.calibrate is estimate.measure_step_times
+    with pytest.warns(DeprecationWarning, match="now StepTimes"):
+        assert estimate.Calibration is estimate.StepTimes

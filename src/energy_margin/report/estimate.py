@@ -15,6 +15,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -104,7 +105,7 @@ def frames_left(directory: Path, total: int) -> int:
 
 
 @dataclass(frozen=True)
-class Calibration:
+class StepTimes:
     """Wall times measured on this machine.
 
     Attributes:
@@ -124,7 +125,7 @@ class Calibration:
     measured_s: float
 
 
-def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
+def measure_step_times(config: ReproduceConfig, tasks: list[str]) -> StepTimes:
     """Measure a roll-out, two trees, a perturbation and a picture of each task on this machine (seconds)."""
     from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
     from energy_margin.data.dataset import frame_from_arrays
@@ -188,7 +189,7 @@ def calibrate(config: ReproduceConfig, tasks: list[str]) -> Calibration:
             picture_s = time.perf_counter() - tick
     except Exception:  # the report falls back to matplotlib; its cost is in the overhead
         pass
-    return Calibration(frame_s, rollout_s, perturb_s, picture_s, time.perf_counter() - started)
+    return StepTimes(frame_s, rollout_s, perturb_s, picture_s, time.perf_counter() - started)
 
 
 def work_left(out: Path, plan: list[PlannedAnalysis]) -> tuple[dict[PlannedAnalysis, int], list[PlannedAnalysis]]:
@@ -201,7 +202,7 @@ def work_left(out: Path, plan: list[PlannedAnalysis]) -> tuple[dict[PlannedAnaly
 
 
 def estimate_seconds(
-    calibration: Calibration,
+    calibration: StepTimes,
     frames: dict[PlannedAnalysis, int],
     to_write: list[PlannedAnalysis],
     *,
@@ -227,3 +228,20 @@ def estimate_seconds(
     pictures = sum(_report_pictures(task) for task in {entry.task for entry in frames})
     report_s = pictures * calibration.picture_s + _REPORT_OVERHEAD_S if report else 0.0
     return analysis / parallel + generation + report_s
+
+
+#: Names of 0.1 that clashed with :func:`energy_margin.evaluation.calibration.calibrate` (λ).
+_RENAMED = {"calibrate": "measure_step_times", "Calibration": "StepTimes"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _RENAMED:
+        import warnings
+
+        warnings.warn(
+            f"energy_margin.report.estimate.{name} is now {_RENAMED[name]}; the old name goes in 0.3",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return globals()[_RENAMED[name]]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -196,7 +196,7 @@ def ablation_markdown(rows: list[dict[str, Any]]) -> str:
 
 def _announce(out: Path, config: ReproduceConfig) -> None:
     """Say how long the work left will take on this machine (a short calibration), or that none is left."""
-    from energy_margin.report.estimate import calibrate, estimate_seconds, planned_analyses, work_left
+    from energy_margin.report.estimate import estimate_seconds, measure_step_times, planned_analyses, work_left
 
     table_objects = {task: int(row["n_objects"]) for task, row in PAPER_TABLE_I.items()}
     plan = planned_analyses(config, table_objects)
@@ -208,7 +208,7 @@ def _announce(out: Path, config: ReproduceConfig) -> None:
             + ("writing the report again" if report_done else "writing the report")
         )
         return
-    calibration = calibrate(config, list(table_objects))
+    calibration = measure_step_times(config, list(table_objects))
     seconds = estimate_seconds(calibration, frames, to_write, workers=config.workers, report=True)
     left = sum(frames.values())
     rates = ", ".join(
