@@ -127,8 +127,8 @@ def evaluate(
         seed: seeds the resamples.
 
     Returns:
-        A JSON-compatible dictionary (keys documented in the README's "The three steps" and in
-        ``docs/results.md``): ``capture_ap`` is the AP at k-hat ``capture_window``;
+        A JSON-compatible dictionary (keys documented in ``docs/reference/commands.md`` (``evaluate --json``) and
+        ``docs/results/results.md``): ``capture_ap`` is the AP at k-hat ``capture_window``;
         ``capture_ap_window2`` (and ``capture_positive_rate_window2``), at k-hat 2, is there only
         when ``capture_window`` is not 2.
 
