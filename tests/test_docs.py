@@ -79,3 +79,17 @@ def test_cli_reference_lists_every_command() -> None:
     for command in COMMANDS:
         assert f"\n## {command.NAME}\n" in text
     assert cli_reference.MARKER in (DOCS / "reference" / "cli.md").read_text(encoding="utf-8")
+
+
+def test_architecture_lists_every_module() -> None:
+    sys.path.insert(0, str(ROOT / "tools"))
+    try:
+        import module_index
+    finally:
+        sys.path.remove(str(ROOT / "tools"))
+    text = module_index.markdown()
+    for path in (ROOT / "src" / "energy_margin").rglob("*.py"):
+        parts = path.relative_to(ROOT / "src").with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        assert f"| `{name}` |" in text
+    assert module_index.MARKER in (DOCS / "reference" / "architecture.md").read_text(encoding="utf-8")

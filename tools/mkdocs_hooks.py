@@ -2,6 +2,8 @@
 
 * ``docs/reference/cli.md`` holds a marker that is replaced, at every build, by the reference that
   :mod:`cli_reference` generates from the ``energy-margin`` argument parsers.
+* ``docs/reference/architecture.md`` holds another, replaced by every module of the package with
+  the first line of its docstring (:mod:`module_index`).
 * A page's relative link to a repository file outside ``docs/`` (an example's README) becomes a
   link into the repository at ``repo_url`` when the site has one, else the file's path as code.
   ``tests/test_docs.py`` checks that every such file exists.
@@ -18,6 +20,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import cli_reference
+import module_index
 
 _LINK = re.compile(r"\[([^\]]+)\]\(((?:\.\./)+[^)#\s]+)(#[^)\s]*)?\)")
 
@@ -36,7 +39,9 @@ def _outside_links(markdown: str, page_path: str, repo_url: str | None) -> str:
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, **_: Any) -> str:
-    """Insert the generated CLI reference; turn links out of ``docs/`` into repository links."""
+    """Insert the generated references; turn links out of ``docs/`` into repository links."""
     if cli_reference.MARKER in markdown:
         markdown = markdown.replace(cli_reference.MARKER, cli_reference.markdown())
+    if module_index.MARKER in markdown:
+        markdown = markdown.replace(module_index.MARKER, module_index.markdown())
     return _outside_links(markdown, page.file.src_uri, config.get("repo_url"))
