@@ -1,4 +1,4 @@
-"""One example's row of docs/generality.md: the margin with the file's, derived and calibrated settings.
+"""One example's row of docs/results/generality.md: the margin with the file's, derived and calibrated settings.
 
 Given a dataset generated from an example's scene file as written, and the same trajectories generated
 from the same file with its ``[perturbation]`` table left out (so every perturbation setting is derived

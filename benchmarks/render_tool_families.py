@@ -1,4 +1,4 @@
-"""Pictures of the built-in tool families for docs/design.md ("Tool families"), with MuJoCo's renderer.
+"""Pictures of the built-in tool families for docs/howto/design.md ("Tool families"), with MuJoCo's renderer.
 
     python benchmarks/render_tool_families.py docs/figures
 

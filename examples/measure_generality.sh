@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# The table of docs/generality.md for one example: a 50 x 10 set of generation seed 202 from the scene
+# The table of docs/results/generality.md for one example: a 50 x 10 set of generation seed 202 from the scene
 # file as written, the same trajectories with [perturbation] derive = true (settings derived from the
 # scene) and without [perturbation] (the fixed defaults: 2 m/s^2 in x and y, 20 rad/s^2 about z, 0.1 s,
-# lambda 5; docs/generality.md's rows were measured with the former 2 m/s^2 per axis and no torque),
+# lambda 5; docs/results/generality.md's rows were measured with the former 2 m/s^2 per axis and no torque),
 # then calibrate and the paired verdicts (benchmarks/bench_generality.py), two workers.
 #   bash examples/measure_generality.sh NAME SCENE.toml OUT_DIR [record]
 # With `record`, the trajectories are examples/record/simulate.py roll-outs of seed 202 instead.

@@ -156,7 +156,7 @@ def test_lateral_contacts_are_the_objects_own_shapes() -> None:
 def test_scripted_pushing_is_stable_with_footprints() -> None:
     # Over whole scripted roll-outs: objects stay on the ground and nothing explodes. (The two
     # models' roll-outs drift apart after collisions, as any two contact models do; their labels
-    # and AP are compared on whole datasets in docs/performance.md.)
+    # and AP are compared on whole datasets in docs/results/performance.md.)
     for mode in ("geometry", "footprint"):
         task = get_task("pushing", {"ground_contact": mode})
         rng = np.random.default_rng(7)

@@ -1,6 +1,6 @@
 """The PyBullet backend, and cross-engine agreement with MuJoCo on small scenes.
 
-Tolerances (measured with pybullet 3.2.7 and mujoco 4.0.0, stated here and in docs/engines.md):
+Tolerances (measured with pybullet 3.2.7 and mujoco 4.0.0, stated here and in docs/reference/engines.md):
 
 * one wrench (1.2 N along x, 2e-4 N m about z) on one resting object, 0.15 s: the final horizontal
   positions agree within 2 mm of a 35 mm displacement (measured: 0.9 mm upright cylinder, 1.6 mm

@@ -132,7 +132,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="adaptive budget: stop a frame once neither score would move by more than TOL by the end of the "
         "budget at its rate over the last 50 expansions (the budget stays the upper bound; default: spend the "
         "whole budget; 0.02 holds AP on the sets it was chosen on, but costs 0.013-0.019 of future-capture AP "
-        "on a 5-object set it was not: docs/performance.md)",
+        "on a 5-object set it was not: docs/results/performance.md)",
     )
     parser.add_argument(
         "--converge-rule",

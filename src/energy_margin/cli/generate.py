@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     tasks = available_tasks()
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--task", choices=tasks, help=f"registered task: {', '.join(tasks)}")
-    source.add_argument("--scene", metavar="SCENE.toml", help="a scene file (docs/scenes.md) instead of a task")
+    source.add_argument("--scene", metavar="SCENE.toml", help="a scene file (docs/howto/scenes.md) instead of a task")
     parser.add_argument("--objects", type=int, help="objects per scene (>= 1); a scene file fixes them")
     parser.add_argument("--trajectories", type=int, default=20, help="roll-outs (default 20)")
     parser.add_argument("--frames", type=int, default=10, help="frames per roll-out (default 10)")

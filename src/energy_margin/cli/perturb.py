@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=PROTOCOLS,
         default="valid",
         help="valid: physically valid states, overlaps rejected (default); paper: the authors' draw, every centre "
-        "at once, overlaps allowed (docs/robustness.md)",
+        "at once, overlaps allowed (docs/results/robustness.md)",
     )
     parser.add_argument(
         "--tolerance",

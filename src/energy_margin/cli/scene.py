@@ -20,7 +20,7 @@ EXAMPLES = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``scene``."""
-    parser.add_argument("scene", nargs="?", metavar="SCENE.toml", help="the scene file (docs/scenes.md)")
+    parser.add_argument("scene", nargs="?", metavar="SCENE.toml", help="the scene file (docs/howto/scenes.md)")
     parser.add_argument(
         "--from-gym",
         metavar="[MODULE:]ENV_ID",

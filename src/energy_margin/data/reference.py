@@ -11,7 +11,7 @@ A reference folder (e.g. ``energy_margin_workshop/planepush-10objects``) holds, 
   ``1``..``5`` = perturbed states): ``data_id, trial, plan_iters, plan_time, best_cost,
   capture_exists_score, capture_score, success_exists_score, success_score, runtime``.
 
-The mapping to this project's dataset (documented in docs/reference.md):
+The mapping to this project's dataset (documented in docs/results/reference.md):
 
 * pushing, per object ``x, y, theta, vx, vy, omega`` -> centre ``(x, y, rest height)``, yaw
   ``theta``, velocity ``(vx, vy, 0, 0, 0, omega)``; pusher ``xg, yg, thetag, vxg, vyg, omegag`` ->
@@ -93,7 +93,7 @@ SCOOP_FRAME_PERIOD = 0.15
 # captured sit up to 2.62 cm off the gripper's centre line, so their blades reach at least that far.
 # The imported scene's blades and finger plates get this half width (m), which carries every such
 # box with its centre over a blade and makes this scene's capture region reproduce their capture
-# label on all 200 frames (docs/reference.md).
+# label on all 200 frames (docs/results/reference.md).
 SCOOP_BLADE_HALF_WIDTH = 0.03
 
 

@@ -31,7 +31,7 @@ from energy_margin.world.scene import Scene
 #: :data:`OVERLAP_FLOOR`, is an overlap. Soft contacts leave some penetration in valid frames: up to
 #: about 10 mm between the 5 cm-radius pushing cylinders under the pusher's load, and up to 3.4 mm
 #: between 1 cm scooping boxes pressed into the blades or into each other (the task's own generated
-#: sets: the 100-trajectory seed-14 set at the default design, and designs of docs/sweep.md).
+#: sets: the 100-trajectory seed-14 set at the default design, and designs of docs/howto/sweep.md).
 OVERLAP_FRACTION = 0.5
 #: Smallest overlap limit, m: how deep a soft contact goes depends on its stiffness and load, not on
 #: the object's size, so small objects get this much (4 mm) whatever their size.

@@ -51,7 +51,7 @@ def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
 class Evaluation(TypedResult):
     """What :func:`evaluate` measured: the margin's AP per question, its baselines', the verdict.
 
-    ``to_dict()`` is the JSON of ``evaluate --json`` (documented in ``docs/results.md``). An AP is
+    ``to_dict()`` is the JSON of ``evaluate --json`` (documented in ``docs/results/results.md``). An AP is
     ``None`` when the labels of its question hold a single class.
 
     Attributes:
@@ -202,7 +202,8 @@ def evaluate(
         seed: seeds the resamples.
 
     Returns:
-        The :class:`Evaluation`; ``.to_dict()`` is the JSON of ``evaluate --json``.
+        The :class:`Evaluation`; ``.to_dict()`` is the JSON of ``evaluate --json`` (keys in
+        ``docs/reference/commands.md`` and ``docs/results/results.md``).
 
     """
     check_int("capture_window", capture_window, minimum=0)

@@ -129,7 +129,7 @@ class StudyTask:
 
 
 #: The study's tasks, each with its typical objects per scene, and datasets (seed 0 gives positive
-#: rates in [0.2, 0.8] for every question at 100 trajectories x 10 frames: docs/evidence.md).
+#: rates in [0.2, 0.8] for every question at 100 trajectories x 10 frames: docs/results/evidence.md).
 TASKS: dict[str, StudyTask] = {
     task.name: StudyTask(objects=task.typical_objects, seed=0) for task in (PushingTask, ScoopingTask)
 }

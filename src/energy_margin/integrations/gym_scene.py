@@ -260,7 +260,7 @@ def scene_from_environment(
         *_actuator_names(model),
         "",
         "# The default perturbation: pushes in the world x-y plane and a torque about z, for objects resting",
-        "# on a horizontal surface (docs/scenes.md); give z a bound for objects that are lifted.",
+        "# on a horizontal surface (docs/howto/scenes.md); give z a bound for objects that are lifted.",
         "[perturbation]",
         f"linear_acceleration = {toml_value(list(DEFAULTS['linear_acceleration']))}",
         f"angular_acceleration = {toml_value(list(DEFAULTS['angular_acceleration']))}",

@@ -448,7 +448,7 @@ def fit_margin_model(
     if kind == "set":
         # The labels the scores answer (the objects stay captured two more frames; the trajectory
         # succeeds) as auxiliary targets: on held-out pushing trajectories they raised future
-        # capture AP by about 0.015 (docs/control.md).
+        # capture AP by about 0.015 (docs/howto/control.md).
         options = {"groups": train_groups, "auxiliary": train_labels, **options}
     regressor = fit_regressor(kind, train_x, train_y, seed=seed, **options)
     fit_seconds = time.perf_counter() - started

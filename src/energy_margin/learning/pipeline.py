@@ -244,7 +244,7 @@ def learn_pipeline(
         work: the work directory (created), a run: locked, its settings written first.
         out: the model file to write (``.npz``).
         task: a registered task (or ``scene``; exactly one).
-        scene: a scene file (docs/scenes.md): one set of its objects.
+        scene: a scene file (docs/howto/scenes.md): one set of its objects.
         objects: objects per scene, one set per entry, distinct, each >= 1 (``task`` only;
             default the task's typical number).
         trajectories: trajectories per set, >= 2 (the fit holds some out).

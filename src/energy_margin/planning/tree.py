@@ -20,7 +20,7 @@ as it stands, propagates them together through ``mujoco.rollout`` (multithreaded
 and then adds the accepted children in iteration order. The controls of an iteration are the same
 as with B = 1, but the parents differ (a round cannot pick a node created in the same round), so
 the tree differs from the one-at-a-time tree; it is a fixed function of the seed and B, and does
-not depend on the number of threads. See docs/budget.md.
+not depend on the number of threads. See docs/results/budget.md.
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ CALIBRATION_ITERATIONS = 300
 _REPORT_STILLS = 11
 #: Pictures per second of the report's videos.
 _REPORT_FPS = 30.0
-#: Matplotlib figures, views and encoding of the report, s (measured: docs/report.md).
+#: Matplotlib figures, views and encoding of the report, s (measured: docs/howto/report.md).
 _REPORT_OVERHEAD_S = 25.0
 
 

@@ -37,14 +37,14 @@ _EXPLANATIONS = {
     "capture_ap_perturbed": (
         "perturbed copies resample the object centres uniformly inside the minimum-volume ellipsoid of the true "
         "centres, which moves piles near the capture region's edge out of it (and uncaptured piles into it); "
-        "this project's piles sit closer to that edge than the authors', under either protocol: docs/robustness.md"
+        "this project's piles sit nearer that edge than the authors' under either protocol: docs/results/robustness.md"
     ),
-    "success_ap_perturbed": "see docs/robustness.md for how perturbed copies are drawn",
-    "capture_ap": "see docs/reproduce.md and docs/method.md for the datasets and the capture labels",
-    "success_ap": "see docs/reproduce.md and docs/method.md for the datasets and the success labels",
+    "success_ap_perturbed": "see docs/results/robustness.md for how perturbed copies are drawn",
+    "capture_ap": "see docs/howto/reproduce.md and docs/reference/method.md for the datasets and the capture labels",
+    "success_ap": "see docs/howto/reproduce.md and docs/reference/method.md for the datasets and the success labels",
     "runtime": (
         "runtimes are measured here on MuJoCo on this machine, the paper's on PyBullet on the authors' machine: "
-        "docs/performance.md"
+        "docs/results/performance.md"
     ),
 }
 #: A reproduced value this far from the paper's gets a sentence.
@@ -468,7 +468,7 @@ def _table_one_html(
         "minimum-volume ellipse(oid) of the true centres, velocities zeroed, labels those of the true states. "
         "Valid protocol: objects placed one at a time, overlaps rejected (physically valid states). Paper "
         "protocol: the authors' draw, every centre at once, overlaps allowed. Perturbed AP: mean ± std over the "
-        "copies; score error: perturbed − true over all frames and copies (docs/robustness.md).</p>" + difference_html
+        "copies; score error: perturbed − true, all frames, copies (docs/results/robustness.md).</p>" + difference_html
     )
 
 

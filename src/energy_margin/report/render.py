@@ -164,7 +164,7 @@ class _MujocoCanvas:
         model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
         # Built-in meshes with 16 slices and 8 stacks (MuJoCo's default 28 and 16): a tree's
         # thousands of spheres draw 2.4 times faster in software (llvmpipe), and a picture at
-        # 640 x 480 looks the same (docs/report.md).
+        # 640 x 480 looks the same (docs/howto/report.md).
         model.vis.quality.numslices = 16
         model.vis.quality.numstacks = 8
         # A brighter headlight than MuJoCo's default: the generated models have no lights.
@@ -363,7 +363,7 @@ class FrameRenderer:
                     raise EnergyMarginError(f"no OpenGL context for MuJoCo's renderer ({reason})") from None
                 warn_once(
                     f"no OpenGL context for MuJoCo's renderer ({reason[:160]}); drawing matplotlib projections "
-                    "instead (docs/report.md says what to install)"
+                    "instead (docs/howto/report.md says what to install)"
                 )
         self.backend = "mujoco" if self._canvas is not None else "matplotlib"
 

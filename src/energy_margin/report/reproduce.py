@@ -1,6 +1,6 @@
 """``energy-margin reproduce``: the paper's Table I, the Fig. 2 ablation and a visual report.
 
-Table I is reported under both perturbation protocols (docs/robustness.md): ``valid``
+Table I is reported under both perturbation protocols (docs/results/robustness.md): ``valid``
 (physically valid copies, ``data/<task>-<n>-perturbed/R``) and ``paper`` (the authors' draw,
 overlaps allowed, ``data/<task>-<n>-perturbed-paper/R``).
 

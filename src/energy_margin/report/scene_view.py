@@ -153,7 +153,7 @@ def describe_scene(task: SceneTask) -> list[str]:
     if not spec.derive_perturbation and _DEFAULT_BOUNDS & spec.defaulted:
         lines.append(
             "  the default bounds act in the world x-y plane with a torque about z (objects resting on a "
-            "horizontal surface); set [perturbation] for other motions (docs/scenes.md)"
+            "horizontal surface); set [perturbation] for other motions (docs/howto/scenes.md)"
         )
     for key, reason in perturbation.derived.items():
         lines.append(f"  derived perturbation.{key} (not in the file): {reason}")

@@ -1,6 +1,6 @@
 """PyBullet backend (the authors' engine): the scene built with ``createMultiBody``, nodes as saved states.
 
-Design (see docs/engines.md for the reasoning and the measured differences to MuJoCo):
+Design (see docs/reference/engines.md for the reasoning and the measured differences to MuJoCo):
 
 * One ``DIRECT`` client per simulator; every call passes its ``physicsClientId``. Time step
   ``scene.timestep``, Bullet's default 50 solver iterations, gravity ``scene.gravity`` and

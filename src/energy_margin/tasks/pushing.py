@@ -66,7 +66,7 @@ class PushingConfig(TaskConfig):
     Attributes:
         timestep: physics time step, s. 1/120 s keeps MuJoCo's default contact time constant
             (0.02 s) above two steps, which its documentation requires for stable soft contacts, and
-            halves the analysis time against 1/240 s (see docs/performance.md).
+            halves the analysis time against 1/240 s (see docs/results/performance.md).
         object_radius: cylinder radius, m.
         object_half_height: cylinder half height, m.
         object_mass: cylinder mass, kg.
@@ -124,7 +124,7 @@ class PushingConfig(TaskConfig):
 
     # Datasets written before these settings existed were made with the cylinders' own contacts.
     recorded_defaults: ClassVar[dict[str, Any]] = {"ground_contact": "geometry", "lateral_contact": "geometry"}
-    # One base contact per cylinder and spheres for the lateral pairs (docs/performance.md).
+    # One base contact per cylinder and spheres for the lateral pairs (docs/results/performance.md).
     fast_contacts: ClassVar[dict[str, Any]] = {"ground_contact": "footprint", "lateral_contact": "sphere"}
 
     timestep: float = 1.0 / 120.0
@@ -631,7 +631,7 @@ class PushingTask(Task):
         )
 
     def design_space(self) -> tuple[DesignParameter, ...]:
-        """The pusher family: face shape, hollow depth, tines and width (docs/design.md, "Tool families")."""
+        """The pusher family: face shape, hollow depth, tines and width (docs/howto/design.md, "Tool families")."""
         return (
             DesignParameter("pusher_face", "shape of the pusher's front face", choices=PUSHER_FACES),
             DesignParameter(

@@ -24,7 +24,7 @@ anchored on the paper's planar pushing task (10 cylinders of 0.2 kg, radius 5 cm
 
 A scene file's free objects are perturbed along all three axes, so the rule applied to the paper's
 cylinders as free bodies gives λ = 3.46 (not 5): W counts the vertical axis too. Measured on seven
-example robots (docs/generality.md), the derived settings are level with the file's own on two and
+example robots (docs/results/generality.md), the derived settings are level with the file's own on two and
 behind on the others, which is why they are not the default.
 
 ``energy-margin scene`` prints each derived value with the reason (:attr:`PerturbationSettings.derived`).

@@ -2,7 +2,7 @@
 
 A scene file names a user's MuJoCo model and declares what energy-margin needs beside it: the
 manipulated objects, the robot's motion, the randomisation of ``generate``, the perturbation
-ranges and the capture and success sets (``docs/scenes.md`` lists every key, unit and default).
+ranges and the capture and success sets (``docs/howto/scenes.md`` lists every key, unit and default).
 This module checks the file's own structure, types and ranges; the names it uses (bodies,
 actuators, sites) are checked against the compiled model by :mod:`energy_margin.tasks.scene_model`.
 Every problem raises :class:`~energy_margin.errors.EnergyMarginError` as one line
@@ -206,7 +206,7 @@ class DesignEntry:
 
 @dataclass(frozen=True)
 class SceneSpec:
-    """A validated scene file (see ``docs/scenes.md``).
+    """A validated scene file (see ``docs/howto/scenes.md``).
 
     Attributes:
         path: the scene file.
@@ -400,7 +400,7 @@ _TOP_KEYS = {
 }
 
 
-#: Keys a scene file may leave out, whose value then comes from a default (docs/scenes.md "Every key");
+#: Keys a scene file may leave out, whose value then comes from a default (docs/howto/scenes.md "Every key");
 #: besides these, an axis of ``randomize.start`` in mode ``"ranges"`` and a design parameter's ``default``.
 DEFAULTED_KEYS = (
     "objects.joints",

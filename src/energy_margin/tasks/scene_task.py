@@ -157,7 +157,7 @@ class _FrameLookup:
 
 
 class SceneTask(Task):
-    """The task a scene file declares (see ``docs/scenes.md``)."""
+    """The task a scene file declares (see ``docs/howto/scenes.md``)."""
 
     name = "scene"
     config_class = SceneTaskConfig

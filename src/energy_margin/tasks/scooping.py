@@ -69,8 +69,8 @@ class ScoopingConfig(TaskConfig):
 
     Attributes:
         duration: length of a scripted roll-out, s.
-        timestep: physics time step, s (see docs/method.md, "Scooping task", for the choice).
-        likelihood_lambda: softmax inverse temperature, 1/J (chosen by a sweep, docs/scooping.md).
+        timestep: physics time step, s (see docs/reference/method.md, "Scooping task", for the choice).
+        likelihood_lambda: softmax inverse temperature, 1/J (chosen by a sweep, docs/results/scooping.md).
         contact_time_constant: soft-contact time constant, s (>= 2 time steps).
         table_top: height of the table surface, m.
         table_half_extents: half extents of the table box, m.
@@ -345,7 +345,7 @@ class ScoopingTask(Task):
         )
 
     def design_space(self) -> tuple[DesignParameter, ...]:
-        """The blade family: width, length, tip angle and rim height (docs/design.md, "Tool families")."""
+        """The blade family: width, length, tip angle and rim height (docs/howto/design.md, "Tool families")."""
         return (
             DesignParameter("blade_width", "full width of a blade along y, m", low=0.02, high=0.06),
             DesignParameter("tip_length", "blade length from its hinge to its leading edge, m", low=0.025, high=0.05),

@@ -1,0 +1,192 @@
+"""Figures quoted in the Markdown pages, inserted from the results files that hold them.
+
+A quoted figure is written between two markers that name its source::
+
+    <!-- fig docs/figures/pushing_10.json#/evaluate/capture_ap_window2 :.3f -->0.895<!-- /fig -->
+
+* the path is relative to the repository root;
+* after ``#``: a JSON pointer (``/key/0/key``; ``~1`` stands for ``/`` in a key, ``~0`` for ``~``),
+  for a CSV file ``COLUMN=VALUE,.../COLUMN`` (the one row whose cells match, then its column),
+  for any other file ``L5`` (line 5, stripped);
+* after `` :`` an optional Python format spec (``.3f``, ``.2f``, ``,.0f``); without it the value as
+  written in the file.
+
+``python tools/figures.py`` lists every quoted figure that disagrees with its file, or whose file
+or key is missing (exit status 1); ``--write`` rewrites each quoted figure from its file.
+``tests/test_figures.py`` runs the check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import re
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The pages whose markers are checked and refreshed.
+PAGES = ("README.md", "docs/**/*.md", "examples/**/*.md")
+MARKER = re.compile(r"<!-- fig (?P<path>[^#\s]+)#(?P<key>.*?)(?: :(?P<spec>[^\s>]*))? -->(?P<value>[^<]*)<!-- /fig -->")
+
+
+class FigureError(Exception):
+    """A marker whose file or key is missing, or whose value cannot be formatted."""
+
+
+@dataclass(frozen=True)
+class Quote:
+    """One quoted figure: where it is, what it says, and what its file says."""
+
+    page: Path
+    line: int
+    source: str
+    quoted: str
+    expected: str | None
+    error: str | None
+
+    def __str__(self) -> str:
+        where = f"{self.page.relative_to(ROOT) if self.page.is_relative_to(ROOT) else self.page}:{self.line}"
+        if self.error:
+            return f"{where}: {self.source}: {self.error}"
+        return f"{where}: {self.source}: quoted {self.quoted!r}, the file says {self.expected!r}"
+
+
+def _json_value(document: Any, pointer: str) -> Any:
+    if pointer in ("", "/"):
+        return document
+    if not pointer.startswith("/"):
+        raise FigureError(f"a JSON pointer starts with '/', got {pointer!r}")
+    value = document
+    for part in pointer[1:].split("/"):
+        key = part.replace("~1", "/").replace("~0", "~")
+        if isinstance(value, list):
+            if not key.isdigit() or int(key) >= len(value):
+                raise FigureError(f"no item {key!r}")
+            value = value[int(key)]
+        elif isinstance(value, dict):
+            if key not in value:
+                raise FigureError(f"no key {key!r}")
+            value = value[key]
+        else:
+            raise FigureError(f"{key!r} under a value that is neither an object nor a list")
+    return value
+
+
+def _csv_value(text: str, key: str) -> str:
+    selector, _, column = key.rpartition("/")
+    wanted = dict(pair.split("=", 1) for pair in selector.split(",") if pair)
+    rows = [row for row in csv.DictReader(text.splitlines()) if all(row.get(k) == v for k, v in wanted.items())]
+    if len(rows) != 1:
+        raise FigureError(f"{len(rows)} rows match {selector!r}, not one")
+    if column not in rows[0]:
+        raise FigureError(f"no column {column!r}")
+    return rows[0][column]
+
+
+def lookup(path: str, key: str, root: Path = ROOT) -> Any:
+    """The value a marker names: ``key`` in the results file ``path``."""
+    file = root / path
+    if not file.is_file():
+        raise FigureError("no such file")
+    text = file.read_text(encoding="utf-8")
+    if file.suffix == ".json":
+        return _json_value(json.loads(text), key)
+    if file.suffix == ".csv":
+        return _csv_value(text, key)
+    match = re.fullmatch(r"L(\d+)", key)
+    lines = text.splitlines()
+    if not match or not 1 <= int(match.group(1)) <= len(lines):
+        raise FigureError(f"no line {key!r} (the file has {len(lines)})")
+    return lines[int(match.group(1)) - 1].strip()
+
+
+def render(value: Any, spec: str | None) -> str:
+    """A value as quoted: formatted by ``spec`` (numbers from CSV and text files too)."""
+    if not spec:
+        return str(value)
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError as error:
+            raise FigureError(f"{value!r} is not a number for format {spec!r}") from error
+    try:
+        return format(value, spec)
+    except (TypeError, ValueError) as error:
+        raise FigureError(f"cannot format {value!r} with {spec!r}") from error
+
+
+def quotes(page: Path, root: Path = ROOT) -> Iterator[Quote]:
+    """Every quoted figure of a page, with the value its file gives (or why there is none)."""
+    text = page.read_text(encoding="utf-8")
+    for match in MARKER.finditer(text):
+        source = f"{match.group('path')}#{match.group('key')}"
+        line = text.count("\n", 0, match.start()) + 1
+        try:
+            expected: str | None = render(lookup(match.group("path"), match.group("key"), root), match.group("spec"))
+            error = None
+        except FigureError as problem:
+            expected, error = None, str(problem)
+        yield Quote(page, line, source, match.group("value"), expected, error)
+
+
+def pages(root: Path = ROOT) -> list[Path]:
+    """The Markdown pages that may quote figures."""
+    found: set[Path] = set()
+    for pattern in PAGES:
+        found.update(root.glob(pattern))
+    return sorted(path for path in found if ".venv" not in path.parts)
+
+
+def problems(root: Path = ROOT) -> list[Quote]:
+    """Every quoted figure that disagrees with its file or names a missing file or key."""
+    found = [quote for page in pages(root) for quote in quotes(page, root)]
+    return [quote for quote in found if quote.error or quote.quoted != quote.expected]
+
+
+def write(page: Path, root: Path = ROOT) -> int:
+    """Rewrite a page's quoted figures from their files; the number changed."""
+    text = page.read_text(encoding="utf-8")
+    changed = 0
+
+    def refresh(match: re.Match[str]) -> str:
+        nonlocal changed
+        value = render(lookup(match.group("path"), match.group("key"), root), match.group("spec"))
+        if value == match.group("value"):
+            return match.group(0)
+        changed += 1
+        spec = f" :{match.group('spec')}" if match.group("spec") else ""
+        return f"<!-- fig {match.group('path')}#{match.group('key')}{spec} -->{value}<!-- /fig -->"
+
+    new = MARKER.sub(refresh, text)
+    if changed:
+        page.write_text(new, encoding="utf-8")
+    return changed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Check the quoted figures, or rewrite them with ``--write``."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="rewrite every quoted figure from its file")
+    args = parser.parse_args(argv)
+    if args.write:
+        try:
+            total = sum(write(page) for page in pages())
+        except FigureError as error:
+            print(f"figures: {error}", file=sys.stderr)
+            return 1
+        print(f"figures: {total} quoted figure(s) rewritten")
+    found = problems()
+    for quote in found:
+        print(quote, file=sys.stderr)
+    count = sum(1 for page in pages() for _ in quotes(page))
+    print(f"figures: {count} quoted figure(s), {len(found)} disagree(s) with their file(s)")
+    return 1 if found else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
