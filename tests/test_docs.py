@@ -23,7 +23,10 @@ def citing_files() -> list[Path]:
             files.append(path)
         elif path.is_dir():
             files += [p for p in path.rglob("*") if p.is_file() and p.suffix in SUFFIXES]
-    return [path for path in files if "__pycache__" not in path.parts]
+    # Build outputs (an egg-info's copy of an older README, caches) are not the project's text.
+    return [
+        path for path in files if not any(part == "__pycache__" or part.endswith(".egg-info") for part in path.parts)
+    ]
 
 
 def test_every_cited_docs_page_exists() -> None:
