@@ -225,3 +225,13 @@ def test_the_learned_objective_is_refused_for_a_scene_family(
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "--objective learned cannot score a --scene design search" in error
     assert not out.exists()
+
+
+def test_the_command_line_and_python_design_the_same_trees_by_default() -> None:
+    from energy_margin.cli.app import build_parser
+    from energy_margin.design.scorers import DESIGN_EXPANSIONS, TreeScorer
+
+    args = build_parser().parse_args(
+        ["design", "--task", "pushing", "--evaluations", "1", "--verify", "1", "--out", "x"]
+    )
+    assert args.iterations == TreeScorer().analyzer.iterations == DESIGN_EXPANSIONS

@@ -49,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``design``."""
     from energy_margin.control.disturbances import DISTURBANCES
     from energy_margin.design.optimizers import OPTIMIZERS
+    from energy_margin.design.scorers import DESIGN_EXPANSIONS
     from energy_margin.design.verification import VERIFY_POLICIES
     from energy_margin.planning.costs import COST_MODELS
     from energy_margin.planning.methods import METHODS
@@ -86,7 +87,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trajectories", type=positive_int, default=5, help="roll-outs per evaluation (default 5)")
     parser.add_argument("--frames", type=positive_int, default=10, help="frames per roll-out (default 10)")
     parser.add_argument("--objects", type=positive_int, help="objects per scene")
-    parser.add_argument("--iterations", type=positive_int, default=100, help="expansions per frame (default 100)")
+    parser.add_argument(
+        "--iterations",
+        type=positive_int,
+        default=DESIGN_EXPANSIONS,
+        help=f"expansions per frame (default {DESIGN_EXPANSIONS})",
+    )
     parser.add_argument("--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)}")
     parser.add_argument("--cost", choices=tuple(COST_MODELS), default="wrench", help="incremental cost model")
     parser.add_argument(

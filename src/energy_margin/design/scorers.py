@@ -18,7 +18,11 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.tasks import Task
 
-__all__ = ["Scorer", "TreeScorer", "Verifier"]
+__all__ = ["DESIGN_EXPANSIONS", "Scorer", "TreeScorer", "Verifier"]
+
+#: Expansions per frame of a design's trees by default (``design --iterations``): a search scores
+#: many designs, and ranks them as well at 100 as at 300 on the tasks' families (docs/howto/design.md).
+DESIGN_EXPANSIONS = 100
 
 
 class Scorer(Protocol):
@@ -55,9 +59,12 @@ class Verifier(Protocol):
 
 @dataclass(frozen=True)
 class TreeScorer:
-    """The energy margin of ``analyze``: a tree of ``analyzer.iterations`` expansions per frame."""
+    """The energy margin of ``analyze``: a tree of ``analyzer.iterations`` expansions per frame.
 
-    analyzer: AnalyzerConfig = field(default_factory=AnalyzerConfig)
+    By default :data:`DESIGN_EXPANSIONS`, as on the command line.
+    """
+
+    analyzer: AnalyzerConfig = field(default_factory=lambda: AnalyzerConfig(iterations=DESIGN_EXPANSIONS))
 
     def settings(self) -> dict[str, Any]:
         """``{"kind": "margin", "analyzer": ...}``."""

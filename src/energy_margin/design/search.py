@@ -149,7 +149,8 @@ def design_search(
             verification episodes' (``SeedSequence(seed).spawn(verify)``).
         score: the score column whose mean over the T roll-outs is the objective
             (``success_score``, ``early_success_score`` or ``capture_score``).
-        scorer: scores each design's frames (default :class:`TreeScorer` at 300 expansions).
+        scorer: scores each design's frames (default :class:`TreeScorer` at
+            :data:`~energy_margin.design.scorers.DESIGN_EXPANSIONS` expansions a frame, 100).
         verifier: runs the verification episodes (``None``: no verification).
         disturbances: the levels of the verification.
         verify_all: verify every visited design too (for the rank correlation).

@@ -1,0 +1,84 @@
+"""Time ``energy-margin reproduce`` (the quick start's main job) on this machine and write the figures.
+
+Runs the command in a fresh output directory, records the wall time, what the command announced,
+the machine, its load before the run and the engine versions, and writes them as JSON (the README
+quotes the file through ``tools/figures.py``).
+
+    python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json
+    python benchmarks/time_reproduce.py --quick --out docs/figures/reproduce_quick.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from energy_margin.runs.versions import engine_versions
+
+
+def cpu_name() -> str:
+    """The processor's model name, from ``/proc/cpuinfo`` where there is one."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def minutes_and_seconds(seconds: float) -> str:
+    """``849`` as ``"14 min 09 s"``."""
+    whole = round(seconds)
+    return f"{whole // 60} min {whole % 60:02d} s"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--quick", action="store_true", help="time reproduce --quick")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    args = parser.parse_args()
+    command = ["energy-margin", "reproduce", *(["--quick"] if args.quick else []), "--workers", str(args.workers)]
+    executable = shutil.which("energy-margin") or str(Path(sys.executable).with_name("energy-margin"))
+    load_before = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as work:
+        started = time.perf_counter()
+        found = subprocess.run(
+            [executable, *command[1:], "--out", str(Path(work) / "reproduce")],
+            capture_output=True,
+            text=True,
+            check=False,
+            env={**os.environ, "ENERGY_MARGIN_PROGRESS": "0"},
+        )
+        wall = time.perf_counter() - started
+    if found.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} exited {found.returncode}: {found.stderr.strip()[-2000:]}")
+    announced = re.search(r"expected about ([0-9.]+) (min|s|h)", found.stdout + found.stderr)
+    figures = {
+        "command": " ".join(command),
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{os.cpu_count()}-core {cpu_name()}",
+        "load_before": round(load_before, 2),
+        "load_after": round(os.getloadavg()[0], 2),
+        "versions": engine_versions(),
+        "wall_s": round(wall, 1),
+        "wall": minutes_and_seconds(wall),
+        "announced": None if announced is None else f"{announced.group(1)} {announced.group(2)}",
+    }
+    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    print(json.dumps(figures, indent=2))
+
+
+if __name__ == "__main__":
+    main()
