@@ -56,7 +56,7 @@ def model_xml(mesh_file: str | None = None) -> str:
 # The capture set: both cubes 0.01-0.09 m in front of the pusher; success: both near the goal.
 CAPTURE = {"type": "box", "body": "pusher", "center": [0.0, 0.05, 0.0], "half_size": [0.2, 0.04, 0.1]}
 SUCCESS = {"type": "distance", "site": "goal", "max": 0.1}
-REGION_ARGS = ["--objects", "cube_*", "--capture", json.dumps(CAPTURE), "--success", json.dumps(SUCCESS)]
+REGION_ARGS = ["--object-bodies", "cube_*", "--capture", json.dumps(CAPTURE), "--success", json.dumps(SUCCESS)]
 ROWS = 60
 
 
@@ -328,9 +328,9 @@ def test_bad_files_are_one_line_and_write_nothing(
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [
-        (["--objects", "cube_*", "--capture", "{box", "--success", "{}"], "--capture: '{box' is not valid JSON"),
-        (["--objects", "cube_*", "--capture", json.dumps(CAPTURE)], "--success is needed without a scene file"),
-        (["--objects", "crate", *REGION_ARGS[2:]], "objects.bodies: no body 'crate' in demos.hdf5"),
+        (["--object-bodies", "cube_*", "--capture", "{box", "--success", "{}"], "--capture: '{box' is not valid JSON"),
+        (["--object-bodies", "cube_*", "--capture", json.dumps(CAPTURE)], "--success is needed without a scene file"),
+        (["--object-bodies", "crate", *REGION_ARGS[2:]], "objects.bodies: no body 'crate' in demos.hdf5"),
         ([*REGION_ARGS, "--frames", "61"], "/data/demo_0: states: has 60 rows, fewer than --frames 61"),
     ],
 )

@@ -94,7 +94,9 @@ def test_a_model_with_unnamed_bodies_gets_a_named_end_effector(tmp_path: Path) -
 
 def test_the_command_prints_its_guesses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "p.toml"
-    assert main(["scene", "--from-gym", "Pusher-v5", "--objects", "object", "--out", str(out), "--no-picture"]) == 0
+    assert (
+        main(["scene", "--from-gym", "Pusher-v5", "--object-bodies", "object", "--out", str(out), "--no-picture"]) == 0
+    )
     printed = capsys.readouterr().out
     assert f"wrote {out}\nwrote {out.with_suffix('.xml')} (the environment's model file, same model)\n" in printed
     assert "capture (a guess, edit it): within 0.191 m of body 'tips_arm'" in printed
@@ -106,20 +108,23 @@ def test_the_command_prints_its_guesses(tmp_path: Path, capsys: pytest.CaptureFi
 @pytest.mark.parametrize(
     ("arguments", "message"),
     [
-        (["--from-gym", "Nope-v0", "--objects", "x"], "--from-gym Nope-v0: Environment `Nope` doesn't exist"),
-        (["--from-gym", "Nope/Env-v0", "--objects", "x"], "give the module that registers it: MODULE:ENV_ID"),
-        (["--from-gym", "no_such_module:Env-v0", "--objects", "x"], "module 'no_such_module' cannot be imported"),
-        (["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", "{bad"], "--env-kwargs is not JSON"),
-        (["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", "[1]"], "must be a JSON object"),
+        (["--from-gym", "Nope-v0", "--object-bodies", "x"], "--from-gym Nope-v0: Environment `Nope` doesn't exist"),
+        (["--from-gym", "Nope/Env-v0", "--object-bodies", "x"], "give the module that registers it: MODULE:ENV_ID"),
+        (["--from-gym", "no_such_module:Env-v0", "--object-bodies", "x"], "module 'no_such_module' cannot be imported"),
+        (["--from-gym", "Pusher-v5", "--object-bodies", "x", "--env-kwargs", "{bad"], "--env-kwargs is not JSON"),
+        (["--from-gym", "Pusher-v5", "--object-bodies", "x", "--env-kwargs", "[1]"], "must be a JSON object"),
         (
-            ["--from-gym", "Pusher-v5", "--objects", "x", "--env-kwargs", '{"no_such_option": 1}'],
+            ["--from-gym", "Pusher-v5", "--object-bodies", "x", "--env-kwargs", '{"no_such_option": 1}'],
             r"Pusher-v5 with \{'no_such_option': 1\}: TypeError: .*no_such_option",
         ),
         (["--env-kwargs", "{}"], "--env-kwargs applies to --from-gym only"),
-        (["--from-gym", "CartPole-v1", "--objects", "x"], r"\(CartPoleEnv\) has no MuJoCo model"),
-        (["--from-gym", "Pusher-v5", "--objects", "cube"], "--objects cube: no body of Pusher-v5 matches"),
-        (["--from-gym", "Pusher-v5"], "--from-gym needs --objects PATTERN and --out SCENE.toml"),
-        (["--from-gym", "Pusher-v5", "--objects", "object", "--capture-radius", "0"], "--capture-radius must be > 0"),
+        (["--from-gym", "CartPole-v1", "--object-bodies", "x"], r"\(CartPoleEnv\) has no MuJoCo model"),
+        (["--from-gym", "Pusher-v5", "--object-bodies", "cube"], "cube: no body of Pusher-v5 matches"),
+        (["--from-gym", "Pusher-v5"], "--from-gym needs --object-bodies PATTERN and --out SCENE.toml"),
+        (
+            ["--from-gym", "Pusher-v5", "--object-bodies", "object", "--capture-radius", "0"],
+            "--capture-radius must be > 0",
+        ),
         ([], "give a scene file, or --from-gym ENV_ID"),
     ],
 )
@@ -127,7 +132,7 @@ def test_bad_input_is_one_line_and_writes_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], arguments: list[str], message: str
 ) -> None:
     out = tmp_path / "scene" / "s.toml"
-    if arguments and "--objects" in arguments:
+    if arguments and "--object-bodies" in arguments:
         arguments = [*arguments, "--out", str(out)]
     assert main(["scene", *arguments, "--no-picture"]) == 2
     error = capsys.readouterr().err.strip()
@@ -145,3 +150,12 @@ def test_module_and_keyword_arguments_reach_gymnasium_make(tmp_path: Path) -> No
 
     env = make_environment("gymnasium.envs.mujoco:Pusher-v5", {"frame_skip": 3})
     assert env.unwrapped.frame_skip == 3
+
+
+def test_the_old_objects_flag_still_names_the_bodies_with_a_note(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "p.toml"
+    assert main(["scene", "--from-gym", "Pusher-v5", "--objects", "object", "--out", str(out), "--no-picture"]) == 0
+    assert "--objects is now --object-bodies; the old name goes in 0.3" in capsys.readouterr().err
+    assert out.is_file()

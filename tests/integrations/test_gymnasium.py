@@ -27,7 +27,7 @@ def wrapped(**options: object) -> MarginWrapper:
 
 def starter_scene(out: Path) -> Path:
     """The starter scene file of ``energy-margin scene --from-gym Pusher-v5`` at ``out``."""
-    arguments = ["scene", "--from-gym", "Pusher-v5", "--objects", "object", "--out", str(out), "--no-picture"]
+    arguments = ["scene", "--from-gym", "Pusher-v5", "--object-bodies", "object", "--out", str(out), "--no-picture"]
     assert main(arguments) == 0
     return out
 

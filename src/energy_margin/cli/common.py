@@ -161,3 +161,30 @@ def one_line(message: str) -> str:
 def add_overwrite(parser: argparse.ArgumentParser, what: str = "a run of other settings in --out") -> None:
     """``--overwrite``: the one rule of every run directory (energy_margin.runs): replace ``what``."""
     parser.add_argument("--overwrite", action="store_true", help=f"replace {what} (only the run's own files)")
+
+
+class DeprecatedAlias(argparse.Action):
+    """Store the value of an option whose old spelling still works for one release, with a warning.
+
+    ``parser.add_argument("--object-bodies", "--objects", action=DeprecatedAlias, old="--objects")``:
+    the first option string is the name; the old one says so on standard error when used.
+    """
+
+    def __init__(self, option_strings: list[str], dest: str, *, old: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, **kwargs)
+        self.old = old
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        """Store ``values``; say on standard error when the old spelling gave them."""
+        if option_string == self.old:
+            print(
+                f"{parser.prog}: {self.old} is now {self.option_strings[0]}; the old name goes in 0.3",
+                file=sys.stderr,
+            )
+        setattr(namespace, self.dest, values)

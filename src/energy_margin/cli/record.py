@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from energy_margin.cli.common import ProgressBar, positive_int
+from energy_margin.cli.common import DeprecatedAlias, ProgressBar, positive_int
 from energy_margin.errors import EnergyMarginError
 
 if TYPE_CHECKING:
@@ -20,7 +20,7 @@ SUMMARY = (
 )
 EXAMPLES = (
     "energy-margin record --scene my_scene.toml logs/run*.npz --frames 10 --out runs/recorded",
-    "energy-margin record --format robomimic demos.hdf5 --objects 'cube*' --capture JSON --success JSON "
+    "energy-margin record --format robomimic demos.hdf5 --object-bodies 'cube*' --capture JSON --success JSON "
     "--frames 10 --out runs/demos",
 )
 #: Keyword arguments of :func:`~energy_margin.data.record.record_dataset` named otherwise here.
@@ -71,7 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     robomimic = parser.add_argument_group("robomimic files (--format robomimic)")
     robomimic.add_argument(
-        "--objects", metavar="PATTERN[,PATTERN]", help="object body names or glob patterns, without --scene"
+        "--object-bodies",
+        "--objects",
+        dest="objects",
+        action=DeprecatedAlias,
+        old="--objects",
+        metavar="PATTERN[,PATTERN]",
+        help="object body names or glob patterns, without --scene (--objects is its old name)",
     )
     robomimic.add_argument(
         "--capture", metavar="JSON", help='the capture set\'s region table, e.g. \'{"type": "box", ...}\''
@@ -108,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         robomimic_only = [
             flag
             for flag, value in (
-                ("--objects", args.objects),
+                ("--object-bodies", args.objects),
                 ("--capture", args.capture),
                 ("--success", args.success),
                 ("--assets", args.assets),

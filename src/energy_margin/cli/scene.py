@@ -8,13 +8,13 @@ import os
 from pathlib import Path
 from typing import Any
 
-from energy_margin.cli.common import add_seed, require_matplotlib
+from energy_margin.cli.common import DeprecatedAlias, add_seed, require_matplotlib
 
 NAME = "scene"
 SUMMARY = "print what a scene file declares and write a picture of it at t = 0 with the capture and success sets"
 EXAMPLES = (
     "energy-margin scene my_scene.toml --picture my_scene.png",
-    "energy-margin scene --from-gym Pusher-v5 --objects object --out pusher.toml",
+    "energy-margin scene --from-gym Pusher-v5 --object-bodies object --out pusher.toml",
 )
 
 
@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--from-gym",
         metavar="[MODULE:]ENV_ID",
-        help="write a starter scene file for this Gymnasium MuJoCo environment (needs --objects and --out); "
+        help="write a starter scene file for this Gymnasium MuJoCo environment (needs --object-bodies and --out); "
         "MODULE is imported first (the package that registers the id, e.g. metaworld:Meta-World/MT1)",
     )
     parser.add_argument(
@@ -33,7 +33,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --from-gym: keyword arguments of gymnasium.make, a JSON object "
         '(e.g. \'{"env_name": "bin-picking-v3"}\')',
     )
-    parser.add_argument("--objects", help="with --from-gym: object body names or glob patterns, comma separated")
+    parser.add_argument(
+        "--object-bodies",
+        "--objects",
+        dest="objects",
+        action=DeprecatedAlias,
+        old="--objects",
+        help="with --from-gym: object body names or glob patterns, comma separated (--objects is its old name)",
+    )
     parser.add_argument(
         "--out",
         metavar="SCENE.toml",
@@ -63,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.env_kwargs is not None:
         raise EnergyMarginError("--env-kwargs applies to --from-gym only")
     elif args.scene is None:
-        raise EnergyMarginError("give a scene file, or --from-gym ENV_ID --objects PATTERN --out SCENE.toml")
+        raise EnergyMarginError("give a scene file, or --from-gym ENV_ID --object-bodies PATTERN --out SCENE.toml")
     camera = None
     if args.camera is not None:
         from energy_margin.report.scene_view import parse_camera
@@ -114,7 +121,7 @@ def _from_gym(args: argparse.Namespace) -> str:
     if args.scene is not None:
         raise EnergyMarginError("give either a scene file or --from-gym, not both")
     if not args.objects or not args.out:
-        raise EnergyMarginError("--from-gym needs --objects PATTERN and --out SCENE.toml")
+        raise EnergyMarginError("--from-gym needs --object-bodies PATTERN and --out SCENE.toml")
     if args.capture_radius is not None and not args.capture_radius > 0:
         raise EnergyMarginError(f"--capture-radius must be > 0, got {args.capture_radius}")
     env_kwargs = _env_kwargs(args.env_kwargs)
