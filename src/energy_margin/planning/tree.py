@@ -474,17 +474,7 @@ def grow(
     physics_s = 0.0
     next_check = check_every
     while iterations < limit and tree.count < tree.capacity:
-        # Parents and controls of this round (one iteration when batch == 1).
-        round_: list[tuple[int, int, np.ndarray, int]] = []
-        while len(round_) < batch and iterations + len(round_) < limit:
-            iteration = iterations + len(round_)
-            slot = controls.slot(iteration)
-            parent = expansion.parent(iteration, controls.uniforms[slot], tree.count)
-            if parent is None:
-                break
-            round_.append((iteration, parent, controls.unit_wrenches[slot] * max_wrench, int(controls.steps[slot])))
-        if not round_:
-            raise AssertionError("an expansion method returned no parent for the first iteration of a round")
+        round_ = _next_round(expansion, controls, tree, iterations, min(batch, limit - iterations), max_wrench)
         tick = time.perf_counter()
         if propagator is None:
             _, parent, wrenches, n_steps = round_[0]
@@ -494,17 +484,7 @@ def grow(
                 )
             ]
         else:
-            pos, vel, quat, states = propagator.propagate(
-                task,
-                drive,
-                tree.states[[parent for _, parent, _, _ in round_]],
-                np.array([start_time + tree.times[parent] for _, parent, _, _ in round_]),
-                np.stack([wrenches for _, _, wrenches, _ in round_]),
-                np.array([n_steps for _, _, _, n_steps in round_]),
-                control_steps,
-            )
-            robots = propagator.object_states(states)[3]  # joint coordinates (a model's mocap poses are not among them)
-            outcomes = [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
+            outcomes = _propagate_round(propagator, task, drive, tree, round_, start_time, control_steps)
         physics_s += time.perf_counter() - tick
         for (iteration, parent, wrenches, n_steps), outcome in zip(round_, outcomes, strict=True):
             node = tree.offer(parent, wrenches, n_steps * dt, outcome)
@@ -518,6 +498,54 @@ def grow(
             if stop(tree.view(iterations)):
                 break
     return tree.field(iterations, physics_s, started)
+
+
+#: One expansion of a round: (iteration, parent node, wrench (6,), propagation steps).
+_Expansion = tuple[int, int, np.ndarray, int]
+
+
+def _next_round(
+    expansion: Expansion, controls: _Controls, tree: _Tree, iterations: int, size: int, max_wrench: np.ndarray
+) -> list[_Expansion]:
+    """The parents and controls of the next round: up to ``size`` expansions from iteration ``iterations``.
+
+    A round ends early when the method has no parent for an iteration (it waits for the outcomes
+    of the round); the first iteration of a round always has one.
+    """
+    round_: list[_Expansion] = []
+    while len(round_) < size:
+        iteration = iterations + len(round_)
+        slot = controls.slot(iteration)
+        parent = expansion.parent(iteration, controls.uniforms[slot], tree.count)
+        if parent is None:
+            break
+        round_.append((iteration, parent, controls.unit_wrenches[slot] * max_wrench, int(controls.steps[slot])))
+    if not round_:
+        raise AssertionError("an expansion method returned no parent for the first iteration of a round")
+    return round_
+
+
+def _propagate_round(
+    propagator: Propagator,
+    task: Task,
+    drive: np.ndarray,
+    tree: _Tree,
+    round_: list[_Expansion],
+    start_time: float,
+    control_steps: int | None,
+) -> list[Outcome]:
+    """The outcomes of a round's expansions, propagated together (``mujoco.rollout``)."""
+    pos, vel, quat, states = propagator.propagate(
+        task,
+        drive,
+        tree.states[[parent for _, parent, _, _ in round_]],
+        np.array([start_time + tree.times[parent] for _, parent, _, _ in round_]),
+        np.stack([wrenches for _, _, wrenches, _ in round_]),
+        np.array([n_steps for _, _, _, n_steps in round_]),
+        control_steps,
+    )
+    robots = propagator.object_states(states)[3]  # joint coordinates (a model's mocap poses are not among them)
+    return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
 
 
 def _propagate_one(
