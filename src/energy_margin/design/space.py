@@ -100,42 +100,56 @@ def resolve_space(
         declared = family.get(name)
         doc = declared.doc if declared is not None else (aliases[name].doc if name in aliases else f"{name} setting")
         if isinstance(spec, tuple):
-            low, high = spec
-            if declared is not None and declared.choices is not None:
-                raise InvalidParameterError(
-                    "params",
-                    f"{name} is categorical in the {task.name} family "
-                    f"({', '.join(json.dumps(c) for c in declared.choices)}); give NAME=A,B,...",
-                )
-            if name not in aliases and not _is_number(fields[name]):
-                raise InvalidParameterError(
-                    "params",
-                    f"{name}: {task.name}'s {name} is not a number ({json.dumps(fields[name])}); "
-                    "give its values as NAME=A,B,...",
-                )
             integer = declared.integer if declared is not None else isinstance(fields.get(name), int)
-            if integer:
-                low, high = float(math.ceil(low)), float(math.floor(high))
-                if low >= high:
-                    raise InvalidParameterError(
-                        "params", f"{name}: takes whole values and {spec[0]:g}:{spec[1]:g} holds fewer than two"
-                    )
-            space.append(DesignParameter(name, doc, low=low, high=high, integer=integer))
+            _check_range(task, name, declared, is_field=name not in aliases, value=fields.get(name))
+            space.append(_range_axis(name, doc, spec, integer=integer))
         else:
-            if len(spec) < 2:
-                raise InvalidParameterError(
-                    "params", f"{name}: give a range LOW:HIGH or at least two values A,B (or fix its one value)"
-                )
-            if declared is not None and declared.choices is not None:
-                outside = [value for value in spec if value not in declared.choices]
-                if outside:
-                    raise InvalidParameterError(
-                        "params",
-                        f"{name}: {json.dumps(outside[0])} is not in the {task.name} family "
-                        f"(choices: {', '.join(json.dumps(c) for c in declared.choices)})",
-                    )
+            _check_values(task, name, declared, spec)
             space.append(DesignParameter(name, doc, choices=tuple(spec)))
     return space
+
+
+def _check_range(task: Task, name: str, declared: DesignParameter | None, *, is_field: bool, value: Any) -> None:
+    """Refuse a range over a categorical axis of the family, or over a setting that is not a number."""
+    if declared is not None and declared.choices is not None:
+        raise InvalidParameterError(
+            "params",
+            f"{name} is categorical in the {task.name} family "
+            f"({', '.join(json.dumps(c) for c in declared.choices)}); give NAME=A,B,...",
+        )
+    if is_field and not _is_number(value):
+        raise InvalidParameterError(
+            "params",
+            f"{name}: {task.name}'s {name} is not a number ({json.dumps(value)}); give its values as NAME=A,B,...",
+        )
+
+
+def _range_axis(name: str, doc: str, spec: tuple[float, float], *, integer: bool) -> DesignParameter:
+    """The numeric axis of a range: whole values only for an ``integer`` one (at least two)."""
+    low, high = spec
+    if integer:
+        low, high = float(math.ceil(low)), float(math.floor(high))
+        if low >= high:
+            raise InvalidParameterError(
+                "params", f"{name}: takes whole values and {spec[0]:g}:{spec[1]:g} holds fewer than two"
+            )
+    return DesignParameter(name, doc, low=low, high=high, integer=integer)
+
+
+def _check_values(task: Task, name: str, declared: DesignParameter | None, values: list[Any]) -> None:
+    """Refuse fewer than two values, or a value outside the family's choices."""
+    if len(values) < 2:
+        raise InvalidParameterError(
+            "params", f"{name}: give a range LOW:HIGH or at least two values A,B (or fix its one value)"
+        )
+    if declared is not None and declared.choices is not None:
+        outside = [value for value in values if value not in declared.choices]
+        if outside:
+            raise InvalidParameterError(
+                "params",
+                f"{name}: {json.dumps(outside[0])} is not in the {task.name} family "
+                f"(choices: {', '.join(json.dumps(c) for c in declared.choices)})",
+            )
 
 
 def _unknown(task: Task, name: str, known: list[str]) -> InvalidParameterError:
