@@ -109,7 +109,7 @@ def test_without_an_encoder_the_video_is_a_gif(
 def test_render_bad_input_is_one_line(analysed: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cases = [
         (["--trajectory", "9"], "has no trajectory 9 (trajectories 0 to 1)"),
-        (["--trajectory", "0", "--width", "650"], "multiples of 16, got 650 x 480"),
+        (["--trajectory", "0", "--width", "650"], "--width must be a multiple of 16 for MP4, got 650 x 480"),
         (["--trajectory", "0", "--out", str(tmp_path / "no" / "v.mp4")], "is not a directory"),
     ]
     for arguments, message in cases:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, check_positive_float
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_float
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
@@ -198,6 +198,17 @@ def output_path(path: Path) -> Path:
     return path.with_suffix(".gif")
 
 
+def _check_size(path: Path, *, width: int, height: int, strip_height: int) -> None:
+    """Refuse an MP4 size that is not a multiple of 16, a strip that leaves no picture, a missing folder."""
+    if path.suffix.lower() != ".gif" and (width % 16 or height % 16):
+        name = "width" if width % 16 else "height"
+        raise InvalidParameterError(name, f"must be a multiple of 16 for MP4, got {width} x {height}")
+    if not 16 <= strip_height < height - 16:
+        raise InvalidParameterError("strip_height", f"must be in [16, {height - 16}), got {strip_height}")
+    if not path.parent.is_dir():
+        raise EnergyMarginError(f"cannot write {path}: {path.parent} is not a directory")
+
+
 def render_video(
     dataset: Dataset,
     trajectory: int,
@@ -234,15 +245,9 @@ def render_video(
     started = time.perf_counter()
     check_trajectory(dataset, trajectory)
     path = output_path(Path(path))
-    if path.suffix.lower() != ".gif" and (width % 16 or height % 16):
-        raise EnergyMarginError(f"MP4 width and height must be multiples of 16, got {width} x {height}")
-    if not 16 <= strip_height < height - 16:
-        raise EnergyMarginError(f"strip height must be in [16, {height - 16}), got {strip_height}")
-    if not path.parent.is_dir():
-        raise EnergyMarginError(f"cannot write {path}: {path.parent} is not a directory")
+    _check_size(path, width=width, height=height, strip_height=strip_height)
     task = dataset.task
-    arrays = dataset.arrays
-    times = np.asarray(arrays["frame_time"][trajectory], dtype=float)
+    times = np.asarray(dataset.arrays["frame_time"][trajectory], dtype=float)
     capture = success = None
     if scores is not None:
         capture = score_grid(dataset, scores, "capture_score")[trajectory]
