@@ -23,6 +23,7 @@ the end of the trajectory).
 
 from __future__ import annotations
 
+import functools
 import shutil
 import zipfile
 from dataclasses import dataclass
@@ -81,9 +82,9 @@ class Dataset:
     metadata: dict[str, Any]
     arrays: dict[str, np.ndarray]
 
-    @property
+    @functools.cached_property
     def task(self) -> Task:
-        """The task, with the configuration the data were generated with."""
+        """The task, with the configuration the data were generated with (resolved once per dataset)."""
         return get_recorded_task(self.metadata["task"], self.metadata.get("task_config"))
 
     @property
