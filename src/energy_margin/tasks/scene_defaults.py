@@ -39,7 +39,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.sim.mujoco_index import object_geoms, object_inertials
-from energy_margin.tasks.scene_file import SceneSpec
+from energy_margin.tasks.scene_spec import SceneSpec
 
 GRAVITY = 9.81  # m/s^2
 #: What a key left out takes without ``derive = true``: the bounds act in the world x-y plane (normal

@@ -24,7 +24,7 @@ from energy_margin.sim.mujoco_index import object_geoms, object_inertials
 from energy_margin.sim.mujoco_spec import model_hash
 from energy_margin.tasks.model_file import is_binary_model, load_binary_model
 from energy_margin.tasks.scene_defaults import PerturbationSettings, resolve_perturbation
-from energy_margin.tasks.scene_file import DesignEntry, SceneSpec, read_scene_file, region_names
+from energy_margin.tasks.scene_file import read_scene_file
 from energy_margin.tasks.scene_objects import (
     JOINT_KINDS,
     element_name,
@@ -33,6 +33,8 @@ from energy_margin.tasks.scene_objects import (
     object_joint,
     object_joint_kind,
 )
+from energy_margin.tasks.scene_sections import region_names
+from energy_margin.tasks.scene_spec import DesignEntry, SceneSpec
 
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
 _HINGE = mujoco.mjtJoint.mjJNT_HINGE
