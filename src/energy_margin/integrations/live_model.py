@@ -305,7 +305,7 @@ def _load_model(margin_model: Any, model_sha256: str) -> Any:
     if margin_model is None:
         return None
     if isinstance(margin_model, str | Path):
-        from energy_margin.learning.margin_model import load_margin_model
+        from energy_margin.learning.margin_file import load_margin_model
 
         margin_model = load_margin_model(margin_model, task_name="scene")
     if not hasattr(margin_model, "score_state"):
