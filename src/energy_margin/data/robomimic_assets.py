@@ -27,15 +27,9 @@ __all__ = ["compile_xml", "reroot_assets"]
 
 #: Elements of a model whose ``file`` attributes name asset files, and the compiler folder each reads.
 _ASSET_ELEMENTS = {"mesh": "meshdir", "skin": "meshdir", "hfield": "assetdir", "texture": "texturedir"}
-
-
 #: The six face files of a cube texture.
 _TEXTURE_FACES = ("fileright", "fileleft", "fileup", "filedown", "filefront", "fileback")
-
-
 _ROBOSUITE_ASSETS = "robosuite/models/assets/"
-
-
 _MODELS_ASSETS = "models/assets/"
 
 

@@ -22,8 +22,6 @@ __all__: list[str] = []
 
 
 _DEMO = re.compile(r"demo_(\d+)")
-
-
 #: What h5py raises for a file, group, dataset or attribute it cannot read.
 _HDF5_ERRORS = (OSError, RuntimeError, ValueError, KeyError, TypeError)
 

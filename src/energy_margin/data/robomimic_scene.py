@@ -25,16 +25,10 @@ __all__ = ["MODEL_FILE", "ROBOT_DURING_ANALYSIS", "SCENE_FILE", "SOURCE_FOLDER"]
 
 #: The folder of the dataset directory that holds its own scene file and model.
 SOURCE_FOLDER = "source"
-
-
 #: The scene file written into :data:`SOURCE_FOLDER`.
 SCENE_FILE = "scene.toml"
-
-
 #: The model written into :data:`SOURCE_FOLDER`.
 MODEL_FILE = "model.xml"
-
-
 #: A demonstration's states carry no actuator commands (robomimic's actions are a controller's
 #: inputs), so during analysis the robot is held where each frame has it (``motion.robot``).
 ROBOT_DURING_ANALYSIS = "still"

@@ -36,23 +36,15 @@ __all__ = ["FEATURES_OF_KIND", "FORMAT", "SCHEMA_VERSION", "MarginModel", "load_
 
 #: ``format`` of a saved model's header.
 FORMAT = "energy-margin-margin-model"
-
-
 #: Version of the saved layout.
 SCHEMA_VERSION = 2
-
-
 #: The feature definition of each regressor kind (:data:`KINDS`).
 FEATURES_OF_KIND: dict[str, type[FrameFeatures]] = {
     "mlp": FrameFeatures,
     "boosting": FrameFeatures,
     "set": ObjectSetFeatures,
 }
-
-
 _HEADER = "header"
-
-
 _PREFIX = "regressor."
 
 

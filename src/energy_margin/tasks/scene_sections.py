@@ -287,23 +287,22 @@ def _read_keyframes(read: _Reader, motion: Mapping[str, Any], ctrl_file: Path | 
 
 def _check_keyframes(read: _Reader, keyframes: list[Keyframe]) -> None:
     """The keyframes agree with each other: every one or none has ctrl, of one width, and the same mocap bodies."""
-    if not keyframes:
-        return
-    widths = {len(k.ctrl) for k in keyframes if k.ctrl is not None}
-    with_ctrl = [k for k in keyframes if k.ctrl is not None]
-    if with_ctrl and len(with_ctrl) != len(keyframes):
-        missing = next(k for k in keyframes if k.ctrl is None)
-        raise read.fail(missing.key, "has no ctrl while other keyframes have one")
-    if len(widths) > 1:
-        first = len(keyframes[0].ctrl or ())
-        odd = next(k for k in keyframes if len(k.ctrl or ()) != first)
-        raise read.fail(f"{odd.key}.ctrl", f"has {len(odd.ctrl or ())} values, the first keyframe {first}")
-    names = set(keyframes[0].mocap)
-    for keyframe in keyframes[1:]:
-        if set(keyframe.mocap) != names:
-            raise read.fail(
-                f"{keyframe.key}.mocap", f"must give the same mocap bodies as the first keyframe ({sorted(names)})"
-            )
+    if keyframes:
+        widths = {len(k.ctrl) for k in keyframes if k.ctrl is not None}
+        with_ctrl = [k for k in keyframes if k.ctrl is not None]
+        if with_ctrl and len(with_ctrl) != len(keyframes):
+            missing = next(k for k in keyframes if k.ctrl is None)
+            raise read.fail(missing.key, "has no ctrl while other keyframes have one")
+        if len(widths) > 1:
+            first = len(keyframes[0].ctrl or ())
+            odd = next(k for k in keyframes if len(k.ctrl or ()) != first)
+            raise read.fail(f"{odd.key}.ctrl", f"has {len(odd.ctrl or ())} values, the first keyframe {first}")
+        names = set(keyframes[0].mocap)
+        for keyframe in keyframes[1:]:
+            if set(keyframe.mocap) != names:
+                raise read.fail(
+                    f"{keyframe.key}.mocap", f"must give the same mocap bodies as the first keyframe ({sorted(names)})"
+                )
 
 
 def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> MotionSpec:

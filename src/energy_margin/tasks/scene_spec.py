@@ -41,8 +41,6 @@ MAX_COPIES = 1000
 #: ``bounds.max_speed`` when the file leaves it out, m/s: nothing on a table moves this fast (a
 #: fall of 2 m ends at 6.3 m/s), and every blown-up simulation does.
 DEFAULT_MAX_SPEED = 10.0
-
-
 #: Without ``bounds.low`` or ``bounds.high``, the box reaches this far past the model's extent on
 #: every side, m (around the bounding box of every geom at the initial state,
 #: :func:`energy_margin.tasks.state_box.box_around_model`).
@@ -50,11 +48,7 @@ BOUNDS_MARGIN = 1.0
 
 
 Interpolation = Literal["linear", "hold"]
-
-
 ObjectJoints = Literal["free", "upright"]
-
-
 RobotDuringAnalysis = Literal["declared", "still"]
 
 
@@ -130,14 +124,10 @@ class StartSpec:
 
 #: Kinds of model element a ``[design]`` parameter may name (the key that names the element).
 DESIGN_ELEMENTS = ("body", "geom", "site", "joint", "actuator")
-
-
 #: Settings of the scene task that a design parameter must not be named as.
 RESERVED_DESIGN_NAMES = frozenset(
     {"scene_file", "scene_sha256", "model_sha256", "duration", "timestep", "likelihood_lambda", "max_duration"}
 )
-
-
 _DESIGN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
