@@ -36,6 +36,8 @@ from energy_margin.tasks.scene_file import scene_spec_from_tables
 from energy_margin.tasks.scene_model import model_hash, resolve_scene
 from energy_margin.tasks.scene_toml import toml_value
 
+__all__ = ["END_EFFECTOR_WORDS", "GOAL_WORDS", "StarterScene", "save_model", "scene_from_environment"]
+
 #: Name fragments of an end effector's body or site, most specific first.
 END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")
 #: Name fragments of a goal body or site.

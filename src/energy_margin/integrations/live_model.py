@@ -47,6 +47,18 @@ from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "INFO_KEYS",
+    "OVERRUN_WINDOW",
+    "EpisodeRecorder",
+    "HeldCommandTask",
+    "Hold",
+    "LiveModelScorer",
+    "LiveOptions",
+    "LiveSession",
+    "scene_tables",
+]
+
 Hold = Literal["action", "still"]
 
 #: Calls whose overrun of the tree's budget sets the reserve of the next call's tree.

@@ -35,6 +35,18 @@ from energy_margin.learning.margin_file import MarginModel, load_margin_model
 from energy_margin.runs import RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
 
+__all__ = [
+    "FRAMES_PER_CALL",
+    "LEARNED_ANALYSIS_RUN",
+    "LEARNED_ANALYZER",
+    "LEARNED_NODES",
+    "LearnedFrameScorer",
+    "file_sha256",
+    "learned_description",
+    "predict_rows",
+    "score_dataset",
+]
+
 #: ``analyzer`` of ``analysis.json`` for learned scores (a tree analysis records its settings there).
 LEARNED_ANALYZER = "learned margin"
 #: Frames per :meth:`MarginModel.predict` call.

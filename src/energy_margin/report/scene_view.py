@@ -30,6 +30,8 @@ from energy_margin.tasks.scene_spec import SceneSpec
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
+__all__ = ["describe_scene", "framed_view", "parse_camera", "render_scene", "start_frame"]
+
 _CAPTURE_RGBA = (0.12, 0.47, 0.71, 0.3)
 _SUCCESS_RGBA = (0.2, 0.63, 0.17, 0.3)
 _EXCLUDED_RGBA = (0.9, 0.1, 0.1, 0.25)

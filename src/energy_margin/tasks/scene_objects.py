@@ -18,6 +18,16 @@ import numpy as np
 from energy_margin.sim.mujoco_index import object_geoms, upright_axes, world_aligned
 from energy_margin.tasks.scene_spec import SceneSpec
 
+__all__ = [
+    "JOINT_KINDS",
+    "element_name",
+    "moving_body",
+    "object_bodies",
+    "object_bounds",
+    "object_joint",
+    "object_joint_kind",
+]
+
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
 _HINGE = mujoco.mjtJoint.mjJNT_HINGE

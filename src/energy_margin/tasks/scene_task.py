@@ -29,6 +29,8 @@ from energy_margin.tasks.state_box import StateBox, box_around_model
 from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
+__all__ = ["SceneTask", "SceneTaskConfig", "design_overrides"]
+
 #: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
 _LAYOUT_ATTEMPTS = 200
 #: Draws of one object's origin before the layout starts again (the objects before took its room).
