@@ -133,13 +133,12 @@ def test_tables_hold_both_tasks_and_every_ablation_size(reproduced: Path) -> Non
 def test_running_again_resumes_without_recomputing(
     reproduced: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from energy_margin.report import html as report_html
-    from energy_margin.report import render
+    from energy_margin.report import html_figures, render
 
     scores = reproduced / "data" / "pushing-10" / "scores.csv"
     before = scores.read_bytes()
     # Without the render extra the report is still written, without videos and views.
-    monkeypatch.setattr(report_html, "_missing_render_extra", lambda: "plotly not installed")
+    monkeypatch.setattr(html_figures, "_missing_render_extra", lambda: "plotly not installed")
     monkeypatch.setattr(render, "_warned", set())
     reproduce(reproduced, TINY)
     assert scores.read_bytes() == before

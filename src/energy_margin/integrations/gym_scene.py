@@ -32,8 +32,11 @@ from energy_margin.runs.files import atomic_path, file_mode
 from energy_margin.sim.mujoco_index import object_owners
 from energy_margin.tasks.model_file import BINARY_SUFFIX, model_differences, save_binary_model
 from energy_margin.tasks.scene_defaults import DEFAULTS
-from energy_margin.tasks.scene_file import scene_spec_from_tables, toml_value
+from energy_margin.tasks.scene_file import scene_spec_from_tables
 from energy_margin.tasks.scene_model import model_hash, resolve_scene
+from energy_margin.tasks.scene_toml import toml_value
+
+__all__ = ["END_EFFECTOR_WORDS", "GOAL_WORDS", "StarterScene", "save_model", "scene_from_environment"]
 
 #: Name fragments of an end effector's body or site, most specific first.
 END_EFFECTOR_WORDS = ("end_effector", "eef", "fingertip", "tip", "grip", "finger", "hand", "palm", "wrist", "ee")

@@ -47,6 +47,18 @@ from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "INFO_KEYS",
+    "OVERRUN_WINDOW",
+    "EpisodeRecorder",
+    "HeldCommandTask",
+    "Hold",
+    "LiveModelScorer",
+    "LiveOptions",
+    "LiveSession",
+    "scene_tables",
+]
+
 Hold = Literal["action", "still"]
 
 #: Calls whose overrun of the tree's budget sets the reserve of the next call's tree.
@@ -305,7 +317,7 @@ def _load_model(margin_model: Any, model_sha256: str) -> Any:
     if margin_model is None:
         return None
     if isinstance(margin_model, str | Path):
-        from energy_margin.learning.margin_model import load_margin_model
+        from energy_margin.learning.margin_file import load_margin_model
 
         margin_model = load_margin_model(margin_model, task_name="scene")
     if not hasattr(margin_model, "score_state"):

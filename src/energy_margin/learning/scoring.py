@@ -31,9 +31,21 @@ from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, UNKNOWN_COUNT
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
-from energy_margin.learning.margin_model import MarginModel, load_margin_model
+from energy_margin.learning.margin_file import MarginModel, load_margin_model
 from energy_margin.runs import RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
+
+__all__ = [
+    "FRAMES_PER_CALL",
+    "LEARNED_ANALYSIS_RUN",
+    "LEARNED_ANALYZER",
+    "LEARNED_NODES",
+    "LearnedFrameScorer",
+    "file_sha256",
+    "learned_description",
+    "predict_rows",
+    "score_dataset",
+]
 
 #: ``analyzer`` of ``analysis.json`` for learned scores (a tree analysis records its settings there).
 LEARNED_ANALYZER = "learned margin"

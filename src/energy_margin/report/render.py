@@ -9,69 +9,69 @@ frame's tree as small spheres coloured by the node's likelihood (viridis, log sc
 
 When no OpenGL context can be made, one warning line is printed and the frame is drawn as
 today's matplotlib projection (:mod:`energy_margin.report.plots`) of the same size instead.
+
+This module draws the frames; the camera and colours are in :mod:`~energy_margin.report.render_view`
+and the region solids and tree markers in :mod:`~energy_margin.report.render_markers`.
 """
 
 from __future__ import annotations
 
 import os
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError, check_choice, check_int
+from energy_margin.report.render_markers import (
+    drawn_inside,
+    region_shapes,
+    shape_markers,
+    tree_markers,
+)
+from energy_margin.report.render_view import (
+    CAPTURE_RGBA,
+    LIKELIHOOD_DECADES,
+    SUCCESS_RGBA,
+    View,
+    fit_view,
+    likelihood_scale,
+    near_objects,
+    scene_view,
+    viridis,
+)
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
     from energy_margin.planning import CostField
     from energy_margin.sim.mujoco_backend import MujocoSimulator
-    from energy_margin.tasks.base import Region, RegionShape, Task
-    from energy_margin.world.scene import Scene
+    from energy_margin.tasks.base import Region, Task
     from energy_margin.world.state import FrameState
 
-#: Colours of the drawn regions (RGBA, translucent).
-CAPTURE_RGBA = (0.12, 0.47, 0.71, 0.22)
-SUCCESS_RGBA = (0.58, 0.25, 0.78, 0.22)
-#: Likelihoods below ``max / 10**LIKELIHOOD_DECADES`` get the colour of the lowest.
-LIKELIHOOD_DECADES = 6.0
+__all__ = [
+    "CAPTURE_RGBA",
+    "LIKELIHOOD_DECADES",
+    "SUCCESS_RGBA",
+    "FrameRenderer",
+    "View",
+    "check_trajectory",
+    "dataset_renderer",
+    "drawn_inside",
+    "fit_view",
+    "likelihood_scale",
+    "near_objects",
+    "region_shapes",
+    "save_png",
+    "scene_view",
+    "shape_markers",
+    "tree_markers",
+    "viridis",
+    "warn_once",
+]
 
-# Viridis at 9 evenly spaced stops (matplotlib's table), interpolated linearly.
-_VIRIDIS = np.array(
-    [
-        (0.267004, 0.004874, 0.329415),
-        (0.282623, 0.140926, 0.457517),
-        (0.229739, 0.322361, 0.545706),
-        (0.172719, 0.448791, 0.557885),
-        (0.127568, 0.566949, 0.550556),
-        (0.134692, 0.658636, 0.517649),
-        (0.266941, 0.748751, 0.440573),
-        (0.477504, 0.821444, 0.318195),
-        (0.993248, 0.906157, 0.143936),
-    ]
-)
-# A region solid at most this high (half height, m) is a footprint, drawn as one translucent geom.
-_FLAT_HALF_HEIGHT = 0.005
-# Cells of the grid a region without shapes is drawn with, per side.
-_GRID_CELLS = 48
+
 _warned: set[str] = set()
-
-
-def viridis(values: np.ndarray) -> np.ndarray:
-    """Viridis colours (..., 3) in [0, 1] of values (...) in [0, 1] (clipped)."""
-    scaled = np.clip(np.asarray(values, dtype=float), 0.0, 1.0) * (len(_VIRIDIS) - 1)
-    low = np.minimum(np.floor(scaled).astype(int), len(_VIRIDIS) - 2)
-    weight = (scaled - low)[..., None]
-    return _VIRIDIS[low] * (1.0 - weight) + _VIRIDIS[low + 1] * weight
-
-
-def likelihood_scale(likelihoods: np.ndarray) -> np.ndarray:
-    """Where each likelihood (M,) lies on the colour scale, in [0, 1]: log10, the top ``LIKELIHOOD_DECADES`` decades."""
-    values = np.asarray(likelihoods, dtype=float)
-    top = np.log10(max(float(values.max()), 1e-300))
-    logs = np.log10(np.maximum(values, 1e-300))
-    return np.clip((logs - (top - LIKELIHOOD_DECADES)) / LIKELIHOOD_DECADES, 0.0, 1.0)
 
 
 def warn_once(message: str) -> None:
@@ -79,63 +79,6 @@ def warn_once(message: str) -> None:
     if message not in _warned:
         _warned.add(message)
         print(f"energy-margin: warning: {message}", file=sys.stderr, flush=True)
-
-
-@dataclass(frozen=True)
-class View:
-    """A free camera looking at a point.
-
-    Attributes:
-        lookat: the point looked at, shape (3,), m.
-        distance: from the camera to ``lookat``, m.
-        azimuth: heading of the camera, degrees (90 looks along +y).
-        elevation: pitch, degrees (negative looks down).
-
-    """
-
-    lookat: tuple[float, float, float]
-    distance: float
-    azimuth: float = 90.0
-    elevation: float = -55.0
-
-
-def fit_view(points: np.ndarray, *, elevation: float, azimuth: float = 90.0, fovy: float = 45.0) -> View:
-    """A view of ``elevation`` and ``azimuth`` (degrees) that holds every point (n, 3), m, with a margin."""
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    points = points[np.all(np.isfinite(points), axis=1)]
-    if points.size == 0:
-        raise ValueError("points must hold at least one finite point")
-    low, high = points.min(axis=0), points.max(axis=0)
-    centre = 0.5 * (low + high)
-    radius = max(float(np.linalg.norm(high - low)) / 2.0, 0.02)
-    distance = 1.15 * radius / np.sin(np.radians(fovy) / 2.0)
-    lookat = (float(centre[0]), float(centre[1]), float(centre[2]))
-    return View(lookat, float(distance), azimuth, elevation)
-
-
-def near_objects(points: np.ndarray, object_pos: np.ndarray) -> np.ndarray:
-    """The ``points`` (n, 3) that lie near the objects (m, 3), m: what a picture of them frames.
-
-    Near: within 0.3 m plus twice the objects' spread of their centre. A pusher or a scoop is
-    there; a third-party arm's base, upper links and floor are not, and framing them left the
-    objects a few pixels wide.
-    """
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    objects = np.asarray(object_pos, dtype=float).reshape(-1, 3)
-    centre = objects.mean(axis=0)
-    spread = float(np.max(np.linalg.norm(objects - centre, axis=1)))
-    keep = np.linalg.norm(points - centre, axis=1) <= 0.3 + 2.0 * spread
-    return points[keep]
-
-
-def scene_view(scene: Scene, points: np.ndarray, *, fovy: float = 45.0) -> View:
-    """The view of a scene's frame: from above for planar (upright) objects, from the side otherwise."""
-    planar = scene.object_motion == "upright"
-    if planar:
-        return fit_view(points, elevation=-55.0, fovy=fovy)
-    view = fit_view(points, elevation=-25.0, azimuth=60.0, fovy=fovy)
-    # Further back: the gripper's regions are open upwards and would fill the picture.
-    return View(view.lookat, 1.4 * view.distance, view.azimuth, view.elevation)
 
 
 def _gl_context_class() -> Any:
@@ -227,100 +170,6 @@ class _MujocoCanvas:
         self._gl.make_current()
         self._context.free()
         self._gl.free()
-
-
-def _rotation_z(yaw: float) -> np.ndarray:
-    cos, sin = np.cos(yaw), np.sin(yaw)
-    return np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
-
-
-def shape_markers(shape: RegionShape, rgba: tuple[float, float, float, float]) -> list[tuple[Any, ...]]:
-    """Render markers (geom type, size, position, rotation, rgba) of a region solid.
-
-    A flat solid (a footprint) is one translucent geom; a box with height gets a fainter fill and
-    its edges as lines, so that what lies inside stays visible.
-    """
-    import mujoco
-
-    kind = mujoco.mjtGeom.mjGEOM_BOX if shape.kind == "box" else mujoco.mjtGeom.mjGEOM_CYLINDER
-    size = np.asarray(shape.half_size, dtype=float)
-    centre = np.asarray(shape.centre, dtype=float)
-    rotation = _rotation_z(shape.yaw)
-    fill = np.asarray(rgba, dtype=np.float32)
-    height = size[2] if shape.kind == "box" else size[1]
-    if height <= _FLAT_HALF_HEIGHT:
-        return [(int(kind), size, centre, rotation, fill)]
-    faint = fill.copy()
-    faint[3] *= 0.45
-    markers: list[tuple[Any, ...]] = [(int(kind), size, centre, rotation, faint)]
-    if shape.kind == "box":
-        edges = np.array([*fill[:3], 0.9], dtype=np.float32)
-        markers.append((int(mujoco.mjtGeom.mjGEOM_LINEBOX), size, centre, rotation, edges))
-    return markers
-
-
-def region_shapes(region: Region, extent: np.ndarray, *, height: float) -> tuple[RegionShape, ...]:
-    """Solids that draw ``region``: its own shapes, or cells of a grid over ``extent`` where it holds.
-
-    Args:
-        region: the region.
-        extent: (low, high) corners of the drawn box, shape (2, 3), m; a region without shapes is
-            sampled on a grid in the plane ``z = height`` over it.
-        height: z of that plane, m.
-
-    """
-    from energy_margin.tasks.base import DrawableRegion, RegionShape
-
-    if isinstance(region, DrawableRegion):
-        return tuple(region.shapes())
-    low, high = np.asarray(extent, dtype=float)
-    xs = np.linspace(low[0], high[0], _GRID_CELLS + 1)
-    ys = np.linspace(low[1], high[1], _GRID_CELLS + 1)
-    centres_x, centres_y = 0.5 * (xs[1:] + xs[:-1]), 0.5 * (ys[1:] + ys[:-1])
-    grid_x, grid_y = np.meshgrid(centres_x, centres_y, indexing="ij")
-    points = np.stack([grid_x, grid_y, np.full_like(grid_x, height)], axis=-1)
-    inside = np.asarray(region.contains(points), dtype=bool)
-    half = (0.5 * (xs[1] - xs[0]), 0.5 * (ys[1] - ys[0]), 0.002)
-    return tuple(
-        RegionShape("box", (float(grid_x[i, j]), float(grid_y[i, j]), height), half) for i, j in np.argwhere(inside)
-    )
-
-
-def drawn_inside(region: Region, positions: np.ndarray) -> np.ndarray | None:
-    """Whether each position (n, 3), m, lies in the drawing of ``region`` (its shapes), or ``None`` without shapes.
-
-    Flat solids (footprints of a region that ignores height) are tested in the plane.
-    """
-    from energy_margin.tasks.base import DrawableRegion
-
-    if not isinstance(region, DrawableRegion):
-        return None
-    positions = np.asarray(positions, dtype=float).reshape(-1, 3)
-    inside = np.zeros(len(positions), dtype=bool)
-    for shape in region.shapes():
-        height = shape.half_size[2] if shape.kind == "box" else shape.half_size[1]
-        probe = positions.copy()
-        if height <= _FLAT_HALF_HEIGHT:
-            probe[:, 2] = shape.centre[2]
-        inside |= shape.contains(probe)
-    return inside
-
-
-def tree_markers(field: CostField, likelihoods: np.ndarray, *, radius: float) -> list[tuple[Any, ...]]:
-    """One sphere marker per object per node (the root's hide inside the objects), coloured by likelihood."""
-    import mujoco
-
-    colours = viridis(likelihood_scale(likelihoods))
-    size = np.array([radius, radius, radius])
-    identity = np.eye(3)
-    sphere = int(mujoco.mjtGeom.mjGEOM_SPHERE)
-    markers = []
-    # Most likely first: a scene too small for every marker leaves out the least likely nodes.
-    for node in np.argsort(-np.asarray(likelihoods), kind="stable"):
-        rgba = np.append(colours[node], 1.0).astype(np.float32)
-        for position in field.object_pos[node]:
-            markers.append((sphere, size, np.asarray(position, dtype=float), identity, rgba))
-    return markers
 
 
 class FrameRenderer:

@@ -25,10 +25,12 @@ from energy_margin.report.render import View, fit_view
 from energy_margin.runs.files import staging_directory
 from energy_margin.sim.base import CompiledModel, require
 from energy_margin.tasks.model_file import is_binary_model
-from energy_margin.tasks.scene_file import SceneSpec
 from energy_margin.tasks.scene_model import compile_spec
+from energy_margin.tasks.scene_spec import SceneSpec
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
+
+__all__ = ["describe_scene", "framed_view", "parse_camera", "render_scene", "start_frame"]
 
 _CAPTURE_RGBA = (0.12, 0.47, 0.71, 0.3)
 _SUCCESS_RGBA = (0.2, 0.63, 0.17, 0.3)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.runs.files import atomic_path
-from energy_margin.tasks.scene_file import SceneSpec
+from energy_margin.tasks.scene_spec import SceneSpec
 
 __all__ = ["BINARY_SUFFIX", "is_binary_model", "load_binary_model", "model_differences", "save_binary_model"]
 

@@ -39,7 +39,19 @@ import mujoco
 import numpy as np
 
 from energy_margin.sim.mujoco_index import object_geoms, object_inertials
-from energy_margin.tasks.scene_file import SceneSpec
+from energy_margin.tasks.scene_spec import SceneSpec
+
+__all__ = [
+    "ANGULAR_RATIO",
+    "DEFAULTS",
+    "FRAMES",
+    "GRAVITY",
+    "LAMBDA_ENERGY",
+    "PROPAGATION_PER_FRAME",
+    "PerturbationSettings",
+    "check_planar_gravity",
+    "resolve_perturbation",
+]
 
 GRAVITY = 9.81  # m/s^2
 #: What a key left out takes without ``derive = true``: the bounds act in the world x-y plane (normal

@@ -16,7 +16,17 @@ import mujoco
 import numpy as np
 
 from energy_margin.sim.mujoco_index import object_geoms, upright_axes, world_aligned
-from energy_margin.tasks.scene_file import SceneSpec
+from energy_margin.tasks.scene_spec import SceneSpec
+
+__all__ = [
+    "JOINT_KINDS",
+    "element_name",
+    "moving_body",
+    "object_bodies",
+    "object_bounds",
+    "object_joint",
+    "object_joint_kind",
+]
 
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE

@@ -23,11 +23,13 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
 from energy_margin.tasks.regions import AtLeast, build_region
-from energy_margin.tasks.scene_file import BOUNDS_MARGIN
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
+from energy_margin.tasks.scene_spec import BOUNDS_MARGIN
 from energy_margin.tasks.state_box import StateBox, box_around_model
 from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
+
+__all__ = ["SceneTask", "SceneTaskConfig", "design_overrides"]
 
 #: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
 _LAYOUT_ATTEMPTS = 200
