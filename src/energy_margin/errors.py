@@ -32,6 +32,14 @@ class InvalidParameterError(EnergyMarginError, ValueError):
         self.reason = message
 
 
+class InvalidDataError(EnergyMarginError, ValueError):
+    """Content that is not a keyword argument is unusable: a file, a stored model, an array of data.
+
+    The message says what and where (``"scene file s.toml changed since these data were made"``);
+    a bad keyword argument raises :class:`InvalidParameterError` instead.
+    """
+
+
 def _is_integer(value: object) -> bool:
     if isinstance(value, bool):
         return False

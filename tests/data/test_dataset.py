@@ -12,7 +12,7 @@ import pytest
 from energy_margin import __version__
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset, record_trajectory
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import PushingTask
 
 SHAPES = {
@@ -154,7 +154,7 @@ def test_capture_labels_window_truncates_at_the_end() -> None:
     # frame only needs itself.
     np.testing.assert_array_equal(dataset.capture_labels(10), [[f, f, f, t, t], [t] * 5, [f, f, f, f, f]])
     assert not np.shares_memory(dataset.capture_labels(0), dataset.arrays["captured"])
-    with pytest.raises(ValueError, match="window must be a non-negative integer, got -1"):
+    with pytest.raises(InvalidParameterError, match="window must be a non-negative integer, got -1"):
         dataset.capture_labels(-1)
 
 

@@ -17,7 +17,14 @@ import numpy as np
 
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import check_choice, check_float, check_int, check_positive_float, check_positive_int
+from energy_margin.errors import (
+    InvalidParameterError,
+    check_choice,
+    check_float,
+    check_int,
+    check_positive_float,
+    check_positive_int,
+)
 from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
@@ -100,7 +107,7 @@ class AnalyzerConfig:
             if value is not None:
                 check_int(name, value, minimum=0)
         if self.iterations is None and self.nodes is None:
-            raise ValueError("iterations and nodes cannot both be None")
+            raise InvalidParameterError("iterations", "and nodes cannot both be None")
         check_choice("cost", self.cost, COST_MODELS)
         if self.likelihood_lambda is not None:
             check_float("likelihood_lambda", self.likelihood_lambda, minimum=0.0)
@@ -111,7 +118,9 @@ class AnalyzerConfig:
         for name in ("batch", "threads", "rollout_length"):
             check_positive_int(name, getattr(self, name))
         if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
-            raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
+            raise InvalidParameterError(
+                "cost", f"must be 'wrench' with batch > 1, which does not integrate friction work, got {self.cost!r}"
+            )
         check_positive_float("rrt_extent", self.rrt_extent)
         check_choice("projection", self.projection, PROJECTIONS)
         if self.converge is not None:
@@ -121,7 +130,9 @@ class AnalyzerConfig:
         check_choice("converge_rule", self.converge_rule, CONVERGE_RULES)
         check_choice("contacts", self.contacts, CONTACT_MODELS)
         if self.contacts == "fast" and self.engine != "mujoco":
-            raise ValueError(f"contacts 'fast' is a MuJoCo contact model, not available with engine {self.engine!r}")
+            raise InvalidParameterError(
+                "contacts", f"'fast' is a MuJoCo contact model, not available with engine {self.engine!r}"
+            )
         for name in ("converge_window", "converge_every"):
             check_positive_int(name, getattr(self, name))
         for name in ("wrench_scale", "duration_scale"):
@@ -303,7 +314,7 @@ def analyze_frame(
         frame.n_objects, friction, drive
     ):
         # A simulator of the recorded scene would silently analyse the other contact model.
-        raise ValueError(f"simulator: not a simulator of the scene of contacts {config.contacts!r}")
+        raise InvalidParameterError("simulator", f"is not a simulator of the scene of contacts {config.contacts!r}")
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     every = config.converge_every if check_every is None or stop is None else check_every

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, check_choice, check_int
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_int
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
@@ -104,7 +104,7 @@ def fit_view(points: np.ndarray, *, elevation: float, azimuth: float = 90.0, fov
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     points = points[np.all(np.isfinite(points), axis=1)]
     if points.size == 0:
-        raise ValueError("points must hold at least one finite point")
+        raise InvalidParameterError("points", "must hold at least one finite point")
     low, high = points.min(axis=0), points.max(axis=0)
     centre = 0.5 * (low + high)
     radius = max(float(np.linalg.norm(high - low)) / 2.0, 0.02)
@@ -410,7 +410,7 @@ class FrameRenderer:
 
         """
         if field is not None and (likelihoods is None or np.shape(likelihoods) != (field.nodes,)):
-            raise ValueError(f"likelihoods must have shape ({field.nodes},) with a field")
+            raise InvalidParameterError("likelihoods", f"must have shape ({field.nodes},) with a field")
         if view is None:
             view = scene_view(self.simulator.scene, self.view_points(frame, field))
         self.simulator.reset(frame)

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError
 from energy_margin.world.scene import Geom, Joint, Link, Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
@@ -170,7 +170,7 @@ class PybulletSimulator:
         self._object_ids: list[int] = []
         for obj in scene.objects:
             if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
-                raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
+                raise InvalidDataError(f"object {obj.name!r}: its geom must be centred at the body origin")
             shape = self._shape((obj.geom,))
             body = pb.createMultiBody(
                 baseMass=obj.mass, baseCollisionShapeIndex=shape, basePosition=[0.0, 0.0, 0.0], physicsClientId=cid

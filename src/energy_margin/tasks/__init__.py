@@ -61,6 +61,7 @@ def load_plugin_tasks() -> None:
 def register_task(task_class: type[Task]) -> type[Task]:
     """Register a :class:`Task` subclass under its ``name`` (usable as a class decorator)."""
     if not getattr(task_class, "name", ""):
+        # A defect of the task class (its author's code), not of a user's input.
         raise ValueError("a task class needs a non-empty `name`")
     _REGISTRY[task_class.name] = task_class
     return task_class

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.tasks.regions import REGION_TYPES
 
 SCHEMA_VERSION = 1
@@ -917,7 +917,7 @@ def toml_value(value: Any) -> str:
         return str(value)
     if isinstance(value, float):
         if not math.isfinite(value):
-            raise ValueError(f"a scene file holds finite numbers, got {value}")
+            raise InvalidDataError(f"a scene file holds finite numbers, got {value}")
         return repr(value)
     if isinstance(value, str):
         return _toml_string(value)

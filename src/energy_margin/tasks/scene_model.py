@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.compat import compile_before_copying, copy_body
+from energy_margin.errors import InvalidParameterError
 from energy_margin.runs.npz import NpzError, read_npz
 from energy_margin.sim.mujoco_index import object_geoms, object_inertials
 from energy_margin.sim.mujoco_spec import model_hash
@@ -341,8 +342,10 @@ def apply_design(
     unknown = sorted(set(design) - declared)
     if unknown:
         names = ", ".join(sorted(declared)) or "none"
-        raise ValueError(
-            f"unknown scene configuration keys: {', '.join(unknown)} (the [design] parameters of {spec.path}: {names})"
+        raise InvalidParameterError(
+            "design",
+            f"names unknown scene configuration keys: {', '.join(unknown)} "
+            f"(the [design] parameters of {spec.path}: {names})",
         )
     _explicit_inertials(spec, model_spec)
     values: dict[str, float] = {}
