@@ -8,7 +8,11 @@ A bad keyword argument raises :class:`InvalidParameterError`, which is both an
 :class:`EnergyMarginError` and a :class:`ValueError` and carries the argument's name in
 ``parameter``; its message starts with that name (``"seed must be a non-negative integer, got -1"``)
 so the command line can say the flag instead (``"--seed must be ..."``). The ``check_*``
-validators below are the one place such checks are written.
+validators below are the one place such checks are written. A message that names another
+keyword argument writes it in backticks, with a value where it needs one (```overwrite=True```,
+```policy=learned```, ```out```), and never as a command-line flag: the command line writes the
+flag of each (``--overwrite``, ``--policy learned``, ``--out``). Unusable content that is no
+keyword argument (a file, a stored model) raises :class:`InvalidDataError`.
 """
 
 from __future__ import annotations

@@ -326,7 +326,7 @@ def test_different_configuration_needs_overwrite(tiny_dataset: Path) -> None:
         (SMALL, 1),
         (AnalyzerConfig(iterations=30, cost="energy"), 0),
     ):
-        with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*--overwrite"):
+        with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*`overwrite=True`"):
             analyze(tiny_dataset, config, seed=seed, progress=False)
         assert {p.name: p.read_bytes() for p in tiny_dataset.iterdir()} == files
     analyze(tiny_dataset, AnalyzerConfig(iterations=20), seed=0, overwrite=True, progress=False)

@@ -22,7 +22,7 @@ from energy_margin.cli.common import (
     positive_int,
     say_notes,
 )
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
@@ -191,27 +191,22 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     }
     if getattr(args, "calibration", None) is not None:
         chosen.update(calibrated_settings(args))
-    try:
-        return AnalyzerConfig(
-            iterations=iterations,
-            nodes=args.nodes,
-            cost=args.cost,
-            likelihood_lambda=chosen["likelihood_lambda"],
-            wrench_scale=chosen["wrench_scale"],
-            duration_scale=chosen["duration_scale"],
-            engine=args.engine,
-            method=args.method,
-            batch=args.batch,
-            threads=args.threads,
-            projection=args.projection,
-            converge=args.converge,
-            converge_rule=args.converge_rule,
-            contacts=args.contacts,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    return AnalyzerConfig(
+        iterations=iterations,
+        nodes=args.nodes,
+        cost=args.cost,
+        likelihood_lambda=chosen["likelihood_lambda"],
+        wrench_scale=chosen["wrench_scale"],
+        duration_scale=chosen["duration_scale"],
+        engine=args.engine,
+        method=args.method,
+        batch=args.batch,
+        threads=args.threads,
+        projection=args.projection,
+        converge=args.converge,
+        converge_rule=args.converge_rule,
+        contacts=args.contacts,
+    )
 
 
 def tree_options_given(args: argparse.Namespace) -> list[str]:

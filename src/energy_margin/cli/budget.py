@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.methods import METHODS
 
 NAME = "budget"
@@ -40,12 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.analysis.frame import AnalyzerConfig
     from energy_margin.evaluation.budget import budget_sweep, format_table
 
-    try:
-        base = AnalyzerConfig(batch=args.batch, threads=args.threads)
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    base = AnalyzerConfig(batch=args.batch, threads=args.threads)
     rows = budget_sweep(
         args.dataset,
         budgets=args.budgets,

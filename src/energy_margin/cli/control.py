@@ -16,7 +16,7 @@ from energy_margin.cli.common import (
     scene_task_config,
     task_overrides,
 )
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 
 NAME = "control"
 SUMMARY = "closed-loop episodes (MPPI with task, heuristic or margin costs) under disturbances"
@@ -27,7 +27,6 @@ EXAMPLES = (
     "--model runs/push10.margin --disturbance hard --out runs/control-learned --json",
 )
 #: Keyword arguments of :func:`~energy_margin.control.episodes.run_control` named otherwise here.
-PARAMETER_FLAGS = {"n_objects": "--objects", "n_frames": "--frames"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -121,19 +120,14 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.control.episodes import run_control
     from energy_margin.control.mppi import ControllerConfig
 
-    try:
-        controller = ControllerConfig(
-            samples=args.samples,
-            horizon=args.horizon,
-            period=args.period,
-            lookahead=args.lookahead,
-            margin_expansions=args.margin_expansions,
-            margin_samples=args.margin_samples,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    controller = ControllerConfig(
+        samples=args.samples,
+        horizon=args.horizon,
+        period=args.period,
+        lookahead=args.lookahead,
+        margin_expansions=args.margin_expansions,
+        margin_samples=args.margin_samples,
+    )
     if args.scene:
         task_name, overrides = scene_task_config(args.scene, task_overrides(args.set))
     else:

@@ -7,7 +7,7 @@ import os
 import sys
 
 from energy_margin.cli.common import add_engine, add_seed, add_set, positive_int, task_overrides
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks import available_tasks
@@ -23,12 +23,6 @@ EXAMPLES = (
     "--out runs/sweep-stiffness",
 )
 #: Keyword arguments of :func:`~energy_margin.evaluation.sweep.design_sweep` named otherwise here.
-PARAMETER_FLAGS = {
-    "n_trajectories": "--trajectories",
-    "n_frames": "--frames",
-    "n_objects": "--objects",
-    "trajectory_counts": "--counts",
-}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -82,19 +76,14 @@ def run(args: argparse.Namespace) -> int:
     repeated = [name for index, (name, _) in enumerate(params) if name in {n for n, _ in params[:index]}]
     if repeated:
         raise EnergyMarginError(f"--param {repeated[0]} is given twice; list all its values in one --param")
-    try:
-        analyzer = AnalyzerConfig(
-            iterations=args.iterations,
-            cost=args.cost,
-            method=args.method,
-            batch=args.batch,
-            threads=args.threads,
-            engine=args.engine,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    analyzer = AnalyzerConfig(
+        iterations=args.iterations,
+        cost=args.cost,
+        method=args.method,
+        batch=args.batch,
+        threads=args.threads,
+        engine=args.engine,
+    )
     progress = not args.no_progress and (sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1")
     results = design_sweep(
         args.task,

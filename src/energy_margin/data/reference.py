@@ -53,7 +53,7 @@ from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE, UNKNOWN_COUNT
-from energy_margin.errors import EnergyMarginError, check_choice
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.tasks import PushingTask, ReferenceLayout, ScoopingTask, available_tasks, get_task, task_class
@@ -452,8 +452,8 @@ def import_reference(
     layout = _layout(ref.task)
     if drive not in layout.drives:
         following = " (its end-effector replays its recorded motion)" if layout.replays_recorded else ""
-        raise EnergyMarginError(
-            f"--drive {drive} does not apply to {ref.task}{following}; its drives: {', '.join(layout.drives)}"
+        raise InvalidParameterError(
+            "drive", f"{drive} does not apply to {ref.task}{following}; its drives: {', '.join(layout.drives)}"
         )
     n_objects = (ref.states.shape[-1] - layout.robot_columns) // layout.object_columns
     arrays, overrides = _CONVERTERS[layout.suffix](ref, n_objects)

@@ -188,7 +188,7 @@ class SceneTask(Task):
             config = SceneTaskConfig(scene_file=str(path))
         elif config is None or not config.scene_file:
             raise InvalidParameterError(
-                "scene_file", "must name a scene file (SCENE.toml): the scene task is built from one"
+                "scene_file", "must name the scene file the task is built from: pass `scene_file=SCENE.toml`"
             )
         else:
             path = Path(config.scene_file).resolve()
