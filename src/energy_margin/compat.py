@@ -337,7 +337,7 @@ def save_npz(
     name); it pickles only arrays of Python objects, which are refused here on every version.
 
     Raises:
-        ValueError: an array holds Python objects.
+        InvalidDataError: an array holds Python objects.
 
     """
     for name, value in arrays.items():

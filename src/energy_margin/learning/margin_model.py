@@ -119,7 +119,7 @@ class MarginModel:
 
         Raises:
             EnergyMarginError: ``task`` is not the model's task.
-            ValueError: no frames, or a frame whose end-effector size is not the task's.
+            InvalidParameterError: no frames, or a frame whose end-effector size is not the task's.
         """
         raw = self.regressor.predict(self.features(task)(frames))
         scores = np.clip(raw, 0.0, 1.0)
@@ -413,7 +413,7 @@ def fit_margin_model(
 
     Raises:
         EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
-        ValueError: a bad ``kind``, ``holdout`` or ``success_frames``.
+        InvalidParameterError: a bad ``kind``, ``holdout`` or ``success_frames``.
     """
     check_choice("kind", kind, KINDS)
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)

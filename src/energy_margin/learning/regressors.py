@@ -231,7 +231,7 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
     """Rebuild a regressor of ``kind`` from :meth:`Regressor.arrays`.
 
     Raises:
-        ValueError: an unknown kind, a missing array or arrays that do not fit together.
+        InvalidDataError: an unknown kind, a missing array or arrays that do not fit together.
     """
     try:
         if kind == "mlp":
@@ -284,7 +284,7 @@ def fit_regressor(kind: str, features: Any, targets: np.ndarray, *, seed: int, *
     tens of times slower, and the training sets here are a few thousand frames.
 
     Raises:
-        ValueError: an unknown kind or option.
+        InvalidParameterError: an unknown kind or option.
     """
     from threadpoolctl import threadpool_limits
 

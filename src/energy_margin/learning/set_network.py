@@ -193,7 +193,7 @@ class SetRegressor:
         """Rebuild from :meth:`arrays`.
 
         Raises:
-            ValueError: a missing array or arrays that do not fit together.
+            InvalidDataError: a missing array or arrays that do not fit together.
         """
         try:
             return cls(
@@ -242,7 +242,7 @@ def fit_set_regressor(
 
     Raises:
         EnergyMarginError: PyTorch is not installed (naming the extra).
-        ValueError: an unknown option, or targets of the wrong shape.
+        InvalidParameterError: an unknown option, or targets of the wrong shape.
     """
     from energy_margin.errors import EnergyMarginError, check_choice
 

@@ -426,7 +426,7 @@ def grow(
     again every :attr:`Task.control_period` seconds within it when the task sets one.
 
     Raises:
-        ValueError: ``batch`` > 1 with a cost model that needs the friction work, or a simulator
+        InvalidParameterError: ``batch`` > 1 with a cost model that needs the friction work, or a simulator
             without batched propagation.
 
     """

@@ -379,7 +379,7 @@ def parse_camera(text: str) -> tuple[float, ...]:
     """``--camera AZIMUTH,ELEVATION[,DISTANCE]`` as numbers (degrees, degrees, m).
 
     Raises:
-        ValueError: not two or three finite numbers, an elevation outside [-90, 90] or a distance <= 0.
+        InvalidParameterError: not two or three finite numbers, an elevation outside [-90, 90] or a distance <= 0.
     """
     try:
         values = tuple(float(part) for part in text.split(","))

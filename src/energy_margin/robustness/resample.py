@@ -97,7 +97,7 @@ def perturb_frame(
         max_growth_restarts: further restarts, the n-th with radii 1.1^n times larger.
 
     Raises:
-        ValueError: when ``protocol`` is not one of :data:`PROTOCOLS`.
+        InvalidParameterError: when ``protocol`` is not one of :data:`PROTOCOLS`.
         EnergyMarginError: when no admissible placement is found.
 
     """

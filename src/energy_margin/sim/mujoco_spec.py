@@ -239,7 +239,7 @@ def build_spec(scene: Scene) -> mujoco.MjSpec:
     """The uncompiled model of ``scene`` (see the module's description).
 
     Raises:
-        ValueError: an object's geom is not centred at its body origin.
+        InvalidDataError: an object's geom is not centred at its body origin.
 
     """
     spec = mujoco.MjSpec()

@@ -339,7 +339,7 @@ def with_contacts(task: Task, contacts: str) -> Task:
             :attr:`TaskConfig.fast_contacts` applied).
 
     Raises:
-        ValueError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
+        InvalidParameterError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
 
     """
     if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
@@ -398,7 +398,7 @@ class Task(ABC):
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> Task:
-        """Build the task from a configuration dictionary (unknown keys raise ``ValueError``)."""
+        """Build the task from a configuration dictionary (unknown keys: InvalidParameterError)."""
         values = dict(values or {})
         fields = {f.name: f for f in dataclasses.fields(cls.config_class)}
         unknown = sorted(set(values) - set(fields))
@@ -711,7 +711,7 @@ def sample_separated(
         Points, shape (count, d).
 
     Raises:
-        ValueError: when 100 000 candidates do not suffice.
+        InvalidDataError: when 100 000 candidates do not suffice.
 
     """
     points = np.empty((count, len(low)))

@@ -332,7 +332,7 @@ def apply_design(
     A parameter takes its value in ``design``, else its ``default``, else keeps the model's own.
 
     Raises:
-        ValueError: ``design`` names a parameter the file does not declare.
+        InvalidParameterError: ``design`` names a parameter the file does not declare.
         EnergyMarginError: an element or attribute the model does not have, an index out of range,
             a value that is not a number or lies outside the parameter's range (``FILE:LINE: design.NAME``).
 

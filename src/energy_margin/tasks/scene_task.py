@@ -399,7 +399,7 @@ class SceneTask(Task):
         before took it) starts the layout again, up to :data:`_LAYOUT_RESTARTS` times.
 
         Raises:
-            ValueError: no layout fits, naming the object that found no room, the start ranges,
+            InvalidDataError: no layout fits, naming the object that found no room, the start ranges,
                 the separation and how many origins a grid of that spacing fits in the ranges.
         """
         loaded = self.loaded
@@ -602,7 +602,7 @@ class SceneTask(Task):
         region is built at every state's own robot configuration (``robot_q``).
 
         Raises:
-            ValueError: ``capture.follow`` and no robot configuration per state (a batched
+            InvalidParameterError: ``capture.follow`` and no robot configuration per state (a batched
                 expansion of a model with mocap bodies does not keep them).
         """
         spec = self.loaded.spec

@@ -397,7 +397,7 @@ class ScoopingTask(Task):
         """The recorded motion of a drive: times (W,) s and joint positions (W, 5).
 
         Raises:
-            ValueError: the drive does not hold ``recorded_waypoints`` waypoints with strictly
+            InvalidParameterError: the drive does not hold ``recorded_waypoints`` waypoints with strictly
                 increasing, finite times and finite positions.
         """
         count = self.config.recorded_waypoints

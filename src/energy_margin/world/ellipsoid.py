@@ -195,7 +195,7 @@ def min_volume_ellipsoid(
         The ellipsoid; every input point lies inside it up to rounding (relative 1e-9).
 
     Raises:
-        ValueError: naming the argument that is invalid.
+        InvalidParameterError: naming the argument that is invalid.
 
     """
     array = _check_points(points)
