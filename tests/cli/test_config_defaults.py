@@ -39,3 +39,16 @@ def test_every_analyzer_field_declares_its_constraint() -> None:
         constraint = field_constraint(AnalyzerConfig, field.name)
         assert isinstance(constraint, Constraint), field.name
         assert constraint.check(field.name, field.default) == field.default or constraint.kind == "float"
+
+
+def test_sweep_and_budget_take_the_analyzer_defaults_too() -> None:
+    from energy_margin.cli import budget, sweep
+
+    for command in (sweep, budget):
+        parser = argparse.ArgumentParser()
+        command.add_arguments(parser)
+        dests = {action.dest for action in parser._actions}
+        shared = [field for field in dataclasses.fields(AnalyzerConfig) if field.name in dests]
+        assert shared, command.NAME
+        for field in shared:
+            assert parser.get_default(field.name) == field.default, (command.NAME, field.name)

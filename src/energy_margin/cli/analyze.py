@@ -9,20 +9,20 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import CONVERGE_RULES, AnalyzerConfig
 from energy_margin.cli.common import (
     add_engine,
     add_seed,
+    analyzer_default,
     non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
     say_notes,
 )
-from energy_margin.errors import EnergyMarginError, field_default
+from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
@@ -37,11 +37,7 @@ EXAMPLES = (
 )
 # The choices are the registries themselves, so a new method or cost model shows up here.
 COSTS = tuple(COST_MODELS)
-
-
-def default(name: str) -> Any:
-    """The default of :class:`~energy_margin.analysis.frame.AnalyzerConfig`'s field ``name``: the option's too."""
-    return field_default(AnalyzerConfig, name)
+default = analyzer_default
 
 
 #: The expansions per frame without ``--iterations`` and ``--nodes`` (AnalyzerConfig's own).
@@ -198,8 +194,6 @@ def calibrated_settings(args: argparse.Namespace) -> dict[str, float]:
 
 def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     """The :class:`~energy_margin.analysis.frame.AnalyzerConfig` the arguments ask for."""
-    from energy_margin.analysis.frame import AnalyzerConfig
-
     if args.iterations == 0 and args.nodes is None:
         raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
     iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS

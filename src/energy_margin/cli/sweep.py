@@ -6,7 +6,7 @@ import argparse
 import os
 import sys
 
-from energy_margin.cli.common import add_engine, add_seed, add_set, positive_int, task_overrides
+from energy_margin.cli.common import add_engine, add_seed, add_set, analyzer_default, positive_int, task_overrides
 from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
@@ -50,11 +50,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=positive_int, default=1, help="analysis worker processes (default 1)")
     add_engine(parser)
     add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
-    parser.add_argument("--iterations", type=positive_int, default=300, help="expansions per frame (default 300)")
-    parser.add_argument("--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)}")
-    parser.add_argument("--cost", choices=tuple(COST_MODELS), default="wrench", help="incremental cost model")
-    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round")
-    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads")
+    iterations = analyzer_default("iterations")
+    parser.add_argument(
+        "--iterations", type=positive_int, default=iterations, help=f"expansions per frame (default {iterations})"
+    )
+    parser.add_argument(
+        "--method", choices=METHODS, default=analyzer_default("method"), help=f"tree method: {', '.join(METHODS)}"
+    )
+    parser.add_argument(
+        "--cost", choices=tuple(COST_MODELS), default=analyzer_default("cost"), help="incremental cost model"
+    )
+    parser.add_argument(
+        "--batch", type=positive_int, default=analyzer_default("batch"), help="expansions per mujoco.rollout round"
+    )
+    parser.add_argument(
+        "--threads", type=positive_int, default=analyzer_default("threads"), help="mujoco.rollout threads"
+    )
     parser.add_argument(
         "--counts",
         type=positive_int,
