@@ -167,6 +167,8 @@ class Constraint:
         minimum: lower bound of an ``int`` or ``float``; ``None`` for none.
         maximum: upper bound; ``None`` for none.
         exclusive: a ``float``'s bounds themselves are refused (``> minimum``, ``< maximum``).
+        exclusive_minimum: the lower bound itself is refused (``> minimum``) even without ``exclusive``.
+        exclusive_maximum: the upper bound itself is refused (``< maximum``) even without ``exclusive``.
         choices: the values of a ``choice``.
         optional: ``None`` is allowed too.
     """
@@ -175,6 +177,8 @@ class Constraint:
     minimum: float | None = None
     maximum: float | None = None
     exclusive: bool = False
+    exclusive_minimum: bool = False
+    exclusive_maximum: bool = False
     choices: tuple[str, ...] = ()
     optional: bool = False
 
@@ -197,8 +201,8 @@ class Constraint:
                 value,
                 minimum=self.minimum,
                 maximum=self.maximum,
-                exclusive_minimum=self.exclusive,
-                exclusive_maximum=self.exclusive,
+                exclusive_minimum=self.exclusive or self.exclusive_minimum,
+                exclusive_maximum=self.exclusive or self.exclusive_maximum,
             )
         return check_choice(name, value, self.choices)
 

@@ -52,3 +52,18 @@ def test_sweep_and_budget_take_the_analyzer_defaults_too() -> None:
         assert shared, command.NAME
         for field in shared:
             assert parser.get_default(field.name) == field.default, (command.NAME, field.name)
+
+
+def test_control_takes_the_controller_defaults() -> None:
+    from energy_margin.cli import control
+    from energy_margin.control.mppi import ControllerConfig
+
+    parser = argparse.ArgumentParser()
+    control.add_arguments(parser)
+    dests = {action.dest for action in parser._actions}
+    shared = [field for field in dataclasses.fields(ControllerConfig) if field.name in dests]
+    assert len(shared) >= 6
+    for field in shared:
+        assert parser.get_default(field.name) == field.default, field.name
+    for field in dataclasses.fields(ControllerConfig):
+        assert isinstance(field_constraint(ControllerConfig, field.name), Constraint), field.name
