@@ -80,6 +80,7 @@ def test_cli_refuses_fast_contacts_without_a_model(tmp_path: Path, capsys: pytes
     assert main(["analyze", str(out), "--iterations", "5", "--contacts", "fast", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fast contact model" in err[0]
+    assert err[0].startswith("energy-margin: error: --contacts must be 'recorded'")
     assert not (out / "scores.csv").exists()
 
 

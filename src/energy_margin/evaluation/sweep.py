@@ -181,10 +181,8 @@ def task_settings(
     n_objects = _objects(task, n_objects)
     check_choice("engine", engine, ENGINES)
     check_engine(task, engine)
-    try:
-        return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    # AnalyzerConfig raises InvalidParameterError naming the field.
+    return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
 
 
 def _objects(task: Task, n_objects: int | None) -> int:
