@@ -10,7 +10,8 @@ name, and names other arguments inside a message in backticks (```overwrite=True
 line names the command's flags instead (``--objects must be a positive integer, got 0``, ``pass
 --overwrite``). :func:`flag_for` is the one mapping: the flag of an argument is the option whose
 argparse ``dest`` is its name (``workers`` is ``--workers``), or, for a name that differs, the
-option of the ``dest`` that :data:`PARAMETER_DESTS` gives (``n_objects`` is ``--objects``).
+option of the ``dest`` that :data:`PARAMETER_DESTS` gives (``n_objects`` is ``--objects``), or the
+one a command module's optional ``PARAMETER_FLAGS`` table gives for that command.
 """
 
 from __future__ import annotations

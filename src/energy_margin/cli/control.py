@@ -27,6 +27,7 @@ EXAMPLES = (
     "--model runs/push10.margin --disturbance hard --out runs/control-learned --json",
 )
 #: Keyword arguments of :func:`~energy_margin.control.episodes.run_control` named otherwise here.
+PARAMETER_FLAGS = {"n_objects": "--objects", "n_frames": "--frames"}
 
 
 def controller_default(name: str) -> Any:

@@ -14,6 +14,7 @@ EXAMPLES = (
     "energy-margin generate --scene my_scene.toml --trajectories 20 --frames 10 --seed 0 --out runs/mine",
 )
 #: Keyword arguments of :func:`~energy_margin.data.generate.generate_dataset` named otherwise here.
+PARAMETER_FLAGS = {"n_objects": "--objects", "n_trajectories": "--trajectories", "n_frames": "--frames"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

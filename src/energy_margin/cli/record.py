@@ -24,6 +24,7 @@ EXAMPLES = (
     "--frames 10 --out runs/demos",
 )
 #: Keyword arguments of :func:`~energy_margin.data.record.record_dataset` named otherwise here.
+PARAMETER_FLAGS = {"n_frames": "--frames", "file_format": "--format", "scene_file": "--scene"}
 FORMATS = ("npz", "hdf5", "robomimic")
 
 

@@ -23,6 +23,12 @@ EXAMPLES = (
     "--out runs/sweep-stiffness",
 )
 #: Keyword arguments of :func:`~energy_margin.evaluation.sweep.design_sweep` named otherwise here.
+PARAMETER_FLAGS = {
+    "n_trajectories": "--trajectories",
+    "n_frames": "--frames",
+    "n_objects": "--objects",
+    "trajectory_counts": "--counts",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

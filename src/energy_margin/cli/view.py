@@ -15,6 +15,7 @@ EXAMPLES = (
     "energy-margin view runs/push10 --trajectory 3 --frame 0 --out frame.html",
 )
 #: Keyword arguments of :func:`~energy_margin.report.frame_tree.analysed_tree` named otherwise here.
+PARAMETER_FLAGS = {"frame_index": "--frame"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
