@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from energy_margin import compat
+from energy_margin.errors import InvalidDataError
 
 MODEL = """<mujoco>
   <worldbody>
@@ -162,7 +163,7 @@ def test_npz_archives_hold_exactly_the_arrays_given() -> None:
 
 
 def test_npz_archives_never_pickle() -> None:
-    with pytest.raises(ValueError, match="array 'bad' holds Python objects"):
+    with pytest.raises(InvalidDataError, match="array 'bad' holds Python objects"):
         compat.save_npz(io.BytesIO(), {"good": np.ones(2), "bad": np.array([{"x": 1}], dtype=object)})
 
 

@@ -61,3 +61,15 @@ def test_check_choice_names_the_choices() -> None:
     assert check_choice("engine", "mujoco", ("mujoco", "pybullet")) == "mujoco"
     with pytest.raises(InvalidParameterError, match=r"^engine must be one of mujoco, pybullet, got 'ode'$"):
         check_choice("engine", "ode", ("mujoco", "pybullet"))
+
+
+def test_a_declared_constraint_checks_with_the_validators() -> None:
+    from energy_margin.errors import Constraint
+
+    assert Constraint("int", minimum=0, optional=True).check("nodes", None) is None
+    with pytest.raises(InvalidParameterError, match=r"^n must be a positive integer, got 0$"):
+        Constraint("int", minimum=1).check("n", 0)
+    with pytest.raises(InvalidParameterError, match=r"^x must be a finite number > 0 and < 1, got 1.0$"):
+        Constraint("float", minimum=0.0, maximum=1.0, exclusive=True).check("x", 1.0)
+    with pytest.raises(InvalidParameterError, match=r"^engine must be one of mujoco, got 'ode'$"):
+        Constraint("choice", choices=("mujoco",)).check("engine", "ode")

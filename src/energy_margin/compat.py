@@ -50,6 +50,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from energy_margin.errors import InvalidDataError
+
 #: The oldest MuJoCo release the package supports (Meta-World 3.1.1 pins it).
 MUJOCO_MINIMUM = (3, 3, 0)
 #: The first MuJoCo release whose joint damping and stiffness hold three numbers.
@@ -79,6 +81,7 @@ def parse_version(text: str) -> tuple[int, int, int]:
     """
     numbers = [int(match) for match in re.findall(r"\d+", text.split("+")[0])[:3]]
     if not numbers or not re.match(r"\d", text):
+        # A defect: the text is an installed package's __version__, never the user's input.
         raise ValueError(f"not a version: {text!r}")
     padded = [*numbers, 0, 0][:3]
     return padded[0], padded[1], padded[2]
@@ -334,12 +337,12 @@ def save_npz(
     name); it pickles only arrays of Python objects, which are refused here on every version.
 
     Raises:
-        ValueError: an array holds Python objects.
+        InvalidDataError: an array holds Python objects.
 
     """
     for name, value in arrays.items():
         if np.asarray(value).dtype.hasobject:
-            raise ValueError(f"array {name!r} holds Python objects and cannot be saved without pickling")
+            raise InvalidDataError(f"array {name!r} holds Python objects and cannot be saved without pickling")
     # Typed loosely: numpy 2.2's stubs read every keyword as possibly ``allow_pickle``.
     write: Callable[..., None] = np.savez_compressed if compressed else np.savez
     write(file, **arrays)

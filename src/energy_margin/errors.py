@@ -8,14 +8,21 @@ A bad keyword argument raises :class:`InvalidParameterError`, which is both an
 :class:`EnergyMarginError` and a :class:`ValueError` and carries the argument's name in
 ``parameter``; its message starts with that name (``"seed must be a non-negative integer, got -1"``)
 so the command line can say the flag instead (``"--seed must be ..."``). The ``check_*``
-validators below are the one place such checks are written.
+validators below are the one place such checks are written. A message that names another
+keyword argument writes it in backticks, with a value where it needs one (```overwrite=True```,
+```policy=learned```, ```out```), and never as a command-line flag: the command line writes the
+flag of each (``--overwrite``, ``--policy learned``, ``--out``). Unusable content that is no
+keyword argument (a file, a stored model) raises :class:`InvalidDataError`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, TypeVar
+
+_T = TypeVar("_T")
 
 
 class EnergyMarginError(Exception):
@@ -30,6 +37,14 @@ class InvalidParameterError(EnergyMarginError, ValueError):
         self.parameter = parameter
         #: The message without the parameter's name ("must be >= 1, got 0").
         self.reason = message
+
+
+class InvalidDataError(EnergyMarginError, ValueError):
+    """Content that is not a keyword argument is unusable: a file, a stored model, an array of data.
+
+    The message says what and where (``"scene file s.toml changed since these data were made"``);
+    a bad keyword argument raises :class:`InvalidParameterError` instead.
+    """
 
 
 def _is_integer(value: object) -> bool:
@@ -140,3 +155,86 @@ def check_choice(name: str, value: Any, choices: Iterable[str]) -> str:
     if not isinstance(value, str) or value not in options:
         raise InvalidParameterError(name, f"must be one of {', '.join(options)}, got {value!r}")
     return value
+
+
+@dataclasses.dataclass(frozen=True)
+class Constraint:
+    """The values a keyword argument or configuration field takes, declared once beside its default.
+
+    Attributes:
+        kind: ``"int"`` (:func:`check_int`), ``"float"`` (:func:`check_float`) or ``"choice"``
+            (:func:`check_choice`).
+        minimum: lower bound of an ``int`` or ``float``; ``None`` for none.
+        maximum: upper bound; ``None`` for none.
+        exclusive: a ``float``'s bounds themselves are refused (``> minimum``, ``< maximum``).
+        exclusive_minimum: the lower bound itself is refused (``> minimum``) even without ``exclusive``.
+        exclusive_maximum: the upper bound itself is refused (``< maximum``) even without ``exclusive``.
+        choices: the values of a ``choice``.
+        optional: ``None`` is allowed too.
+    """
+
+    kind: str
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive: bool = False
+    exclusive_minimum: bool = False
+    exclusive_maximum: bool = False
+    choices: tuple[str, ...] = ()
+    optional: bool = False
+
+    def check(self, name: str, value: Any) -> Any:
+        """Return ``value`` (as an ``int`` or ``float`` for those kinds) or raise naming ``name``.
+
+        Raises:
+            InvalidParameterError: ``value`` is outside the constraint.
+
+        """
+        if value is None and self.optional:
+            return None
+        if self.kind == "int":
+            low = None if self.minimum is None else int(self.minimum)
+            high = None if self.maximum is None else int(self.maximum)
+            return check_int(name, value, minimum=low, maximum=high)
+        if self.kind == "float":
+            return check_float(
+                name,
+                value,
+                minimum=self.minimum,
+                maximum=self.maximum,
+                exclusive_minimum=self.exclusive or self.exclusive_minimum,
+                exclusive_maximum=self.exclusive or self.exclusive_maximum,
+            )
+        return check_choice(name, value, self.choices)
+
+
+def constrained(default: _T, constraint: Constraint) -> _T:
+    """A dataclass field with ``default`` whose values :func:`check_fields` checks against ``constraint``."""
+    return dataclasses.field(default=default, metadata={"constraint": constraint})
+
+
+def field_constraint(cls: type, name: str) -> Constraint | None:
+    """The :class:`Constraint` declared on field ``name`` of dataclass ``cls``; ``None`` if none."""
+    field = {field.name: field for field in dataclasses.fields(cls)}[name]
+    constraint = field.metadata.get("constraint")
+    return constraint if isinstance(constraint, Constraint) else None
+
+
+def field_default(cls: type, name: str) -> Any:
+    """The default of field ``name`` of dataclass ``cls`` (what the command line takes as its own)."""
+    field = {field.name: field for field in dataclasses.fields(cls)}[name]
+    if field.default is dataclasses.MISSING:
+        raise KeyError(f"field {name} of {cls.__name__} has no default")
+    return field.default
+
+
+def check_fields(instance: Any) -> None:
+    """Check every field of the dataclass ``instance`` that declares a :class:`Constraint`, in order.
+
+    Raises:
+        InvalidParameterError: the first field whose value is outside its constraint.
+
+    """
+    for field in dataclasses.fields(instance):
+        constraint = field.metadata.get("constraint")
+        if isinstance(constraint, Constraint):
+            constraint.check(field.name, getattr(instance, field.name))

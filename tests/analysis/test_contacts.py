@@ -14,6 +14,7 @@ from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import CONFIG_FILE, load_scores
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks import get_task, with_contacts
 
 
@@ -27,16 +28,16 @@ def test_with_contacts() -> None:
         k: v for k, v in task.config.to_dict().items() if not k.endswith("_contact")
     }
     assert with_contacts(fast, "fast") is fast
-    with pytest.raises(ValueError, match="no fast contact model"):
+    with pytest.raises(InvalidParameterError, match="no fast contact model"):
         with_contacts(get_task("scooping"), "fast")
-    with pytest.raises(ValueError, match="contacts"):
+    with pytest.raises(InvalidParameterError, match="contacts"):
         with_contacts(task, "quick")
 
 
 def test_config_validates_contacts() -> None:
-    with pytest.raises(ValueError, match="contacts"):
+    with pytest.raises(InvalidParameterError, match="contacts"):
         AnalyzerConfig(contacts="quick")
-    with pytest.raises(ValueError, match="MuJoCo"):
+    with pytest.raises(InvalidParameterError, match="MuJoCo"):
         AnalyzerConfig(contacts="fast", engine="pybullet")
 
 
@@ -79,6 +80,7 @@ def test_cli_refuses_fast_contacts_without_a_model(tmp_path: Path, capsys: pytes
     assert main(["analyze", str(out), "--iterations", "5", "--contacts", "fast", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fast contact model" in err[0]
+    assert err[0].startswith("energy-margin: error: --contacts must be 'recorded'")
     assert not (out / "scores.csv").exists()
 
 
@@ -87,7 +89,7 @@ def test_a_simulator_of_the_recorded_scene_is_refused(tiny_dataset: Path) -> Non
     task, friction, drive = dataset.task, float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]
     recorded = task.make_simulator(dataset.n_objects, friction, drive, "mujoco")
     config = AnalyzerConfig(iterations=5, contacts="fast")
-    with pytest.raises(ValueError, match="simulator"):
+    with pytest.raises(InvalidParameterError, match="simulator"):
         analyze_frame(
             task, dataset.frame(0, 0), friction=friction, drive=drive, seed=0, config=config, simulator=recorded
         )

@@ -13,7 +13,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import CONFIG_FILE, load_scores
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.tree import CostField, TreeBudget
 
 
@@ -90,15 +90,15 @@ def test_the_projected_rule_counts_the_nodes_a_node_budget_still_allows(monkeypa
 
 
 def test_the_rule_must_be_known() -> None:
-    with pytest.raises(ValueError, match="rule must be one of projected, window"):
+    with pytest.raises(InvalidParameterError, match="rule must be one of projected, window"):
         ScoresConverged(None, None, 1.0, tolerance=0.01, window=50, rule="spread")  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="converge_rule must be one of projected, window"):
+    with pytest.raises(InvalidParameterError, match="converge_rule must be one of projected, window"):
         AnalyzerConfig(converge=0.01, converge_rule="spread")
 
 
 @pytest.mark.parametrize("value", [0.0, 1.0, -0.1, float("nan"), True])
 def test_converge_must_be_a_tolerance(value: object) -> None:
-    with pytest.raises(ValueError, match="converge"):
+    with pytest.raises(InvalidParameterError, match="converge"):
         AnalyzerConfig(converge=value)  # type: ignore[arg-type]
 
 

@@ -8,6 +8,7 @@ import pytest
 from energy_margin.analysis import frame, live
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.analysis.live import score_state
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks import get_task
 
 
@@ -92,9 +93,9 @@ def test_max_expansions_is_deterministic_with_a_seed(pushing_state) -> None:
 def test_score_state_validates_its_budget(pushing_state) -> None:
     task, trajectory, _ = pushing_state
     for bad in (0.0, -1.0, float("nan")):
-        with pytest.raises(ValueError, match="budget_s"):
+        with pytest.raises(InvalidParameterError, match="budget_s"):
             score_state(task, trajectory.initial, friction=trajectory.friction, drive=trajectory.drive, budget_s=bad)
-    with pytest.raises(ValueError, match="max_expansions"):
+    with pytest.raises(InvalidParameterError, match="max_expansions"):
         score_state(task, trajectory.initial, friction=trajectory.friction, drive=trajectory.drive, max_expansions=0)
 
 

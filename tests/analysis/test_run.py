@@ -13,7 +13,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, load_scores, read_journal
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.directory import run_versions
 from energy_margin.tasks import all_inside
@@ -118,7 +118,7 @@ def test_analyze_frame_scores_are_likelihood_masses(tiny_dataset: Path) -> None:
     ],
 )
 def test_analyzer_config_validation(kwargs: dict[str, Any], message: str) -> None:
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(InvalidParameterError, match=message):
         AnalyzerConfig(**kwargs)
 
 
@@ -326,7 +326,7 @@ def test_different_configuration_needs_overwrite(tiny_dataset: Path) -> None:
         (SMALL, 1),
         (AnalyzerConfig(iterations=30, cost="energy"), 0),
     ):
-        with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*--overwrite"):
+        with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*`overwrite=True`"):
             analyze(tiny_dataset, config, seed=seed, progress=False)
         assert {p.name: p.read_bytes() for p in tiny_dataset.iterdir()} == files
     analyze(tiny_dataset, AnalyzerConfig(iterations=20), seed=0, overwrite=True, progress=False)

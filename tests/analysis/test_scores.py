@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from energy_margin.analysis.scores import likelihood, region_score, trajectory_success_score, trajectory_weights
+from energy_margin.errors import InvalidParameterError
 
 LN2 = math.log(2.0)
 
@@ -57,7 +58,7 @@ def test_zero_lambda_is_uniform() -> None:
     ],
 )
 def test_likelihood_rejects_bad_input(costs: np.ndarray, lam: float, message: str) -> None:
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(InvalidParameterError, match=message):
         likelihood(costs, lam)
 
 
@@ -75,9 +76,9 @@ def test_region_score_by_hand() -> None:
 
 
 def test_region_score_rejects_a_mismatched_mask() -> None:
-    with pytest.raises(ValueError, match="inside must have shape"):
+    with pytest.raises(InvalidParameterError, match="inside must have shape"):
         region_score(np.zeros(3), np.ones(4, dtype=bool), 1.0)
-    with pytest.raises(ValueError, match="lam must be"):
+    with pytest.raises(InvalidParameterError, match="lam must be"):
         region_score(np.zeros(3), np.ones(3, dtype=bool), -2.0)
 
 
@@ -95,9 +96,9 @@ def test_uniform_weights_by_hand() -> None:
 
 
 def test_trajectory_weights_reject_bad_input() -> None:
-    with pytest.raises(ValueError, match="last must be a positive integer, got 0"):
+    with pytest.raises(InvalidParameterError, match="last must be a positive integer, got 0"):
         trajectory_weights(5, last=0)
-    with pytest.raises(ValueError, match="scheme must be"):
+    with pytest.raises(InvalidParameterError, match="scheme must be"):
         trajectory_weights(5, last=2, scheme="exponential")
 
 

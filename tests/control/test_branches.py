@@ -8,6 +8,7 @@ import pytest
 from energy_margin.control.branches import BranchState, BranchStudy, branch_study, concordance
 from energy_margin.control.disturbances import get_disturbance
 from energy_margin.control.mppi import ControllerConfig
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks import get_task
 
 
@@ -76,7 +77,7 @@ def test_branch_zero_replays_the_nominal_run_and_the_study_is_deterministic() ->
 def test_bad_arguments_are_named() -> None:
     task = get_task("pushing")
     common = {"n_objects": 2, "episodes": 1, "disturbance": get_disturbance("none"), "seed": 0}
-    with pytest.raises(ValueError, match="scores"):
+    with pytest.raises(InvalidParameterError, match="scores"):
         branch_study(task, decision_times=[0.5], scores=("distance",), **common)
-    with pytest.raises(ValueError, match="decision_times"):
+    with pytest.raises(InvalidParameterError, match="decision_times"):
         branch_study(task, decision_times=[], **common)

@@ -144,7 +144,7 @@ def test_other_settings_in_the_same_directory_are_refused(tmp_path: Path) -> Non
     ("options", "message"),
     [
         ({"policy": "greedy"}, "unknown policy 'greedy'"),
-        ({"policy": "learned"}, "needs --model"),
+        ({"policy": "learned"}, "needs `model`"),
         ({"episodes": 0}, "episodes must be a positive integer"),
         ({"n_frames": 1}, "frames must be an integer >= 2"),
         ({"disturbance": "storm"}, "unknown disturbance 'storm'"),

@@ -8,6 +8,7 @@ import pytest
 from energy_margin.control.commands import command_space
 from energy_margin.control.costs import CostContext, CostWeights, task_cost
 from energy_margin.control.mppi import Controller, ControllerConfig
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks import get_task
 
 
@@ -51,5 +52,5 @@ def test_lookahead_extends_the_predictions_with_the_script_and_stops_at_the_epis
 
 
 def test_lookahead_must_not_be_negative() -> None:
-    with pytest.raises(ValueError, match="lookahead"):
+    with pytest.raises(InvalidParameterError, match="lookahead"):
         ControllerConfig(lookahead=-1)

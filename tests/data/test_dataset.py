@@ -12,7 +12,7 @@ import pytest
 from energy_margin import __version__
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset, record_trajectory
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import PushingTask
 
 SHAPES = {
@@ -154,7 +154,7 @@ def test_capture_labels_window_truncates_at_the_end() -> None:
     # frame only needs itself.
     np.testing.assert_array_equal(dataset.capture_labels(10), [[f, f, f, t, t], [t] * 5, [f, f, f, f, f]])
     assert not np.shares_memory(dataset.capture_labels(0), dataset.arrays["captured"])
-    with pytest.raises(ValueError, match="window must be a non-negative integer, got -1"):
+    with pytest.raises(InvalidParameterError, match="window must be a non-negative integer, got -1"):
         dataset.capture_labels(-1)
 
 
@@ -211,7 +211,7 @@ def test_existing_directory_is_not_replaced_without_overwrite(tmp_path: Path) ->
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("precious")
-    with pytest.raises(EnergyMarginError, match="already exists; pass --overwrite"):
+    with pytest.raises(EnergyMarginError, match="already exists; pass `overwrite=True`"):
         generate_dataset("pushing", n_objects=1, n_trajectories=1, n_frames=2, seed=0, out=out)
     assert _tree(tmp_path) == {"out/keep.txt": b"precious"}
     generate_dataset("pushing", n_objects=1, n_trajectories=1, n_frames=2, seed=0, out=out, overwrite=True)
@@ -296,7 +296,7 @@ def _edit_metadata(directory: Path, **changes: object) -> None:
         ({"n_trajectories": "2"}, "n_trajectories: must be an integer"),
         ({"n_objects": 3}, "frames.npz: object_pos: has shape"),
         ({"task": "stacking"}, "unknown task 'stacking'"),
-        ({"task_config": {"bogus": 1}}, "bad configuration for task 'pushing'"),
+        ({"task_config": {"bogus": 1}}, "config names unknown pushing configuration keys: bogus"),
     ],
 )
 def test_bad_metadata(tiny_dataset: Path, changes: dict[str, object], message: str) -> None:

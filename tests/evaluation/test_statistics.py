@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.evaluation.statistics import Z_95, rank, spearman, spearman_rho, wilson_interval
 
 
@@ -36,11 +37,11 @@ def test_wilson_bounds_solve_the_score_equation(successes: int, trials: int) -> 
 
 
 def test_wilson_interval_rejects_bad_counts() -> None:
-    with pytest.raises(ValueError, match="trials"):
+    with pytest.raises(InvalidParameterError, match="trials"):
         wilson_interval(0, 0)
-    with pytest.raises(ValueError, match="successes"):
+    with pytest.raises(InvalidParameterError, match="successes"):
         wilson_interval(4, 3)
-    with pytest.raises(ValueError, match="successes"):
+    with pytest.raises(InvalidParameterError, match="successes"):
         wilson_interval(-1, 3)
 
 

@@ -80,7 +80,7 @@ def test_a_model_without_a_file_is_saved_compiled(tmp_path: Path) -> None:
 def test_an_edited_model_refused_by_the_scene_writes_nothing(tmp_path: Path) -> None:
     env = gymnasium.make("Pusher-v5")
     env.unwrapped.model.body_pos[1] += 0.01
-    with pytest.raises(EnergyMarginError, match="--objects cube: no body of Pusher-v5 matches"):
+    with pytest.raises(EnergyMarginError, match=r"^objects cube: no body of Pusher-v5 matches"):
         scene_from_environment(env, objects="cube", out=tmp_path / "scene" / "s.toml")
     assert not (tmp_path / "scene").exists()
 

@@ -9,6 +9,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
+from energy_margin.errors import InvalidParameterError
 from energy_margin.learning.curve import (
     QUESTIONS,
     CurvePoint,
@@ -174,7 +175,7 @@ def test_select_uncertain_takes_the_largest_disagreement() -> None:
 def test_disagreement_is_the_summed_member_std() -> None:
     predictions = np.array([[[0.0, 0.2], [0.5, 0.5]], [[1.0, 0.2], [0.5, 0.7]]])  # 2 members, 2 frames
     np.testing.assert_allclose(disagreement(predictions), [0.5, 0.1])
-    with pytest.raises(ValueError, match="predictions"):
+    with pytest.raises(InvalidParameterError, match="predictions"):
         disagreement(np.zeros((2, 3)))
 
 
@@ -198,7 +199,7 @@ def test_disagreement_is_the_summed_member_std() -> None:
 )
 def test_bad_arguments_raise_naming_the_argument(dataset: Dataset, arguments: dict[str, Any], name: str) -> None:
     settings: dict[str, Any] = {"kind": "boosting", "sizes": [4, 8], "strategy": "random", "seed": 0, **arguments}
-    with pytest.raises(ValueError, match=rf"^{name} ") as raised:
+    with pytest.raises(InvalidParameterError, match=rf"^{name} ") as raised:
         learning_curve([dataset], **settings)
     assert getattr(raised.value, "parameter", None) == name
 

@@ -12,7 +12,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.margin_model import (
     MarginModel,
@@ -193,9 +193,9 @@ def test_exported_regressors_match_scikit_learn() -> None:
 
 
 def test_fit_validates_its_arguments(dataset: Dataset) -> None:
-    with pytest.raises(ValueError, match="kind"):
+    with pytest.raises(InvalidParameterError, match="kind"):
         fit_margin_model([dataset], seed=0, kind="forest")
-    with pytest.raises(ValueError, match="holdout"):
+    with pytest.raises(InvalidParameterError, match="holdout"):
         fit_margin_model([dataset], seed=0, holdout=1.0)
     with pytest.raises(EnergyMarginError, match="at least one"):
         fit_margin_model([], seed=0)

@@ -196,7 +196,7 @@ def test_changed_settings_are_refused(baseline: LearnResult, tmp_path: Path) -> 
     settings = (work / SETTINGS_FILE).read_text()
     before = file_stamps(work)
     out = tmp_path / "other.npz"
-    with pytest.raises(EnergyMarginError, match=r"trajectories: 3 there, 4 now.*--overwrite.*--work") as error:
+    with pytest.raises(EnergyMarginError, match=r"trajectories: 3 there, 4 now.*`overwrite=True`.*`work`") as error:
         run_tiny(work, out, trajectories=4)
     assert "\n" not in str(error.value)
     with pytest.raises(EnergyMarginError, match=r"objects: \[2, 3\] there, \[3, 2\] now"):
@@ -350,6 +350,6 @@ def test_library_refuses_bad_arguments_before_writing(tmp_path: Path) -> None:
     with pytest.raises(EnergyMarginError, match="a scene file fixes its objects"):
         run_tiny(work, out, task=None, scene=scene)
     out.write_bytes(b"someone else's")
-    with pytest.raises(EnergyMarginError, match="already exists; pass --overwrite"):
+    with pytest.raises(EnergyMarginError, match="already exists; pass `overwrite=True`"):
         run_tiny(work, out)
     assert not work.exists() and out.read_bytes() == b"someone else's"

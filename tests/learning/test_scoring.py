@@ -20,7 +20,7 @@ from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, header, load_scores
 from energy_margin.data.validation import check_dataset
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.metrics import average_precision, evaluate, score_grid
 from energy_margin.learning.margin_model import MarginModel, fit_margin_model
 from energy_margin.learning.scoring import LEARNED_ANALYZER, predict_rows, score_dataset
@@ -131,7 +131,7 @@ def test_a_loaded_dataset_and_batches_give_the_same_scores(fresh: Path, model_fi
         assert batched[key]["success_score"] == pytest.approx(row["success_score"], abs=1e-12)
     # One call's time is shared by its frames: 4 frames per call, 5 calls for 18 frames.
     assert len({row["runtime_s"] for row in batched.values()}) <= 5
-    with pytest.raises(ValueError, match="frames_per_call"):
+    with pytest.raises(InvalidParameterError, match="frames_per_call"):
         predict_rows(model, dataset, frames_per_call=0)
     assert score_dataset(dataset, path, progress=False) == fresh / SCORES_FILE
     scores = load_scores(fresh)

@@ -10,7 +10,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.learning.features import FrameFeatures, ObjectSetFeatures, SetInputs
 from energy_margin.learning.margin_model import fit_margin_model, load_margin_model
 from energy_margin.learning.set_network import (
@@ -82,7 +82,7 @@ def test_take_and_concatenate_keep_frames() -> None:
     joined = SetInputs.concatenate([part, inputs.take(slice(1, 2))])
     np.testing.assert_array_equal(joined.frame, inputs.frame[[0, 2, 1]])
     np.testing.assert_array_equal(joined.mask.sum(axis=1), [2, 3, 6])
-    with pytest.raises(ValueError, match="at least one"):
+    with pytest.raises(InvalidParameterError, match="at least one"):
         SetInputs.concatenate([])
 
 
@@ -93,11 +93,11 @@ def test_arrays_round_trip_and_validation() -> None:
     np.testing.assert_array_equal(again.predict(inputs), regressor.predict(inputs))
     arrays = regressor.arrays()
     del arrays["weight.key"]
-    with pytest.raises(ValueError, match=r"weight\.key"):
+    with pytest.raises(InvalidDataError, match=r"weight\.key"):
         SetRegressor.from_arrays(arrays)
     arrays = regressor.arrays()
     arrays["weight.head_0"] = arrays["weight.head_0"][:-1]
-    with pytest.raises(ValueError, match="head_0"):
+    with pytest.raises(InvalidDataError, match="head_0"):
         SetRegressor.from_arrays(arrays)
 
 
@@ -138,9 +138,9 @@ def test_fit_learns_a_set_function_and_stops_early() -> None:
     assert accuracy > 0.95
     assert abs(float(np.mean(predicted[:, 1])) - 0.3) < 0.03
     assert 1 <= info["best_epoch"] <= info["epochs"] <= 120
-    with pytest.raises(ValueError, match="unknown set options: depth"):
+    with pytest.raises(InvalidParameterError, match="unknown set options: depth"):
         fit_set_regressor(inputs, targets, seed=0, depth=3)
-    with pytest.raises(ValueError, match="targets must have shape"):
+    with pytest.raises(InvalidParameterError, match="targets must have shape"):
         fit_set_regressor(inputs, targets[:10], seed=0)
 
 

@@ -6,6 +6,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.planning.costs import (
     COST_MODELS,
     MIN_COST,
@@ -85,7 +86,7 @@ def test_cost_model_registry() -> None:
     assert isinstance(energy, EnergyBalanceCost)
     assert (wrench.name, wrench.needs_friction_work) == ("wrench", False)
     assert (energy.name, energy.needs_friction_work) == ("energy", True)
-    with pytest.raises(ValueError, match="cost must be one of wrench, energy"):
+    with pytest.raises(InvalidParameterError, match="cost must be one of wrench, energy"):
         make_cost_model("work")
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.planning.density import ObjectPositions, ProjectedGridDensity
 
 
@@ -74,9 +75,9 @@ def test_projection_directions_are_seeded_unit_columns() -> None:
 
 
 def test_density_rejects_bad_settings() -> None:
-    with pytest.raises(ValueError, match="n_projections"):
+    with pytest.raises(InvalidParameterError, match="n_projections"):
         ProjectedGridDensity(3, np.random.default_rng(0), n_projections=0)
-    with pytest.raises(ValueError, match="cell_size"):
+    with pytest.raises(InvalidParameterError, match="cell_size"):
         ProjectedGridDensity(3, np.random.default_rng(0), cell_size=0.0)
 
 

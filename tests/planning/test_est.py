@@ -8,6 +8,7 @@ import pytest
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, score_field
 from energy_margin.analysis.scores import region_score
+from energy_margin.errors import InvalidParameterError
 from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost, Propagation, WrenchWorkCost
 from energy_margin.sim import Simulator
@@ -401,9 +402,9 @@ def test_tree_budget_validation_and_capacity() -> None:
     assert TreeBudget(iterations=10, nodes=3).node_capacity == 4
     assert TreeBudget(iterations=3, nodes=10).node_capacity == 4
     assert TreeBudget(iterations=None, nodes=7).iteration_limit == 100_000
-    with pytest.raises(ValueError, match="give iterations, nodes or both"):
+    with pytest.raises(InvalidParameterError, match="give iterations, nodes or both"):
         TreeBudget(iterations=None, nodes=None)
-    with pytest.raises(ValueError, match="iterations must be a non-negative integer"):
+    with pytest.raises(InvalidParameterError, match="iterations must be a non-negative integer"):
         TreeBudget(iterations=-5)
-    with pytest.raises(ValueError, match="nodes must be a non-negative integer"):
+    with pytest.raises(InvalidParameterError, match="nodes must be a non-negative integer"):
         TreeBudget(iterations=5, nodes=2.5)

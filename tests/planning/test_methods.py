@@ -5,6 +5,7 @@ import pytest
 from tests.planning.test_est import PlaneTask, PointMassSimulator, _check_tree_invariants, _point_frame
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.errors import InvalidParameterError
 from energy_margin.planning import TreeBudget, grow_tree
 from energy_margin.planning.costs import EnergyBalanceCost, WrenchWorkCost
 from energy_margin.planning.methods import MonteCarloExpansion, RrtExpansion, expansion_factory
@@ -96,15 +97,15 @@ def test_rrt_on_the_faked_world_extends_nearest_nodes() -> None:
 
 
 def test_unknown_method_and_bad_options() -> None:
-    with pytest.raises(ValueError, match="method"):
+    with pytest.raises(InvalidParameterError, match="method"):
         expansion_factory("prm", n_objects=1, total=1, capacity=2)
-    with pytest.raises(ValueError, match="rollout_length"):
+    with pytest.raises(InvalidParameterError, match="rollout_length"):
         MonteCarloExpansion(10, 0)
-    with pytest.raises(ValueError, match="method"):
+    with pytest.raises(InvalidParameterError, match="method"):
         AnalyzerConfig(method="prm")
-    with pytest.raises(ValueError, match="batch"):
+    with pytest.raises(InvalidParameterError, match="batch"):
         AnalyzerConfig(batch=0)
-    with pytest.raises(ValueError, match="friction"):
+    with pytest.raises(InvalidParameterError, match="friction"):
         AnalyzerConfig(batch=4, cost="energy")
 
 
@@ -195,7 +196,7 @@ def test_batched_scooping_follows_the_script() -> None:
 def test_batched_refuses_friction_work() -> None:
     task, trajectory = _pushing()
     simulator = MujocoSimulator(task.build_scene(3, trajectory.friction))
-    with pytest.raises(ValueError, match="friction"):
+    with pytest.raises(InvalidParameterError, match="friction"):
         grow_tree(
             simulator,
             task,

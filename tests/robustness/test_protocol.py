@@ -11,7 +11,7 @@ import pytest
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.validation import check_dataset, overlaps_expected
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.robustness.perturb import PROTOCOLS, perturb_dataset, perturb_frame
 from energy_margin.sim import make_simulator
 from energy_margin.world.ellipsoid import min_volume_ellipsoid
@@ -47,7 +47,7 @@ def test_paper_draw_is_the_first_n_points_of_the_stream_with_overlaps(make_block
 
 def test_unknown_protocol_is_a_value_error(make_block_scene, make_resting_frame) -> None:  # type: ignore[no-untyped-def]
     scene, frame = _cluster(make_block_scene, make_resting_frame)
-    with pytest.raises(ValueError, match="protocol"):
+    with pytest.raises(InvalidParameterError, match="protocol"):
         perturb_frame(
             frame, make_simulator(scene), np.random.default_rng(0), planar=True, min_thickness=0.05, protocol="x"
         )

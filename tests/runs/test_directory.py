@@ -42,7 +42,7 @@ def test_other_settings_are_refused_then_replaced_with_overwrite(tmp_path: Path)
         open_run(out, SPEC, {"seed": 0, "inner": {"a": 2}})
     assert str(caught.value) == (
         f"{out} holds results of other settings (inner.a: 1 there, 2 now); "
-        "pass --overwrite to replace them or choose another --out"
+        "pass `overwrite=True` to replace them or choose another `out`"
     )
     assert (out / "rows.csv").exists() and not (out / LOCK_FILE).exists()  # nothing touched, lock released
     with run_directory(out, SPEC, {"seed": 0, "inner": {"a": 2}}, overwrite=True) as run:

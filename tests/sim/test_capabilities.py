@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.sim.base import (
     BatchedRollout,
     CompiledModel,
@@ -77,5 +77,5 @@ def test_a_given_model_comes_with_its_index(make_block_scene: Callable[..., Scen
     simulator = MujocoSimulator(scene, model=model, index=scene_index(model, scene))
     assert simulator.model is model
     np.testing.assert_array_equal(simulator.index.object_bodies, [1, 2])
-    with pytest.raises(ValueError, match=r"^index must be given together with model"):
+    with pytest.raises(InvalidParameterError, match=r"^index must be given together with model"):
         MujocoSimulator(scene, model=model)

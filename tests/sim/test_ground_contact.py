@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, command_robot, get_task
 from energy_margin.world.scene import Scene
@@ -43,9 +44,9 @@ def _launch(simulator: MujocoSimulator, velocity: list[float]) -> None:
 
 
 def test_footprint_needs_upright_objects(make_block_scene: Callable[..., Scene]) -> None:
-    with pytest.raises(ValueError, match="upright"):
+    with pytest.raises(InvalidParameterError, match="upright"):
         dataclasses.replace(make_block_scene(1, motion="free"), ground_contact="footprint")
-    with pytest.raises(ValueError, match="ground_contact"):
+    with pytest.raises(InvalidParameterError, match="ground_contact"):
         dataclasses.replace(make_block_scene(1, motion="upright"), ground_contact="patch")
 
 

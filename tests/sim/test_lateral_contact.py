@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, command_robot, get_task
 from energy_margin.world.scene import Scene
@@ -81,9 +81,9 @@ def _packed_frame(task: PushingTask, rng: np.random.Generator, n_objects: int) -
 
 
 def test_sphere_needs_upright_objects(make_block_scene: Callable[..., Scene]) -> None:
-    with pytest.raises(ValueError, match="upright"):
+    with pytest.raises(InvalidParameterError, match="upright"):
         dataclasses.replace(make_block_scene(1, motion="free"), lateral_contact="sphere")
-    with pytest.raises(ValueError, match="lateral_contact"):
+    with pytest.raises(InvalidParameterError, match="lateral_contact"):
         dataclasses.replace(make_block_scene(1, motion="upright"), lateral_contact="capsule")
     with pytest.raises(EnergyMarginError, match="lateral_contact"):
         get_task("pushing", {"lateral_contact": "capsule"})

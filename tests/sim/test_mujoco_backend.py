@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from energy_margin import compat
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.sim import Simulator, make_simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_spec import build_model
@@ -108,7 +108,7 @@ def test_build_model_rejects_offset_object_geoms() -> None:
         statics=(),
         friction=0.5,
     )
-    with pytest.raises(ValueError, match="centred at the body origin"):
+    with pytest.raises(InvalidDataError, match="centred at the body origin"):
         build_model(scene)
 
 
@@ -288,7 +288,7 @@ def test_reset_rejects_a_bad_frame(
     simulator = MujocoSimulator(scene)
     frame = make_resting_frame(scene)
     frame.object_pos[1, 0] = np.nan
-    with pytest.raises(ValueError, match="object_pos contains NaN"):
+    with pytest.raises(InvalidParameterError, match="object_pos contains NaN"):
         simulator.reset(frame)
 
 

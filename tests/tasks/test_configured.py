@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import get_task, resolve_task
 
 _DESIGN = '[design]\npusher_width = { geom = "pusher", attribute = "size", index = 0, low = 0.05, high = 0.25 }\n'
@@ -26,11 +26,12 @@ def test_configured_equals_the_registry_build_of_the_same_settings() -> None:
 def test_configured_refuses_a_bad_setting_naming_the_task() -> None:
     task = get_task("scooping")
     with pytest.raises(
-        EnergyMarginError, match="bad configuration for task 'scooping': unknown scooping configuration"
+        InvalidParameterError, match=r"unknown scooping configuration keys: no_such_setting \(task 'scooping'\)"
     ):
         task.configured({"no_such_setting": 1})
-    with pytest.raises(EnergyMarginError, match="bad configuration for task 'scooping'"):
-        task.configured({"finger_stiffness": -1.0})
+    with pytest.raises(InvalidParameterError, match=r"must be > 0, got \(-1.0, 2.0\) \(task 'scooping'\)") as raised:
+        task.configured({"stiffness_range": [-1.0, 2.0]})
+    assert raised.value.parameter == "stiffness_range"
 
 
 def test_a_scene_variant_is_built_from_its_file_not_its_pinned_hashes(make_scene) -> None:  # type: ignore[no-untyped-def]

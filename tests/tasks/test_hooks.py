@@ -161,7 +161,7 @@ def test_the_layout_says_which_drives_a_task_accepts(shoving: str, tmp_path: Pat
 
     folder = tmp_path / "ref"
     _tiny_pushing_folder(folder)
-    with pytest.raises(EnergyMarginError, match="--drive coast does not apply to steady-pushing; its drives: nominal"):
+    with pytest.raises(EnergyMarginError, match=r"^drive coast does not apply to steady-pushing; its drives: nominal"):
         import_reference(folder, tmp_path / "out", task=Steady.name, drive="coast")
     assert import_reference(folder, tmp_path / "out", task=Steady.name).metadata["imported_drive"] == "nominal"
     # Two tasks declare the layout: the files import by default as the first by name.

@@ -14,7 +14,7 @@ from energy_margin import compat
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks.model_file import model_differences, save_binary_model
 from energy_margin.tasks.scene_model import load_scene, model_hash
 from tiny_scene import TINY_SCENE, write_tiny_scene
@@ -40,7 +40,7 @@ def test_a_binary_model_loads_as_the_same_compiled_model(tmp_path: Path) -> None
     np.testing.assert_array_equal(loaded.object_radius, from_xml.object_radius)
     np.testing.assert_array_equal(loaded.motion.mocap_pos, from_xml.motion.mocap_pos)
     # No [design] parameters: a design value given for one is refused as for an MJCF scene.
-    with pytest.raises(ValueError, match="unknown scene configuration keys: width"):
+    with pytest.raises(InvalidParameterError, match="unknown scene configuration keys: width"):
         load_scene(binary, {"width": 0.1})
 
 

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidDataError
 from energy_margin.tasks import all_inside
 from energy_margin.tasks.base import sample_separated as _sample_separated
 from energy_margin.tasks.pushing import PushingConfig, PushingTask, SweptRegion, WallBand
@@ -298,7 +299,7 @@ def test_frame_steps() -> None:
 
 
 def test_separated_sampling_gives_up_when_impossible() -> None:
-    with pytest.raises(ValueError, match="cannot place 5 objects"):
+    with pytest.raises(InvalidDataError, match="cannot place 5 objects"):
         _sample_separated(np.random.default_rng(0), 5, np.zeros(2), np.full(2, 0.1), 0.2)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks.base import MeasurableRegion, all_inside
 from energy_margin.tasks.regions import (
     REGION_TYPES,
@@ -103,7 +104,7 @@ def test_every_object_and_at_least_k() -> None:
     assert all_inside(AtLeast(3, box), states).tolist() == [False, False]
     # The distance baseline's min over objects is the 2nd-largest object distance.
     np.testing.assert_allclose(np.min(AtLeast(2, box).signed_distance(states), axis=-1), [0.5, -1.0])
-    with pytest.raises(ValueError, match=r"^count must be a positive integer, got 0$"):
+    with pytest.raises(InvalidParameterError, match=r"^count must be a positive integer, got 0$"):
         AtLeast(0, box)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from energy_margin.cli import main
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_file import DEFAULTED_KEYS, Locator, read_scene_file
 from energy_margin.tasks.scene_model import load_scene
@@ -581,7 +581,9 @@ def test_a_following_capture_region_is_built_at_every_states_own_robot_pose(make
     follow = follow_task.capture_inside(root, object_pos, object_vel, object_quat, robot_q)
     assert frozen.tolist() == [True, False]
     assert follow.tolist() == [True, True]
-    with pytest.raises(ValueError, match=r"capture\.follow needs the robot's coordinates at every tree node"):
+    with pytest.raises(
+        InvalidParameterError, match=r"capture\.follow needs the robot's coordinates at every tree node"
+    ):
         follow_task.capture_inside(root, object_pos, object_vel, object_quat, None)
 
 
@@ -609,7 +611,7 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
 
     assert scores.capture_score == region_score(field.costs, expected, task.config.likelihood_lambda)
     # A batched expansion of a model with mocap bodies keeps no robot coordinates: one clear error.
-    with pytest.raises(ValueError, match="use batch 1"):
+    with pytest.raises(InvalidParameterError, match="use batch 1"):
         analyze_frame(
             task,
             trajectory.initial,
@@ -645,7 +647,7 @@ def test_a_zero_separation_layout_failure_is_still_one_line(make_scene) -> None:
             )
         },
     )
-    with pytest.raises(ValueError, match="cannot place 2 objects 0 m apart") as error:
+    with pytest.raises(InvalidDataError, match="cannot place 2 objects 0 m apart") as error:
         task.sample_trajectory(np.random.default_rng(0), 2)
     assert "grid" not in str(error.value)
 

@@ -10,7 +10,7 @@ from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.sim import make_simulator
 from energy_margin.tasks import ScoopingTask, command_robot, get_task
 from energy_margin.world.state import FrameState
@@ -252,7 +252,7 @@ def test_recorded_waypoints_must_be_a_count(value: float, message: str) -> None:
 def test_a_bad_recorded_motion_is_refused_where_the_scene_is_built() -> None:
     task = get_task("scooping", {"recorded_waypoints": 2})
     still = task._targets(1.2)  # type: ignore[attr-defined]
-    with pytest.raises(ValueError, match="increase strictly"):
+    with pytest.raises(InvalidParameterError, match="increase strictly"):
         task.build_scene(1, 0.5, _recorded([1.0, 1.0], np.stack([still, still])))
-    with pytest.raises(ValueError, match=r"1 \+ 6 x 2 values"):
+    with pytest.raises(InvalidParameterError, match=r"1 \+ 6 x 2 values"):
         task.build_scene(1, 0.5, np.array([1000.0]))

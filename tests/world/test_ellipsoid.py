@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 import energy_margin
+from energy_margin.errors import InvalidParameterError
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 
 coordinates = st.floats(min_value=-100.0, max_value=100.0, allow_nan=False, allow_infinity=False)
@@ -190,7 +191,7 @@ def test_ten_points_in_2d_take_well_under_10_ms() -> None:
     ],
 )
 def test_bad_arguments_name_themselves(kwargs: dict, name: str) -> None:
-    with pytest.raises(ValueError, match=name):
+    with pytest.raises(InvalidParameterError, match=name):
         min_volume_ellipsoid(**kwargs)
 
 
@@ -215,9 +216,9 @@ def test_sampling_is_deterministic_and_validates_count() -> None:
     ellipsoid = Ellipsoid(np.zeros(2), np.array([1.0, 0.5]), np.eye(2))
     first = ellipsoid.sample(np.random.default_rng(7), 5)
     assert np.array_equal(first, ellipsoid.sample(np.random.default_rng(7), 5))
-    with pytest.raises(ValueError, match="count"):
+    with pytest.raises(InvalidParameterError, match="count"):
         ellipsoid.sample(np.random.default_rng(0), -1)
-    with pytest.raises(ValueError, match="radii"):
+    with pytest.raises(InvalidParameterError, match="radii"):
         Ellipsoid(np.zeros(2), np.array([1.0, 0.0]), np.eye(2))
 
 
@@ -236,5 +237,5 @@ def test_snapped_rounds_to_the_grid_and_absorbs_rounding_changes() -> None:
     assert np.array_equal(nudged.center, snapped.center)
     assert np.array_equal(nudged.radii, snapped.radii)
     assert np.array_equal(nudged.rotation, snapped.rotation)
-    with pytest.raises(ValueError, match="step"):
+    with pytest.raises(InvalidParameterError, match="step"):
         fit.snapped(0.0)

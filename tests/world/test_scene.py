@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 
 
@@ -24,7 +25,7 @@ def _object(name: str = "a") -> RigidObject:
     ],
 )
 def test_geom_rejects_bad_shapes_and_sizes(shape: str, size: tuple[float, ...], message: str) -> None:
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(InvalidParameterError, match=message):
         Geom(shape, size)
 
 
@@ -45,7 +46,7 @@ def test_principal_inertia_by_hand() -> None:
         (0.2 * (3 * 0.0025 + 0.03**2) / 12, 0.2 * (3 * 0.0025 + 0.03**2) / 12, 0.5 * 0.2 * 0.0025)
     )
     assert Geom("sphere", (0.1,)).principal_inertia(5.0) == pytest.approx((0.02, 0.02, 0.02))
-    with pytest.raises(ValueError, match="plane has no inertia"):
+    with pytest.raises(InvalidParameterError, match="plane has no inertia"):
         Geom("plane", (1.0, 1.0)).principal_inertia(1.0)
 
 
@@ -107,7 +108,7 @@ def test_object_masses_and_inertias_arrays() -> None:
 def test_scene_validation(kwargs: dict[str, object], message: str) -> None:
     values: dict[str, object] = {"objects": (_object(),), "robot": None, "statics": (), "friction": 0.5}
     values.update(kwargs)
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(InvalidParameterError, match=message):
         Scene(**values)
 
 

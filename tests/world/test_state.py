@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.world.state import FrameState, relative_rotation_vector, yaw_from_quat
 
 
@@ -107,7 +108,7 @@ def test_validate_names_the_array_with_a_wrong_shape(name: str) -> None:
     good = _frame(2, 1)
     wrong = np.zeros((3, *getattr(good, name).shape[1:]))
     frame = dataclasses.replace(good, **{name: wrong})
-    with pytest.raises(ValueError, match=f"^{name} must have shape"):
+    with pytest.raises(InvalidParameterError, match=f"^{name} must have shape"):
         frame.validate(n_objects=2, n_robot_dofs=1)
 
 
@@ -116,12 +117,12 @@ def test_validate_names_the_array_with_a_wrong_shape(name: str) -> None:
 def test_validate_names_the_array_with_a_non_finite_value(name: str, bad: float) -> None:
     frame = _frame(2, 1)
     getattr(frame, name).flat[0] = bad
-    with pytest.raises(ValueError, match=f"^{name} contains NaN"):
+    with pytest.raises(InvalidParameterError, match=f"^{name} contains NaN"):
         frame.validate(n_objects=2, n_robot_dofs=1)
 
 
 def test_validate_rejects_non_unit_quaternions() -> None:
     frame = _frame(2, 0)
     frame.object_quat[1] = [1.0, 0.1, 0.0, 0.0]
-    with pytest.raises(ValueError, match="unit quaternions"):
+    with pytest.raises(InvalidParameterError, match="unit quaternions"):
         frame.validate(n_objects=2, n_robot_dofs=0)

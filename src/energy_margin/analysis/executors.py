@@ -20,7 +20,7 @@ from typing import Any, Protocol, TypeVar
 
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import EnergyMarginError, check_positive_int
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_int
 
 EXECUTORS = ("local", "ray")
 
@@ -50,7 +50,7 @@ def make_executor(kind: str = "local", *, workers: int = 1, address: str | None 
     check_positive_int("workers", workers)
     if kind == "local":
         if address is not None:
-            raise EnergyMarginError("--address is only for --executor ray")
+            raise InvalidParameterError("address", "is only for `executor=ray`")
         return LocalExecutor(workers)
     if kind == "ray":
         return RayExecutor(workers, address)

@@ -17,7 +17,13 @@ import numpy as np
 
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import check_choice, check_float, check_int, check_positive_float, check_positive_int
+from energy_margin.errors import (
+    Constraint,
+    InvalidParameterError,
+    check_choice,
+    check_fields,
+    constrained,
+)
 from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
@@ -73,59 +79,42 @@ class AnalyzerConfig:
 
     """
 
-    iterations: int | None = 300
-    nodes: int | None = None
-    cost: str = "wrench"
-    likelihood_lambda: float | None = None
-    n_projections: int = 8
-    cell_size: float = 0.01
-    engine: str = "mujoco"
-    method: str = "est"
-    batch: int = 1
-    threads: int = 1
-    rollout_length: int = 10
-    rrt_extent: float = 0.1
-    projection: str = "objects"
-    converge: float | None = None
-    converge_rule: str = "projected"
-    converge_window: int = 50
-    converge_every: int = 25
-    contacts: str = "recorded"
-    wrench_scale: float = 1.0
-    duration_scale: float = 1.0
+    iterations: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
+    nodes: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
+    cost: str = constrained("wrench", Constraint("choice", choices=tuple(COST_MODELS)))
+    likelihood_lambda: float | None = constrained(None, Constraint("float", minimum=0.0, optional=True))
+    n_projections: int = constrained(8, Constraint("int", minimum=1))
+    cell_size: float = constrained(0.01, Constraint("float", minimum=0.0, exclusive=True))
+    engine: str = constrained("mujoco", Constraint("choice", choices=tuple(ENGINES)))
+    method: str = constrained("est", Constraint("choice", choices=tuple(METHODS)))
+    batch: int = constrained(1, Constraint("int", minimum=1))
+    threads: int = constrained(1, Constraint("int", minimum=1))
+    rollout_length: int = constrained(10, Constraint("int", minimum=1))
+    rrt_extent: float = constrained(0.1, Constraint("float", minimum=0.0, exclusive=True))
+    projection: str = constrained("objects", Constraint("choice", choices=tuple(PROJECTIONS)))
+    converge: float | None = constrained(
+        None, Constraint("float", minimum=0.0, maximum=1.0, exclusive=True, optional=True)
+    )
+    converge_rule: str = constrained("projected", Constraint("choice", choices=CONVERGE_RULES))
+    converge_window: int = constrained(50, Constraint("int", minimum=1))
+    converge_every: int = constrained(25, Constraint("int", minimum=1))
+    contacts: str = constrained("recorded", Constraint("choice", choices=tuple(CONTACT_MODELS)))
+    wrench_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
+    duration_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
 
     def __post_init__(self) -> None:
-        for name in ("iterations", "nodes"):
-            value = getattr(self, name)
-            if value is not None:
-                check_int(name, value, minimum=0)
+        # Each field's constraint is declared once, beside its default (the command line takes both).
+        check_fields(self)
         if self.iterations is None and self.nodes is None:
-            raise ValueError("iterations and nodes cannot both be None")
-        check_choice("cost", self.cost, COST_MODELS)
-        if self.likelihood_lambda is not None:
-            check_float("likelihood_lambda", self.likelihood_lambda, minimum=0.0)
-        check_positive_int("n_projections", self.n_projections)
-        check_positive_float("cell_size", self.cell_size)
-        check_choice("engine", self.engine, ENGINES)
-        check_choice("method", self.method, METHODS)
-        for name in ("batch", "threads", "rollout_length"):
-            check_positive_int(name, getattr(self, name))
+            raise InvalidParameterError("iterations", "and nodes cannot both be None")
         if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
-            raise ValueError(f"batch > 1 does not integrate friction work: use cost 'wrench', not {self.cost!r}")
-        check_positive_float("rrt_extent", self.rrt_extent)
-        check_choice("projection", self.projection, PROJECTIONS)
-        if self.converge is not None:
-            check_float(
-                "converge", self.converge, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True
+            raise InvalidParameterError(
+                "cost", f"must be 'wrench' with batch > 1, which does not integrate friction work, got {self.cost!r}"
             )
-        check_choice("converge_rule", self.converge_rule, CONVERGE_RULES)
-        check_choice("contacts", self.contacts, CONTACT_MODELS)
         if self.contacts == "fast" and self.engine != "mujoco":
-            raise ValueError(f"contacts 'fast' is a MuJoCo contact model, not available with engine {self.engine!r}")
-        for name in ("converge_window", "converge_every"):
-            check_positive_int(name, getattr(self, name))
-        for name in ("wrench_scale", "duration_scale"):
-            check_positive_float(name, getattr(self, name))
+            raise InvalidParameterError(
+                "contacts", f"'fast' is a MuJoCo contact model, not available with engine {self.engine!r}"
+            )
 
     @property
     def budget(self) -> TreeBudget:
@@ -303,7 +292,7 @@ def analyze_frame(
         frame.n_objects, friction, drive
     ):
         # A simulator of the recorded scene would silently analyse the other contact model.
-        raise ValueError(f"simulator: not a simulator of the scene of contacts {config.contacts!r}")
+        raise InvalidParameterError("simulator", f"is not a simulator of the scene of contacts {config.contacts!r}")
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     every = config.converge_every if check_every is None or stop is None else check_every

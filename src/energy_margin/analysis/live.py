@@ -116,7 +116,7 @@ def score_state(
         The scores with the expansions reached and the seconds used.
 
     Raises:
-        ValueError: a ``budget_s`` that is not > 0, or a ``max_expansions`` below 1.
+        InvalidParameterError: a ``budget_s`` that is not > 0, or a ``max_expansions`` below 1.
 
     """
     started = time.perf_counter()

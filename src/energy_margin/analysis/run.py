@@ -121,10 +121,7 @@ def analyze(
     runner = make_executor(executor, workers=workers, address=address)
     dataset = require_valid(path, overlaps=True, scores=False)
     check_engine(dataset.task, config.engine)
-    try:
-        with_contacts(dataset.task, config.contacts)
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    with_contacts(dataset.task, config.contacts)  # InvalidParameterError naming contacts
     problem = dataset.task.analysis_problem(batch=config.batch)
     if problem is not None:
         raise EnergyMarginError(problem)

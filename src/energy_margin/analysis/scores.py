@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from energy_margin.errors import check_choice, check_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_int
 
 
 def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
@@ -22,9 +22,9 @@ def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
     """
     costs = np.asarray(costs, dtype=float)
     if costs.ndim != 1 or costs.size == 0:
-        raise ValueError(f"costs must be a non-empty 1-D array, got shape {costs.shape}")
+        raise InvalidParameterError("costs", f"must be a non-empty 1-D array, got shape {costs.shape}")
     if not np.all(np.isfinite(costs)):
-        raise ValueError("costs must be finite")
+        raise InvalidParameterError("costs", "must be finite")
     check_float("lam", lam, minimum=0.0)
     logits = -lam * (costs - costs.min())
     logits -= logits.max()
@@ -43,7 +43,7 @@ def region_score(costs: np.ndarray, inside: np.ndarray, lam: float) -> float:
     """
     inside = np.asarray(inside, dtype=bool)
     if inside.shape != np.shape(costs):
-        raise ValueError(f"inside must have shape {np.shape(costs)}, got {inside.shape}")
+        raise InvalidParameterError("inside", f"must have shape {np.shape(costs)}, got {inside.shape}")
     # Rounding can push a sum of likelihoods that should be exactly 1 just above it.
     return min(1.0, float(np.sum(likelihood(costs, lam)[inside])))
 

@@ -9,27 +9,24 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from energy_margin.analysis.executors import EXECUTORS
-from energy_margin.analysis.frame import CONVERGE_RULES
+from energy_margin.analysis.frame import CONVERGE_RULES, AnalyzerConfig
 from energy_margin.cli.common import (
     add_engine,
     add_seed,
+    analyzer_default,
     non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
     say_notes,
 )
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks.base import CONTACT_MODELS
-
-if TYPE_CHECKING:
-    from energy_margin.analysis.frame import AnalyzerConfig
 
 NAME = "analyze"
 SUMMARY = "score every frame of a dataset: capture and success scores into scores.csv"
@@ -40,7 +37,11 @@ EXAMPLES = (
 )
 # The choices are the registries themselves, so a new method or cost model shows up here.
 COSTS = tuple(COST_MODELS)
-DEFAULT_ITERATIONS = 300
+default = analyzer_default
+
+
+#: The expansions per frame without ``--iterations`` and ``--nodes`` (AnalyzerConfig's own).
+DEFAULT_ITERATIONS = default("iterations")
 #: The options of the tree analysis (by ``dest``): a learned margin (``--model``) grows no tree.
 TREE_ONLY = {
     "iterations": "--iterations",
@@ -73,31 +74,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"expansions per frame (default {DEFAULT_ITERATIONS} when --nodes is absent)",
     )
-    parser.add_argument("--nodes", type=non_negative_int, default=None, help="tree nodes per frame")
+    parser.add_argument("--nodes", type=non_negative_int, default=default("nodes"), help="tree nodes per frame")
     parser.add_argument(
         "--cost",
         choices=COSTS,
-        default="wrench",
-        help="incremental cost: wrench (perturbation work) or energy (|dE - W_fri|) (default wrench)",
+        default=default("cost"),
+        help=f"incremental cost: wrench (perturbation work) or energy (|dE - W_fri|) (default {default('cost')})",
     )
     parser.add_argument(
         "--lambda",
         dest="likelihood_lambda",
         type=non_negative_float,
-        default=None,
+        default=default("likelihood_lambda"),
         help="softmax inverse temperature, 1/J (default: the task's)",
     )
     parser.add_argument(
         "--wrench-scale",
         type=positive_float,
-        default=1.0,
-        help="factor on the task's perturbation wrench bounds (default 1)",
+        default=default("wrench_scale"),
+        help=f"factor on the task's perturbation wrench bounds (default {default('wrench_scale'):g})",
     )
     parser.add_argument(
         "--duration-scale",
         type=positive_float,
-        default=1.0,
-        help="factor on the task's longest perturbation propagation (default 1)",
+        default=default("duration_scale"),
+        help=f"factor on the task's longest perturbation propagation (default {default('duration_scale'):g})",
     )
     parser.add_argument(
         "--calibration",
@@ -120,14 +121,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "growing trees (takes none of the tree options)",
     )
     parser.add_argument(
-        "--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)} (default est)"
+        "--method",
+        choices=METHODS,
+        default=default("method"),
+        help=f"tree method: {', '.join(METHODS)} (default {default('method')})",
     )
-    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round (default 1)")
-    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads (default 1)")
+    parser.add_argument(
+        "--batch",
+        type=positive_int,
+        default=default("batch"),
+        help=f"expansions per mujoco.rollout round (default {default('batch')})",
+    )
+    parser.add_argument(
+        "--threads",
+        type=positive_int,
+        default=default("threads"),
+        help=f"mujoco.rollout threads (default {default('threads')})",
+    )
     parser.add_argument(
         "--converge",
         type=non_negative_float,
-        default=None,
+        default=default("converge"),
         metavar="TOL",
         help="adaptive budget: stop a frame once neither score would move by more than TOL by the end of the "
         "budget at its rate over the last 50 expansions (the budget stays the upper bound; default: spend the "
@@ -137,22 +151,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--converge-rule",
         choices=CONVERGE_RULES,
-        default="projected",
+        default=default("converge_rule"),
         help="rule of --converge: projected (default) or window (neither score moved by more than TOL over "
         "the last 50 expansions; stops earlier, biased high)",
     )
     parser.add_argument(
         "--contacts",
         choices=CONTACT_MODELS,
-        default="recorded",
+        default=default("contacts"),
         help="contact model: the dataset's (recorded, default) or the task's fast one (pushing: one ground "
         "contact per cylinder and sphere stand-ins for the lateral pairs; the same contacts, cheaper)",
     )
     parser.add_argument(
         "--projection",
         choices=PROJECTIONS,
-        default="objects",
-        help="EST density features: every object's centre, or the ellipsoid of the centres (default objects)",
+        default=default("projection"),
+        help="EST density features: every object's centre, or the ellipsoid of the centres "
+        f"(default {default('projection')})",
     )
 
 
@@ -179,8 +194,6 @@ def calibrated_settings(args: argparse.Namespace) -> dict[str, float]:
 
 def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     """The :class:`~energy_margin.analysis.frame.AnalyzerConfig` the arguments ask for."""
-    from energy_margin.analysis.frame import AnalyzerConfig
-
     if args.iterations == 0 and args.nodes is None:
         raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
     iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS
@@ -191,27 +204,22 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     }
     if getattr(args, "calibration", None) is not None:
         chosen.update(calibrated_settings(args))
-    try:
-        return AnalyzerConfig(
-            iterations=iterations,
-            nodes=args.nodes,
-            cost=args.cost,
-            likelihood_lambda=chosen["likelihood_lambda"],
-            wrench_scale=chosen["wrench_scale"],
-            duration_scale=chosen["duration_scale"],
-            engine=args.engine,
-            method=args.method,
-            batch=args.batch,
-            threads=args.threads,
-            projection=args.projection,
-            converge=args.converge,
-            converge_rule=args.converge_rule,
-            contacts=args.contacts,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    return AnalyzerConfig(
+        iterations=iterations,
+        nodes=args.nodes,
+        cost=args.cost,
+        likelihood_lambda=chosen["likelihood_lambda"],
+        wrench_scale=chosen["wrench_scale"],
+        duration_scale=chosen["duration_scale"],
+        engine=args.engine,
+        method=args.method,
+        batch=args.batch,
+        threads=args.threads,
+        projection=args.projection,
+        converge=args.converge,
+        converge_rule=args.converge_rule,
+        contacts=args.contacts,
+    )
 
 
 def tree_options_given(args: argparse.Namespace) -> list[str]:

@@ -6,10 +6,12 @@ module and naming it in :data:`COMMANDS`; no other command changes.
 
 A library function refuses a bad keyword argument with
 :class:`~energy_margin.errors.InvalidParameterError`, whose message starts with the argument's
-name; the error line names the command's flag instead (``--objects must be a positive integer,
-got 0``). The flag of an argument is the option whose argparse ``dest`` is its name (``workers``
-is ``--workers``), or the one a command module's optional ``PARAMETER_FLAGS`` table gives for a
-name that differs (``{"n_objects": "--objects"}``).
+name, and names other arguments inside a message in backticks (```overwrite=True```); the error
+line names the command's flags instead (``--objects must be a positive integer, got 0``, ``pass
+--overwrite``). :func:`flag_for` is the one mapping: the flag of an argument is the option whose
+argparse ``dest`` is its name (``workers`` is ``--workers``), or, for a name that differs, the
+option of the ``dest`` that :data:`PARAMETER_DESTS` gives (``n_objects`` is ``--objects``), or the
+one a command module's optional ``PARAMETER_FLAGS`` table gives for that command.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from __future__ import annotations
 import argparse
 import errno
 import os
+import re
 import signal
 import sys
 from collections.abc import Sequence
@@ -98,27 +101,72 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Keyword arguments of the library whose option has another ``dest``: name -> ``dest``. A name
+#: maps to the flag only in the commands that have that ``dest``.
+PARAMETER_DESTS = {
+    "n_objects": "objects",
+    "n_trajectories": "trajectories",
+    "n_frames": "frames",
+    "trajectory_counts": "counts",
+    "scene_file": "scene",
+    "file_format": "format",
+    "frame_index": "frame",
+    "config": "set",
+    "design": "set",
+}
+
+
 def parameter_flags(parser: argparse.ArgumentParser, command: ModuleType) -> dict[str, str]:
-    """The flag of each keyword argument a command passes on: ``dest`` -> ``--option``, then its table.
+    """The flag of each keyword argument a command passes on: ``dest`` -> ``--option``, then the tables.
 
     Each option's ``dest`` maps to its first long option string (``likelihood_lambda`` ->
-    ``--lambda``); the command module's ``PARAMETER_FLAGS``, when it has one, adds or overrides
-    the names that differ from a ``dest`` (``n_objects`` -> ``--objects``).
+    ``--lambda``); :data:`PARAMETER_DESTS` adds the names that differ from their ``dest``
+    (``n_objects`` -> ``--objects``) where the command has that ``dest``; a command module's own
+    ``PARAMETER_FLAGS``, when it has one, adds or overrides names last.
     """
     flags: dict[str, str] = {}
     for action in parser._actions:
         long = [option for option in action.option_strings if option.startswith("--")]
         if long and action.dest not in (argparse.SUPPRESS, "help"):
             flags.setdefault(action.dest, long[0])
+    for name, dest in PARAMETER_DESTS.items():
+        if dest in flags:
+            flags.setdefault(name, flags[dest])
     flags.update(getattr(command, "PARAMETER_FLAGS", {}))
     return flags
 
 
+def flag_for(command: str, parameter: str) -> str | None:
+    """The option of ``command`` that sets the keyword argument ``parameter``; ``None`` if none does."""
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    flags: dict[str, str] = subparsers.choices[command].get_default("parameter_flags")
+    return flags.get(parameter)
+
+
+#: A keyword argument named inside a message: ```name``` or ```name=value```.
+_NAMED = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)(?:=([^`]*))?`")
+
+
 def error_message(error: EnergyMarginError, flags: dict[str, str]) -> str:
-    """The one line of ``error``: an argument's name becomes the command's flag for it."""
+    """The one line of ``error``: each keyword argument it names becomes the command's flag for it.
+
+    The argument an :class:`InvalidParameterError` starts with, and every ```name``` or
+    ```name=value``` inside the message, become ``--flag`` or ``--flag value`` (``name=True``:
+    ``--flag``). A name the command has no flag for keeps its own spelling.
+    """
     if isinstance(error, InvalidParameterError) and error.parameter in flags:
-        return one_line(f"{flags[error.parameter]} {error.reason}")
-    return one_line(str(error))
+        text = f"{flags[error.parameter]} {error.reason}"
+    else:
+        text = str(error)
+
+    def flag(match: re.Match[str]) -> str:
+        name, value = match.group(1), match.group(2)
+        if name not in flags:
+            return match.group(0)
+        return flags[name] if value is None or value == "True" else f"{flags[name]} {value}"
+
+    return one_line(_NAMED.sub(flag, text))
 
 
 def _joined_camera(argv: list[str]) -> list[str]:

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import add_seed, non_negative_int, positive_int
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.cli.common import add_seed, analyzer_default, non_negative_int, positive_int
 from energy_margin.planning.methods import METHODS
 
 NAME = "budget"
@@ -26,8 +25,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_seed(parser)
     parser.add_argument("--bootstrap", type=non_negative_int, default=1000, help="trajectory resamples (default 1000)")
     parser.add_argument("--out", default=None, help="summary CSV (default DIR/budget/budget.csv; JSON, PNG beside)")
-    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round")
-    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads")
+    parser.add_argument(
+        "--batch", type=positive_int, default=analyzer_default("batch"), help="expansions per mujoco.rollout round"
+    )
+    parser.add_argument(
+        "--threads", type=positive_int, default=analyzer_default("threads"), help="mujoco.rollout threads"
+    )
     parser.add_argument(
         "--overwrite",
         action="store_true",
@@ -40,12 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.analysis.frame import AnalyzerConfig
     from energy_margin.experiments.budget import budget_sweep, format_table
 
-    try:
-        base = AnalyzerConfig(batch=args.batch, threads=args.threads)
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    base = AnalyzerConfig(batch=args.batch, threads=args.threads)
     rows = budget_sweep(
         args.dataset,
         budgets=args.budgets,

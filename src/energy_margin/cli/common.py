@@ -63,6 +63,18 @@ def positive_float(text: str) -> float:
     return value
 
 
+def analyzer_default(name: str) -> Any:
+    """The default of :class:`~energy_margin.analysis.frame.AnalyzerConfig`'s field ``name``.
+
+    Every command that sets an analyzer field takes its default from here, so the command line
+    and Python cannot differ.
+    """
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.errors import field_default
+
+    return field_default(AnalyzerConfig, name)
+
+
 def add_engine(parser: argparse.ArgumentParser) -> None:
     """The ``--engine`` option, with the engines as its choices."""
     from energy_margin.sim import ENGINES

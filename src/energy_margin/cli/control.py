@@ -16,7 +16,7 @@ from energy_margin.cli.common import (
     scene_task_config,
     task_overrides,
 )
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 
 NAME = "control"
 SUMMARY = "closed-loop episodes (MPPI with task, heuristic or margin costs) under disturbances"
@@ -28,6 +28,14 @@ EXAMPLES = (
 )
 #: Keyword arguments of :func:`~energy_margin.control.episodes.run_control` named otherwise here.
 PARAMETER_FLAGS = {"n_objects": "--objects", "n_frames": "--frames"}
+
+
+def controller_default(name: str) -> Any:
+    """The default of :class:`~energy_margin.control.mppi.ControllerConfig`'s field ``name``: the option's too."""
+    from energy_margin.control.mppi import ControllerConfig
+    from energy_margin.errors import field_default
+
+    return field_default(ControllerConfig, name)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -63,21 +71,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=30,
         help="expansions of the analysis of each recorded frame, for the mean capture score (0: skip; default 30)",
     )
-    parser.add_argument("--samples", type=positive_int, default=12, help="MPPI samples per decision (default 12)")
-    parser.add_argument("--horizon", type=positive_int, default=4, help="MPPI horizon in periods (default 4)")
-    parser.add_argument("--period", type=float, default=0.1, help="control period, s (default 0.1)")
+    default = controller_default
+    parser.add_argument(
+        "--samples",
+        type=positive_int,
+        default=default("samples"),
+        help=f"MPPI samples per decision (default {default('samples')})",
+    )
+    parser.add_argument(
+        "--horizon",
+        type=positive_int,
+        default=default("horizon"),
+        help=f"MPPI horizon in periods (default {default('horizon')})",
+    )
+    parser.add_argument(
+        "--period", type=float, default=default("period"), help=f"control period, s (default {default('period'):g})"
+    )
     parser.add_argument(
         "--lookahead",
         type=non_negative_int,
-        default=0,
+        default=default("lookahead"),
         help="periods the prediction goes on past the horizon with the script's commands, cut at the "
-        "episode's end; the cost sees those states too (default 0)",
+        f"episode's end; the cost sees those states too (default {default('lookahead')})",
     )
     parser.add_argument(
-        "--margin-expansions", type=positive_int, default=20, help="expansions per margin analysis (default 20)"
+        "--margin-expansions",
+        type=positive_int,
+        default=default("margin_expansions"),
+        help=f"expansions per margin analysis (default {default('margin_expansions')})",
     )
     parser.add_argument(
-        "--margin-samples", type=positive_int, default=4, help="samples analysed per decision (default 4)"
+        "--margin-samples",
+        type=positive_int,
+        default=default("margin_samples"),
+        help=f"samples analysed per decision (default {default('margin_samples')})",
     )
     parser.add_argument("--margin-weight", type=float, default=2.0, help="weight of the scores in the cost (default 2)")
     add_set(parser, "override a task setting, e.g. --set friction_range=[0.1,0.2]")
@@ -121,19 +148,14 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.control.episodes import run_control
     from energy_margin.control.mppi import ControllerConfig
 
-    try:
-        controller = ControllerConfig(
-            samples=args.samples,
-            horizon=args.horizon,
-            period=args.period,
-            lookahead=args.lookahead,
-            margin_expansions=args.margin_expansions,
-            margin_samples=args.margin_samples,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    controller = ControllerConfig(
+        samples=args.samples,
+        horizon=args.horizon,
+        period=args.period,
+        lookahead=args.lookahead,
+        margin_expansions=args.margin_expansions,
+        margin_samples=args.margin_samples,
+    )
     if args.scene:
         task_name, overrides = scene_task_config(args.scene, task_overrides(args.set))
     else:

@@ -19,7 +19,7 @@ from energy_margin.cli.common import (
     scene_task_config,
     task_overrides,
 )
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 
 NAME = "design"
 SUMMARY = "search a task's design by its energy margin (CMA-ES, TPE or a grid), then verify it by control episodes"
@@ -182,14 +182,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         if args.model is not None:
             raise EnergyMarginError("--model is only for --objective learned")
-        try:
-            analyzer = AnalyzerConfig(
-                iterations=args.iterations, cost=args.cost, method=args.method, engine=args.engine
-            )
-        except InvalidParameterError:
-            raise
-        except ValueError as error:
-            raise EnergyMarginError(str(error)) from None
+        analyzer = AnalyzerConfig(iterations=args.iterations, cost=args.cost, method=args.method, engine=args.engine)
         scorer = TreeScorer(analyzer)
     progress = (
         not args.no_progress

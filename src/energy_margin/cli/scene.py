@@ -75,10 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if args.camera is not None:
         from energy_margin.report.scene_view import parse_camera
 
-        try:
-            camera = parse_camera(args.camera)
-        except ValueError as error:
-            raise EnergyMarginError(str(error)) from None
+        camera = parse_camera(args.camera)
     task = get_task("scene", {"scene_file": os.path.abspath(args.scene)})
     assert isinstance(task, SceneTask)
     from energy_margin.report.scene_view import describe_scene, render_scene

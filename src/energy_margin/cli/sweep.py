@@ -6,8 +6,8 @@ import argparse
 import os
 import sys
 
-from energy_margin.cli.common import add_engine, add_seed, add_set, positive_int, task_overrides
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.cli.common import add_engine, add_seed, add_set, analyzer_default, positive_int, task_overrides
+from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks import available_tasks
@@ -58,11 +58,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=positive_int, default=1, help="analysis worker processes (default 1)")
     add_engine(parser)
     add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
-    parser.add_argument("--iterations", type=positive_int, default=300, help="expansions per frame (default 300)")
-    parser.add_argument("--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)}")
-    parser.add_argument("--cost", choices=tuple(COST_MODELS), default="wrench", help="incremental cost model")
-    parser.add_argument("--batch", type=positive_int, default=1, help="expansions per mujoco.rollout round")
-    parser.add_argument("--threads", type=positive_int, default=1, help="mujoco.rollout threads")
+    iterations = analyzer_default("iterations")
+    parser.add_argument(
+        "--iterations", type=positive_int, default=iterations, help=f"expansions per frame (default {iterations})"
+    )
+    parser.add_argument(
+        "--method", choices=METHODS, default=analyzer_default("method"), help=f"tree method: {', '.join(METHODS)}"
+    )
+    parser.add_argument(
+        "--cost", choices=tuple(COST_MODELS), default=analyzer_default("cost"), help="incremental cost model"
+    )
+    parser.add_argument(
+        "--batch", type=positive_int, default=analyzer_default("batch"), help="expansions per mujoco.rollout round"
+    )
+    parser.add_argument(
+        "--threads", type=positive_int, default=analyzer_default("threads"), help="mujoco.rollout threads"
+    )
     parser.add_argument(
         "--counts",
         type=positive_int,
@@ -85,19 +96,14 @@ def run(args: argparse.Namespace) -> int:
     repeated = [name for index, (name, _) in enumerate(params) if name in {n for n, _ in params[:index]}]
     if repeated:
         raise EnergyMarginError(f"--param {repeated[0]} is given twice; list all its values in one --param")
-    try:
-        analyzer = AnalyzerConfig(
-            iterations=args.iterations,
-            cost=args.cost,
-            method=args.method,
-            batch=args.batch,
-            threads=args.threads,
-            engine=args.engine,
-        )
-    except InvalidParameterError:
-        raise
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    analyzer = AnalyzerConfig(
+        iterations=args.iterations,
+        cost=args.cost,
+        method=args.method,
+        batch=args.batch,
+        threads=args.threads,
+        engine=args.engine,
+    )
     progress = not args.no_progress and (sys.stderr.isatty() or os.environ.get("ENERGY_MARGIN_PROGRESS") == "1")
     results = design_sweep(
         args.task,

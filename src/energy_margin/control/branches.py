@@ -30,7 +30,7 @@ from energy_margin.control.costs import CostContext, CostWeights, MarginPredicto
 from energy_margin.control.disturbances import Disturbance, Push, push_wrenches
 from energy_margin.control.episodes import apply_inputs, draw_episode, episode_seeds, observed_frame
 from energy_margin.control.mppi import Controller, ControllerConfig
-from energy_margin.errors import EnergyMarginError, check_int, check_seed
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
 
@@ -322,9 +322,9 @@ def branch_study(
     check_seed(seed)
     unknown = [name for name in scores if name not in SCORES]
     if unknown:
-        raise ValueError(f"scores: unknown {unknown}; choose from {', '.join(SCORES)}")
+        raise InvalidParameterError("scores", f"holds unknown {unknown}; choose from {', '.join(SCORES)}")
     if not decision_times or min(decision_times) < 0:
-        raise ValueError("decision_times: give at least one non-negative time")
+        raise InvalidParameterError("decision_times", "must hold at least one time, none negative")
     config = config or ControllerConfig()
     weights = weights or CostWeights()
     study = BranchStudy(

@@ -268,7 +268,7 @@ def margin_cost(predictions: Predictions, context: CostContext) -> np.ndarray:
 def learned_cost(predictions: Predictions, context: CostContext) -> np.ndarray:
     """The ``learned`` cost of every sequence, shape (k,)."""
     if context.model is None:
-        raise EnergyMarginError("the learned cost needs a model: pass --model MODEL")
+        raise EnergyMarginError("the learned cost needs a model: pass `model`")
     cost = task_cost(predictions, context)
     frames = [predictions.frame(sample) for sample in range(predictions.n_samples)]
     capture, success = context.model.predict(context.task, frames)

@@ -38,7 +38,7 @@ from energy_margin.control.disturbances import (
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
-from energy_margin.errors import EnergyMarginError, check_int, check_seed
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.runs.files import atomic_path, write_json
@@ -434,9 +434,9 @@ def run_control(
     if policy not in POLICIES:
         raise EnergyMarginError(f"unknown policy {policy!r}; choose one of {', '.join(POLICIES)}")
     if policy == "learned" and model is None:
-        raise EnergyMarginError("--policy learned needs --model MODEL (made by energy-margin learn)")
+        raise InvalidParameterError("policy", "learned needs `model`, a model made by energy-margin learn")
     if policy != "learned" and model is not None:
-        raise EnergyMarginError("--model is only for --policy learned")
+        raise InvalidParameterError("model", "is only for `policy=learned`")
     if task_name not in controllable_tasks():
         raise EnergyMarginError(
             f"task {task_name!r} cannot be controlled; controllable tasks: {', '.join(controllable_tasks())}"

@@ -21,10 +21,13 @@ import numpy as np
 
 from energy_margin.control.commands import CommandSpace
 from energy_margin.control.costs import CostContext, CostFunction, Predictions
-from energy_margin.errors import check_float, check_int, check_positive_float, check_positive_int
+from energy_margin.errors import Constraint, check_fields, constrained
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.world.state import FrameState
+
+#: A finite number > 0.
+_POSITIVE = Constraint("float", minimum=0.0, exclusive_minimum=True)
 
 
 @dataclass(frozen=True)
@@ -48,23 +51,19 @@ class ControllerConfig:
 
     """
 
-    samples: int = 12
-    horizon: int = 4
-    period: float = 0.1
-    noise: float = 0.3
-    temperature: float = 0.1
-    correlation: float = 0.8
-    margin_expansions: int = 20
-    margin_samples: int = 4
-    lookahead: int = 0
+    samples: int = constrained(12, Constraint("int", minimum=1))
+    horizon: int = constrained(4, Constraint("int", minimum=1))
+    period: float = constrained(0.1, _POSITIVE)
+    noise: float = constrained(0.3, _POSITIVE)
+    temperature: float = constrained(0.1, _POSITIVE)
+    correlation: float = constrained(0.8, Constraint("float", minimum=0.0, maximum=1.0, exclusive_maximum=True))
+    margin_expansions: int = constrained(20, Constraint("int", minimum=1))
+    margin_samples: int = constrained(4, Constraint("int", minimum=1))
+    lookahead: int = constrained(0, Constraint("int", minimum=0))
 
     def __post_init__(self) -> None:
-        for name in ("samples", "horizon", "margin_expansions", "margin_samples"):
-            check_positive_int(name, getattr(self, name))
-        check_int("lookahead", self.lookahead, minimum=0)
-        check_float("correlation", self.correlation, minimum=0.0, maximum=1.0, exclusive_maximum=True)
-        for name in ("period", "noise", "temperature"):
-            check_positive_float(name, getattr(self, name))
+        # Each field's constraint is declared once, beside its default (the command line takes both).
+        check_fields(self)
 
     def to_dict(self) -> dict[str, Any]:
         """The settings as a JSON-ready dict."""

@@ -139,7 +139,7 @@ def check_target(out: Path, *, overwrite: bool) -> None:
     if overwrite or not out.exists():
         return
     if out.is_file() or any(out.iterdir()):
-        raise EnergyMarginError(f"{out} already exists; pass --overwrite to replace it")
+        raise EnergyMarginError(f"{out} already exists; pass `overwrite=True` to replace it")
 
 
 def write_directory(

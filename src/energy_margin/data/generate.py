@@ -39,7 +39,7 @@ def _check_inputs(n_objects: int, n_trajectories: int, n_frames: int, seed: int)
 def check_engine(task: Task, engine: str) -> None:
     """Raise one line when ``engine`` cannot simulate ``task``."""
     if task.engines is not None and engine not in task.engines:
-        raise EnergyMarginError(f"{task.label} runs on {', '.join(task.engines)} only, not --engine {engine}")
+        raise EnergyMarginError(f"{task.label} runs on {', '.join(task.engines)} only, not `engine={engine}`")
 
 
 #: Draws of one trajectory before generation gives up. A draw whose frames the dataset check would
@@ -372,11 +372,11 @@ def generate_dataset(
     if task.fixed_objects is not None:
         if n_objects is not None and n_objects != task.fixed_objects:
             raise EnergyMarginError(
-                f"task {task.name!r} has {task.fixed_objects} objects; --objects {n_objects} differs"
+                f"task {task.name!r} has {task.fixed_objects} objects; `n_objects={n_objects}` differs"
             )
         n_objects = task.fixed_objects
     if n_objects is None:
-        raise EnergyMarginError(f"task {task.name!r} needs the number of objects (--objects)")
+        raise EnergyMarginError(f"task {task.name!r} needs the number of objects (`n_objects`)")
     _check_inputs(n_objects, n_trajectories, n_frames, seed)
     out = Path(out)
     if not overwrite:

@@ -86,7 +86,7 @@ def _load_hdf5(path: Path) -> list[tuple[str, dict[str, np.ndarray]]]:
                     raise EnergyMarginError(f"{where}: expected a group per roll-out, found a dataset")
                 if group_name == "data" and any(str(key).startswith("demo_") for key in group):
                     raise EnergyMarginError(
-                        f"{where}: holds demo_* groups, as a robomimic file does: pass --format robomimic"
+                        f"{where}: holds demo_* groups, as a robomimic file does: pass `file_format=robomimic`"
                     )
                 arrays = {}
                 for key in sorted(group):
@@ -286,7 +286,7 @@ def rollout_records(
     for name, arrays in rollouts:
         time = arrays["time"]
         if time.size < n_frames:
-            raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than --frames {n_frames}")
+            raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than `n_frames={n_frames}`")
         frames: list[FrameState] = []
         times: list[float] = []
         warned = _warned(arrays)
@@ -294,7 +294,7 @@ def rollout_records(
             if dropped is None:
                 raise EnergyMarginError(
                     f"{name}: {WARNINGS_ARRAY}: {warned}; a physically impossible frame never becomes data "
-                    "(record --drop-unphysical leaves such roll-outs out)"
+                    "(`drop_unphysical=True` leaves such roll-outs out)"
                 )
             dropped.append({"rollout": name, "reason": warned})
             if progress is not None:
@@ -326,7 +326,7 @@ def rollout_records(
                 if dropped is None:
                     raise EnergyMarginError(
                         f"{name}: qpos: {reason}; a physically impossible frame never becomes data "
-                        "(record --drop-unphysical leaves such roll-outs out)"
+                        "(`drop_unphysical=True` leaves such roll-outs out)"
                     )
                 dropped.append({"rollout": name, "reason": reason})
                 break

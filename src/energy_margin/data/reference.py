@@ -76,7 +76,7 @@ from energy_margin.data.reference_files import (
     _scores_path,
 )
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, SCORES_FILE, UNKNOWN_COUNT
-from energy_margin.errors import EnergyMarginError, check_choice
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.tasks import ReferenceLayout, available_tasks, get_task, task_class
@@ -245,8 +245,8 @@ def import_reference(
     layout = _layout(ref.task)
     if drive not in layout.drives:
         following = " (its end-effector replays its recorded motion)" if layout.replays_recorded else ""
-        raise EnergyMarginError(
-            f"--drive {drive} does not apply to {ref.task}{following}; its drives: {', '.join(layout.drives)}"
+        raise InvalidParameterError(
+            "drive", f"{drive} does not apply to {ref.task}{following}; its drives: {', '.join(layout.drives)}"
         )
     n_objects = (ref.states.shape[-1] - layout.robot_columns) // layout.object_columns
     arrays, overrides = _CONVERTERS[layout.suffix](ref, n_objects)

@@ -183,7 +183,7 @@ def _rollout(
         if dt is None:
             raise EnergyMarginError(
                 f"{where}: states: has {width} columns, nq + nv ({nq} + {nv}) without the time, and the file's "
-                "env_args gives no env_kwargs.control_freq: pass --dt S, the seconds between rows"
+                "env_args gives no env_kwargs.control_freq: pass `dt`, the seconds between rows"
             )
         time, qpos, qvel = np.arange(rows) * dt, states[:, :nq], states[:, nq:]
     else:
@@ -203,7 +203,7 @@ def _rollout(
     if demo.action_rows is not None and demo.action_rows != rows:
         raise EnergyMarginError(f"{where}: actions: has {demo.action_rows} rows, states {rows}")
     if rows < n_frames:
-        raise EnergyMarginError(f"{where}: states: has {rows} rows, fewer than --frames {n_frames}")
+        raise EnergyMarginError(f"{where}: states: has {rows} rows, fewer than `n_frames={n_frames}`")
     arrays = check_rollout(where, {"time": time, "qpos": qpos, "qvel": qvel}, model)
     return where, arrays
 

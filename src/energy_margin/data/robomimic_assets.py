@@ -106,7 +106,7 @@ def reroot_assets(xml: str, *, where: str, assets: Path | None = None, base: Pat
                 looked += f" or under {robosuite}" if robosuite is not None and assets is None else ""
                 raise EnergyMarginError(
                     f"{where}: model_file: {element.tag} file {value} does not exist here{looked}; "
-                    "pass --assets DIR, a folder with the model's asset files (robosuite's models/assets)"
+                    "pass `assets`, a folder with the model's asset files (robosuite's models/assets)"
                 )
             if found != value:
                 element.set(attribute, found)

@@ -60,8 +60,8 @@ def require_optimizer(name: str, space: Sequence[DesignParameter]) -> None:
         categorical = [parameter.name for parameter in space if parameter.choices is not None]
         if categorical:
             raise EnergyMarginError(
-                f"--optimizer cma searches numeric ranges only and {categorical[0]} is categorical; "
-                "use --optimizer tpe or grid"
+                f"`optimizer=cma` searches numeric ranges only and {categorical[0]} is categorical; "
+                "use `optimizer=tpe` or grid"
             )
     package = PACKAGES.get(name)
     if package is not None:
@@ -69,7 +69,7 @@ def require_optimizer(name: str, space: Sequence[DesignParameter]) -> None:
             importlib.import_module(package)
         except ImportError:
             raise EnergyMarginError(
-                f"--optimizer {name} needs the {package} package: pip install 'energy-margin[design]'"
+                f"`optimizer={name}` needs the {package} package: pip install 'energy-margin[design]'"
             ) from None
 
 

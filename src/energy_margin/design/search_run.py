@@ -180,7 +180,7 @@ class DesignSearchRun:
             if _plain(done["values"]) != _plain(values):
                 raise EnergyMarginError(
                     f"{self.out / EVALUATIONS_JOURNAL}: evaluation {phase} {index} holds {_label(done['values'])} "
-                    f"but the search now asks for {_label(values)}; pass --overwrite to start again"
+                    f"but the search now asks for {_label(values)}; pass `overwrite=True` to start again"
                 )
             if design is not None and done["objective"] is not None:
                 self.measured.setdefault(design.slug, {key: done[key] for key in _MEASURED if key in done})

@@ -182,20 +182,18 @@ def task_settings(
     n_objects = _objects(task, n_objects)
     check_choice("engine", engine, ENGINES)
     check_engine(task, engine)
-    try:
-        return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
-    except ValueError as error:
-        raise EnergyMarginError(str(error)) from None
+    # AnalyzerConfig raises InvalidParameterError naming the field.
+    return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
 
 
 def _objects(task: Task, n_objects: int | None) -> int:
     """The objects per scene of a sweep of ``task``, checked before anything is written."""
     if task.fixed_objects is not None:
         if n_objects is not None and n_objects != task.fixed_objects:
-            raise EnergyMarginError(f"{task.label} has {task.fixed_objects} objects; --objects {n_objects} differs")
+            raise EnergyMarginError(f"{task.label} has {task.fixed_objects} objects; `n_objects={n_objects}` differs")
         return task.fixed_objects
     if n_objects is None:
-        raise EnergyMarginError(f"{task.label} needs the number of objects (--objects)")
+        raise EnergyMarginError(f"{task.label} needs the number of objects (`n_objects`)")
     return check_int("n_objects", n_objects, minimum=1)
 
 

@@ -120,7 +120,7 @@ def check_calibration_data(dataset: Dataset, *, folds: int, objective: tuple[str
     """
     if dataset.n_trajectories < folds:
         raise EnergyMarginError(
-            f"calibrate needs at least {folds} trajectories for {folds} folds (--folds); "
+            f"calibrate needs at least {folds} trajectories for {folds} folds (`folds`); "
             f"{dataset.path} has {dataset.n_trajectories}"
         )
     labels = {
@@ -135,7 +135,7 @@ def check_calibration_data(dataset: Dataset, *, folds: int, objective: tuple[str
             kind = "positive" if values.all() else "negative"
             raise EnergyMarginError(
                 f"calibrate: every label of {name} in {dataset.path} is {kind}: AP is undefined, so nothing "
-                "can be chosen by it (choose other questions with --objective)"
+                "can be chosen by it (choose other questions with `objective`)"
             )
 
 
@@ -187,7 +187,7 @@ def calibrate(
         raise EnergyMarginError(f"objective must name questions of {', '.join(QUESTIONS)}, got {list(objective)}")
     config = config if config is not None else AnalyzerConfig()
     if config.converge is not None:
-        raise EnergyMarginError("calibrate grows trees that do not depend on lambda: --converge must be off")
+        raise EnergyMarginError("calibrate grows trees that do not depend on lambda: `converge` must be off")
     dataset = require_valid(directory, overlaps=True, scores=False)
     check_calibration_data(dataset, folds=folds, objective=objective)
     # The task's own lambda is always a candidate, so the calibration can keep it.

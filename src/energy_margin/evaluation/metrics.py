@@ -25,7 +25,14 @@ from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_positive_int, check_seed
+from energy_margin.errors import (
+    EnergyMarginError,
+    InvalidParameterError,
+    check_choice,
+    check_int,
+    check_positive_int,
+    check_seed,
+)
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import evaluate_capture_windows
 from energy_margin.evaluation.verdict import verdicts
@@ -171,13 +178,14 @@ def check_options(dataset: Dataset, *, capture_window: int, success_frames: int)
     """
     frames = dataset.n_frames
     if capture_window >= frames:
-        raise EnergyMarginError(
-            f"--capture-window {capture_window} needs more than {capture_window} frames per trajectory; "
-            f"{dataset.path} has {frames} (largest window {frames - 1})"
+        raise InvalidParameterError(
+            "capture_window",
+            f"{capture_window} needs more than {capture_window} frames per trajectory; "
+            f"{dataset.path} has {frames} (largest window {frames - 1})",
         )
     if success_frames > frames:
-        raise EnergyMarginError(
-            f"--success-frames {success_frames} exceeds the {frames} frames per trajectory of {dataset.path}"
+        raise InvalidParameterError(
+            "success_frames", f"{success_frames} exceeds the {frames} frames per trajectory of {dataset.path}"
         )
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from energy_margin.errors import check_int, check_positive_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_int, check_positive_float, check_positive_int
 
 #: Two-sided 95 % standard normal quantile.
 Z_95 = 1.959963984540054
@@ -99,7 +99,7 @@ def spearman_rho(x: np.ndarray, y: np.ndarray) -> float | None:
     x = np.asarray(x, dtype=float).ravel()
     y = np.asarray(y, dtype=float).ravel()
     if x.size != y.size:
-        raise ValueError(f"x and y must have the same length, got {x.size} and {y.size}")
+        raise InvalidParameterError("x", f"and y must have the same length, got {x.size} and {y.size}")
     if x.size < 2:
         return None
     return _pearson(rank(x), rank(y))

@@ -27,7 +27,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.runs.files import atomic_path, file_mode
 from energy_margin.sim.mujoco_index import object_owners
 from energy_margin.tasks.model_file import BINARY_SUFFIX, model_differences, save_binary_model
@@ -222,8 +222,8 @@ def scene_from_environment(
     body_names = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
     chosen = [b for b in range(1, model.nbody) if any(fnmatch.fnmatchcase(body_names[b], p) for p in patterns)]
     if not chosen:
-        raise EnergyMarginError(
-            f"--objects {','.join(patterns)}: no body of {name} matches (bodies: {', '.join(body_names[1:])})"
+        raise InvalidParameterError(
+            "objects", f"{','.join(patterns)}: no body of {name} matches (bodies: {', '.join(body_names[1:])})"
         )
     out = Path(out)
     # Regions name their bodies: only named robot bodies can carry the capture region.

@@ -35,7 +35,7 @@ def disagreement(predictions: np.ndarray) -> np.ndarray:
     """
     predictions = np.asarray(predictions, dtype=float)
     if predictions.ndim != 3 or predictions.shape[2] != 2:
-        raise ValueError(f"predictions must have shape (members, frames, 2), got {predictions.shape}")
+        raise InvalidParameterError("predictions", f"must have shape (members, frames, 2), got {predictions.shape}")
     return predictions.std(axis=0).sum(axis=1)
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks.base import MeasurableRegion, Region, Task
 from energy_margin.world.state import FrameState
 
@@ -124,13 +125,14 @@ class FrameFeatures:
     def _groups(self, frames: Sequence[FrameState]) -> dict[int, list[int]]:
         """Indices of the frames by number of objects, after checking every frame's robot size."""
         if len(frames) == 0:
-            raise ValueError("frames must hold at least one frame state")
+            raise InvalidParameterError("frames", "must hold at least one frame state")
         groups: dict[int, list[int]] = {}
         for index, frame in enumerate(frames):
             if np.shape(frame.robot_q) != (self.n_robot_dofs,) or np.shape(frame.robot_v) != (self.n_robot_dofs,):
-                raise ValueError(
-                    f"frames[{index}] has robot_q of shape {np.shape(frame.robot_q)}; "
-                    f"{self.task.label} has {self.n_robot_dofs} end-effector coordinates"
+                raise InvalidParameterError(
+                    "frames",
+                    f"must match the task: frames[{index}] has robot_q of shape {np.shape(frame.robot_q)}; "
+                    f"{self.task.label} has {self.n_robot_dofs} end-effector coordinates",
                 )
             groups.setdefault(frame.n_objects, []).append(index)
         return groups
@@ -217,7 +219,7 @@ class SetInputs:
     def concatenate(parts: Sequence[SetInputs]) -> SetInputs:
         """The frames of ``parts`` in order, padded to the most objects of any of them."""
         if not parts:
-            raise ValueError("parts must hold at least one SetInputs")
+            raise InvalidParameterError("parts", "must hold at least one SetInputs")
         width = max(part.objects.shape[1] for part in parts)
         channels = parts[0].objects.shape[2]
         total = sum(len(part) for part in parts)

@@ -112,7 +112,7 @@ class MarginModel:
 
         Raises:
             EnergyMarginError: ``task`` is not the model's task.
-            ValueError: no frames, or a frame whose end-effector size is not the task's.
+            InvalidParameterError: no frames, or a frame whose end-effector size is not the task's.
         """
         raw = self.regressor.predict(self.features(task)(frames))
         scores = np.clip(raw, 0.0, 1.0)

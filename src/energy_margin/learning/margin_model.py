@@ -96,7 +96,7 @@ def fit_margin_model(
 
     Raises:
         EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
-        ValueError: a bad ``kind``, ``holdout`` or ``success_frames``.
+        InvalidParameterError: a bad ``kind``, ``holdout`` or ``success_frames``.
     """
     check_choice("kind", kind, KINDS)
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)

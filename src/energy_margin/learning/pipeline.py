@@ -175,7 +175,7 @@ def _task_and_sets(
         raise EnergyMarginError("give a task or a scene file (exactly one)")
     if scene is not None:
         if objects is not None:
-            raise EnergyMarginError(f"a scene file fixes its objects: --objects does not apply to --scene {scene}")
+            raise InvalidParameterError("objects", f"does not apply to `scene={scene}`: a scene file fixes its objects")
         path = Path(scene)
         if not path.is_file():
             raise EnergyMarginError(f"scene file {scene} does not exist")
@@ -190,7 +190,7 @@ def _task_and_sets(
     for count in counts:
         check_int("objects", count, minimum=1)
         if resolved.fixed_objects is not None and count != resolved.fixed_objects:
-            raise EnergyMarginError(f"{resolved.label} has {resolved.fixed_objects} objects; --objects {count} differs")
+            raise EnergyMarginError(f"{resolved.label} has {resolved.fixed_objects} objects; `objects={count}` differs")
     repeated = sorted({count for count in counts if counts.count(count) > 1})
     if repeated:
         raise InvalidParameterError("objects", f"must be distinct, got {repeated[0]} twice")
@@ -200,13 +200,13 @@ def _task_and_sets(
 def _check_out(out: Path, work: Path, *, overwrite: bool) -> None:
     """Refuse an ``out`` that is a folder, or a file not written by this work directory (without ``overwrite``)."""
     if out.is_dir():
-        raise EnergyMarginError(f"--out {out} is a directory; give a model file name, e.g. model.npz")
+        raise InvalidParameterError("out", f"{out} is a directory; give a model file name, e.g. model.npz")
     if not out.exists() or overwrite:
         return
     ours = work / MODEL_FILE
     if ours.is_file() and (_same_file(out, ours) or filecmp.cmp(out, ours, shallow=False)):
         return  # the model an earlier run of this work directory wrote: replaced by the new fit
-    raise EnergyMarginError(f"{out} already exists; pass --overwrite to replace it")
+    raise EnergyMarginError(f"{out} already exists; pass `overwrite=True` to replace it")
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -310,8 +310,8 @@ def learn_pipeline(
     try:
         run = open_run(work, LEARN_RUN, settings, overwrite=overwrite, engine=analyzer.engine)
     except EnergyMarginError as error:
-        # The run layer names --out, the directory of most commands; here it is --work.
-        message = str(error).replace("choose another --out", "choose another --work")
+        # The run layer names `out`, the directory of most commands; here it is `work`.
+        message = str(error).replace("choose another `out`", "choose another `work`")
         raise (RunLockedError if isinstance(error, RunLockedError) else EnergyMarginError)(message) from None
     with run:
         if run.resumed:

@@ -18,7 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from energy_margin.errors import check_choice
+from energy_margin.errors import InvalidDataError, InvalidParameterError, check_choice
 
 #: Targets predicted together: the capture and the success score.
 N_OUTPUTS = 2
@@ -61,16 +61,18 @@ class MlpRegressor:
         self, mean: np.ndarray, scale: np.ndarray, weights: list[np.ndarray], biases: list[np.ndarray]
     ) -> None:
         if not weights or len(weights) != len(biases):
-            raise ValueError("weights and biases must be non-empty lists of the same length")
+            raise InvalidDataError("weights and biases must be non-empty lists of the same length")
         if mean.ndim != 1 or scale.shape != mean.shape or not np.all(scale > 0):
-            raise ValueError("mean and scale must be vectors of the same length, scale > 0")
+            raise InvalidDataError("mean and scale must be vectors of the same length, scale > 0")
         width = mean.shape[0]
         for index, (weight, bias) in enumerate(zip(weights, biases, strict=True)):
             if weight.ndim != 2 or weight.shape[0] != width or bias.shape != (weight.shape[1],):
-                raise ValueError(f"layer {index} has weights {weight.shape} and bias {bias.shape} after width {width}")
+                raise InvalidDataError(
+                    f"layer {index} has weights {weight.shape} and bias {bias.shape} after width {width}"
+                )
             width = weight.shape[1]
         if width != N_OUTPUTS:
-            raise ValueError(f"the last layer must have {N_OUTPUTS} outputs, got {width}")
+            raise InvalidDataError(f"the last layer must have {N_OUTPUTS} outputs, got {width}")
         self.mean, self.scale, self.weights, self.biases = mean, scale, weights, biases
 
     @property
@@ -82,7 +84,9 @@ class MlpRegressor:
     def from_sklearn(cls, scaler: Any, mlp: Any) -> MlpRegressor:
         """From a fitted ``StandardScaler`` and ``MLPRegressor`` (activation ``relu``, two outputs)."""
         if mlp.activation != "relu":
-            raise ValueError(f"only the relu activation is exported, got {mlp.activation!r}")
+            raise InvalidParameterError(
+                "mlp", f"must use the relu activation, the only one exported, got {mlp.activation!r}"
+            )
         return cls(
             np.asarray(scaler.mean_, dtype=float),
             np.asarray(scaler.scale_, dtype=float),
@@ -138,19 +142,21 @@ class BoostingRegressor:
     ) -> None:
         shape = feature.shape
         if baseline.shape != (N_OUTPUTS,) or len(shape) != 3 or shape[0] != N_OUTPUTS:
-            raise ValueError(f"baseline must have shape ({N_OUTPUTS},) and nodes ({N_OUTPUTS}, trees, nodes)")
+            raise InvalidDataError(f"baseline must have shape ({N_OUTPUTS},) and nodes ({N_OUTPUTS}, trees, nodes)")
         for name, array in (("threshold", threshold), ("left", left), ("right", right), ("value", value)):
             if array.shape != shape:
-                raise ValueError(f"{name} has shape {array.shape}, expected {shape}")
+                raise InvalidDataError(f"{name} has shape {array.shape}, expected {shape}")
         for name, array in (("feature", feature), ("left", left), ("right", right)):
             if array.dtype.kind not in "iu":
-                raise ValueError(f"{name} must hold integers, got {array.dtype}")
+                raise InvalidDataError(f"{name} must hold integers, got {array.dtype}")
         if shape[2] and (left.min() < 0 or right.min() < 0 or left.max() >= shape[2] or right.max() >= shape[2]):
-            raise ValueError("child indices point outside the node arrays")
+            raise InvalidDataError("child indices point outside the node arrays")
         if feature.min(initial=0) < 0 or feature.max(initial=0) >= n_features:
-            raise ValueError(f"split features must lie in [0, {n_features})")
+            raise InvalidDataError(f"split features must lie in [0, {n_features})")
         if depth < 0 or depth > max(shape[2] - 1, 0):
-            raise ValueError(f"depth must be in [0, {max(shape[2] - 1, 0)}] for trees of {shape[2]} nodes, got {depth}")
+            raise InvalidDataError(
+                f"depth must be in [0, {max(shape[2] - 1, 0)}] for trees of {shape[2]} nodes, got {depth}"
+            )
         self.baseline = baseline
         self.feature = feature.astype(np.int64)
         self.threshold, self.value = threshold, value
@@ -167,7 +173,7 @@ class BoostingRegressor:
     def from_sklearn(cls, models: list[Any]) -> BoostingRegressor:
         """From one fitted ``HistGradientBoostingRegressor`` per score (numerical features, squared error)."""
         if len(models) != N_OUTPUTS:
-            raise ValueError(f"give {N_OUTPUTS} fitted models, got {len(models)}")
+            raise InvalidParameterError("models", f"must hold {N_OUTPUTS} fitted models, got {len(models)}")
         trees = [[iteration[0].nodes for iteration in model._predictors] for model in models]
         n_trees = max(len(ensemble) for ensemble in trees)
         max_nodes = max((len(nodes) for ensemble in trees for nodes in ensemble), default=1)
@@ -225,7 +231,7 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
     """Rebuild a regressor of ``kind`` from :meth:`Regressor.arrays`.
 
     Raises:
-        ValueError: an unknown kind, a missing array or arrays that do not fit together.
+        InvalidDataError: an unknown kind, a missing array or arrays that do not fit together.
     """
     try:
         if kind == "mlp":
@@ -252,8 +258,8 @@ def regressor_from_arrays(kind: str, arrays: dict[str, np.ndarray]) -> Regressor
                 int(arrays["n_features"]),
             )
     except KeyError as error:
-        raise ValueError(f"array {error.args[0]!r} is missing") from None
-    raise ValueError(f"unknown regressor kind {kind!r} (known: {', '.join(KINDS)})")
+        raise InvalidDataError(f"array {error.args[0]!r} is missing") from None
+    raise InvalidDataError(f"unknown regressor kind {kind!r} (known: {', '.join(KINDS)})")
 
 
 def fit_regressor(kind: str, features: Any, targets: np.ndarray, *, seed: int, **options: Any) -> Regressor:
@@ -278,7 +284,7 @@ def fit_regressor(kind: str, features: Any, targets: np.ndarray, *, seed: int, *
     tens of times slower, and the training sets here are a few thousand frames.
 
     Raises:
-        ValueError: an unknown kind or option.
+        InvalidParameterError: an unknown kind or option.
     """
     from threadpoolctl import threadpool_limits
 
@@ -301,7 +307,7 @@ def _fit(kind: str, features: np.ndarray, targets: np.ndarray, *, seed: int, **o
 
         unknown = sorted(set(options) - {"hidden", "alpha", "max_iter"})
         if unknown:
-            raise ValueError(f"unknown mlp options: {', '.join(unknown)}")
+            raise InvalidParameterError("options", f"names unknown mlp options: {', '.join(unknown)}")
         scaler = StandardScaler().fit(features)
         # A constant feature (e.g. the number of objects of a single dataset) has scale 1.
         mlp = MLPRegressor(
@@ -320,7 +326,7 @@ def _fit(kind: str, features: np.ndarray, targets: np.ndarray, *, seed: int, **o
 
         unknown = sorted(set(options) - {"max_iter", "learning_rate", "max_depth"})
         if unknown:
-            raise ValueError(f"unknown boosting options: {', '.join(unknown)}")
+            raise InvalidParameterError("options", f"names unknown boosting options: {', '.join(unknown)}")
         models = [
             HistGradientBoostingRegressor(
                 max_iter=int(options.get("max_iter", 150)),

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.errors import InvalidDataError, InvalidParameterError
 from energy_margin.learning.features import SetInputs
 
 #: Kind name of the set regressor in a model file.
@@ -101,10 +102,10 @@ class SetRegressor:
     ) -> None:
         for name, mean, scale in (("object", object_mean, object_scale), ("frame", frame_mean, frame_scale)):
             if mean.ndim != 1 or scale.shape != mean.shape or not np.all(scale > 0):
-                raise ValueError(f"{name}_mean and {name}_scale must be vectors of one length, scale > 0")
+                raise InvalidDataError(f"{name}_mean and {name}_scale must be vectors of one length, scale > 0")
         missing = [name for name in _WEIGHTS if name not in weights] + [name for name in _BIASED if name not in biases]
         if missing:
-            raise ValueError(f"missing layers: {', '.join(missing)}")
+            raise InvalidDataError(f"missing layers: {', '.join(missing)}")
         hidden = weights["encoder_0"].shape[1] if weights["encoder_0"].ndim == 2 else -1
         channels, width = object_mean.shape[0], frame_mean.shape[0]
         expected = {
@@ -120,12 +121,12 @@ class SetRegressor:
             "head_1": (hidden, weights["head_1"].shape[1] if weights["head_1"].ndim == 2 else -1),
         }
         if expected["head_1"][1] < N_OUTPUTS:
-            raise ValueError(f"layer head_1 has {expected['head_1'][1]} outputs, expected >= {N_OUTPUTS}")
+            raise InvalidDataError(f"layer head_1 has {expected['head_1'][1]} outputs, expected >= {N_OUTPUTS}")
         for name, shape in expected.items():
             if weights[name].shape != shape:
-                raise ValueError(f"layer {name} has weights {weights[name].shape}, expected {shape}")
+                raise InvalidDataError(f"layer {name} has weights {weights[name].shape}, expected {shape}")
             if name in _BIASED and biases[name].shape != (shape[1],):
-                raise ValueError(f"layer {name} has bias {biases[name].shape}, expected {(shape[1],)}")
+                raise InvalidDataError(f"layer {name} has bias {biases[name].shape}, expected {(shape[1],)}")
         self.object_mean, self.object_scale = object_mean, object_scale
         self.frame_mean, self.frame_scale = frame_mean, frame_scale
         self.weights, self.biases = weights, biases
@@ -192,7 +193,7 @@ class SetRegressor:
         """Rebuild from :meth:`arrays`.
 
         Raises:
-            ValueError: a missing array or arrays that do not fit together.
+            InvalidDataError: a missing array or arrays that do not fit together.
         """
         try:
             return cls(
@@ -204,7 +205,7 @@ class SetRegressor:
                 {name: np.asarray(arrays[f"bias.{name}"], dtype=float) for name in _BIASED},
             )
         except KeyError as error:
-            raise ValueError(f"array {error.args[0]!r} is missing") from None
+            raise InvalidDataError(f"array {error.args[0]!r} is missing") from None
 
 
 def _standardiser(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -241,17 +242,19 @@ def fit_set_regressor(
 
     Raises:
         EnergyMarginError: PyTorch is not installed (naming the extra).
-        ValueError: an unknown option, or targets of the wrong shape.
+        InvalidParameterError: an unknown option, or targets of the wrong shape.
     """
     from energy_margin.errors import EnergyMarginError, check_choice
 
     unknown = sorted(set(options) - set(DEFAULTS))
     if unknown:
-        raise ValueError(f"unknown set options: {', '.join(unknown)} (known: {', '.join(DEFAULTS)})")
+        raise InvalidParameterError(
+            "options", f"names unknown set options: {', '.join(unknown)} (known: {', '.join(DEFAULTS)})"
+        )
     settings = {**DEFAULTS, **options}
     targets = np.asarray(targets, dtype=float)
     if targets.shape != (len(inputs), N_OUTPUTS):
-        raise ValueError(f"targets must have shape {(len(inputs), N_OUTPUTS)}, got {targets.shape}")
+        raise InvalidParameterError("targets", f"must have shape {(len(inputs), N_OUTPUTS)}, got {targets.shape}")
     auxiliary = settings.pop("auxiliary")
     if auxiliary is not None:
         auxiliary = np.asarray(auxiliary, dtype=float).reshape(len(inputs), -1)

@@ -32,7 +32,7 @@ from typing import Protocol
 
 import numpy as np
 
-from energy_margin.errors import check_int, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_int, check_positive_int
 from energy_margin.planning.costs import CostModel, Propagation
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
@@ -57,7 +57,7 @@ class TreeBudget:
 
     def __post_init__(self) -> None:
         if self.iterations is None and self.nodes is None:
-            raise ValueError("give iterations, nodes or both")
+            raise InvalidParameterError("iterations", "and nodes cannot both be None: give iterations, nodes or both")
         for name in ("iterations", "nodes"):
             value = getattr(self, name)
             if value is not None:
@@ -426,7 +426,7 @@ def grow(
     again every :attr:`Task.control_period` seconds within it when the task sets one.
 
     Raises:
-        ValueError: ``batch`` > 1 with a cost model that needs the friction work, or a simulator
+        InvalidParameterError: ``batch`` > 1 with a cost model that needs the friction work, or a simulator
             without batched propagation.
 
     """
@@ -447,8 +447,8 @@ def grow(
     propagator: Propagator | None = None
     if batch > 1:
         if needs_friction:
-            raise ValueError(
-                f"batched expansion does not integrate friction work: use cost 'wrench', not {cost_model.name!r}"
+            raise InvalidParameterError(
+                "cost", f"must be 'wrench': batched expansion does not integrate friction work, got {cost_model.name!r}"
             )
         propagator = require(simulator, BatchedRollout, purpose="batched expansion").rollout_propagator(threads)
     first = _read(simulator, needs_energy=needs_friction)

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, check_choice, check_int
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_int
 from energy_margin.report.render_markers import (
     drawn_inside,
     region_shapes,
@@ -259,7 +259,7 @@ class FrameRenderer:
 
         """
         if field is not None and (likelihoods is None or np.shape(likelihoods) != (field.nodes,)):
-            raise ValueError(f"likelihoods must have shape ({field.nodes},) with a field")
+            raise InvalidParameterError("likelihoods", f"must have shape ({field.nodes},) with a field")
         if view is None:
             view = scene_view(self.simulator.scene, self.view_points(frame, field))
         self.simulator.reset(frame)

@@ -7,6 +7,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from energy_margin.errors import InvalidParameterError
+
 if TYPE_CHECKING:
     from energy_margin.world.scene import Scene
 
@@ -85,7 +87,7 @@ def fit_view(points: np.ndarray, *, elevation: float, azimuth: float = 90.0, fov
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     points = points[np.all(np.isfinite(points), axis=1)]
     if points.size == 0:
-        raise ValueError("points must hold at least one finite point")
+        raise InvalidParameterError("points", "must hold at least one finite point")
     low, high = points.min(axis=0), points.max(axis=0)
     centre = 0.5 * (low + high)
     radius = max(float(np.linalg.norm(high - low)) / 2.0, 0.02)

@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.compat import copy_light
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.report.render import View, fit_view
 from energy_margin.runs.files import staging_directory
 from energy_margin.sim.base import CompiledModel, require
@@ -381,18 +381,18 @@ def parse_camera(text: str) -> tuple[float, ...]:
     """``--camera AZIMUTH,ELEVATION[,DISTANCE]`` as numbers (degrees, degrees, m).
 
     Raises:
-        ValueError: not two or three finite numbers, an elevation outside [-90, 90] or a distance <= 0.
+        InvalidParameterError: not two or three finite numbers, an elevation outside [-90, 90] or a distance <= 0.
     """
     try:
         values = tuple(float(part) for part in text.split(","))
     except ValueError:
         values = ()
     if len(values) not in (2, 3) or not all(np.isfinite(values)):
-        raise ValueError(f"--camera takes AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, m), got {text!r}")
+        raise InvalidParameterError("camera", f"takes AZIMUTH,ELEVATION[,DISTANCE] (degrees, degrees, m), got {text!r}")
     if not -90.0 <= values[1] <= 90.0:
-        raise ValueError(f"--camera: elevation {values[1]:g} is outside [-90, 90] degrees")
+        raise InvalidParameterError("camera", f"elevation {values[1]:g} is outside [-90, 90] degrees")
     if len(values) == 3 and values[2] <= 0.0:
-        raise ValueError(f"--camera: distance {values[2]:g} m must be > 0")
+        raise InvalidParameterError("camera", f"distance {values[2]:g} m must be > 0")
     return values
 
 

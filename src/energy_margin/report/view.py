@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 
 if TYPE_CHECKING:
     from energy_margin.report.frame_tree import AnalysedTree
@@ -79,7 +79,7 @@ def solid_mesh(
             triangles += [[bottom, (i + 1) % n, i], [top, last + i, last + (i + 1) % n]]
         faces = np.array(triangles)
     else:
-        raise ValueError(f"kind must be 'box', 'cylinder' or 'sphere', got {kind!r}")
+        raise InvalidParameterError("kind", f"must be 'box', 'cylinder' or 'sphere', got {kind!r}")
     vertices = np.asarray(centre, dtype=float) + local @ np.asarray(rotation, dtype=float).T
     return vertices, faces
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from energy_margin.data.dataset import METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.metrics import evaluate, score_grid
 
 
@@ -102,11 +102,11 @@ def compare_perturbed(
     result = evaluate(path, **options, resamples=resamples, seed=seed).to_dict()
     others = expand_compare_paths(list(compare))
     if not others:
-        raise EnergyMarginError("--compare needs at least one perturbed dataset")
+        raise InvalidParameterError("compare", "needs at least one perturbed dataset")
     for candidate in others:
         if candidate.resolve() == Path(path).resolve():
-            raise EnergyMarginError(
-                f"--compare {candidate} compares the dataset with itself: name its perturbed copies"
+            raise InvalidParameterError(
+                "compare", f"{candidate} compares the dataset with itself: name its perturbed copies"
             )
     true = load_dataset(path)
     true_scores = load_scores(path)
@@ -124,9 +124,10 @@ def compare_perturbed(
         protocols.setdefault(copy_protocol(other), Path(other_path))
         if len(protocols) > 1:
             (first, first_path), (second, second_path) = list(protocols.items())[:2]
-            raise EnergyMarginError(
-                f"--compare mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
-                f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time"
+            raise InvalidParameterError(
+                "compare",
+                f"mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
+                f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time",
             )
         other_result = evaluate(other_path, **options, resamples=0)  # a copy's AP, no verdict
         scores = load_scores(other_path)

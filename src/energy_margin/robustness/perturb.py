@@ -49,7 +49,14 @@ from energy_margin.analysis.executors import pool_results
 from energy_margin.data.dataset import Dataset, load_dataset, validate
 from energy_margin.data.dataset import check_target as _check_target
 from energy_margin.data.dataset import write_directory as _write_directory
-from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_int, check_seed
+from energy_margin.errors import (
+    EnergyMarginError,
+    InvalidParameterError,
+    check_choice,
+    check_float,
+    check_int,
+    check_seed,
+)
 from energy_margin.robustness.resample import (
     OVERLAP_DEPTH,
     PROTOCOL_METHODS,
@@ -114,7 +121,7 @@ def perturb_dataset(
     source = load_dataset(path)
     out = Path(out)
     if out.resolve() == Path(path).resolve() or Path(path).resolve() in out.resolve().parents:
-        raise EnergyMarginError(f"--out {out} must not be the dataset {path} or lie inside it")
+        raise InvalidParameterError("out", f"{out} must not be the dataset {path} or lie inside it")
     if out.exists() and not out.is_dir():
         raise EnergyMarginError(f"{out} exists and is not a directory")
     thickness = float(min_thickness) if min_thickness is not None else object_size(source)

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 
@@ -97,12 +97,12 @@ def perturb_frame(
         max_growth_restarts: further restarts, the n-th with radii 1.1^n times larger.
 
     Raises:
-        ValueError: when ``protocol`` is not one of :data:`PROTOCOLS`.
+        InvalidParameterError: when ``protocol`` is not one of :data:`PROTOCOLS`.
         EnergyMarginError: when no admissible placement is found.
 
     """
     if protocol not in PROTOCOLS:
-        raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+        raise InvalidParameterError("protocol", f"must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
     n = frame.n_objects
     coords = frame.object_pos[:, :2] if planar else frame.object_pos
     ellipsoid = min_volume_ellipsoid(coords, min_thickness=min_thickness)

@@ -289,7 +289,7 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
         if not overwrite:
             raise EnergyMarginError(
                 f"{path} holds {spec.contents} of other settings ({reason}); "
-                "pass --overwrite to replace them or choose another --out"
+                "pass `overwrite=True` to replace them or choose another `out`"
             )
         remove_outputs(path, spec)
         return False, {}
@@ -299,7 +299,7 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
     if foreign and not spec.shared_directory:
         raise EnergyMarginError(
             f"{path} already exists and is not a directory of {spec.contents} (no {spec.settings_file}; "
-            f"it holds {', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}); choose another --out"
+            f"it holds {', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}); choose another `out`"
         )
     return False, {}
 

@@ -102,7 +102,7 @@ class RunLock:
             holder = {}
         who = f"process {holder.get('pid', '?')} on {holder.get('host', '?')}"
         since = f" since {holder['started']}" if holder.get("started") else ""
-        return f"{self.path.parent} is being written by {who}{since}; wait for it to finish or choose another --out"
+        return f"{self.path.parent} is being written by {who}{since}; wait for it to finish or choose another `out`"
 
     def __enter__(self) -> RunLock:
         return self.acquire()

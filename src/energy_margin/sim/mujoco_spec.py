@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.compat import joint_coefficient
+from energy_margin.errors import InvalidDataError
 from energy_margin.sim.mujoco_index import ModelIndex, name_id
 from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 
@@ -200,7 +201,7 @@ def _set_inertial(
 
 def _add_object(spec: mujoco.MjSpec, scene: Scene, obj: RigidObject, *, split_floor: bool) -> None:
     if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
-        raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
+        raise InvalidDataError(f"object {obj.name!r}: its geom must be centred at the body origin")
     body = spec.worldbody.add_body(name=obj.name)
     if scene.object_motion == "free":
         body.add_freejoint(name=obj.name)
@@ -238,7 +239,7 @@ def build_spec(scene: Scene) -> mujoco.MjSpec:
     """The uncompiled model of ``scene`` (see the module's description).
 
     Raises:
-        ValueError: an object's geom is not centred at its body origin.
+        InvalidDataError: an object's geom is not centred at its body origin.
 
     """
     spec = mujoco.MjSpec()

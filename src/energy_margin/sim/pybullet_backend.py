@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError
 from energy_margin.sim.pybullet_build import (
     _BulletBodies,
     _LinkSpec,
@@ -80,7 +80,7 @@ class PybulletSimulator(_BulletBodies):
         self._object_ids: list[int] = []
         for obj in scene.objects:
             if obj.geom.pos != (0.0, 0.0, 0.0) or obj.geom.quat != (1.0, 0.0, 0.0, 0.0):
-                raise ValueError(f"object {obj.name!r}: its geom must be centred at the body origin")
+                raise InvalidDataError(f"object {obj.name!r}: its geom must be centred at the body origin")
             shape = self._shape((obj.geom,))
             body = pb.createMultiBody(
                 baseMass=obj.mass, baseCollisionShapeIndex=shape, basePosition=[0.0, 0.0, 0.0], physicsClientId=cid

@@ -12,7 +12,7 @@ import sys
 from importlib.metadata import entry_points
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks.base import (
     DesignAlias,
     DesignParameter,
@@ -61,6 +61,7 @@ def load_plugin_tasks() -> None:
 def register_task(task_class: type[Task]) -> type[Task]:
     """Register a :class:`Task` subclass under its ``name`` (usable as a class decorator)."""
     if not getattr(task_class, "name", ""):
+        # A defect of the task class (its author's code), not of a user's input.
         raise ValueError("a task class needs a non-empty `name`")
     _REGISTRY[task_class.name] = task_class
     return task_class
@@ -87,6 +88,8 @@ def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
     cls = task_class(name)
     try:
         return cls.from_dict(config)
+    except InvalidParameterError as error:
+        raise InvalidParameterError(error.parameter, f"{error.reason} (task {name!r})") from None
     except (TypeError, ValueError) as error:
         raise EnergyMarginError(f"bad configuration for task {name!r}: {error}") from None
 

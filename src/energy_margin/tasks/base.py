@@ -16,7 +16,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, check_choice
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError, check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.tasks.state_box import StateBox
@@ -231,13 +231,13 @@ class TaskConfig:
             default = field.default
             if isinstance(default, tuple):
                 if not isinstance(value, tuple | list) or len(value) != len(default):
-                    raise ValueError(f"{field.name} must be a list of {len(default)} numbers, got {value!r}")
+                    raise InvalidParameterError(field.name, f"must be a list of {len(default)} numbers, got {value!r}")
                 numbers = tuple(_finite(field.name, item) for item in value)
                 object.__setattr__(self, field.name, numbers)
             elif field.type in ("int", int):
                 number = _finite(field.name, value)
                 if not number.is_integer():
-                    raise ValueError(f"{field.name} must be an integer, got {value!r}")
+                    raise InvalidParameterError(field.name, f"must be an integer, got {value!r}")
                 object.__setattr__(self, field.name, int(number))
             elif isinstance(default, int | float) and not isinstance(default, bool):
                 object.__setattr__(self, field.name, _finite(field.name, value))
@@ -248,7 +248,7 @@ class TaskConfig:
         require_positive(self, "duration", "timestep", "max_duration")
         require_non_negative(self, "likelihood_lambda")
         if self.timestep > self.duration:
-            raise ValueError(f"timestep ({self.timestep}) must not exceed duration ({self.duration})")
+            raise InvalidParameterError("timestep", f"({self.timestep}) must not exceed duration ({self.duration})")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible dictionary of every field."""
@@ -298,11 +298,11 @@ class DesignParameter:
 
     def __post_init__(self) -> None:
         if (self.choices is None) == (self.low is None or self.high is None):
-            raise ValueError(f"design parameter {self.name!r}: give either low and high or choices")
+            raise InvalidDataError(f"design parameter {self.name!r}: give either low and high or choices")
         if self.choices is None and not (self.low is not None and self.high is not None and self.low < self.high):
-            raise ValueError(f"design parameter {self.name!r}: low ({self.low}) must be below high ({self.high})")
+            raise InvalidDataError(f"design parameter {self.name!r}: low ({self.low}) must be below high ({self.high})")
         if self.choices is not None and len(self.choices) < 2:
-            raise ValueError(f"design parameter {self.name!r}: choices need at least two values")
+            raise InvalidDataError(f"design parameter {self.name!r}: choices need at least two values")
 
 
 @dataclass(frozen=True)
@@ -339,14 +339,16 @@ def with_contacts(task: Task, contacts: str) -> Task:
             :attr:`TaskConfig.fast_contacts` applied).
 
     Raises:
-        ValueError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
+        InvalidParameterError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
 
     """
     if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
         return task
     fast = type(task.config).fast_contacts
     if not fast:
-        raise ValueError(f"task {task.name!r} has no fast contact model (contacts 'recorded' only)")
+        raise InvalidParameterError(
+            "contacts", f"must be 'recorded': task {task.name!r} has no fast contact model, got {contacts!r}"
+        )
     current = task.config.to_dict()
     if all(current.get(key) == value for key, value in fast.items()):
         return task
@@ -355,9 +357,9 @@ def with_contacts(task: Task, contacts: str) -> Task:
 
 def _finite(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"{name} must be a number, got {value!r}")
+        raise InvalidParameterError(name, f"must be a number, got {value!r}")
     if not np.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise InvalidParameterError(name, f"must be finite, got {value!r}")
     return float(value)
 
 
@@ -366,7 +368,7 @@ def require_positive(config: TaskConfig, *names: str) -> None:
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values <= 0):
-            raise ValueError(f"{name} must be > 0, got {getattr(config, name)!r}")
+            raise InvalidParameterError(name, f"must be > 0, got {getattr(config, name)!r}")
 
 
 def require_non_negative(config: TaskConfig, *names: str) -> None:
@@ -374,7 +376,7 @@ def require_non_negative(config: TaskConfig, *names: str) -> None:
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values < 0):
-            raise ValueError(f"{name} must be >= 0, got {getattr(config, name)!r}")
+            raise InvalidParameterError(name, f"must be >= 0, got {getattr(config, name)!r}")
 
 
 def require_ranges(config: TaskConfig, *names: str) -> None:
@@ -382,7 +384,7 @@ def require_ranges(config: TaskConfig, *names: str) -> None:
     for name in names:
         low, high = getattr(config, name)
         if low > high:
-            raise ValueError(f"{name} must be (low, high) with low <= high, got {getattr(config, name)!r}")
+            raise InvalidParameterError(name, f"must be (low, high) with low <= high, got {getattr(config, name)!r}")
 
 
 class Task(ABC):
@@ -396,12 +398,12 @@ class Task(ABC):
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> Task:
-        """Build the task from a configuration dictionary (unknown keys raise ``ValueError``)."""
+        """Build the task from a configuration dictionary (unknown keys: InvalidParameterError)."""
         values = dict(values or {})
         fields = {f.name: f for f in dataclasses.fields(cls.config_class)}
         unknown = sorted(set(values) - set(fields))
         if unknown:
-            raise ValueError(f"unknown {cls.name} configuration keys: {', '.join(unknown)}")
+            raise InvalidParameterError("config", f"names unknown {cls.name} configuration keys: {', '.join(unknown)}")
         converted: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
         return cls(cls.config_class(**converted))
 
@@ -523,6 +525,8 @@ class Task(ABC):
             return self
         try:
             return type(self).from_dict({**self._settings(), **overrides})
+        except InvalidParameterError as error:
+            raise InvalidParameterError(error.parameter, f"{error.reason} (task {self.name!r})") from None
         except (TypeError, ValueError) as error:
             raise EnergyMarginError(f"bad configuration for task {self.name!r}: {error}") from None
 
@@ -731,7 +735,7 @@ def sample_separated(
         Points, shape (count, d).
 
     Raises:
-        ValueError: when 100 000 candidates do not suffice.
+        InvalidDataError: when 100 000 candidates do not suffice.
 
     """
     points = np.empty((count, len(low)))
@@ -740,7 +744,7 @@ def sample_separated(
     while placed < count:
         attempts += 1
         if attempts > 100_000:
-            raise ValueError(f"cannot place {count} objects {separation} m apart in the spawn area")
+            raise InvalidDataError(f"cannot place {count} objects {separation} m apart in the spawn area")
         candidate = rng.uniform(low, high)
         if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
             points[placed] = candidate

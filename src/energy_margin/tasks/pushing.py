@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from energy_margin.errors import check_choice, check_float
+from energy_margin.errors import InvalidParameterError, check_choice, check_float
 from energy_margin.tasks.base import (
     DesignAlias,
     DesignParameter,
@@ -174,17 +174,19 @@ class PushingConfig(TaskConfig):
         check_choice("pusher_face", self.pusher_face, PUSHER_FACES)
         require_positive(self, "face_depth", "tine_width")
         if self.tine_count < 2:
-            raise ValueError(f"tine_count must be at least 2, got {self.tine_count}")
+            raise InvalidParameterError("tine_count", f"must be at least 2, got {self.tine_count}")
         half_x, half_y, _ = self.pusher_half_extents
         if self.pusher_face != "flat" and self.face_depth >= 2.0 * half_y:
-            raise ValueError(
-                f"face_depth must be below the pusher's depth 2 pusher_half_extents[1] ({2.0 * half_y:g} m) "
-                f"for a {self.pusher_face!r} face, got {self.face_depth!r}"
+            raise InvalidParameterError(
+                "face_depth",
+                f"must be below the pusher's depth 2 pusher_half_extents[1] ({2.0 * half_y:g} m) "
+                f"for a {self.pusher_face!r} face, got {self.face_depth!r}",
             )
         if self.pusher_face == "fork" and self.tine_count * self.tine_width >= 2.0 * half_x:
-            raise ValueError(
-                f"tine_width must leave gaps between the {self.tine_count} tines of the {2.0 * half_x:g} m wide "
-                f"pusher (tine_count x tine_width < the width), got {self.tine_width!r}"
+            raise InvalidParameterError(
+                "tine_width",
+                f"must leave gaps between the {self.tine_count} tines of the {2.0 * half_x:g} m wide "
+                f"pusher (tine_count x tine_width < the width), got {self.tine_width!r}",
             )
         require_positive(
             self,
@@ -335,6 +337,7 @@ class SweptRegion:
         workspace bound is not drawn (it lies outside every picture of the task).
         """
         if self.is_disc.ndim:
+            # A defect of the caller: the package draws the region of one frame only.
             raise ValueError("only the region of one frame is drawn, not a batch of regions")
         config = self.config
         z, half_height = _slab(config)

@@ -42,7 +42,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from energy_margin.errors import check_float, check_positive_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_float, check_positive_float, check_positive_int
 
 
 class FrameLookup(Protocol):
@@ -106,7 +106,7 @@ class BoxRegion:
         self.center = np.asarray(center, dtype=float)
         self.half_size = np.asarray(half_size, dtype=float)
         if np.any(self.half_size <= 0):
-            raise ValueError(f"half_size must be > 0, got {half_size!r}")
+            raise InvalidParameterError("half_size", f"must be > 0, got {half_size!r}")
         self.origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
         self.rotation = _IDENTITY if rotation is None else np.asarray(rotation, dtype=float)
 
@@ -169,7 +169,7 @@ class IntervalRegion:
     def __init__(self, measure: Callable[[np.ndarray], np.ndarray], low: float, high: float) -> None:
         """Build it: ``measure`` maps positions (..., 3) to values (...) in metres."""
         if not low <= high:
-            raise ValueError(f"min must not exceed max, got {low!r} and {high!r}")
+            raise InvalidParameterError("min", f"must not exceed max, got {low!r} and {high!r}")
         self.measure = measure
         self.low = float(low)
         self.high = float(high)
@@ -203,7 +203,9 @@ class SpeedRegion:
     def __init__(self, max_linear: float, max_angular: float = np.inf) -> None:
         """Build it (bounds >= 0)."""
         if max_linear < 0 or max_angular < 0:
-            raise ValueError(f"speed bounds must be >= 0, got {max_linear!r} and {max_angular!r}")
+            raise InvalidParameterError(
+                "max_linear", f"and max_angular must be >= 0, got {max_linear!r} and {max_angular!r}"
+            )
         self.max_linear = float(max_linear)
         self.max_angular = float(max_angular)
 
@@ -228,7 +230,7 @@ class AllOf:
     def __init__(self, parts: list[Any]) -> None:
         """Build it from at least one region."""
         if not parts:
-            raise ValueError("needs at least one region")
+            raise InvalidParameterError("parts", "must hold at least one region")
         self.parts = parts
         self.uses_orientation = any(getattr(part, "uses_orientation", False) for part in parts)
 

@@ -12,6 +12,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks.scene_spec import DesignEntry, SceneSpec
 
 __all__ = ["apply_design"]
@@ -113,7 +114,7 @@ def apply_design(
     A parameter takes its value in ``design``, else its ``default``, else keeps the model's own.
 
     Raises:
-        ValueError: ``design`` names a parameter the file does not declare.
+        InvalidParameterError: ``design`` names a parameter the file does not declare.
         EnergyMarginError: an element or attribute the model does not have, an index out of range,
             a value that is not a number or lies outside the parameter's range (``FILE:LINE: design.NAME``).
 
@@ -123,8 +124,10 @@ def apply_design(
     unknown = sorted(set(design) - declared)
     if unknown:
         names = ", ".join(sorted(declared)) or "none"
-        raise ValueError(
-            f"unknown scene configuration keys: {', '.join(unknown)} (the [design] parameters of {spec.path}: {names})"
+        raise InvalidParameterError(
+            "design",
+            f"names unknown scene configuration keys: {', '.join(unknown)} "
+            f"(the [design] parameters of {spec.path}: {names})",
         )
     _explicit_inertials(spec, model_spec)
     values: dict[str, float] = {}

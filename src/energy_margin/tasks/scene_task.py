@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
@@ -189,17 +189,19 @@ class SceneTask(Task):
             path = loaded.spec.path
             config = SceneTaskConfig(scene_file=str(path))
         elif config is None or not config.scene_file:
-            raise ValueError("the scene task is built from a scene file: pass --scene SCENE.toml")
+            raise InvalidParameterError(
+                "scene_file", "must name the scene file the task is built from: pass `scene_file=SCENE.toml`"
+            )
         else:
             path = Path(config.scene_file).resolve()
             loaded = _cached_load(path, {**design_overrides(config), **dict(design or {})})
         if config.scene_sha256 and config.scene_sha256 != loaded.spec.text_sha256:
-            raise ValueError(
+            raise InvalidDataError(
                 f"scene file {path} changed since these data were made "
                 f"(sha256 {config.scene_sha256[:12]}…, now {loaded.spec.text_sha256[:12]}…)"
             )
         if config.model_sha256 and config.model_sha256 != loaded.model_sha256:
-            raise ValueError(
+            raise InvalidDataError(
                 f"the model of {path} ({loaded.spec.mjcf.name}) changed since these data were made "
                 f"(sha256 {config.model_sha256[:12]}…, now {loaded.model_sha256[:12]}…)"
             )
@@ -242,7 +244,7 @@ class SceneTask(Task):
         known = set(_BASE_FIELDS)
         for key in ("scene_file", "scene_sha256", "model_sha256"):
             if key in values and not isinstance(values[key], str):
-                raise ValueError(f"{key} must be a string, got {values[key]!r}")
+                raise InvalidParameterError(key, f"must be a string, got {values[key]!r}")
         config = SceneTaskConfig(
             scene_file=values.get("scene_file", ""),
             scene_sha256=values.get("scene_sha256", ""),
@@ -280,7 +282,11 @@ class SceneTask(Task):
 
     def _check_objects(self, n_objects: int) -> None:
         if n_objects != self.loaded.n_objects:
-            raise ValueError(f"the scene file declares {self.loaded.n_objects} objects, not {n_objects}")
+            raise InvalidParameterError(
+                "n_objects",
+                f"must be {self.loaded.n_objects}: the scene file declares {self.loaded.n_objects} objects, "
+                f"not {n_objects}",
+            )
 
     def build_scene(self, n_objects: int, friction: float, drive: np.ndarray | None = None) -> Scene:
         """The objects' description (bounding boxes, masses); the physics is the model itself."""
@@ -323,8 +329,10 @@ class SceneTask(Task):
     ) -> Simulator:
         """A MuJoCo simulator of the scene's compiled model (the only engine for scene files)."""
         if engine != "mujoco":
-            raise ValueError(
-                f"scene file {self.loaded.spec.path}: only the 'mujoco' engine runs a scene file, not {engine!r}"
+            raise InvalidParameterError(
+                "engine",
+                f"must be 'mujoco' for scene file {self.loaded.spec.path}: only the 'mujoco' engine runs a scene file, "
+                f"not {engine!r}",
             )
         from energy_margin.sim.mujoco_model import MujocoModelSimulator
 
@@ -376,7 +384,7 @@ class SceneTask(Task):
         obj, other, depth = deepest
         names = self.loaded.object_names
         what = names[other] if other >= 0 else "the robot or an obstacle"
-        raise ValueError(
+        raise InvalidDataError(
             f"{spec.path}: randomize.start: cannot place the {n_objects} objects without overlap in "
             f"{_LAYOUT_ATTEMPTS} draws (the last: {names[obj]} {1000 * depth:.1f} mm into {what}); widen the start "
             "ranges, lower min_separation or move the start ranges off the robot"
@@ -397,7 +405,7 @@ class SceneTask(Task):
         before took it) starts the layout again, up to :data:`_LAYOUT_RESTARTS` times.
 
         Raises:
-            ValueError: no layout fits, naming the object that found no room, the start ranges,
+            InvalidDataError: no layout fits, naming the object that found no room, the start ranges,
                 the separation and how many origins a grid of that spacing fits in the ranges.
         """
         loaded = self.loaded
@@ -422,7 +430,7 @@ class SceneTask(Task):
             most_placed = max(most_placed, placed)
             if placed == n:
                 return pos, quat
-        raise ValueError(self._placement_failure(most_placed, separation))
+        raise InvalidDataError(self._placement_failure(most_placed, separation))
 
     def _separation(self) -> float:
         start = self.loaded.spec.start
@@ -600,16 +608,17 @@ class SceneTask(Task):
         region is built at every state's own robot configuration (``robot_q``).
 
         Raises:
-            ValueError: ``capture.follow`` and no robot configuration per state (a batched
+            InvalidParameterError: ``capture.follow`` and no robot configuration per state (a batched
                 expansion of a model with mocap bodies does not keep them).
         """
         spec = self.loaded.spec
         if not spec.capture_follows:
             return super().capture_inside(root, object_pos, object_vel, object_quat)
         if robot_q is None:
-            raise ValueError(
-                f"{spec.path}: capture.follow needs the robot's coordinates at every tree node; a batched "
-                "expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1"
+            raise InvalidParameterError(
+                "batch",
+                f"must be 1 for {spec.path}: capture.follow needs the robot's coordinates at every tree node; "
+                "a batched expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1",
             )
         object_pos = np.asarray(object_pos, dtype=float)
         robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))

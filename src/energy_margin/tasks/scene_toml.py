@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidDataError
 
 __all__ = ["MAX_DEPTH", "Locator", "toml_key", "toml_value"]
 
@@ -198,7 +198,7 @@ def toml_value(value: Any) -> str:
         return str(value)
     if isinstance(value, float):
         if not math.isfinite(value):
-            raise ValueError(f"a scene file holds finite numbers, got {value}")
+            raise InvalidDataError(f"a scene file holds finite numbers, got {value}")
         return repr(value)
     if isinstance(value, str):
         return _toml_string(value)

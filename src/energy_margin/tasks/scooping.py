@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.errors import check_float
+from energy_margin.errors import InvalidParameterError, check_float
 from energy_margin.tasks.base import (
     DesignAlias,
     DesignParameter,
@@ -220,17 +220,21 @@ class ScoopingConfig(TaskConfig):
         )
         require_ranges(self, "tip_limits", "stiffness_range", "friction_range", "spawn_x", "spawn_y", "workspace_z")
         if not self.approach_end <= self.close_end <= self.lift_start <= self.lift_end <= self.duration:
-            raise ValueError(
-                "script times must satisfy approach_end <= close_end <= lift_start <= lift_end <= duration"
+            raise InvalidParameterError(
+                "approach_end",
+                "and the script times after it must satisfy "
+                "approach_end <= close_end <= lift_start <= lift_end <= duration",
             )
         if self.recorded_waypoints < 0 or self.recorded_waypoints == 1:
-            raise ValueError(f"recorded_waypoints must be 0 or at least 2, got {self.recorded_waypoints}")
+            raise InvalidParameterError("recorded_waypoints", f"must be 0 or at least 2, got {self.recorded_waypoints}")
         if self.contact_time_constant < 2.0 * self.timestep:
-            raise ValueError("contact_time_constant must be at least two time steps")
+            raise InvalidParameterError("contact_time_constant", "must be at least two time steps")
         low, high = self.tip_limits
         if not low <= self.scoop_angle <= high:
             # The servo could not reach it: the blades would rest on their joint limit instead.
-            raise ValueError(f"scoop_angle must lie within tip_limits [{low}, {high}] rad, got {self.scoop_angle!r}")
+            raise InvalidParameterError(
+                "scoop_angle", f"must lie within tip_limits [{low}, {high}] rad, got {self.scoop_angle!r}"
+            )
 
 
 def _smoothstep(time: float, start: float, end: float) -> float:
@@ -393,16 +397,20 @@ class ScoopingTask(Task):
         """The recorded motion of a drive: times (W,) s and joint positions (W, 5).
 
         Raises:
-            ValueError: the drive does not hold ``recorded_waypoints`` waypoints with strictly
+            InvalidParameterError: the drive does not hold ``recorded_waypoints`` waypoints with strictly
                 increasing, finite times and finite positions.
         """
         count = self.config.recorded_waypoints
         drive = np.asarray(drive, dtype=float)
         if drive.shape != (1 + 6 * count,):
-            raise ValueError(f"drive must hold 1 + 6 x {count} values (stiffness, times, joint positions)")
+            raise InvalidParameterError(
+                "drive", f"must hold 1 + 6 x {count} values (stiffness, times, joint positions)"
+            )
         times, positions = self._split_waypoints(drive)
         if not (np.all(np.isfinite(drive)) and np.all(np.diff(times) > 0)):
-            raise ValueError("drive: recorded waypoint times must increase strictly and all values be finite")
+            raise InvalidParameterError(
+                "drive", "must be finite and its recorded waypoint times must increase strictly"
+            )
         return times, positions
 
     def _split_waypoints(self, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

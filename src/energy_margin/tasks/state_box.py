@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from energy_margin.errors import InvalidParameterError
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -56,11 +58,11 @@ class StateBox:
     def __post_init__(self) -> None:
         """Check the box: three bounds per side, low < high, a positive speed."""
         if len(self.low) != 3 or len(self.high) != 3:
-            raise ValueError(f"a state box needs three low and three high bounds, got {self.low} and {self.high}")
+            raise InvalidParameterError("low", f"and high must hold three bounds each, got {self.low} and {self.high}")
         if any(not a < b for a, b in zip(self.low, self.high, strict=True)):
-            raise ValueError(f"a state box needs low < high on every axis, got {self.low} and {self.high}")
+            raise InvalidParameterError("low", f"must be below high on every axis, got {self.low} and {self.high}")
         if not self.max_speed > 0:
-            raise ValueError(f"a state box needs a positive max_speed, got {self.max_speed!r}")
+            raise InvalidParameterError("max_speed", f"must be > 0, got {self.max_speed!r}")
         object.__setattr__(self, "_low", np.asarray(self.low, dtype=float))
         object.__setattr__(self, "_high", np.asarray(self.high, dtype=float))
 

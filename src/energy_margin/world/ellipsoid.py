@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from energy_margin.errors import check_float, check_int, check_positive_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_float, check_int, check_positive_float, check_positive_int
 
 #: Relative singular value below which a direction of the point set counts as flat.
 RANK_TOLERANCE = 1e-9
@@ -59,16 +59,16 @@ class Ellipsoid:
         radii = np.asarray(self.radii, dtype=float)
         rotation = np.asarray(self.rotation, dtype=float)
         if center.ndim != 1 or center.size < 1:
-            raise ValueError(f"center must have shape (d,), got {center.shape}")
+            raise InvalidParameterError("center", f"must have shape (d,), got {center.shape}")
         d = center.size
         if radii.shape != (d,):
-            raise ValueError(f"radii must have shape ({d},), got {radii.shape}")
+            raise InvalidParameterError("radii", f"must have shape ({d},), got {radii.shape}")
         if rotation.shape != (d, d):
-            raise ValueError(f"rotation must have shape ({d}, {d}), got {rotation.shape}")
+            raise InvalidParameterError("rotation", f"must have shape ({d}, {d}), got {rotation.shape}")
         if not (np.all(np.isfinite(center)) and np.all(np.isfinite(radii)) and np.all(np.isfinite(rotation))):
-            raise ValueError("center, radii and rotation must be finite")
+            raise InvalidParameterError("center", "must be finite, and so must radii and rotation")
         if np.any(radii <= 0):
-            raise ValueError(f"radii must be > 0, got {radii}")
+            raise InvalidParameterError("radii", f"must be > 0, got {radii}")
         object.__setattr__(self, "center", center)
         object.__setattr__(self, "radii", radii)
         object.__setattr__(self, "rotation", rotation)
@@ -125,7 +125,7 @@ class Ellipsoid:
         check_float("tol", tol, minimum=0.0)
         points = np.asarray(points, dtype=float)
         if points.shape[-1:] != (self.dimension,):
-            raise ValueError(f"points must have shape (..., {self.dimension}), got {points.shape}")
+            raise InvalidParameterError("points", f"must have shape (..., {self.dimension}), got {points.shape}")
         return np.linalg.norm(self.normalized(points), axis=-1) <= 1.0 + tol
 
     def sample(self, rng: np.random.Generator, count: int) -> np.ndarray:
@@ -162,11 +162,11 @@ def _check_points(points: np.ndarray) -> np.ndarray:
     try:
         array = np.asarray(points, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError("points must be a numeric array of shape (n, d)") from None
+        raise InvalidParameterError("points", "must be a numeric array of shape (n, d)") from None
     if array.ndim != 2 or array.shape[0] < 1 or array.shape[1] < 1:
-        raise ValueError(f"points must have shape (n, d) with n >= 1 and d >= 1, got {array.shape}")
+        raise InvalidParameterError("points", f"must have shape (n, d) with n >= 1 and d >= 1, got {array.shape}")
     if not np.all(np.isfinite(array)):
-        raise ValueError("points must be finite (no NaN or infinity)")
+        raise InvalidParameterError("points", "must be finite (no NaN or infinity)")
     return array
 
 
@@ -195,7 +195,7 @@ def min_volume_ellipsoid(
         The ellipsoid; every input point lies inside it up to rounding (relative 1e-9).
 
     Raises:
-        ValueError: naming the argument that is invalid.
+        InvalidParameterError: naming the argument that is invalid.
 
     """
     array = _check_points(points)
@@ -207,7 +207,9 @@ def min_volume_ellipsoid(
     if initial_weights is not None:
         start = np.asarray(initial_weights, dtype=float)
         if start.shape != (n,) or not np.all(np.isfinite(start)) or np.any(start < 0) or start.sum() <= 0:
-            raise ValueError(f"initial_weights must be {n} finite non-negative numbers with a positive sum")
+            raise InvalidParameterError(
+                "initial_weights", f"must be {n} finite non-negative numbers with a positive sum"
+            )
         start = start / start.sum()
     mean = array.mean(axis=0)
     centred = array - mean

@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from energy_margin.errors import check_choice, check_float, check_positive_float
+from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_float
 
 ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
 JointKind = Literal["slide", "hinge"]
@@ -54,9 +54,11 @@ class Geom:
     def __post_init__(self) -> None:
         check_choice("shape", self.shape, sorted(_SIZE_LENGTH))
         if len(self.size) != _SIZE_LENGTH[self.shape]:
-            raise ValueError(f"size of a {self.shape} must have {_SIZE_LENGTH[self.shape]} values, got {self.size}")
+            raise InvalidParameterError(
+                "size", f"of a {self.shape} must have {_SIZE_LENGTH[self.shape]} values, got {self.size}"
+            )
         if any(not np.isfinite(s) or s <= 0 for s in self.size):
-            raise ValueError(f"size must be finite and positive, got {self.size}")
+            raise InvalidParameterError("size", f"must be finite and positive, got {self.size}")
 
     def volume(self) -> float:
         """Volume in cubic metres (0 for a plane)."""
@@ -84,7 +86,7 @@ class Geom:
         if self.shape == "sphere":
             moment = 0.4 * mass * self.size[0] ** 2
             return (moment, moment, moment)
-        raise ValueError("a plane has no inertia")
+        raise InvalidParameterError("shape", "must not be 'plane' for an object with mass: a plane has no inertia")
 
 
 @dataclass(frozen=True)
@@ -118,11 +120,15 @@ class Joint:
 
     def __post_init__(self) -> None:
         if self.servo_stiffness is not None and not (np.isfinite(self.servo_stiffness) and self.servo_stiffness > 0):
-            raise ValueError(f"joint {self.name!r}: servo_stiffness must be > 0, got {self.servo_stiffness}")
+            raise InvalidParameterError(
+                "servo_stiffness", f"of joint {self.name!r} must be > 0, got {self.servo_stiffness}"
+            )
         if not (np.isfinite(self.servo_damping) and self.servo_damping >= 0):
-            raise ValueError(f"joint {self.name!r}: servo_damping must be >= 0, got {self.servo_damping}")
+            raise InvalidParameterError(
+                "servo_damping", f"of joint {self.name!r} must be >= 0, got {self.servo_damping}"
+            )
         if self.force_limit is not None and not (np.isfinite(self.force_limit) and self.force_limit > 0):
-            raise ValueError(f"joint {self.name!r}: force_limit must be > 0, got {self.force_limit}")
+            raise InvalidParameterError("force_limit", f"of joint {self.name!r} must be > 0, got {self.force_limit}")
 
     @property
     def servoed(self) -> bool:
@@ -250,7 +256,7 @@ class Scene:
 
     def __post_init__(self) -> None:
         if not self.objects:
-            raise ValueError("a scene needs at least one object")
+            raise InvalidParameterError("objects", "must hold at least one object")
         check_float("friction", self.friction, minimum=0.0)
         check_positive_float("timestep", self.timestep)
         check_choice("object_motion", self.object_motion, ("free", "upright"))
@@ -258,16 +264,16 @@ class Scene:
         if self.contact_time_constant is not None and not (
             np.isfinite(self.contact_time_constant) and self.contact_time_constant >= 2.0 * self.timestep
         ):
-            raise ValueError(
-                f"contact_time_constant must be at least two time steps ({2.0 * self.timestep} s), "
-                f"got {self.contact_time_constant}"
+            raise InvalidParameterError(
+                "contact_time_constant",
+                f"must be at least two time steps ({2.0 * self.timestep} s), got {self.contact_time_constant}",
             )
         check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
         if self.ground_contact == "footprint" and self.object_motion != "upright":
-            raise ValueError("ground_contact 'footprint' needs object_motion 'upright'")
+            raise InvalidParameterError("ground_contact", "'footprint' needs object_motion 'upright'")
         check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
         if self.lateral_contact == "sphere" and self.object_motion != "upright":
-            raise ValueError("lateral_contact 'sphere' needs object_motion 'upright'")
+            raise InvalidParameterError("lateral_contact", "'sphere' needs object_motion 'upright'")
         names = [joint.name for link in self.robot_links for joint in link.joints]
         object.__setattr__(self, "robot_joint_names", tuple(names))
 

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from energy_margin.errors import InvalidParameterError
+
 
 @dataclass(frozen=True)
 class FrameState:
@@ -43,12 +45,12 @@ class FrameState:
         for name, shape in expected.items():
             value = np.asarray(getattr(self, name))
             if value.shape != shape:
-                raise ValueError(f"{name} must have shape {shape}, got {value.shape}")
+                raise InvalidParameterError(name, f"must have shape {shape}, got {value.shape}")
             if not np.all(np.isfinite(value)):
-                raise ValueError(f"{name} contains NaN or infinite values")
+                raise InvalidParameterError(name, "contains NaN or infinite values")
         norms = np.linalg.norm(self.object_quat, axis=1)
         if np.any(np.abs(norms - 1.0) > 1e-3):
-            raise ValueError("object_quat must hold unit quaternions")
+            raise InvalidParameterError("object_quat", "must hold unit quaternions")
 
 
 def yaw_from_quat(quat: np.ndarray) -> np.ndarray:

@@ -1,0 +1,69 @@
+"""The command line takes AnalyzerConfig's defaults: ``analyze`` and Python cannot differ."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.cli import analyze
+from energy_margin.errors import Constraint, field_constraint
+
+
+def analyze_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser()
+    analyze.add_arguments(parser)
+    return parser
+
+
+def test_every_analyzer_option_defaults_to_the_dataclass_default() -> None:
+    parser = analyze_parser()
+    dests = {action.dest for action in parser._actions}
+    exposed = [field for field in dataclasses.fields(AnalyzerConfig) if field.name in dests]
+    assert len(exposed) >= 12, [field.name for field in exposed]
+    for field in exposed:
+        if field.name == "iterations":
+            # Absent, --iterations is the dataclass default unless --nodes alone sets the budget.
+            assert parser.get_default("iterations") is None and field.default == analyze.DEFAULT_ITERATIONS
+            continue
+        assert parser.get_default(field.name) == field.default, field.name
+
+
+def test_analyze_without_options_builds_the_default_configuration() -> None:
+    args = analyze_parser().parse_args(["data"])
+    assert analyze.analyzer_config(args) == AnalyzerConfig()
+
+
+def test_every_analyzer_field_declares_its_constraint() -> None:
+    for field in dataclasses.fields(AnalyzerConfig):
+        constraint = field_constraint(AnalyzerConfig, field.name)
+        assert isinstance(constraint, Constraint), field.name
+        assert constraint.check(field.name, field.default) == field.default or constraint.kind == "float"
+
+
+def test_sweep_and_budget_take_the_analyzer_defaults_too() -> None:
+    from energy_margin.cli import budget, sweep
+
+    for command in (sweep, budget):
+        parser = argparse.ArgumentParser()
+        command.add_arguments(parser)
+        dests = {action.dest for action in parser._actions}
+        shared = [field for field in dataclasses.fields(AnalyzerConfig) if field.name in dests]
+        assert shared, command.NAME
+        for field in shared:
+            assert parser.get_default(field.name) == field.default, (command.NAME, field.name)
+
+
+def test_control_takes_the_controller_defaults() -> None:
+    from energy_margin.cli import control
+    from energy_margin.control.mppi import ControllerConfig
+
+    parser = argparse.ArgumentParser()
+    control.add_arguments(parser)
+    dests = {action.dest for action in parser._actions}
+    shared = [field for field in dataclasses.fields(ControllerConfig) if field.name in dests]
+    assert len(shared) >= 6
+    for field in shared:
+        assert parser.get_default(field.name) == field.default, field.name
+    for field in dataclasses.fields(ControllerConfig):
+        assert isinstance(field_constraint(ControllerConfig, field.name), Constraint), field.name
