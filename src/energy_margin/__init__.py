@@ -16,9 +16,10 @@ The verbs a user calls are here, loaded on first use so that ``import energy_mar
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from energy_margin import _moved
+from energy_margin._lazy import lazy_getattr
 from energy_margin._version import __version__
 
 _moved.install()
@@ -74,16 +75,7 @@ _LAZY = {
     "compare_perturbed": ("energy_margin.robustness.compare", "compare_perturbed"),
 }
 
-
-def __getattr__(name: str) -> Any:
-    # Heavy modules (MuJoCo, scikit-learn) load on first use so `import energy_margin` stays fast.
-    if name in _LAZY:
-        import importlib
-
-        module, attribute = _LAZY[name]
-        return getattr(importlib.import_module(module), attribute)
-    raise AttributeError(f"module 'energy_margin' has no attribute {name!r}")
-
+__getattr__ = lazy_getattr("energy_margin", _LAZY)
 
 __all__ = [
     "AnalyzerConfig",

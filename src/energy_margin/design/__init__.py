@@ -15,8 +15,7 @@ Imported names load their modules on first use, so ``import energy_margin.design
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from energy_margin._lazy import lazy_getattr
 
 #: Public name -> the module that defines it.
 _HOMES = {
@@ -36,8 +35,4 @@ _HOMES = {
 
 __all__ = sorted(_HOMES)
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOMES:
-        raise AttributeError(f"module 'energy_margin.design' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOMES[name]), name)
+__getattr__ = lazy_getattr("energy_margin.design", _HOMES)
