@@ -398,3 +398,50 @@ if __name__ == "__main__":
     print(f"{len(graph)} modules, {sum(len(t) for t in graph.values())} imports")
     print("cycles:", cycles(graph) or "none")
     print("order breaks:", order_breaks(graph) or "none")
+
+
+def _module_level_names(tree: ast.Module) -> set[str]:
+    """Names a module binds at its top level (definitions, assignments, imports, TYPE_CHECKING imports)."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) and node in tree.body:
+            names.add(node.name)
+        elif isinstance(node, ast.Import | ast.ImportFrom):
+            names |= {(alias.asname or alias.name).split(".")[0] for alias in node.names}
+        elif isinstance(node, ast.Assign | ast.AnnAssign) and node in tree.body:
+            for target in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                if isinstance(target, ast.Name):
+                    names.add(target.id)
+    return names
+
+
+def test_every_module_declares_its_public_names() -> None:
+    """``__all__`` in every module, each name in it bound there (read with ``ast``), a lazy package's importable."""
+    missing, unbound = [], []
+    for name, path in sorted(module_names().items()):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        declared = [
+            node.value
+            for node in tree.body
+            if isinstance(node, ast.Assign | ast.AnnAssign)
+            and any(
+                isinstance(target, ast.Name) and target.id == "__all__"
+                for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
+            )
+        ]
+        if not declared:
+            missing.append(name)
+            continue
+        bound = _module_level_names(tree)
+        if not isinstance(declared[0], ast.List | ast.Tuple) or "__getattr__" in bound:
+            continue  # a lazy package's names load on first use: imported below
+        names = [e.value for e in declared[0].elts if isinstance(e, ast.Constant)]
+        unbound += [f"{name}.{public}" for public in names if public not in bound]
+    assert not missing, f"modules without __all__: {missing}"
+    assert not unbound, f"names in __all__ that the module does not bind: {unbound}"
+    import importlib
+
+    for package in ("energy_margin", "energy_margin.design", "energy_margin.experiments", "energy_margin.integrations"):
+        module = importlib.import_module(package)
+        for public in module.__all__:
+            assert getattr(module, public) is not None, f"{package}.{public}"

@@ -17,6 +17,13 @@ import warnings
 from collections.abc import Callable
 from typing import Any
 
+__all__ = [
+    "MOVED_MODULES",
+    "RENAMED",
+    "install",
+    "stage_getattr",
+]
+
 #: Old module of 0.1.0 -> the modules that now hold its names, searched in order.
 MOVED_MODULES: dict[str, tuple[str, ...]] = {
     "energy_margin.scene": ("energy_margin.world.scene",),

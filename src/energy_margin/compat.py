@@ -52,6 +52,39 @@ import numpy as np
 
 from energy_margin.errors import InvalidDataError
 
+__all__ = [
+    "ATTACH_KEYFRAMES_SINCE",
+    "BOX_DEPTH_SINCE",
+    "COMPILE_WARNINGS_SINCE",
+    "CYLINDER_INSIDE_BOX_SINCE",
+    "FRICTIONLESS_SLIDING_SINCE",
+    "JOINT_COEFFICIENTS_SINCE",
+    "MJB_VERSION_SINCE",
+    "MUJOCO_MINIMUM",
+    "SPEC_XML_SINCE",
+    "add_in_frame",
+    "attach_keeps_keyframes",
+    "compile_before_copying",
+    "compile_refuses_warnings",
+    "contact_depths",
+    "copy_body",
+    "copy_light",
+    "delete_element",
+    "format_version",
+    "has_warning_hook",
+    "joint_coefficient",
+    "mujoco_at_least",
+    "mujoco_version",
+    "numpy_version",
+    "parse_version",
+    "reference_pose_in_keyframes",
+    "save_npz",
+    "set_asset_dirs",
+    "set_joint_coefficient",
+    "set_to_position",
+    "spec_xml",
+]
+
 #: The oldest MuJoCo release the package supports (Meta-World 3.1.1 pins it).
 MUJOCO_MINIMUM = (3, 3, 0)
 #: The first MuJoCo release whose joint damping and stiffness hold three numbers.

@@ -22,6 +22,23 @@ import math
 from collections.abc import Iterable
 from typing import Any, TypeVar
 
+__all__ = [
+    "Constraint",
+    "EnergyMarginError",
+    "InvalidDataError",
+    "InvalidParameterError",
+    "check_choice",
+    "check_fields",
+    "check_float",
+    "check_int",
+    "check_positive_float",
+    "check_positive_int",
+    "check_seed",
+    "constrained",
+    "field_constraint",
+    "field_default",
+]
+
 _T = TypeVar("_T")
 
 

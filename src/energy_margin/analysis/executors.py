@@ -22,6 +22,18 @@ from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_int
 
+__all__ = [
+    "EXECUTORS",
+    "AnalyzerFactory",
+    "Executor",
+    "LocalExecutor",
+    "RayExecutor",
+    "make_executor",
+    "pool_results",
+    "sigint_deferred",
+    "stop_pool",
+]
+
 EXECUTORS = ("local", "ray")
 
 

@@ -33,6 +33,18 @@ from energy_margin.tasks import Task, all_inside, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "CONVERGE_RULES",
+    "AnalyzerConfig",
+    "FrameAnalyzer",
+    "FrameScores",
+    "ScoresConverged",
+    "analyze_frame",
+    "field_membership",
+    "frame_seeds",
+    "score_field",
+]
+
 #: Rules of the adaptive budget (:class:`ScoresConverged`).
 CONVERGE_RULES = ("projected", "window")
 

@@ -33,6 +33,13 @@ from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "MAX_EXPANSIONS",
+    "Deadline",
+    "LiveScore",
+    "score_state",
+]
+
 #: Default cap on the expansions of one live call (the tree's arrays are sized for it: a larger cap
 #: costs set-up time; raise it for budgets beyond a few tenths of a second).
 MAX_EXPANSIONS = 2_000

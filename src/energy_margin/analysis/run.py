@@ -24,6 +24,14 @@ from energy_margin.runs.directory import run_versions
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.tasks import with_contacts
 
+__all__ = [
+    "ANALYSIS_RUN",
+    "analyze",
+    "open_analysis",
+    "run_description",
+    "write_scores",
+]
+
 
 def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict[str, Any]:
     """What ``analysis.json`` records of a run: settings, seed, dataset, task and versions.

@@ -6,6 +6,13 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_int
 
+__all__ = [
+    "likelihood",
+    "region_score",
+    "trajectory_success_score",
+    "trajectory_weights",
+]
+
 
 def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:
     """Softmax likelihood ``L_m = exp(-lam (c_m - c_min)) / sum_j exp(-lam (c_j - c_min))`` (eq. 1).

@@ -28,6 +28,22 @@ from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks.base import CONTACT_MODELS
 
+__all__ = [
+    "COSTS",
+    "DEFAULT_ITERATIONS",
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "TREE_ONLY",
+    "add_arguments",
+    "analyzer_config",
+    "calibrated_settings",
+    "default",
+    "run",
+    "run_learned",
+    "tree_options_given",
+]
+
 NAME = "analyze"
 SUMMARY = "score every frame of a dataset: capture and success scores into scores.csv"
 EXAMPLES = (

@@ -55,6 +55,16 @@ from energy_margin.cli.common import PROG, HelpFormatter, Parser, one_line
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.runs.progress import close_all
 
+__all__ = [
+    "COMMANDS",
+    "PARAMETER_DESTS",
+    "build_parser",
+    "error_message",
+    "flag_for",
+    "main",
+    "parameter_flags",
+]
+
 #: The commands in the order ``--help`` lists them (the order data flows).
 COMMANDS: tuple[ModuleType, ...] = (
     scene,

@@ -7,6 +7,14 @@ import argparse
 from energy_margin.cli.common import add_seed, analyzer_default, non_negative_int, positive_int
 from energy_margin.planning.methods import METHODS
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "budget"
 SUMMARY = "AP (with bootstrap intervals) and runtime against the expansion budget, per tree method"
 EXAMPLES = ("energy-margin budget runs/push10 --budgets 10 30 100 300 --methods est montecarlo --workers 2",)

@@ -11,6 +11,15 @@ from energy_margin.errors import EnergyMarginError
 if TYPE_CHECKING:
     from energy_margin.evaluation.calibration import Calibration
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "format_calibration",
+    "run",
+]
+
 NAME = "calibrate"
 SUMMARY = "choose lambda by cross-validated AP (nested, grouped by trajectory); calibration.json for analyze"
 # Then: energy-margin analyze runs/jaco-new --calibration runs/jaco-calibration/calibration.json

@@ -6,6 +6,14 @@ import argparse
 
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "check"
 SUMMARY = "list every problem of a dataset (and of its scores), one per line"
 EXAMPLES = ("energy-margin check runs/push10", "energy-margin check runs/push10 --no-overlaps")

@@ -10,6 +10,29 @@ from typing import Any, NoReturn
 
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "PROG",
+    "DeprecatedAlias",
+    "HelpFormatter",
+    "Parser",
+    "ProgressBar",
+    "add_engine",
+    "add_overwrite",
+    "add_seed",
+    "add_set",
+    "analyzer_default",
+    "non_negative_float",
+    "non_negative_int",
+    "one_line",
+    "positive_float",
+    "positive_int",
+    "print_json",
+    "require_matplotlib",
+    "say_notes",
+    "scene_task_config",
+    "task_overrides",
+]
+
 PROG = "energy-margin"
 
 

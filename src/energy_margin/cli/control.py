@@ -18,6 +18,17 @@ from energy_margin.cli.common import (
 )
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SUMMARY",
+    "add_arguments",
+    "controller_default",
+    "format_summary",
+    "run",
+]
+
 NAME = "control"
 SUMMARY = "closed-loop episodes (MPPI with task, heuristic or margin costs) under disturbances"
 EXAMPLES = (

@@ -21,6 +21,17 @@ from energy_margin.cli.common import (
 )
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SCORES",
+    "SUMMARY",
+    "add_arguments",
+    "draw_design",
+    "run",
+]
+
 NAME = "design"
 SUMMARY = "search a task's design by its energy margin (CMA-ES, TPE or a grid), then verify it by control episodes"
 EXAMPLES = (

@@ -6,6 +6,14 @@ import argparse
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json, say_notes
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "evaluate"
 SUMMARY = "Average Precision of a scored dataset against its labels; with --compare, Table I"
 EXAMPLES = (

@@ -7,6 +7,15 @@ import argparse
 from energy_margin.cli.common import ProgressBar, add_engine, add_seed, add_set, scene_task_config, task_overrides
 from energy_margin.tasks import available_tasks
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "generate"
 SUMMARY = "record scripted roll-outs of a task, with their labels, as a dataset"
 EXAMPLES = (

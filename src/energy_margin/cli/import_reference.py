@@ -6,6 +6,14 @@ import argparse
 
 from energy_margin.data.reference import DRIVES
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "import-reference"
 SUMMARY = "convert the authors' published frames, labels and scores into a dataset"
 EXAMPLES = (

@@ -19,6 +19,18 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.learning.margin_model import KINDS
 from energy_margin.tasks import available_tasks
 
+__all__ = [
+    "AP_ROWS",
+    "DEFAULT_FRAMES",
+    "EXAMPLES",
+    "NAME",
+    "PIPELINE_OPTIONS",
+    "SUMMARY",
+    "add_arguments",
+    "format_report",
+    "run",
+]
+
 NAME = "learn"
 SUMMARY = (
     "fit a learned margin to analysed datasets, or generate, analyse and fit in one resumable run; held-out R² and AP"

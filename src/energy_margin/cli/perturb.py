@@ -7,6 +7,14 @@ import argparse
 from energy_margin.cli.common import add_seed, non_negative_float, positive_int
 from energy_margin.robustness.perturb import PROTOCOLS
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "perturb"
 SUMMARY = "perturbed copies of a dataset: object centres resampled inside their minimum-volume ellipsoid"
 EXAMPLES = (

@@ -13,6 +13,17 @@ from energy_margin.errors import EnergyMarginError
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
 
+__all__ = [
+    "EXAMPLES",
+    "FORMATS",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SUMMARY",
+    "add_arguments",
+    "positive_float",
+    "run",
+]
+
 NAME = "record"
 SUMMARY = (
     "turn recorded MuJoCo roll-outs (time, qpos, qvel per .npz or HDF5 group) of a scene file's model, "

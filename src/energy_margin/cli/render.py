@@ -8,6 +8,14 @@ from pathlib import Path
 from energy_margin.cli.common import ProgressBar, non_negative_int, positive_int
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "render"
 SUMMARY = "render a trajectory's roll-out as a video (MP4, or GIF) with its capture and success scores"
 EXAMPLES = (

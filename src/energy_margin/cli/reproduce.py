@@ -9,6 +9,16 @@ from pathlib import Path
 
 from energy_margin.cli.common import add_engine, add_overwrite, add_seed, positive_int, require_matplotlib, say_notes
 
+__all__ = [
+    "EXAMPLES",
+    "LOCKED_MUJOCO",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "locked_engine_note",
+    "run",
+]
+
 #: The MuJoCo of requirements.lock, with which the quoted figures were made (tests/test_packaging.py holds it).
 LOCKED_MUJOCO = "4.0.0"
 

@@ -10,6 +10,14 @@ from typing import Any
 
 from energy_margin.cli.common import DeprecatedAlias, add_seed, require_matplotlib
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "scene"
 SUMMARY = "print what a scene file declares and write a picture of it at t = 0 with the capture and success sets"
 EXAMPLES = (

@@ -7,6 +7,14 @@ import argparse
 from energy_margin.cli.common import add_seed, non_negative_float, positive_int
 from energy_margin.planning.methods import METHODS
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "study"
 SUMMARY = "AP with bootstrap and paired intervals per task, method and budget, and AP against lambda (resumable)"
 EXAMPLES = (

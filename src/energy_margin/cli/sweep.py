@@ -12,6 +12,15 @@ from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
 from energy_margin.tasks import available_tasks
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "sweep"
 SUMMARY = "design sweep: success rate and energy margins per task design, and how well the margin ranks them"
 EXAMPLES = (

@@ -8,6 +8,15 @@ from pathlib import Path
 
 from energy_margin.cli.common import non_negative_int
 
+__all__ = [
+    "EXAMPLES",
+    "NAME",
+    "PARAMETER_FLAGS",
+    "SUMMARY",
+    "add_arguments",
+    "run",
+]
+
 NAME = "view"
 SUMMARY = "write an interactive 3-D view of one analysed frame's tree (self-contained HTML, no server)"
 EXAMPLES = (

@@ -34,6 +34,15 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError, check
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
 
+__all__ = [
+    "SCORES",
+    "BranchState",
+    "BranchStudy",
+    "branch_episode",
+    "branch_study",
+    "concordance",
+]
+
 #: The scores a study can rank branches by; each is "higher is better". ``oracle_state`` is the
 #: ``task`` score predicted from the true state instead of the observed one, ``oracle_friction``
 #: from the true state with the plant's friction: what a controller would see with perfect

@@ -21,6 +21,17 @@ from energy_margin.tasks.pushing import PushingTask
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.tasks.scooping import ScoopingTask
 
+__all__ = [
+    "CommandSpace",
+    "PushingCommands",
+    "RobotInputs",
+    "SceneCommands",
+    "ScoopingCommands",
+    "command_space",
+    "controllable_tasks",
+    "register_command_space",
+]
+
 
 @dataclass(frozen=True)
 class RobotInputs:

@@ -37,6 +37,23 @@ from energy_margin.tasks import Task
 from energy_margin.tasks.base import MeasurableRegion
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "COSTS",
+    "CostContext",
+    "CostFunction",
+    "CostWeights",
+    "MarginPredictor",
+    "Predictions",
+    "describe_costs",
+    "get_cost",
+    "heuristic_cost",
+    "holding_task",
+    "learned_cost",
+    "margin_cost",
+    "margin_scores",
+    "task_cost",
+]
+
 
 @dataclass(frozen=True)
 class Predictions:

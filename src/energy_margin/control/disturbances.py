@@ -14,6 +14,16 @@ import numpy as np
 
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "DISTURBANCES",
+    "Disturbance",
+    "Push",
+    "draw_plant",
+    "get_disturbance",
+    "observe",
+    "push_wrenches",
+]
+
 
 @dataclass(frozen=True)
 class Disturbance:

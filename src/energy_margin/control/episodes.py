@@ -47,6 +47,22 @@ from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "CONTROL_FILE",
+    "CONTROL_RUN",
+    "EPISODES_DIR",
+    "EPISODE_STREAMS",
+    "POLICIES",
+    "ControlSettings",
+    "apply_inputs",
+    "draw_episode",
+    "episode_seeds",
+    "observed_frame",
+    "run_control",
+    "run_episode",
+    "summarize",
+]
+
 #: The policies ``energy-margin control --policy`` offers.
 POLICIES = ("scripted", "task", "heuristic", "margin", "learned")
 #: The run's settings and, once finished, its summary.

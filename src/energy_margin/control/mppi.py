@@ -26,6 +26,11 @@ from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import Task, Trajectory
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "Controller",
+    "ControllerConfig",
+]
+
 #: A finite number > 0.
 _POSITIVE = Constraint("float", minimum=0.0, exclusive_minimum=True)
 

@@ -39,6 +39,26 @@ from energy_margin.runs.npz import READ_ERRORS
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "FORMAT",
+    "FRAMES_FILE",
+    "METADATA_FILE",
+    "SCHEMA_VERSION",
+    "Dataset",
+    "Problem",
+    "array_problems",
+    "check_target",
+    "copy_dataset",
+    "expected_shapes",
+    "frame_from_arrays",
+    "load_dataset",
+    "metadata_problems",
+    "raise_first",
+    "read_dataset",
+    "validate",
+    "write_directory",
+]
+
 FORMAT = "energy-margin-dataset"
 SCHEMA_VERSION = 1
 METADATA_FILE = "dataset.json"

@@ -28,6 +28,25 @@ from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "MAX_DRAWS",
+    "REDRAWN_KEY",
+    "DeepOverlapError",
+    "RefusedDrawError",
+    "UnphysicalError",
+    "check_engine",
+    "draw_trajectory",
+    "generate_dataset",
+    "record_trajectory",
+    "records_dataset",
+    "redrawn_draw",
+    "replay_trajectory",
+    "roll_out",
+    "trajectory_record",
+    "trajectory_rng",
+    "write_records",
+]
+
 
 def _check_inputs(n_objects: int, n_trajectories: int, n_frames: int, seed: int) -> None:
     check_positive_int("n_objects", n_objects)

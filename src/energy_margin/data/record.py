@@ -34,6 +34,15 @@ from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "DROPPED_KEY",
+    "FILE_FORMATS",
+    "check_rollout",
+    "read_rollout_file",
+    "record_dataset",
+    "rollout_records",
+]
+
 _HDF5_SUFFIXES = (".h5", ".hdf5")
 #: Key of ``dataset.json`` listing the roll-outs left out for a physically impossible frame.
 DROPPED_KEY = "dropped"

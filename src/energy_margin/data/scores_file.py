@@ -19,6 +19,27 @@ import numpy as np
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.journal import Journal
 
+__all__ = [
+    "COLUMNS",
+    "CONFIG_FILE",
+    "DIVERGED_SHARE",
+    "EARLIER_COLUMNS",
+    "INTEGER_COLUMNS",
+    "JOURNAL_FILE",
+    "REJECTED_SHARE",
+    "SCORES_FILE",
+    "UNKNOWN_COUNT",
+    "file_columns",
+    "format_row",
+    "header",
+    "load_scores",
+    "parse_row",
+    "read_journal",
+    "rejection_note",
+    "scores_journal",
+    "tree_rejections",
+]
+
 SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
 CONFIG_FILE = "analysis.json"

@@ -22,6 +22,11 @@ from energy_margin.design.params import is_range
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import Task, available_tasks, get_task
 
+__all__ = [
+    "Design",
+    "design_grid",
+]
+
 
 @dataclass(frozen=True)
 class Design:

@@ -27,6 +27,18 @@ from energy_margin.design.space import even_grid
 from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.tasks import DesignParameter
 
+__all__ = [
+    "CMA_SIGMA",
+    "OPTIMIZERS",
+    "PACKAGES",
+    "CmaOptimizer",
+    "GridOptimizer",
+    "Optimizer",
+    "TpeOptimizer",
+    "make_optimizer",
+    "require_optimizer",
+]
+
 #: The optimisers of ``design --optimizer``.
 OPTIMIZERS = ("cma", "tpe", "grid")
 #: The package each optimiser imports (all in the ``design`` extra).

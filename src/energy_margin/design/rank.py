@@ -20,6 +20,17 @@ from energy_margin.data.dataset import Dataset
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.statistics import spearman, spearman_rho
 
+__all__ = [
+    "EARLY_SUCCESS_FRAMES",
+    "MARGINS",
+    "MARGIN_LABELS",
+    "DesignOutcome",
+    "default_trajectory_counts",
+    "design_outcome",
+    "rank_convergence",
+    "rank_correlations",
+]
+
 #: k-bar of the early success prediction (as ``evaluate`` and ``budget``).
 EARLY_SUCCESS_FRAMES = 3
 #: The margin columns ranked against the success rate, first the one that matters most.

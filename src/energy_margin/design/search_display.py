@@ -21,6 +21,10 @@ from energy_margin.runs.display import Display
 from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import fmt
 
+__all__ = [
+    "DesignSearchDisplay",
+]
+
 
 @dataclass
 class DesignSearchDisplay(Display):

@@ -31,6 +31,22 @@ from energy_margin.design.grid import Design, design_grid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import DesignParameter, Task, available_tasks, get_task
 
+__all__ = [
+    "DIGITS",
+    "MAX_CORNERS",
+    "axis_values",
+    "check_models",
+    "compile_design",
+    "default_design",
+    "even_grid",
+    "grid_counts",
+    "known_names",
+    "parameter_dict",
+    "point_design",
+    "resolve_space",
+    "round_value",
+]
+
 #: Significant digits of a numeric design value (what is simulated, written and compared on resume).
 DIGITS = 6
 #: The most corner combinations :func:`check_models` compiles; beyond it, each axis's ends alone.

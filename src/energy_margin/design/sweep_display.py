@@ -22,6 +22,10 @@ from energy_margin.runs.display import Display
 from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import fmt
 
+__all__ = [
+    "SweepDisplay",
+]
+
 
 @dataclass
 class SweepDisplay(Display):

@@ -28,6 +28,21 @@ from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import Column, field, fmt, write_csv, write_json
 from energy_margin.runs.tables import format_table as text_table
 
+__all__ = [
+    "CONVERGENCE_COLUMNS",
+    "DESIGN_COLUMNS",
+    "FIGURE_FILE",
+    "RESULTS_FILE",
+    "RESULTS_JSON",
+    "SweepResult",
+    "design_row",
+    "failed_row",
+    "format_table",
+    "summarize",
+    "table_fields",
+    "write_results",
+]
+
 RESULTS_FILE = "results.csv"
 RESULTS_JSON = "results.json"
 FIGURE_FILE = "results.png"

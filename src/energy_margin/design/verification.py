@@ -24,6 +24,12 @@ from energy_margin.control.episodes import ControlSettings, run_episode
 from energy_margin.errors import EnergyMarginError, check_choice
 from energy_margin.tasks import Task
 
+__all__ = [
+    "VERIFY_FRAMES",
+    "VERIFY_POLICIES",
+    "EpisodeVerifier",
+]
+
 #: The policies a design is verified with: its own script (the default), or MPPI with the task cost.
 VERIFY_POLICIES = ("scripted", "task")
 #: Frames recorded per episode (only the last one's success label is used).

@@ -14,6 +14,11 @@ import numpy as np
 from energy_margin.data.dataset import Dataset
 from energy_margin.tasks.base import MeasurableRegion, Region
 
+__all__ = [
+    "baseline_grids",
+    "distance_scores",
+]
+
 
 def _min_distance(region: Region, positions: np.ndarray) -> float:
     if not isinstance(region, MeasurableRegion):

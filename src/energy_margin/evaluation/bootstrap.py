@@ -17,6 +17,19 @@ import numpy as np
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset
 
+__all__ = [
+    "SECOND_CAPTURE_WINDOW",
+    "Questions",
+    "Scored",
+    "average_precision",
+    "bootstrap_answers",
+    "evaluate_capture_windows",
+    "paired_difference",
+    "percentile_interval",
+    "score_questions",
+    "summarize",
+]
+
 
 def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
     """Average Precision as scikit-learn computes it (ties form one threshold); ``None`` for one class."""

@@ -36,6 +36,20 @@ from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs import RunSpec, open_run
 from energy_margin.runs.files import read_json
 
+__all__ = [
+    "CALIBRATION_FILE",
+    "CALIBRATION_RUN",
+    "DEFAULT_LAMBDAS",
+    "DEFAULT_OBJECTIVE",
+    "FORMAT",
+    "QUESTIONS",
+    "Calibration",
+    "Candidate",
+    "calibrate",
+    "check_calibration_data",
+    "read_calibration",
+]
+
 #: The calibration file a run writes and ``analyze --calibration`` reads.
 CALIBRATION_FILE = "calibration.json"
 FORMAT = "energy-margin-calibration"

@@ -29,6 +29,13 @@ from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_float
 from energy_margin.runs import progress_bar
 
+__all__ = [
+    "LambdaRescorer",
+    "lambda_directory",
+    "rescore_lambdas",
+    "result_root",
+]
+
 
 class LambdaRescorer(FrameAnalyzer):
     """Grows each frame's tree once and scores it with every lambda of a grid.

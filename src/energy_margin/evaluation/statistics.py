@@ -16,6 +16,16 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_int, check_positive_float, check_positive_int
 
+__all__ = [
+    "EXACT_PERMUTATIONS_UP_TO",
+    "Z_95",
+    "RankCorrelation",
+    "rank",
+    "spearman",
+    "spearman_rho",
+    "wilson_interval",
+]
+
 #: Two-sided 95 % standard normal quantile.
 Z_95 = 1.959963984540054
 #: Up to this many items the permutation p-value enumerates every permutation (8! = 40 320).

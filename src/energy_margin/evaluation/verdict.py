@@ -18,6 +18,14 @@ import numpy as np
 from energy_margin.data.dataset import Dataset
 from energy_margin.evaluation.bootstrap import Questions, paired_difference, score_questions
 
+__all__ = [
+    "NOT_CONTENDERS",
+    "WORDS",
+    "Verdict",
+    "verdicts",
+    "word",
+]
+
 #: The words of a verdict.
 WORDS = ("ahead", "level", "behind", "n/a")
 #: Baselines that never contend for "best" (a constant score: its AP is the positive rate).

@@ -15,6 +15,11 @@ from typing import Any
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs.display import Display
 
+__all__ = [
+    "BASELINE_COLORS",
+    "BudgetDisplay",
+]
+
 #: Colours of the baselines' lines.
 BASELINE_COLORS = {"current_state": "grey", "distance": "black", "chance": "tab:brown"}
 

@@ -17,6 +17,13 @@ from energy_margin.experiments.budget_display import BudgetDisplay
 from energy_margin.experiments.study_result import LABELS, QUESTION_NAMES, StudyResult
 from energy_margin.runs.display import Display
 
+__all__ = [
+    "LambdaDisplay",
+    "draw_study",
+    "plot_lambda",
+    "task_title",
+]
+
 
 @dataclass
 class LambdaDisplay(Display):

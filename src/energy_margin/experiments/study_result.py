@@ -20,6 +20,25 @@ from energy_margin.evaluation.bootstrap import Questions, Scored, paired_differe
 from energy_margin.experiments.budget import format_table
 from energy_margin.runs.tables import write_csv, write_json
 
+__all__ = [
+    "BASELINES",
+    "CAPTURE_WINDOWS",
+    "DIFFERENCE_FIELDS",
+    "FIELDS",
+    "HEADERS",
+    "LABELS",
+    "LAMBDA_FACTORS",
+    "LAMBDA_FIELDS",
+    "QUESTION_NAMES",
+    "SUCCESS_SPANS",
+    "TABLE_FILES",
+    "StudyResult",
+    "format_study",
+    "method_differences",
+    "positive_rates",
+    "study_questions",
+]
+
 #: Capture questions: name -> k-hat.
 CAPTURE_WINDOWS = {"capture_k0": 0, "capture_k2": 2, "capture_k4": 4}
 #: Success questions: name -> frame span whose weighted last 3 frames score the trajectory.

@@ -17,6 +17,11 @@ from energy_margin.evaluation.metrics import score_grid
 from energy_margin.experiments.budget import baseline_grids
 from energy_margin.experiments.study_result import BASELINES, positive_rates, study_questions
 
+__all__ = [
+    "TaskState",
+    "study_dataset",
+]
+
 
 @dataclass
 class TaskState:

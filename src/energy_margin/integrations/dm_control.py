@@ -31,6 +31,13 @@ from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
+__all__ = [
+    "MarginEnvironment",
+    "PhysicsScorer",
+    "align_dm_control_index",
+    "physics_handles",
+]
+
 
 def align_dm_control_index() -> list[str]:
     """Drop from dm_control's named-index tables the fields this MuJoCo's structs lack; returns them."""

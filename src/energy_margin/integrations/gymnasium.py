@@ -42,6 +42,13 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
+__all__ = [
+    "MarginWrapper",
+    "environment_name",
+    "make_environment",
+    "mujoco_handles",
+]
+
 
 def mujoco_handles(env: Any, *, what: str | None = None) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The ``MjModel`` and ``MjData`` behind ``env`` (:func:`~energy_margin.integrations.handles.find_mujoco`)."""

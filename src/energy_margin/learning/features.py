@@ -33,6 +33,14 @@ from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks.base import MeasurableRegion, Region, Task
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "FEATURE_SET",
+    "FEATURE_VERSION",
+    "FrameFeatures",
+    "ObjectSetFeatures",
+    "SetInputs",
+]
+
 #: Name of the feature definition.
 FEATURE_SET = "frame-statistics"
 #: Version of the feature definition; a change of any channel bumps it.

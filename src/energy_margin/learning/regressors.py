@@ -20,6 +20,16 @@ import numpy as np
 
 from energy_margin.errors import InvalidDataError, InvalidParameterError, check_choice
 
+__all__ = [
+    "KINDS",
+    "N_OUTPUTS",
+    "BoostingRegressor",
+    "MlpRegressor",
+    "Regressor",
+    "fit_regressor",
+    "regressor_from_arrays",
+]
+
 #: Targets predicted together: the capture and the success score.
 N_OUTPUTS = 2
 #: Regressor kinds: a perceptron and boosted trees over frame statistics, the set network over objects.

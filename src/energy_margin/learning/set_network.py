@@ -31,6 +31,15 @@ import numpy as np
 from energy_margin.errors import InvalidDataError, InvalidParameterError
 from energy_margin.learning.features import SetInputs
 
+__all__ = [
+    "DEFAULTS",
+    "KIND",
+    "LOSSES",
+    "N_OUTPUTS",
+    "SetRegressor",
+    "fit_set_regressor",
+]
+
 #: Kind name of the set regressor in a model file.
 KIND = "set"
 #: Targets predicted together: the capture and the success score.

@@ -25,6 +25,17 @@ import numpy as np
 from energy_margin.errors import check_choice
 from energy_margin.world.state import relative_rotation_vector
 
+__all__ = [
+    "COST_MODELS",
+    "MIN_COST",
+    "CostModel",
+    "EnergyBalanceCost",
+    "Propagation",
+    "WrenchWorkCost",
+    "make_cost_model",
+    "wrench_work_per_object",
+]
+
 #: Smallest incremental cost, so every edge costs something (as the reference).
 MIN_COST = 1e-9
 

@@ -17,6 +17,15 @@ from energy_margin.errors import check_choice, check_positive_float, check_posit
 if TYPE_CHECKING:
     from energy_margin.world.scene import Scene
 
+__all__ = [
+    "PROJECTIONS",
+    "EllipsoidFeatures",
+    "Features",
+    "ObjectPositions",
+    "ProjectedGridDensity",
+    "make_features",
+]
+
 #: Names of the density projections (``AnalyzerConfig.projection``).
 PROJECTIONS = ("objects", "ellipsoid")
 

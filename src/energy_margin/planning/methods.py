@@ -31,6 +31,14 @@ from energy_margin.errors import check_choice, check_positive_float, check_posit
 from energy_margin.planning.density import Features, ProjectedGridDensity
 from energy_margin.planning.tree import Expansion
 
+__all__ = [
+    "METHODS",
+    "EstExpansion",
+    "MonteCarloExpansion",
+    "RrtExpansion",
+    "expansion_factory",
+]
+
 METHODS = ("est", "montecarlo", "rrt")
 
 

@@ -39,6 +39,14 @@ from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, requir
 from energy_margin.tasks.base import Task, command_robot
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "CostField",
+    "Expansion",
+    "Outcome",
+    "TreeBudget",
+    "grow",
+]
+
 
 @dataclass(frozen=True)
 class TreeBudget:

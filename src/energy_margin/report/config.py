@@ -4,6 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+__all__ = [
+    "TABLE_ONE_PROTOCOLS",
+    "ReproduceConfig",
+]
+
 #: Perturbation protocols of Table I, in the order reported, and the suffix of their copies'
 #: directory (``data/<task>-<n>-<suffix>/R``).
 TABLE_ONE_PROTOCOLS = {"valid": "perturbed", "paper": "perturbed-paper"}

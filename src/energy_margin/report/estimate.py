@@ -21,6 +21,18 @@ import numpy as np
 
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 
+__all__ = [
+    "CALIBRATION_ITERATIONS",
+    "PlannedAnalysis",
+    "StepTimes",
+    "calibration_objects",
+    "estimate_seconds",
+    "frames_left",
+    "measure_step_times",
+    "planned_analyses",
+    "work_left",
+]
+
 #: Most iterations a calibration tree grows (its time is scaled to the run's iterations). A tree's
 #: later iterations cost more than its first (more nodes, more contacts), so the calibration grows
 #: the run's own number up to this.

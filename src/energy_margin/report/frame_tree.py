@@ -22,6 +22,12 @@ if TYPE_CHECKING:
     from energy_margin.planning import CostField
     from energy_margin.world.state import FrameState
 
+__all__ = [
+    "AnalysedTree",
+    "analysed_tree",
+    "analyser_settings",
+]
+
 
 @dataclass(frozen=True)
 class AnalysedTree:

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+__all__ = [
+    "PAPER_FIG_2",
+    "PAPER_TABLE_I",
+]
+
 #: The paper's Table I and Fig. 2 values, printed beside ours.
 PAPER_TABLE_I: dict[str, dict[str, Any]] = {
     "pushing": {

@@ -16,6 +16,18 @@ if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
     from energy_margin.planning import CostField
 
+__all__ = [
+    "cost_field_figure",
+    "draw_cost_field",
+    "draw_ellipse",
+    "draw_region",
+    "draw_scene",
+    "frame_figure",
+    "precision_recall_figure",
+    "runtime_figure",
+    "trajectory_scores_figure",
+]
+
 _VIEWS = {"top": (0, 1), "side": (0, 2)}
 _COLOURS = {"object": "#f08c28", "robot": "#33a852", "static": "#8c8c8c"}
 

@@ -15,6 +15,12 @@ from typing import Any
 from energy_margin._version import __version__
 from energy_margin.runs.versions import engine_versions
 
+__all__ = [
+    "git_commit",
+    "machine",
+    "provenance",
+]
+
 
 def git_commit(directory: Path | None = None) -> str | None:
     """The commit of the git checkout holding the package (``+ changes`` when it is modified), or ``None``."""

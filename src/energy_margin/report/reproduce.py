@@ -27,6 +27,15 @@ from energy_margin.report.paper import PAPER_FIG_2, PAPER_TABLE_I
 from energy_margin.runs import RunSpec, run_directory
 from energy_margin.runs.files import atomic_write_text, write_json
 
+__all__ = [
+    "PROTOCOL_KEYS",
+    "REPRODUCE_RUN",
+    "ablation_markdown",
+    "command_line",
+    "reproduce",
+    "table_one_markdown",
+]
+
 
 def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)

@@ -24,6 +24,14 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError, check
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
 
+__all__ = [
+    "VideoResult",
+    "output_path",
+    "render_video",
+    "score_strip",
+    "video_steps",
+]
+
 #: Strip colours: capture (the capture region's blue) and success (the success region's purple).
 _CAPTURE_COLOUR = (31, 120, 180)
 _SUCCESS_COLOUR = (148, 64, 199)

@@ -21,6 +21,14 @@ if TYPE_CHECKING:
     from energy_margin.report.frame_tree import AnalysedTree
     from energy_margin.tasks.base import RegionShape
 
+__all__ = [
+    "region_meshes",
+    "scene_meshes",
+    "solid_mesh",
+    "view_figure",
+    "write_view",
+]
+
 _CYLINDER_SIDES = 24
 _ROLE_COLOURS = {"object": "rgb(240,140,40)", "robot": "rgb(51,168,82)", "static": "rgb(170,170,170)"}
 

@@ -22,6 +22,13 @@ from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.metrics import evaluate, score_grid
 
+__all__ = [
+    "compare_perturbed",
+    "copy_protocol",
+    "expand_compare_paths",
+    "format_robustness_table",
+]
+
 
 def expand_compare_paths(paths: list[Path | str]) -> list[Path]:
     """Datasets named by ``paths``.

@@ -69,6 +69,11 @@ from energy_margin.robustness.resample import (
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 
+__all__ = [
+    "PERTURB_RUN",
+    "perturb_dataset",
+]
+
 
 def perturb_dataset(
     path: Path | str,

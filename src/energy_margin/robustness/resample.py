@@ -16,6 +16,16 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.world.ellipsoid import Ellipsoid, min_volume_ellipsoid
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "OVERLAP_DEPTH",
+    "PROTOCOLS",
+    "PROTOCOL_METHODS",
+    "FramePerturbation",
+    "is_planar",
+    "object_size",
+    "perturb_frame",
+]
+
 #: Where objects not yet placed wait (far from everything, one metre apart).
 _PARK_DISTANCE = 100.0
 #: A perturbed frame whose deepest penetration exceeds this counts as overlapping, m.

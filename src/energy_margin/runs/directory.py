@@ -40,6 +40,17 @@ from energy_margin.runs.files import leftovers, read_json, remove_leftovers, wri
 from energy_margin.runs.lock import LOCK_FILE, RunLock
 from energy_margin.runs.versions import VERSIONS_KEY, engine_difference, engine_versions, recorded_versions
 
+__all__ = [
+    "RunDirectory",
+    "RunSpec",
+    "difference",
+    "open_run",
+    "remove_outputs",
+    "remove_stale",
+    "run_directory",
+    "run_versions",
+]
+
 
 @dataclass(frozen=True)
 class RunSpec:

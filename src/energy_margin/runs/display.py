@@ -13,6 +13,11 @@ from typing import Any
 
 from energy_margin.runs.files import atomic_path
 
+__all__ = [
+    "Display",
+    "pyplot",
+]
+
 
 def pyplot() -> Any | None:
     """The pyplot module of matplotlib on the Agg backend, or ``None`` without matplotlib."""

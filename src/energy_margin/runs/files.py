@@ -14,6 +14,19 @@ from typing import Any
 
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "atomic_path",
+    "atomic_write_text",
+    "current_umask",
+    "directory_mode",
+    "file_mode",
+    "leftovers",
+    "read_json",
+    "remove_leftovers",
+    "staging_directory",
+    "write_json",
+]
+
 
 def current_umask() -> int:
     """The process's file-mode creation mask."""

@@ -16,6 +16,12 @@ from typing import Any, Generic, TextIO, TypeVar, cast
 
 from energy_margin.runs.files import atomic_write_text
 
+__all__ = [
+    "Journal",
+    "Key",
+    "append_line",
+]
+
 Key = TypeVar("Key", bound=Hashable)
 
 

@@ -21,6 +21,12 @@ from typing import Any
 
 from energy_margin.errors import EnergyMarginError
 
+__all__ = [
+    "LOCK_FILE",
+    "RunLock",
+    "RunLockedError",
+]
+
 LOCK_FILE = ".energy-margin.lock"
 
 

@@ -18,6 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+__all__ = [
+    "READ_ERRORS",
+    "NpzError",
+    "read_npz",
+]
+
 #: Everything reading a damaged archive or ``.npy`` member raises.
 READ_ERRORS = (
     OSError,

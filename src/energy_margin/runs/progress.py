@@ -6,6 +6,11 @@ import contextlib
 import sys
 from typing import Any
 
+__all__ = [
+    "close_all",
+    "progress_bar",
+]
+
 
 class _NoBar:
     def update(self, count: int = 1) -> None:

@@ -20,6 +20,16 @@ from typing import Any
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.runs.files import write_json as _write_json
 
+__all__ = [
+    "Column",
+    "csv_text",
+    "field",
+    "fmt",
+    "format_table",
+    "write_csv",
+    "write_json",
+]
+
 
 def _cell(value: Any) -> Any:
     if value is None:

@@ -28,6 +28,20 @@ from energy_margin.world.state import FrameState
 if TYPE_CHECKING:
     import mujoco
 
+__all__ = [
+    "BatchedRollout",
+    "C",
+    "CompiledModel",
+    "MissingCapabilityError",
+    "ModelCommand",
+    "ModelCommands",
+    "Propagator",
+    "ReleasableStates",
+    "Simulator",
+    "release_states",
+    "require",
+]
+
 
 @dataclass(frozen=True)
 class ModelCommand:

@@ -30,6 +30,10 @@ from energy_margin.sim.mujoco_spec import build_model, scene_index
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
+__all__ = [
+    "MujocoSimulator",
+]
+
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
 

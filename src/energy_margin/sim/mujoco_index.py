@@ -16,6 +16,20 @@ import numpy as np
 from energy_margin.sim.base import ModelCommand
 from energy_margin.world.scene import Scene
 
+__all__ = [
+    "ModelIndex",
+    "apply_model_command",
+    "name_id",
+    "object_geoms",
+    "object_inertials",
+    "object_owners",
+    "rotate",
+    "rotate_inverse",
+    "upright_axes",
+    "world_aligned",
+    "zero_joint_position",
+]
+
 
 def rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
     """Rotate vectors (n, 3) by quaternions (n, 4) (w, x, y, z)."""

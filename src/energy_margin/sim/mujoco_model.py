@@ -26,6 +26,11 @@ from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
 
+__all__ = [
+    "STILL_ARMATURE",
+    "MujocoModelSimulator",
+]
+
 #: Armature of the robot's joints in a ``still=True`` simulator (kg m^2 or kg).
 STILL_ARMATURE = 1e8
 

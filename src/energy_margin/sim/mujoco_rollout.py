@@ -16,6 +16,10 @@ from energy_margin.errors import check_int
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command
 
+__all__ = [
+    "RolloutPropagator",
+]
+
 _FULL_PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _CONTROL_SPEC = (
     mujoco.mjtState.mjSTATE_CTRL

@@ -24,6 +24,20 @@ from energy_margin.errors import InvalidDataError
 from energy_margin.sim.mujoco_index import ModelIndex, name_id
 from energy_margin.world.scene import Geom, Link, RigidObject, Scene
 
+__all__ = [
+    "BODIES",
+    "FLOOR",
+    "MODEL_NAME",
+    "UPRIGHT_JOINTS",
+    "base_radius",
+    "build_model",
+    "build_spec",
+    "is_floor",
+    "model_hash",
+    "scene_index",
+    "spin_friction",
+]
+
 #: The model's name.
 MODEL_NAME = "energy_margin"
 

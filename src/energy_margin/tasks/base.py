@@ -23,6 +23,29 @@ from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "CONTACT_MODELS",
+    "DesignAlias",
+    "DesignParameter",
+    "DrawableRegion",
+    "FrameRegions",
+    "MeasurableRegion",
+    "ReferenceLayout",
+    "Region",
+    "RegionShape",
+    "Task",
+    "TaskConfig",
+    "Trajectory",
+    "WrenchLimits",
+    "all_inside",
+    "command_robot",
+    "require_non_negative",
+    "require_positive",
+    "require_ranges",
+    "sample_separated",
+    "with_contacts",
+]
+
 
 class Region(Protocol):
     """A region of object states: centre-of-mass positions and, where it matters, velocities."""

@@ -37,6 +37,16 @@ from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "FRAME_MARGIN",
+    "PUSHER_FACES",
+    "PushingConfig",
+    "PushingTask",
+    "SweptRegion",
+    "WallBand",
+    "pusher_geoms",
+]
+
 _OBJECT_RGBA = (0.95, 0.55, 0.15, 1.0)
 # A drawn swept sector is made of boxes whose chords at the outer radius are at most this long, m
 # (at most _SECTOR_SEGMENTS of them).

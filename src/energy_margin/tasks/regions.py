@@ -44,6 +44,25 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_float, check_positive_float, check_positive_int
 
+__all__ = [
+    "REGION_TYPES",
+    "AllOf",
+    "AnyOf",
+    "AtLeast",
+    "BoxRegion",
+    "ContactRegion",
+    "CylinderRegion",
+    "FrameLookup",
+    "IntervalRegion",
+    "NotIn",
+    "RegionType",
+    "SpeedRegion",
+    "build_region",
+    "distance_region",
+    "height_region",
+    "register_region_type",
+]
+
 
 class FrameLookup(Protocol):
     """The pose of a named body, site or geom at the frame a region is built from.

@@ -58,6 +58,12 @@ from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
 
+__all__ = [
+    "BoxesAboveTable",
+    "ScoopingConfig",
+    "ScoopingTask",
+]
+
 _BOX_RGBA = (0.95, 0.55, 0.15, 1.0)
 _GRIPPER_RGBA = (0.2, 0.7, 0.3, 1.0)
 _SIDES = (("right", 1.0), ("left", -1.0))

@@ -22,6 +22,12 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_float, check_int, check_positive_float, check_positive_int
 
+__all__ = [
+    "RANK_TOLERANCE",
+    "Ellipsoid",
+    "min_volume_ellipsoid",
+]
+
 #: Relative singular value below which a direction of the point set counts as flat.
 RANK_TOLERANCE = 1e-9
 #: Steps between exact recomputations of M (the rank-one updates drift slowly).

@@ -18,6 +18,20 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_float
 
+__all__ = [
+    "Geom",
+    "GroundContact",
+    "Integrator",
+    "Joint",
+    "JointKind",
+    "LateralContact",
+    "Link",
+    "ObjectMotion",
+    "RigidObject",
+    "Scene",
+    "ShapeKind",
+]
+
 ShapeKind = Literal["box", "cylinder", "sphere", "plane"]
 JointKind = Literal["slide", "hinge"]
 ObjectMotion = Literal["free", "upright"]

@@ -8,6 +8,12 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError
 
+__all__ = [
+    "FrameState",
+    "relative_rotation_vector",
+    "yaw_from_quat",
+]
+
 
 @dataclass(frozen=True)
 class FrameState:
