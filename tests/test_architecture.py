@@ -441,7 +441,8 @@ def test_every_module_declares_its_public_names() -> None:
     assert not unbound, f"names in __all__ that the module does not bind: {unbound}"
     import importlib
 
-    for package in ("energy_margin", "energy_margin.design", "energy_margin.experiments", "energy_margin.integrations"):
+    # energy_margin.integrations loads simulator stacks (dm_control, Gymnasium): its own tests import them.
+    for package in ("energy_margin", "energy_margin.design", "energy_margin.experiments"):
         module = importlib.import_module(package)
         for public in module.__all__:
             assert getattr(module, public) is not None, f"{package}.{public}"
