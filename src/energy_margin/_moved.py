@@ -39,6 +39,7 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     ),
     "energy_margin.dataset": (
         "energy_margin.data.dataset",
+        "energy_margin.data.dataset_files",
         "energy_margin.data.generate",
         "energy_margin.data.scores_file",
     ),
@@ -61,7 +62,7 @@ MOVED_MODULES: dict[str, tuple[str, ...]] = {
     "energy_margin.evaluation.sweep_results": ("energy_margin.design.sweep_results",),
     "energy_margin.evaluation.rank": ("energy_margin.design.rank",),
     "energy_margin.control.verification": ("energy_margin.design.verification",),
-    "energy_margin.evaluation.budget": ("energy_margin.experiments.budget", "energy_margin.data.dataset"),
+    "energy_margin.evaluation.budget": ("energy_margin.experiments.budget", "energy_margin.data.dataset_files"),
     "energy_margin.evaluation.budget_display": ("energy_margin.experiments.budget_display",),
     "energy_margin.evaluation.study": ("energy_margin.experiments.study",),
     "energy_margin.evaluation.study_display": ("energy_margin.experiments.study_display",),

@@ -24,7 +24,6 @@ the end of the trajectory).
 from __future__ import annotations
 
 import functools
-import shutil
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,9 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_int
-from energy_margin.runs.files import read_json, staging_directory, write_json
+from energy_margin.runs.files import read_json
 from energy_margin.runs.npz import READ_ERRORS
 from energy_margin.tasks import Task, get_recorded_task
 from energy_margin.world.state import FrameState
@@ -47,8 +45,6 @@ __all__ = [
     "Dataset",
     "Problem",
     "array_problems",
-    "check_target",
-    "copy_dataset",
     "expected_shapes",
     "frame_from_arrays",
     "load_dataset",
@@ -56,7 +52,6 @@ __all__ = [
     "raise_first",
     "read_dataset",
     "validate",
-    "write_directory",
 ]
 
 FORMAT = "energy-margin-dataset"
@@ -66,15 +61,6 @@ FRAMES_FILE = "frames.npz"
 
 _FLOAT_ARRAYS = ("object_pos", "object_quat", "object_vel", "robot_q", "robot_v", "frame_time", "friction", "drive")
 _BOOL_ARRAYS = ("captured", "in_success")
-
-
-def copy_dataset(directory: Path, work: Path) -> None:
-    """Copy the dataset files of ``directory`` into the working directory ``work`` (kept if there)."""
-    work.mkdir(parents=True, exist_ok=True)
-    for name in (METADATA_FILE, FRAMES_FILE):
-        target = work / name
-        if not target.exists():
-            shutil.copyfile(directory / name, target)
 
 
 def frame_from_arrays(arrays: dict[str, Any], *index: int) -> FrameState:
@@ -152,43 +138,6 @@ class Dataset:
     def success_labels(self) -> np.ndarray:
         """Success label of every trajectory (every object in the success region at the last frame), (T,)."""
         return self.arrays["in_success"][:, -1].copy()
-
-
-def check_target(out: Path, *, overwrite: bool) -> None:
-    """Refuse to replace a non-empty ``out`` unless ``overwrite``."""
-    if overwrite or not out.exists():
-        return
-    if out.is_file() or any(out.iterdir()):
-        raise EnergyMarginError(f"{out} already exists; pass `overwrite=True` to replace it")
-
-
-def write_directory(
-    out: Path,
-    metadata: dict[str, Any],
-    arrays: dict[str, np.ndarray],
-    *,
-    overwrite: bool,
-    staging: Path | None = None,
-) -> None:
-    """Write a dataset directory atomically: staged in a sibling, then renamed onto ``out``.
-
-    ``staging`` is a sibling of ``out`` from ``staging_directory`` that already holds other files
-    of the dataset (they move with it); ``None`` makes a fresh one. It is removed on an error.
-    """
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = staging if staging is not None else staging_directory(out.parent, out.name)
-    try:
-        save_npz(staging / FRAMES_FILE, arrays, compressed=True)
-        write_json(staging / METADATA_FILE, metadata)
-        check_target(out, overwrite=overwrite)
-        if out.is_dir():
-            shutil.rmtree(out)
-        elif out.exists():
-            out.unlink()
-        staging.rename(out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,10 @@ from energy_margin.data.dataset import (
     METADATA_FILE,
     SCHEMA_VERSION,
     Dataset,
-    check_target,
     load_dataset,
     validate,
-    write_directory,
 )
+from energy_margin.data.dataset_files import check_target, write_directory
 from energy_margin.data.physical import LIKELY_FIX, DrawTally, RolloutWatch, count_reasons
 from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed

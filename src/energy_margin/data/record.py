@@ -23,7 +23,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.data.dataset import Dataset, check_target
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.dataset_files import check_target
 from energy_margin.data.generate import trajectory_record, write_records
 from energy_margin.data.physical import frame_violations
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_int

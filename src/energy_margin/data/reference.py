@@ -48,8 +48,8 @@ import numpy as np
 
 from energy_margin._version import __version__
 from energy_margin.data.dataset import FORMAT, SCHEMA_VERSION, Dataset, validate
-from energy_margin.data.dataset import check_target as _check_target
-from energy_margin.data.dataset import write_directory as _write_directory
+from energy_margin.data.dataset_files import check_target as _check_target
+from energy_margin.data.dataset_files import write_directory as _write_directory
 from energy_margin.data.reference_convert import (
     _CONVERTERS,
     PUSH_FRAME_PERIOD,

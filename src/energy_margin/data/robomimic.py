@@ -39,7 +39,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.data.dataset import Dataset, check_target, write_directory
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.dataset_files import check_target, write_directory
 from energy_margin.data.generate import records_dataset
 from energy_margin.data.record import DROPPED_KEY, check_rollout, rollout_records
 from energy_margin.data.robomimic_assets import (

@@ -23,7 +23,8 @@ from energy_margin.analysis.executors import LocalExecutor
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, field_membership
 from energy_margin.analysis.run import open_analysis, run_description, write_scores
 from energy_margin.analysis.scores import region_score
-from energy_margin.data.dataset import Dataset, copy_dataset
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.dataset_files import copy_dataset
 from energy_margin.data.scores_file import load_scores, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_float

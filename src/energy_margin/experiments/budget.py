@@ -29,7 +29,8 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
-from energy_margin.data.dataset import Dataset, copy_dataset, load_dataset
+from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.data.dataset_files import copy_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_int, check_seed
 from energy_margin.evaluation.baselines import baseline_grids

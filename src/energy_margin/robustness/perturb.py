@@ -47,8 +47,8 @@ import numpy as np
 
 from energy_margin.analysis.executors import pool_results
 from energy_margin.data.dataset import Dataset, load_dataset, validate
-from energy_margin.data.dataset import check_target as _check_target
-from energy_margin.data.dataset import write_directory as _write_directory
+from energy_margin.data.dataset_files import check_target as _check_target
+from energy_margin.data.dataset_files import write_directory as _write_directory
 from energy_margin.errors import (
     EnergyMarginError,
     InvalidParameterError,
