@@ -181,6 +181,11 @@ def main() -> None:
     figures["readme"] = readme_measures(root / "README.md")
     figures["cli"] = cli_measures(root)
     figures["duplicate_pairs"] = duplicate_pairs(package)
+    figures["counts"] = {
+        "modules_over_limit": len(figures["modules_over_limit"]),
+        "functions_over_limit": len(figures["functions_over_limit"]),
+        "functions_over_limit_without_docstring": len(figures["functions_over_limit_without_docstring"]),
+    }
     width = max(len(stage) for stage in figures["stages"])
     print(f"checkout {root} at {commit}")
     for stage, entry in figures["stages"].items():
