@@ -40,7 +40,7 @@ def table_one(tiny_dataset: Path, rewrite_frames, tmp_path: Path) -> tuple[Path,
 
 def test_table_one_keys_and_values(table_one: tuple[Path, list[Path]]) -> None:
     true, copies = table_one
-    result = compare_perturbed(true, copies)
+    result = compare_perturbed(true, copies).to_dict()
     plain = evaluate(true)
     assert result["capture_ap"] == plain.capture_ap and result["success_ap"] == plain.success_ap
     aps = [evaluate(c).capture_ap for c in copies]
@@ -65,7 +65,7 @@ def test_parent_directory_expands_in_numeric_order(table_one: tuple[Path, list[P
     parent = copies[0].parent
     shutil.copytree(copies[0], parent / "10")
     assert expand_compare_paths([parent]) == [parent / "1", parent / "2", parent / "10"]
-    assert compare_perturbed(true, [parent])["n_repeats"] == 3
+    assert compare_perturbed(true, [parent]).n_repeats == 3
 
 
 def test_cli_compare_json(table_one: tuple[Path, list[Path]], capsys: pytest.CaptureFixture[str]) -> None:
@@ -119,17 +119,17 @@ def _mark_protocol(copy: Path, protocol: str | None) -> None:
 def test_the_copies_protocol_is_named_and_never_mixed(table_one: tuple[Path, list[Path]]) -> None:
     true, copies = table_one
     # Hand-made copies are not `perturb`'s: no protocol.
-    assert compare_perturbed(true, copies)["protocol"] is None
+    assert compare_perturbed(true, copies).protocol is None
     for copy in copies:
         _mark_protocol(copy, "paper")
-    result = compare_perturbed(true, copies)
+    result = compare_perturbed(true, copies).to_dict()
     assert result["protocol"] == "paper"
     assert "paper protocol" in format_robustness_table(result).splitlines()[0]
     # A copy written before protocols were recorded is a valid-protocol copy.
     _mark_protocol(copies[1], None)
     with pytest.raises(EnergyMarginError, match=r"mixes perturbation protocols.*is paper.*is valid"):
         compare_perturbed(true, copies)
-    assert compare_perturbed(true, [copies[1]])["protocol"] == "valid"
+    assert compare_perturbed(true, [copies[1]]).protocol == "valid"
 
 
 def test_cli_compare_passes_the_verdicts_resamples_and_seed(

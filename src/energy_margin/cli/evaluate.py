@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if args.compare:
         from energy_margin.robustness.compare import compare_perturbed, format_robustness_table
 
-        result = compare_perturbed(args.dataset, args.compare, **options, **verdict)
+        result = compare_perturbed(args.dataset, args.compare, **options, **verdict).to_dict()
         text = format_table(result) + "\n\n" + format_robustness_table(result)
     else:
         result = evaluate(args.dataset, **options, **verdict).to_dict()

@@ -111,7 +111,7 @@ def _table_one_row(
         for index, copy in enumerate(copies, start=1):
             step(f"analyze {name} perturbed copy {index}/{len(copies)} ({protocol} protocol)")
             _analyze(copy, config)
-        result = compare_perturbed(path, [str(copy) for copy in copies])
+        result = compare_perturbed(path, [str(copy) for copy in copies]).to_dict()
         result["dataset"] = str(path.relative_to(out))
         result["perturbed"] = [str(Path(copy).relative_to(out)) for copy in copies]
         results[protocol] = result

@@ -12,6 +12,7 @@ which the result names.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,9 +21,10 @@ import numpy as np
 from energy_margin.data.dataset import METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
-from energy_margin.evaluation.metrics import evaluate, score_grid
+from energy_margin.evaluation.metrics import Evaluation, evaluate, score_grid
 
 __all__ = [
+    "PerturbedComparison",
     "compare_perturbed",
     "copy_protocol",
     "expand_compare_paths",
@@ -79,6 +81,41 @@ def _mean_std(values: list[float | None] | np.ndarray) -> dict[str, Any]:
     return {"mean": float(array.mean()), "std": float(array.std()), "values": [float(v) for v in array]}
 
 
+@dataclass(frozen=True)
+class PerturbedComparison(Evaluation):
+    """The true states' :class:`~energy_margin.evaluation.metrics.Evaluation` and Table I's comparison.
+
+    ``to_dict()`` is the JSON of ``evaluate --compare --json``.
+
+    Attributes:
+        capture_ap_perturbed: the copies' capture AP: ``mean``, ``std`` and ``values`` per copy.
+        success_ap_perturbed: the copies' success AP, likewise.
+        capture_score_error: a copy's capture score minus the true state's: ``mean``, ``std`` and
+            the mean per copy (``values``).
+        success_score_error: the same for the success score.
+        n_repeats: perturbed copies compared.
+        protocol: their perturbation protocol (``valid``, ``paper``; ``None`` for copies made otherwise).
+        compare: the copies' directories.
+        runtime_per_frame_perturbed_s: mean wall time of a copy's frame, s.
+
+    """
+
+    capture_ap_perturbed: dict[str, Any]
+    success_ap_perturbed: dict[str, Any]
+    capture_score_error: dict[str, Any]
+    success_score_error: dict[str, Any]
+    n_repeats: int
+    protocol: str | None
+    compare: list[str]
+    runtime_per_frame_perturbed_s: float
+
+    @classmethod
+    def from_dict(cls, values: Any) -> PerturbedComparison:
+        """The comparison of ``evaluate --compare --json``'s dictionary."""
+        optional = ("capture_ap_window2", "capture_positive_rate_window2", "verdict", "verdict_resamples", "seed")
+        return cls(**{**dict.fromkeys(optional), **dict(values)})
+
+
 def compare_perturbed(
     path: Path | str,
     compare: list[Path | str],
@@ -88,17 +125,14 @@ def compare_perturbed(
     weights: str = "linear",
     resamples: int = 1000,
     seed: int = 0,
-) -> dict[str, Any]:
+) -> PerturbedComparison:
     """Evaluate the true-state dataset at ``path`` and its perturbed copies ``compare``.
 
     ``resamples`` and ``seed`` are those of the true-state dataset's verdict (``evaluate``).
 
     Returns:
-        :func:`~energy_margin.evaluation.metrics.evaluate`'s result for the true states (``capture_ap``,
-        ``success_ap``, baselines, ...) plus ``capture_ap_perturbed``, ``success_ap_perturbed``,
-        ``capture_score_error`` and ``success_score_error`` (each ``{"mean", "std", "values"}``;
-        the errors' ``values`` hold one mean per copy), ``n_repeats``, ``compare`` (paths) and
-        ``protocol`` (the copies' perturbation protocol, ``None`` when they are not ``perturb``'s).
+        The :class:`PerturbedComparison`: :func:`~energy_margin.evaluation.metrics.evaluate`'s
+        fields for the true states and the copies' APs and score errors.
 
     Raises:
         EnergyMarginError: when a copy is missing, unscored or does not correspond, or when the
@@ -165,7 +199,7 @@ def compare_perturbed(
             "runtime_per_frame_perturbed_s": float(np.mean(runtimes)),
         }
     )
-    return result
+    return PerturbedComparison.from_dict(result)
 
 
 def _pm(entry: dict[str, Any], signed: bool = False) -> str:
@@ -175,8 +209,10 @@ def _pm(entry: dict[str, Any], signed: bool = False) -> str:
     return f"{entry['mean']:{sign}.2f} ± {entry['std']:.2f}"
 
 
-def format_robustness_table(result: dict[str, Any]) -> str:
-    """Table I row of :func:`compare_perturbed`'s result, human-readable."""
+def format_robustness_table(result: PerturbedComparison | dict[str, Any]) -> str:
+    """Table I row of :func:`compare_perturbed`'s result (or its dictionary), human-readable."""
+    if isinstance(result, PerturbedComparison):
+        result = result.to_dict()
 
     def cell(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.2f}"
