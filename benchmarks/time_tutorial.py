@@ -43,7 +43,8 @@ def main() -> None:
         steps["venv"] = timed([sys.executable, "-m", "venv", ".venv"], clone)
         steps["install"] = timed([".venv/bin/pip", "install", "-q", "-c", "requirements.lock", ".[test]"], clone)
         lessons = Path(work) / "lessons.json"
-        timed([".venv/bin/python", "tools/tutorial.py", "--python", ".venv/bin/python", "--out", str(lessons)], clone)
+        python = str(clone / ".venv" / "bin" / "python")
+        timed([python, "tools/tutorial.py", "--python", python, "--out", str(lessons)], clone)
         lesson_times = json.loads(lessons.read_text(encoding="utf-8"))["lessons_s"]
     figures = {
         "date": datetime.date.today().isoformat(),

@@ -74,11 +74,13 @@ def main() -> None:
     parser.add_argument("--python", default=sys.executable, help="the interpreter of the environment to time")
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
     args = parser.parse_args()
+    # The lessons run in other folders: a relative path to the interpreter would not reach it there.
+    python = str(Path(args.python).absolute()) if Path(args.python).exists() else args.python
     times: dict[str, float] = {}
     for name in LESSONS:
         with tempfile.TemporaryDirectory() as folder:
             started = time.perf_counter()
-            status, output = run_lesson(TUTORIAL / name, Path(folder), args.python)
+            status, output = run_lesson(TUTORIAL / name, Path(folder), python)
             times[name] = round(time.perf_counter() - started, 1)
         if status != 0:
             raise SystemExit(f"{name}: exit {status}\n{output}")
