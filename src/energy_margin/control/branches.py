@@ -33,6 +33,7 @@ from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
+from energy_margin.world.state import FrameState
 
 __all__ = [
     "SCORES",
@@ -240,18 +241,7 @@ def branch_episode(
 
     play(nominal, held, 0, remember)
     nominal_success = task.is_successful(plant.frame_state())
-    context = CostContext(
-        task,
-        length_scale=space.length_scale,
-        weights=weights,
-        friction=trajectory.friction,
-        drive=trajectory.drive,
-        analysis_drive=lambda force: space.analysis_drive(trajectory, force),
-        margin_expansions=config.margin_expansions,
-        margin_samples=config.samples,
-        seed_sequence=seeds["cost"],
-        model=model,
-    )
+    context = _cost_context(task, space, trajectory, weights, config, seeds["cost"], model)
     controller = Controller(task, space, trajectory, task_cost, context, config, np.random.default_rng(seeds["sample"]))
     # A controller whose model has the plant's friction (its sampling generator is never used).
     knowing = Controller(
@@ -267,21 +257,15 @@ def branch_episode(
         time = step * dt
         commands, scripted = controller.sample(time)
         predictions = controller.predict(observed, time, held_then, commands, scripted)
-        values: dict[str, np.ndarray] = {}
-        if "task" in scores:
-            values["task"] = -task_cost(predictions, context)
-        if "margin" in scores:
-            values["margin"] = margin_scores(predictions, context, list(range(predictions.n_samples)))
-        if "oracle_state" in scores:
-            values["oracle_state"] = -task_cost(controller.predict(truth, time, held_then, commands, scripted), context)
-        if "oracle_friction" in scores:
-            values["oracle_friction"] = -task_cost(knowing.predict(truth, time, held_then, commands, scripted), context)
-        if "learned" in scores:
-            if model is None:
-                raise EnergyMarginError("the learned score needs a model")
-            frames = [predictions.frame(sample) for sample in range(predictions.n_samples)]
-            capture, success = model.predict(task, frames)
-            values["learned"] = np.asarray(capture, dtype=float) + np.asarray(success, dtype=float)
+        values = _score_values(
+            scores,
+            task,
+            context,
+            predictions,
+            (controller, knowing),
+            (truth, time, held_then, commands, scripted),
+            model,
+        )
         first_after = step // period_steps + config.horizon
         outcomes = np.zeros(len(commands), dtype=bool)
         for branch, sequence in enumerate(commands):
@@ -293,6 +277,65 @@ def branch_episode(
             outcomes[branch] = task.is_successful(plant.frame_state())
         states.append(BranchState(index, round(time, 9), nominal_success, outcomes, values))
     return nominal_success, states
+
+
+def _cost_context(
+    task: Task,
+    space: CommandSpace,
+    trajectory: Trajectory,
+    weights: CostWeights,
+    config: ControllerConfig,
+    seed: np.random.SeedSequence,
+    model: MarginPredictor | None,
+) -> CostContext:
+    """The cost context of the episode's controllers (the nominal friction, margins seeded by ``seed``)."""
+    return CostContext(
+        task,
+        length_scale=space.length_scale,
+        weights=weights,
+        friction=trajectory.friction,
+        drive=trajectory.drive,
+        analysis_drive=lambda force: space.analysis_drive(trajectory, force),
+        margin_expansions=config.margin_expansions,
+        margin_samples=config.samples,
+        seed_sequence=seed,
+        model=model,
+    )
+
+
+def _score_values(
+    scores: Sequence[str],
+    task: Task,
+    context: CostContext,
+    predictions: Any,
+    controllers: tuple[Controller, Controller],
+    decision: tuple[FrameState, float, np.ndarray | None, np.ndarray, Any],
+    model: MarginPredictor | None,
+) -> dict[str, np.ndarray]:
+    """Every asked score of the sampled sequences at one decision, shape (S,) each (higher is better).
+
+    ``controllers`` holds the study's controller and the one that knows the plant's friction;
+    ``decision`` holds the true frame, its time (s), the held targets, the sampled commands and
+    whether each is scripted.
+    """
+    controller, knowing = controllers
+    truth, time, held_then, commands, scripted = decision
+    values: dict[str, np.ndarray] = {}
+    if "task" in scores:
+        values["task"] = -task_cost(predictions, context)
+    if "margin" in scores:
+        values["margin"] = margin_scores(predictions, context, list(range(predictions.n_samples)))
+    if "oracle_state" in scores:
+        values["oracle_state"] = -task_cost(controller.predict(truth, time, held_then, commands, scripted), context)
+    if "oracle_friction" in scores:
+        values["oracle_friction"] = -task_cost(knowing.predict(truth, time, held_then, commands, scripted), context)
+    if "learned" in scores:
+        if model is None:
+            raise EnergyMarginError("the learned score needs a model")
+        frames = [predictions.frame(sample) for sample in range(predictions.n_samples)]
+        capture, success = model.predict(task, frames)
+        values["learned"] = np.asarray(capture, dtype=float) + np.asarray(success, dtype=float)
+    return values
 
 
 def branch_study(
