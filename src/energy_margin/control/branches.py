@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -225,21 +226,11 @@ def branch_episode(
         if step in decision_steps:
             saved[step] = (plant.get_state(), None if held_now is None else held_now.copy())
 
-    def play(commands: np.ndarray, held_from: np.ndarray | None, start_step: int, on_period: Any = None) -> None:
-        _play(
-            plant,
-            space,
-            commands,
-            held=held_from,
-            start_step=start_step,
-            end_step=task.n_steps,
-            period_steps=period_steps,
-            pushes=pushes,
-            n_objects=n_objects,
-            on_period=on_period,
-        )
-
-    play(nominal, held, 0, remember)
+    # The plant from a step to the end under the pushes: the nominal run, then each branch.
+    play = partial(
+        _play, plant, space, end_step=task.n_steps, period_steps=period_steps, pushes=pushes, n_objects=n_objects
+    )
+    play(nominal, held=held, start_step=0, on_period=remember)
     nominal_success = task.is_successful(plant.frame_state())
     context = _cost_context(task, space, trajectory, weights, config, seeds["cost"], model)
     controller = Controller(task, space, trajectory, task_cost, context, config, np.random.default_rng(seeds["sample"]))
@@ -273,7 +264,7 @@ def branch_episode(
             if held_then is not None:
                 plant.set_robot_targets(held_then)
             schedule = np.concatenate([sequence, nominal[first_after:]])
-            play(schedule, held_then, step)
+            play(schedule, held=held_then, start_step=step)
             outcomes[branch] = task.is_successful(plant.frame_state())
         states.append(BranchState(index, round(time, 9), nominal_success, outcomes, values))
     return nominal_success, states
