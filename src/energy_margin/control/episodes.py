@@ -101,7 +101,9 @@ def run_episode(
     held = space.initial_targets(trajectory)
     if held is not None:
         plant.set_robot_targets(held)
-    controller = _controller(task, settings, space, trajectory, seeds, model)
+    controller = None
+    if settings.policy != "scripted":
+        controller = _controller(task, settings, space, trajectory, seeds, model)
     frames, times, executed = _closed_loop(
         task, settings, plant, space, trajectory, pushes, disturbance, controller, held, seeds
     )
@@ -122,10 +124,8 @@ def _controller(
     trajectory: Trajectory,
     seeds: dict[str, np.random.SeedSequence],
     model: MarginPredictor | None,
-) -> Controller | None:
-    """The episode's MPPI controller with the policy's cost, or ``None`` for ``scripted``."""
-    if settings.policy == "scripted":
-        return None
+) -> Controller:
+    """The episode's MPPI controller with the policy's cost (every policy but ``scripted``)."""
     config = ControllerConfig(**settings.controller)
     context = CostContext(
         task,
