@@ -298,27 +298,11 @@ def analyze_frame(
     """
     config = config if config is not None else AnalyzerConfig()
     recorded_task, task = task, with_contacts(task, config.contacts)
-    if simulator is None:
-        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
-    elif task is not recorded_task and getattr(simulator, "scene", None) != task.build_scene(
-        frame.n_objects, friction, drive
-    ):
-        # A simulator of the recorded scene would silently analyse the other contact model.
-        raise InvalidParameterError("simulator", f"is not a simulator of the scene of contacts {config.contacts!r}")
+    simulator = _frame_simulator(recorded_task, task, frame, friction, drive, config, simulator)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     every = config.converge_every if check_every is None or stop is None else check_every
-    if config.converge is not None:
-        converged = ScoresConverged(
-            task,
-            frame,
-            lam,
-            tolerance=config.converge,
-            window=config.converge_window,
-            rule=config.converge_rule,
-            budget=config.budget,
-        )
-        stop = converged if stop is None else _EitherStop(stop, converged, config.converge_every)
+    stop = _stopping_rule(task, frame, lam, config, stop)
     field = grow_tree(
         simulator,
         task,
@@ -347,6 +331,44 @@ def analyze_frame(
         capture, success, field.nodes, field.iterations, runtime, field.physics_s, field.rejected, field.diverged
     )
     return scores, field
+
+
+def _frame_simulator(
+    recorded_task: Task,
+    task: Task,
+    frame: FrameState,
+    friction: float,
+    drive: np.ndarray,
+    config: AnalyzerConfig,
+    simulator: Simulator | None,
+) -> Simulator:
+    """The given simulator, checked to be of ``task``'s scene (its contacts), or a new one."""
+    if simulator is None:
+        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
+    elif task is not recorded_task and getattr(simulator, "scene", None) != task.build_scene(
+        frame.n_objects, friction, drive
+    ):
+        # A simulator of the recorded scene would silently analyse the other contact model.
+        raise InvalidParameterError("simulator", f"is not a simulator of the scene of contacts {config.contacts!r}")
+    return simulator
+
+
+def _stopping_rule(
+    task: Task, frame: FrameState, lam: float, config: AnalyzerConfig, stop: Callable[[CostField], bool] | None
+) -> Callable[[CostField], bool] | None:
+    """``stop``, or-ed with the convergence rule of ``config.converge`` when it is on (lambda in 1/J)."""
+    if config.converge is not None:
+        converged = ScoresConverged(
+            task,
+            frame,
+            lam,
+            tolerance=config.converge,
+            window=config.converge_window,
+            rule=config.converge_rule,
+            budget=config.budget,
+        )
+        stop = converged if stop is None else _EitherStop(stop, converged, config.converge_every)
+    return stop
 
 
 _SIMULATOR_CACHE = 4

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,7 @@ from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
+from energy_margin.world.state import FrameState
 
 __all__ = [
     "SCORES",
@@ -224,34 +226,13 @@ def branch_episode(
         if step in decision_steps:
             saved[step] = (plant.get_state(), None if held_now is None else held_now.copy())
 
-    def play(commands: np.ndarray, held_from: np.ndarray | None, start_step: int, on_period: Any = None) -> None:
-        _play(
-            plant,
-            space,
-            commands,
-            held=held_from,
-            start_step=start_step,
-            end_step=task.n_steps,
-            period_steps=period_steps,
-            pushes=pushes,
-            n_objects=n_objects,
-            on_period=on_period,
-        )
-
-    play(nominal, held, 0, remember)
-    nominal_success = task.is_successful(plant.frame_state())
-    context = CostContext(
-        task,
-        length_scale=space.length_scale,
-        weights=weights,
-        friction=trajectory.friction,
-        drive=trajectory.drive,
-        analysis_drive=lambda force: space.analysis_drive(trajectory, force),
-        margin_expansions=config.margin_expansions,
-        margin_samples=config.samples,
-        seed_sequence=seeds["cost"],
-        model=model,
+    # The plant from a step to the end under the pushes: the nominal run, then each branch.
+    play = partial(
+        _play, plant, space, end_step=task.n_steps, period_steps=period_steps, pushes=pushes, n_objects=n_objects
     )
+    play(nominal, held=held, start_step=0, on_period=remember)
+    nominal_success = task.is_successful(plant.frame_state())
+    context = _cost_context(task, space, trajectory, weights, config, seeds["cost"], model)
     controller = Controller(task, space, trajectory, task_cost, context, config, np.random.default_rng(seeds["sample"]))
     # A controller whose model has the plant's friction (its sampling generator is never used).
     knowing = Controller(
@@ -267,21 +248,15 @@ def branch_episode(
         time = step * dt
         commands, scripted = controller.sample(time)
         predictions = controller.predict(observed, time, held_then, commands, scripted)
-        values: dict[str, np.ndarray] = {}
-        if "task" in scores:
-            values["task"] = -task_cost(predictions, context)
-        if "margin" in scores:
-            values["margin"] = margin_scores(predictions, context, list(range(predictions.n_samples)))
-        if "oracle_state" in scores:
-            values["oracle_state"] = -task_cost(controller.predict(truth, time, held_then, commands, scripted), context)
-        if "oracle_friction" in scores:
-            values["oracle_friction"] = -task_cost(knowing.predict(truth, time, held_then, commands, scripted), context)
-        if "learned" in scores:
-            if model is None:
-                raise EnergyMarginError("the learned score needs a model")
-            frames = [predictions.frame(sample) for sample in range(predictions.n_samples)]
-            capture, success = model.predict(task, frames)
-            values["learned"] = np.asarray(capture, dtype=float) + np.asarray(success, dtype=float)
+        values = _score_values(
+            scores,
+            task,
+            context,
+            predictions,
+            (controller, knowing),
+            (truth, time, held_then, commands, scripted),
+            model,
+        )
         first_after = step // period_steps + config.horizon
         outcomes = np.zeros(len(commands), dtype=bool)
         for branch, sequence in enumerate(commands):
@@ -289,10 +264,69 @@ def branch_episode(
             if held_then is not None:
                 plant.set_robot_targets(held_then)
             schedule = np.concatenate([sequence, nominal[first_after:]])
-            play(schedule, held_then, step)
+            play(schedule, held=held_then, start_step=step)
             outcomes[branch] = task.is_successful(plant.frame_state())
         states.append(BranchState(index, round(time, 9), nominal_success, outcomes, values))
     return nominal_success, states
+
+
+def _cost_context(
+    task: Task,
+    space: CommandSpace,
+    trajectory: Trajectory,
+    weights: CostWeights,
+    config: ControllerConfig,
+    seed: np.random.SeedSequence,
+    model: MarginPredictor | None,
+) -> CostContext:
+    """The cost context of the episode's controllers (the nominal friction, margins seeded by ``seed``)."""
+    return CostContext(
+        task,
+        length_scale=space.length_scale,
+        weights=weights,
+        friction=trajectory.friction,
+        drive=trajectory.drive,
+        analysis_drive=lambda force: space.analysis_drive(trajectory, force),
+        margin_expansions=config.margin_expansions,
+        margin_samples=config.samples,
+        seed_sequence=seed,
+        model=model,
+    )
+
+
+def _score_values(
+    scores: Sequence[str],
+    task: Task,
+    context: CostContext,
+    predictions: Any,
+    controllers: tuple[Controller, Controller],
+    decision: tuple[FrameState, float, np.ndarray | None, np.ndarray, Any],
+    model: MarginPredictor | None,
+) -> dict[str, np.ndarray]:
+    """Every asked score of the sampled sequences at one decision, shape (S,) each (higher is better).
+
+    ``controllers`` holds the study's controller and the one that knows the plant's friction;
+    ``decision`` holds the true frame, its time (s), the held targets, the sampled commands and
+    whether each is scripted.
+    """
+    controller, knowing = controllers
+    truth, time, held_then, commands, scripted = decision
+    values: dict[str, np.ndarray] = {}
+    if "task" in scores:
+        values["task"] = -task_cost(predictions, context)
+    if "margin" in scores:
+        values["margin"] = margin_scores(predictions, context, list(range(predictions.n_samples)))
+    if "oracle_state" in scores:
+        values["oracle_state"] = -task_cost(controller.predict(truth, time, held_then, commands, scripted), context)
+    if "oracle_friction" in scores:
+        values["oracle_friction"] = -task_cost(knowing.predict(truth, time, held_then, commands, scripted), context)
+    if "learned" in scores:
+        if model is None:
+            raise EnergyMarginError("the learned score needs a model")
+        frames = [predictions.frame(sample) for sample in range(predictions.n_samples)]
+        capture, success = model.predict(task, frames)
+        values["learned"] = np.asarray(capture, dtype=float) + np.asarray(success, dtype=float)
+    return values
 
 
 def branch_study(

@@ -7,7 +7,9 @@ the ``task``, ``heuristic``, ``margin`` or ``learned`` cost. It records ``frames
 frames with their capture and success labels, so the episodes of a run form a dataset that
 ``analyze``, ``evaluate`` and the report read. Each episode is saved as it ends and a rerun
 resumes; episode i's generators come from ``SeedSequence(seed).spawn(episodes)[i]``, so the
-results do not depend on the number of workers.
+results do not depend on the number of workers. An episode's settings and draws are in
+:mod:`energy_margin.control.episode_draws`, its scores and a run's summary in
+:mod:`energy_margin.control.episode_scores`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from __future__ import annotations
 import json
 import signal
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -23,23 +25,22 @@ import numpy as np
 
 from energy_margin._version import __version__
 from energy_margin.analysis.executors import pool_results
-from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.compat import save_npz
-from energy_margin.control.commands import RobotInputs, command_space, controllable_tasks
+from energy_margin.control.commands import CommandSpace, RobotInputs, command_space, controllable_tasks
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
-from energy_margin.control.disturbances import (
-    Disturbance,
-    Push,
-    draw_plant,
-    get_disturbance,
-    observe,
-    push_wrenches,
+from energy_margin.control.disturbances import Disturbance, Push, get_disturbance, push_wrenches
+from energy_margin.control.episode_draws import (
+    EPISODE_STREAMS,
+    ControlSettings,
+    draw_episode,
+    episode_seeds,
+    observed_frame,
 )
+from energy_margin.control.episode_scores import _frame_scores, summarize
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
-from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.runs.files import atomic_path, write_json
 from energy_margin.sim import Simulator
@@ -70,78 +71,6 @@ CONTROL_FILE = "control.json"
 EPISODES_DIR = "episodes"
 
 
-@dataclass(frozen=True)
-class ControlSettings:
-    """Everything that determines a run's episodes.
-
-    Attributes:
-        task: task name.
-        task_config: the task's resolved settings.
-        n_objects: objects per episode.
-        episodes: number of episodes E.
-        policy: one of :data:`POLICIES`.
-        disturbance: the disturbance level's settings.
-        seed: the run's seed.
-        n_frames: frames recorded per episode.
-        score_expansions: expansions of the energy-margin analysis of every recorded frame (0:
-            none), which gives the mean capture score along the episodes.
-        controller: the MPPI settings (unused by ``scripted``).
-        weights: the cost weights.
-        model: the learned margin's file and its fingerprint (``learned`` only).
-
-    """
-
-    task: str
-    task_config: dict[str, Any]
-    n_objects: int
-    episodes: int
-    policy: str
-    disturbance: dict[str, Any]
-    seed: int
-    n_frames: int = 10
-    score_expansions: int = 30
-    controller: dict[str, Any] = field(default_factory=lambda: ControllerConfig().to_dict())
-    weights: dict[str, Any] = field(default_factory=lambda: asdict(CostWeights()))
-    model: dict[str, Any] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """The settings as a JSON-ready dict."""
-        return asdict(self)
-
-
-def observed_frame(frame: FrameState, disturbance: Disturbance, rng: np.random.Generator) -> FrameState:
-    """``frame`` as the controller sees it: object positions with the level's observation noise."""
-    return FrameState(
-        observe(frame.object_pos, disturbance, rng), frame.object_quat, frame.object_vel, frame.robot_q, frame.robot_v
-    )
-
-
-#: What each of an episode's generators draws, in the order they are spawned from its seed.
-EPISODE_STREAMS = ("trajectory", "plant", "observe", "sample", "script", "cost", "score")
-
-
-def episode_seeds(seed: np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:
-    """The episode's seed sequences by :data:`EPISODE_STREAMS` name."""
-    return dict(zip(EPISODE_STREAMS, seed.spawn(len(EPISODE_STREAMS)), strict=True))
-
-
-def draw_episode(
-    task: Task, n_objects: int, disturbance: Disturbance, seeds: dict[str, np.random.SeedSequence]
-) -> tuple[Trajectory, float, list[Push]]:
-    """An episode's start (its friction is the controller's nominal one), plant friction and pushes."""
-    trajectory = task.sample_trajectory(np.random.default_rng(seeds["trajectory"]), n_objects)
-    duration = task.n_steps * task.config.timestep
-    scratch = task.make_simulator(n_objects, trajectory.friction, trajectory.drive, "mujoco")
-    friction, pushes = draw_plant(
-        disturbance,
-        np.random.default_rng(seeds["plant"]),
-        nominal_friction=trajectory.friction,
-        duration=duration,
-        masses=scratch.scene.object_masses,
-    )
-    return trajectory, friction, pushes
-
-
 def apply_inputs(plant: Simulator, inputs: RobotInputs, offset: int) -> None:
     """Set the robot inputs of step ``offset`` of the first sequence of ``inputs`` on ``plant``."""
     plant.set_robot_force(inputs.forces[0, offset])
@@ -166,8 +95,6 @@ def run_episode(
     seeds = episode_seeds(seed)
     disturbance = Disturbance(**settings.disturbance)
     trajectory, friction, pushes = draw_episode(task, settings.n_objects, disturbance, seeds)
-    observe_seed, sample_seed, script_seed = seeds["observe"], seeds["sample"], seeds["script"]
-    cost_seed, score_seed = seeds["cost"], seeds["score"]
     plant = task.make_simulator(settings.n_objects, friction, trajectory.drive, "mujoco")
     plant.reset(trajectory.initial)
     space = command_space(task, settings.n_objects)
@@ -176,29 +103,73 @@ def run_episode(
         plant.set_robot_targets(held)
     controller = None
     if settings.policy != "scripted":
-        config = ControllerConfig(**settings.controller)
-        context = CostContext(
-            task,
-            length_scale=space.length_scale,
-            weights=CostWeights(**settings.weights),
-            friction=trajectory.friction,
-            drive=trajectory.drive,
-            analysis_drive=lambda force: space.analysis_drive(trajectory, force),
-            margin_expansions=config.margin_expansions,
-            margin_samples=config.margin_samples,
-            seed_sequence=cost_seed,
-            model=model,
-        )
-        controller = Controller(
-            task,
-            space,
-            trajectory,
-            get_cost(settings.policy),
-            context,
-            config,
-            np.random.default_rng(sample_seed),
-        )
-    observe_rng, script_rng = np.random.default_rng(observe_seed), np.random.default_rng(script_seed)
+        controller = _controller(task, settings, space, trajectory, seeds, model)
+    frames, times, executed = _closed_loop(
+        task, settings, plant, space, trajectory, pushes, disturbance, controller, held, seeds
+    )
+    drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
+    record = trajectory_record(task, frames, times, friction, drive)
+    info = _episode_info(record, controller, trajectory, friction, pushes)
+    if settings.score_expansions > 0:
+        capture, success = _frame_scores(task, frames, times, friction, drive, settings, seeds["score"])
+        info["capture_scores"] = capture
+        info["success_scores"] = success
+    return {"record": record, "info": info}
+
+
+def _controller(
+    task: Task,
+    settings: ControlSettings,
+    space: CommandSpace,
+    trajectory: Trajectory,
+    seeds: dict[str, np.random.SeedSequence],
+    model: MarginPredictor | None,
+) -> Controller:
+    """The episode's MPPI controller with the policy's cost (every policy but ``scripted``)."""
+    config = ControllerConfig(**settings.controller)
+    context = CostContext(
+        task,
+        length_scale=space.length_scale,
+        weights=CostWeights(**settings.weights),
+        friction=trajectory.friction,
+        drive=trajectory.drive,
+        analysis_drive=lambda force: space.analysis_drive(trajectory, force),
+        margin_expansions=config.margin_expansions,
+        margin_samples=config.margin_samples,
+        seed_sequence=seeds["cost"],
+        model=model,
+    )
+    return Controller(
+        task,
+        space,
+        trajectory,
+        get_cost(settings.policy),
+        context,
+        config,
+        np.random.default_rng(seeds["sample"]),
+    )
+
+
+def _closed_loop(
+    task: Task,
+    settings: ControlSettings,
+    plant: Simulator,
+    space: CommandSpace,
+    trajectory: Trajectory,
+    pushes: list[Push],
+    disturbance: Disturbance,
+    controller: Controller | None,
+    held: np.ndarray | None,
+    seeds: dict[str, np.random.SeedSequence],
+) -> tuple[list[FrameState], list[float], list[np.ndarray]]:
+    """Step the plant through the task's duration under pushes and the policy's commands.
+
+    Returns:
+        The recorded frames, their times (s) and the controller's executed commands, each of
+        shape (space.dimension,) (none for ``scripted``).
+
+    """
+    observe_rng, script_rng = np.random.default_rng(seeds["observe"]), np.random.default_rng(seeds["script"])
     dt = plant.timestep
     record_steps = set(task.frame_steps(settings.n_frames).tolist())
     frames: list[FrameState] = []
@@ -226,9 +197,18 @@ def run_episode(
             assert inputs is not None
             apply_inputs(plant, inputs, offset)
         plant.step(1)
-    drive = space.recorded_drive(trajectory, np.array(executed).reshape(-1, space.dimension))
-    record = trajectory_record(task, frames, times, friction, drive)
-    info: dict[str, Any] = {
+    return frames, times, executed
+
+
+def _episode_info(
+    record: dict[str, np.ndarray],
+    controller: Controller | None,
+    trajectory: Trajectory,
+    friction: float,
+    pushes: list[Push],
+) -> dict[str, Any]:
+    """Whether the episode succeeded, its decisions and their compute time (s), its plant."""
+    return {
         "success": bool(record["in_success"][-1]),
         "captured_fraction": float(np.mean(record["captured"])),
         "decisions": 0 if controller is None else controller.decisions,
@@ -238,40 +218,6 @@ def run_episode(
         "plant_friction": float(friction),
         "pushes": len(pushes),
     }
-    if settings.score_expansions > 0:
-        capture, success = _frame_scores(task, frames, times, friction, drive, settings, score_seed)
-        info["capture_scores"] = capture
-        info["success_scores"] = success
-    return {"record": record, "info": info}
-
-
-def _frame_scores(
-    task: Task,
-    frames: list[FrameState],
-    times: list[float],
-    friction: float,
-    drive: np.ndarray,
-    settings: ControlSettings,
-    seed: np.random.SeedSequence,
-) -> tuple[list[float], list[float]]:
-    """Capture and success scores of the recorded frames from a short analysis."""
-    config = AnalyzerConfig(iterations=settings.score_expansions)
-    simulator = task.make_simulator(settings.n_objects, friction, drive, "mujoco")
-    capture, success = [], []
-    for frame, start, child in zip(frames, times, seed.spawn(len(frames)), strict=True):
-        scores, _ = analyze_frame(
-            task,
-            frame,
-            friction=friction,
-            drive=drive,
-            seed=int(child.generate_state(1)[0]),
-            config=config,
-            start_time=start,
-            simulator=simulator,
-        )
-        capture.append(float(scores.capture_score))
-        success.append(float(scores.success_score))
-    return capture, success
 
 
 def _episode_path(out: Path, index: int) -> Path:
@@ -323,29 +269,6 @@ def _run_jobs(
     yield from pool_results(
         _run_in_worker, jobs, workers=workers, initializer=_init_worker, initargs=(task, settings, model)
     )
-
-
-def summarize(settings: ControlSettings, infos: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate with its 95 % Wilson interval, capture along the episodes, time per decision."""
-    successes = sum(1 for info in infos if info["success"])
-    low, high = wilson_interval(successes, len(infos)) if infos else (0.0, 1.0)
-    decisions = sum(info["decisions"] for info in infos)
-    seconds = sum(info["decision_seconds"] for info in infos)
-    scores = [np.mean(info["capture_scores"]) for info in infos if "capture_scores" in info]
-    return {
-        "task": settings.task,
-        "n_objects": settings.n_objects,
-        "policy": settings.policy,
-        "disturbance": settings.disturbance["name"],
-        "episodes": len(infos),
-        "successes": successes,
-        "success_rate": successes / len(infos) if infos else None,
-        "success_interval": [low, high],
-        "captured_fraction": float(np.mean([info["captured_fraction"] for info in infos])) if infos else None,
-        "mean_capture_score": float(np.mean(scores)) if scores else None,
-        "decisions": decisions,
-        "seconds_per_decision": seconds / decisions if decisions else None,
-    }
 
 
 #: A control run: ``control.json`` (the settings, then the summary), one file per episode in
@@ -441,27 +364,8 @@ def run_control(
         The summary (:func:`summarize`) and the dataset.
 
     """
-    check_int("n_objects", n_objects, minimum=1)
-    check_int("episodes", episodes, minimum=1)
-    check_seed(seed)
-    check_int("n_frames", n_frames, minimum=2)
-    check_int("score_expansions", score_expansions, minimum=0)
-    check_int("workers", workers, minimum=1)
-    if policy not in POLICIES:
-        raise EnergyMarginError(f"unknown policy {policy!r}; choose one of {', '.join(POLICIES)}")
-    if policy == "learned" and model is None:
-        raise InvalidParameterError("policy", "learned needs `model`, a model made by energy-margin learn")
-    if policy != "learned" and model is not None:
-        raise InvalidParameterError("model", "is only for `policy=learned`")
-    if task_name not in controllable_tasks():
-        raise EnergyMarginError(
-            f"task {task_name!r} cannot be controlled; controllable tasks: {', '.join(controllable_tasks())}"
-        )
-    task = get_task(task_name, task_overrides or None)
-    if task.fixed_objects is not None and n_objects != task.fixed_objects:
-        raise EnergyMarginError(f"{task.label} has {task.fixed_objects} objects, not {n_objects}")
-    if model is not None and model.task_name != task.name:
-        raise EnergyMarginError(f"the model was learned on task {model.task_name!r}, not {task.name!r}")
+    _check_arguments(n_objects, episodes, seed, n_frames, score_expansions, workers, policy, model)
+    task = _control_task(task_name, task_overrides, n_objects, model)
     settings = ControlSettings(
         task=task.name,
         task_config=task.config.to_dict(),
@@ -482,15 +386,63 @@ def run_control(
         (out / EPISODES_DIR).mkdir(exist_ok=True)
         ordered = _episodes(task, settings, model, out, workers=workers, progress=progress, on_episode=on_episode)
         summary = summarize(settings, [result["info"] for result in ordered])
-        dataset = records_dataset(
-            task,
-            [result["record"] for result in ordered],
-            out,
-            engine="mujoco",
-            extra={"control": {"settings": settings.to_dict(), "summary": summary}},
-        )
-        with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
-            save_npz(stream, dataset.arrays, compressed=True)
-        write_json(out / METADATA_FILE, dataset.metadata)
+        _write_dataset(task, settings, summary, ordered, out)
         run.write_settings({"summary": summary, "package_version": __version__})
     return summary, load_dataset(out)
+
+
+def _check_arguments(
+    n_objects: int,
+    episodes: int,
+    seed: int,
+    n_frames: int,
+    score_expansions: int,
+    workers: int,
+    policy: str,
+    model: MarginPredictor | None,
+) -> None:
+    """Refuse counts out of range, an unknown policy, and a model without ``learned`` (or the reverse)."""
+    check_int("n_objects", n_objects, minimum=1)
+    check_int("episodes", episodes, minimum=1)
+    check_seed(seed)
+    check_int("n_frames", n_frames, minimum=2)
+    check_int("score_expansions", score_expansions, minimum=0)
+    check_int("workers", workers, minimum=1)
+    if policy not in POLICIES:
+        raise EnergyMarginError(f"unknown policy {policy!r}; choose one of {', '.join(POLICIES)}")
+    if policy == "learned" and model is None:
+        raise InvalidParameterError("policy", "learned needs `model`, a model made by energy-margin learn")
+    if policy != "learned" and model is not None:
+        raise InvalidParameterError("model", "is only for `policy=learned`")
+
+
+def _control_task(
+    task_name: str, task_overrides: dict[str, Any] | None, n_objects: int, model: MarginPredictor | None
+) -> Task:
+    """The controllable task, checked against the number of objects and the model's task."""
+    if task_name not in controllable_tasks():
+        raise EnergyMarginError(
+            f"task {task_name!r} cannot be controlled; controllable tasks: {', '.join(controllable_tasks())}"
+        )
+    task = get_task(task_name, task_overrides or None)
+    if task.fixed_objects is not None and n_objects != task.fixed_objects:
+        raise EnergyMarginError(f"{task.label} has {task.fixed_objects} objects, not {n_objects}")
+    if model is not None and model.task_name != task.name:
+        raise EnergyMarginError(f"the model was learned on task {model.task_name!r}, not {task.name!r}")
+    return task
+
+
+def _write_dataset(
+    task: Task, settings: ControlSettings, summary: dict[str, Any], ordered: list[dict[str, Any]], out: Path
+) -> None:
+    """Write the episodes' records as a dataset at ``out``, with the settings and the summary."""
+    dataset = records_dataset(
+        task,
+        [result["record"] for result in ordered],
+        out,
+        engine="mujoco",
+        extra={"control": {"settings": settings.to_dict(), "summary": summary}},
+    )
+    with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
+        save_npz(stream, dataset.arrays, compressed=True)
+    write_json(out / METADATA_FILE, dataset.metadata)

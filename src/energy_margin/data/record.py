@@ -29,10 +29,11 @@ from energy_margin.data.generate import trajectory_record, write_records
 from energy_margin.data.physical import frame_violations
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_int
 from energy_margin.runs.npz import NpzError, read_npz
-from energy_margin.sim.base import CompiledModel, require
+from energy_margin.sim.base import CompiledModel, Simulator, require
 from energy_margin.sim.mujoco_audit import PHYSICS_WARNINGS, WARNINGS_ARRAY
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_task import SceneTask
+from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -290,58 +291,15 @@ def rollout_records(
     drive = np.ones(task.drive_size())
     simulator = task.make_simulator(loaded.n_objects, friction, drive)
     compiled = require(simulator, CompiledModel, purpose="record")
-    model, data = compiled.model, compiled.data
     box = task.frame_box
     records = []
     for name, arrays in rollouts:
         time = arrays["time"]
         if time.size < n_frames:
             raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than `n_frames={n_frames}`")
-        frames: list[FrameState] = []
-        times: list[float] = []
-        warned = _warned(arrays)
-        if warned is not None:
-            if dropped is None:
-                raise EnergyMarginError(
-                    f"{name}: {WARNINGS_ARRAY}: {warned}; a physically impossible frame never becomes data "
-                    "(`drop_unphysical=True` leaves such roll-outs out)"
-                )
-            dropped.append({"rollout": name, "reason": warned})
-            if progress is not None:
-                progress(1)
-            continue
-        for row in _frame_rows(time, n_frames):
-            mujoco.mj_resetData(model, data)
-            data.qpos[:] = arrays["qpos"][row]
-            data.qvel[:] = arrays["qvel"][row]
-            command = task.model_command(drive, float(time[row]))
-            if command is not None and command.mocap_pos is not None:
-                data.mocap_pos[:] = command.mocap_pos
-                data.mocap_quat[:] = command.mocap_quat
-            if "mocap_pos" in arrays:
-                data.mocap_pos[:] = arrays["mocap_pos"][row]
-            if "mocap_quat" in arrays:
-                data.mocap_quat[:] = arrays["mocap_quat"][row]
-            mujoco.mj_forward(model, data)
-            frame = simulator.frame_state()
-            if np.any(np.abs(np.linalg.norm(frame.object_quat, axis=1) - 1.0) > 1e-3):
-                raise EnergyMarginError(
-                    f"{name}: qpos: row {row} holds an object quaternion that is not a unit quaternion"
-                )
-            frames.append(frame)
-            times.append(float(time[row]))
-            violations = frame_violations(box, frame)
-            if violations:
-                reason = f"row {row} (frame {len(frames) - 1}): {violations[0].message}"
-                if dropped is None:
-                    raise EnergyMarginError(
-                        f"{name}: qpos: {reason}; a physically impossible frame never becomes data "
-                        "(`drop_unphysical=True` leaves such roll-outs out)"
-                    )
-                dropped.append({"rollout": name, "reason": reason})
-                break
-        else:
-            records.append(trajectory_record(task, frames, times, friction, drive))
+        kept = _rollout_frames(task, simulator, compiled, box, drive, name, arrays, n_frames, dropped)
+        if kept is not None:
+            records.append(trajectory_record(task, kept[0], kept[1], friction, drive))
         if progress is not None:
             progress(1)
     if not records:
@@ -350,3 +308,83 @@ def rollout_records(
             f"{dropped[0]['reason'] if dropped else ''})"
         )
     return records
+
+
+def _rollout_frames(
+    task: SceneTask,
+    simulator: Simulator,
+    compiled: CompiledModel,
+    box: StateBox,
+    drive: np.ndarray,
+    name: str,
+    arrays: dict[str, np.ndarray],
+    n_frames: int,
+    dropped: list[dict[str, str]] | None,
+) -> tuple[list[FrameState], list[float]] | None:
+    """The roll-out's K frames and their times (s), or ``None`` when it is dropped (then listed in ``dropped``).
+
+    Raises:
+        EnergyMarginError: a warned or physically impossible roll-out without ``dropped``, or an
+            object quaternion that is not a unit quaternion.
+    """
+    time = arrays["time"]
+    frames: list[FrameState] = []
+    times: list[float] = []
+    warned = _warned(arrays)
+    if warned is not None:
+        if dropped is None:
+            raise EnergyMarginError(
+                f"{name}: {WARNINGS_ARRAY}: {warned}; a physically impossible frame never becomes data "
+                "(`drop_unphysical=True` leaves such roll-outs out)"
+            )
+        dropped.append({"rollout": name, "reason": warned})
+        return None
+    for row in _frame_rows(time, n_frames):
+        frame = _frame_at(task, simulator, compiled, drive, name, arrays, row)
+        frames.append(frame)
+        times.append(float(time[row]))
+        violations = frame_violations(box, frame)
+        if violations:
+            reason = f"row {row} (frame {len(frames) - 1}): {violations[0].message}"
+            if dropped is None:
+                raise EnergyMarginError(
+                    f"{name}: qpos: {reason}; a physically impossible frame never becomes data "
+                    "(`drop_unphysical=True` leaves such roll-outs out)"
+                )
+            dropped.append({"rollout": name, "reason": reason})
+            return None
+    return frames, times
+
+
+def _frame_at(
+    task: SceneTask,
+    simulator: Simulator,
+    compiled: CompiledModel,
+    drive: np.ndarray,
+    name: str,
+    arrays: dict[str, np.ndarray],
+    row: int,
+) -> FrameState:
+    """The frame of row ``row``: its coordinates, velocities and mocap poses set, then forward.
+
+    Raises:
+        EnergyMarginError: an object quaternion that is not a unit quaternion.
+    """
+    model, data = compiled.model, compiled.data
+    time = arrays["time"]
+    mujoco.mj_resetData(model, data)
+    data.qpos[:] = arrays["qpos"][row]
+    data.qvel[:] = arrays["qvel"][row]
+    command = task.model_command(drive, float(time[row]))
+    if command is not None and command.mocap_pos is not None:
+        data.mocap_pos[:] = command.mocap_pos
+        data.mocap_quat[:] = command.mocap_quat
+    if "mocap_pos" in arrays:
+        data.mocap_pos[:] = arrays["mocap_pos"][row]
+    if "mocap_quat" in arrays:
+        data.mocap_quat[:] = arrays["mocap_quat"][row]
+    mujoco.mj_forward(model, data)
+    frame = simulator.frame_state()
+    if np.any(np.abs(np.linalg.norm(frame.object_quat, axis=1) - 1.0) > 1e-3):
+        raise EnergyMarginError(f"{name}: qpos: row {row} holds an object quaternion that is not a unit quaternion")
+    return frame

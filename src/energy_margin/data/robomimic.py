@@ -139,19 +139,12 @@ def record_robomimic(
     built = _build_models(path, raw_demos, assets_folder)
     model = built[0].model
     rollouts = [_rollout(path, demo, model, dt if dt is not None else env_dt, n_frames) for demo in raw_demos]
-    duration = max(float(arrays["time"][-1]) for _, arrays in rollouts)
-    if duration <= 0:
-        duration = float(model.opt.timestep)
+    duration = _duration(rollouts, model)
     spec = _scene_spec(tables, scene_file, path, duration)
     loaded = resolve_scene(spec, model)
     scene_text = _scene_text(spec, loaded, duration)
     sources = [
-        {
-            "file": path.name,
-            "sha256": _file_sha256(path),
-            "format": "robomimic",
-            "demos": [demo.key for demo in raw_demos],
-        }
+        {"file": path.name, "sha256": _file_sha256(path), "format": "robomimic", "demos": [d.key for d in raw_demos]}
     ]
     return _write(
         out,
@@ -164,6 +157,14 @@ def record_robomimic(
         progress=progress,
         drop_unphysical=drop_unphysical,
     )
+
+
+def _duration(rollouts: list[tuple[str, dict[str, np.ndarray]]], model: mujoco.MjModel) -> float:
+    """The longest demonstration's duration, s (one time step when every one lasts no time)."""
+    duration = max(float(arrays["time"][-1]) for _, arrays in rollouts)
+    if duration <= 0:
+        duration = float(model.opt.timestep)
+    return duration
 
 
 # -- the states --------------------------------------------------------------------------------

@@ -193,24 +193,10 @@ def calibrate(
     Returns:
         The :class:`Calibration` (also written to ``out/calibration.json``).
     """
-    check_int("folds", folds, minimum=2)
-    check_seed(seed)
-    check_positive_int("resamples", resamples)
-    unknown = [name for name in objective if name not in QUESTIONS]
-    if not objective or unknown:
-        raise EnergyMarginError(f"objective must name questions of {', '.join(QUESTIONS)}, got {list(objective)}")
-    config = config if config is not None else AnalyzerConfig()
-    if config.converge is not None:
-        raise EnergyMarginError("calibrate grows trees that do not depend on lambda: `converge` must be off")
+    config = _checked_options(folds, seed, resamples, objective, config)
     dataset = require_valid(directory, overlaps=True, scores=False)
     check_calibration_data(dataset, folds=folds, objective=objective)
-    # The task's own lambda is always a candidate, so the calibration can keep it.
-    grid = tuple(sorted({float(lam) for lam in lambdas} | {float(dataset.task.config.likelihood_lambda)}))
-    for name, scales in (("wrench_scales", wrench_scales), ("duration_scales", duration_scales)):
-        if not scales or any(not np.isfinite(value) or value <= 0 for value in scales):
-            raise EnergyMarginError(f"{name} must be positive numbers, got {list(scales)}")
-    others = {(float(w), float(d)) for w in wrench_scales for d in duration_scales} - {(1.0, 1.0)}
-    growth = [(1.0, 1.0), *sorted(others)]
+    grid, growth = _grid_and_growth(dataset, lambdas, wrench_scales, duration_scales)
     settings = {
         "format": FORMAT,
         "dataset": dataset.identity(),
@@ -225,12 +211,9 @@ def calibrate(
     }
     out = Path(out)
     with open_run(out, CALIBRATION_RUN, settings, overwrite=overwrite, engine=config.engine) as run:
-        candidates: dict[tuple[float, float, float], dict[str, np.ndarray]] = {}
-        for wrench, duration in growth:
-            grown = dataclasses.replace(config, wrench_scale=wrench, duration_scale=duration)
-            root = out / "lambda" if (wrench, duration) == (1.0, 1.0) else out / "lambda" / f"w{wrench:g}-d{duration:g}"
-            scored = rescore_lambdas(directory, root, grid, config=grown, seed=seed, workers=workers, progress=progress)
-            candidates.update({(wrench, duration, lam): scores for lam, scores in scored.items()})
+        candidates = _candidate_scores(
+            directory, out, grid, growth, config, seed=seed, workers=workers, progress=progress
+        )
         result = _choose(
             dataset,
             candidates,
@@ -243,6 +226,59 @@ def calibrate(
         )
         run.write_settings({"result": result.to_dict()})
     return result
+
+
+def _checked_options(
+    folds: int, seed: int, resamples: int, objective: tuple[str, ...], config: AnalyzerConfig | None
+) -> AnalyzerConfig:
+    """The analysis settings (the default analysis when ``None``), once every option is checked."""
+    check_int("folds", folds, minimum=2)
+    check_seed(seed)
+    check_positive_int("resamples", resamples)
+    unknown = [name for name in objective if name not in QUESTIONS]
+    if not objective or unknown:
+        raise EnergyMarginError(f"objective must name questions of {', '.join(QUESTIONS)}, got {list(objective)}")
+    config = config if config is not None else AnalyzerConfig()
+    if config.converge is not None:
+        raise EnergyMarginError("calibrate grows trees that do not depend on lambda: `converge` must be off")
+    return config
+
+
+def _grid_and_growth(
+    dataset: Dataset,
+    lambdas: tuple[float, ...],
+    wrench_scales: tuple[float, ...],
+    duration_scales: tuple[float, ...],
+) -> tuple[tuple[float, ...], list[tuple[float, float]]]:
+    """The lambda grid (1/J, sorted, with the task's own) and the (wrench, duration) scales, (1, 1) first."""
+    # The task's own lambda is always a candidate, so the calibration can keep it.
+    grid = tuple(sorted({float(lam) for lam in lambdas} | {float(dataset.task.config.likelihood_lambda)}))
+    for name, scales in (("wrench_scales", wrench_scales), ("duration_scales", duration_scales)):
+        if not scales or any(not np.isfinite(value) or value <= 0 for value in scales):
+            raise EnergyMarginError(f"{name} must be positive numbers, got {list(scales)}")
+    others = {(float(w), float(d)) for w in wrench_scales for d in duration_scales} - {(1.0, 1.0)}
+    return grid, [(1.0, 1.0), *sorted(others)]
+
+
+def _candidate_scores(
+    directory: Path | str,
+    out: Path,
+    grid: tuple[float, ...],
+    growth: list[tuple[float, float]],
+    config: AnalyzerConfig,
+    *,
+    seed: int,
+    workers: int,
+    progress: bool,
+) -> dict[tuple[float, float, float], dict[str, np.ndarray]]:
+    """The scores of every (wrench scale, duration scale, lambda): one set of trees per pair of scales."""
+    candidates: dict[tuple[float, float, float], dict[str, np.ndarray]] = {}
+    for wrench, duration in growth:
+        grown = dataclasses.replace(config, wrench_scale=wrench, duration_scale=duration)
+        root = out / "lambda" if (wrench, duration) == (1.0, 1.0) else out / "lambda" / f"w{wrench:g}-d{duration:g}"
+        scored = rescore_lambdas(directory, root, grid, config=grown, seed=seed, workers=workers, progress=progress)
+        candidates.update({(wrench, duration, lam): scores for lam, scores in scored.items()})
+    return candidates
 
 
 Candidate = tuple[float, float, float]  # (wrench_scale, duration_scale, likelihood_lambda)

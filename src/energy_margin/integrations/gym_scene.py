@@ -226,6 +226,42 @@ def scene_from_environment(
             "objects", f"{','.join(patterns)}: no body of {name} matches (bodies: {', '.join(body_names[1:])})"
         )
     out = Path(out)
+    end_effector = _end_effector(model, name, chosen, body_names)
+    every_body = [b for b in range(1, model.nbody) if b not in chosen and body_names[b]]
+    goal = _find(model, GOAL_WORDS, every_body)
+    radius, capture, success = _regions(model, chosen, end_effector, goal, capture_radius)
+    steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
+    duration = float(steps) * float(getattr(unwrapped, "dt", model.opt.timestep))
+    text = _scene_text(model, patterns, duration, end_effector, goal, radius, capture, success)
+    # The file is checked against the environment's model before anything is written.
+    document = tomllib.loads(text)
+    resolve_scene(scene_spec_from_tables(document, origin=str(out)), model)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    model_file, note = save_model(model, source, out)
+    saved = mujoco.MjModel.from_binary_path(str(model_file)) if model_file.suffix == BINARY_SUFFIX else None
+    with atomic_path(out) as temporary:
+        temporary.write_text(
+            f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.\n"
+            f"schema_version = 1\nmjcf = {toml_value(model_file.name)}\n{text}"
+        )
+    return StarterScene(
+        scene_file=out,
+        model_file=model_file,
+        objects=tuple(body_names[b] for b in chosen),
+        end_effector=end_effector,
+        goal=goal,
+        capture_radius=radius,
+        same_model=saved is None or model_hash(saved) == model_hash(model),
+        model_note=note,
+    )
+
+
+def _end_effector(model: mujoco.MjModel, name: str, chosen: list[int], body_names: list[str]) -> tuple[str, str]:
+    """The ``(kind, name)`` the capture region is centred on: a named end-effector, else the deepest robot body.
+
+    Raises:
+        EnergyMarginError: the model has no named robot body.
+    """
     # Regions name their bodies: only named robot bodies can carry the capture region.
     robot = [body for body in _robot_bodies(model, set(chosen)) if body_names[body]]
     end_effector = _find(model, END_EFFECTOR_WORDS, robot)
@@ -236,21 +272,47 @@ def scene_from_environment(
                 "a capture region on"
             )
         end_effector = ("body", body_names[max(robot, key=lambda b: _depth(model, b))])
-    every_body = [b for b in range(1, model.nbody) if b not in chosen and body_names[b]]
-    goal = _find(model, GOAL_WORDS, every_body)
+    return end_effector
+
+
+def _regions(
+    model: mujoco.MjModel,
+    chosen: list[int],
+    end_effector: tuple[str, str],
+    goal: tuple[str, str] | None,
+    capture_radius: float | None,
+) -> tuple[float, dict[str, Any], dict[str, Any]]:
+    """The capture radius (m) and the starter capture and success region tables.
+
+    Captured: within the radius of the end-effector; success: near the goal, or else above the
+    objects' start height less 5 cm. The sizes follow the objects' extent (their geoms' reach, m).
+    """
     geoms = np.flatnonzero(object_owners(model, chosen)[model.geom_bodyid] >= 0)
     size = (
         float(np.max(np.linalg.norm(model.geom_pos[geoms], axis=1) + model.geom_rbound[geoms])) if geoms.size else 0.05
     )
     radius = capture_radius if capture_radius is not None else round(2.0 * size + 0.05, 3)
-    steps = getattr(getattr(env, "spec", None), "max_episode_steps", None) or 100
-    duration = float(steps) * float(getattr(unwrapped, "dt", model.opt.timestep))
     capture = {"type": "distance", end_effector[0]: end_effector[1], "max": radius}
+    success: dict[str, Any]
     if goal is not None:
         success = {"type": "distance", goal[0]: goal[1], "max": round(2.0 * size, 3)}
     else:
         heights = [float(model.body_pos[b][2]) for b in chosen]
         success = {"type": "height", "min": round(min(heights) - 0.05, 3)}
+    return radius, capture, success
+
+
+def _scene_text(
+    model: mujoco.MjModel,
+    patterns: list[str],
+    duration: float,
+    end_effector: tuple[str, str],
+    goal: tuple[str, str] | None,
+    radius: float,
+    capture: dict[str, Any],
+    success: dict[str, Any],
+) -> str:
+    """The starter scene file's tables, commented (without its header: schema and model file)."""
     lines = [
         "",
         "[objects]",
@@ -283,28 +345,7 @@ def scene_from_environment(
         f"region = {toml_value(success)}",
         "",
     ]
-    text = "\n".join(lines)
-    # The file is checked against the environment's model before anything is written.
-    document = tomllib.loads(text)
-    resolve_scene(scene_spec_from_tables(document, origin=str(out)), model)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    model_file, note = save_model(model, source, out)
-    saved = mujoco.MjModel.from_binary_path(str(model_file)) if model_file.suffix == BINARY_SUFFIX else None
-    with atomic_path(out) as temporary:
-        temporary.write_text(
-            f"# A starter scene for {name}, written by energy-margin scene --from-gym: edit the regions.\n"
-            f"schema_version = 1\nmjcf = {toml_value(model_file.name)}\n{text}"
-        )
-    return StarterScene(
-        scene_file=out,
-        model_file=model_file,
-        objects=tuple(body_names[b] for b in chosen),
-        end_effector=end_effector,
-        goal=goal,
-        capture_radius=radius,
-        same_model=saved is None or model_hash(saved) == model_hash(model),
-        model_note=note,
-    )
+    return "\n".join(lines)
 
 
 _TRANSMISSIONS = {

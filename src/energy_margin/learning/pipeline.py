@@ -50,8 +50,9 @@ from energy_margin.data.dataset import METADATA_FILE
 from energy_margin.data.generate import check_engine, generate_dataset
 from energy_margin.data.scores_file import SCORES_FILE
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_float, check_int
-from energy_margin.learning.margin_model import KINDS, MarginModel, fit_margin_model, load_training_datasets
-from energy_margin.runs import RunLockedError, RunSpec, open_run, progress_bar
+from energy_margin.learning.margin_model import KINDS, fit_margin_model, load_training_datasets
+from energy_margin.learning.pipeline_results import LearnResult, LearnSet
+from energy_margin.runs import RunDirectory, RunLockedError, RunSpec, open_run, progress_bar
 from energy_margin.runs.files import atomic_path
 from energy_margin.tasks import Task, get_task
 
@@ -84,68 +85,6 @@ LEARN_RUN = RunSpec(
     compared=RESUME_KEYS,
     may_differ=FIT_SETTINGS,
 )
-
-
-@dataclass(frozen=True)
-class LearnSet:
-    """One generated and analysed dataset of the pipeline.
-
-    Attributes:
-        name: its folder under ``WORK/sets`` (``objects-10``, ``scene``).
-        objects: objects per scene.
-        directory: the dataset directory.
-        generation_seed: the seed it was generated with.
-        analysis_seed: the seed it was analysed with.
-        generated: this call generated it (``False``: it was there from an earlier run).
-        analysed: this call scored frames of it (``False``: its scores.csv was complete).
-
-    """
-
-    name: str
-    objects: int
-    directory: Path
-    generation_seed: int
-    analysis_seed: int
-    generated: bool
-    analysed: bool
-
-    def to_dict(self) -> dict[str, Any]:
-        """The set as JSON values."""
-        return {
-            "name": self.name,
-            "objects": self.objects,
-            "directory": str(self.directory),
-            "generation_seed": self.generation_seed,
-            "analysis_seed": self.analysis_seed,
-            "generated": self.generated,
-            "analysed": self.analysed,
-        }
-
-
-@dataclass(frozen=True)
-class LearnResult:
-    """What :func:`learn_pipeline` made.
-
-    Attributes:
-        model: the fitted model (also written to ``out`` and ``WORK/model.npz``).
-        report: :func:`~energy_margin.learning.margin_model.fit_margin_model`'s report.
-        out: the model file written.
-        work: the work directory.
-        sets: the datasets, in the order of ``objects``.
-        fit_seed: the seed of the fit.
-        resumed: the work directory held this very run before the call.
-        seconds: wall time of the call.
-
-    """
-
-    model: MarginModel
-    report: dict[str, Any]
-    out: Path
-    work: Path
-    sets: tuple[LearnSet, ...]
-    fit_seed: int
-    resumed: bool
-    seconds: float
 
 
 def _seed(sequence: np.random.SeedSequence) -> int:
@@ -271,6 +210,106 @@ def learn_pipeline(
 
     """
     started = time.perf_counter()
+    plan = _plan(
+        task,
+        scene,
+        objects,
+        (trajectories, frames, seed, workers, iterations, success_frames),
+        kind=kind,
+        holdout=holdout,
+        options=options,
+        progress=progress,
+    )
+    work, out = Path(work), Path(out)
+    _check_out(out, work, overwrite=overwrite)
+    say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+    with _open_learn_run(work, plan.settings(), overwrite=overwrite, engine=plan.analyzer.engine) as run:
+        if run.resumed:
+            say(f"learn: resuming {work} (what is generated and analysed there is kept)")
+        (work / SETS_DIR).mkdir(exist_ok=True)
+        done = [_prepare_set(plan, work, index, say) for index in range(len(plan.sets))]
+        say(f"learn: fitting a {kind} margin on {len(done)} set{'s' if len(done) > 1 else ''}")
+        datasets = load_training_datasets([item.directory for item in done])
+        model, report = fit_margin_model(
+            datasets, seed=plan.fit_seed, kind=kind, holdout=holdout, success_frames=success_frames, **options
+        )
+        model.save(work / MODEL_FILE)
+        _copy(work / MODEL_FILE, out)
+    return LearnResult(
+        model=model,
+        report=report,
+        out=out,
+        work=work,
+        sets=tuple(done),
+        fit_seed=plan.fit_seed,
+        resumed=run.resumed,
+        seconds=time.perf_counter() - started,
+    )
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What a learn run does, checked: the task, the sets with their (generation, analysis) seeds, the fit.
+
+    The counts are :func:`learn_pipeline`'s arguments of the same names.
+    """
+
+    task: Task
+    config: dict[str, Any]
+    sets: list[tuple[str, int]]
+    seeds: list[tuple[int, int]]
+    fit_seed: int
+    analyzer: AnalyzerConfig
+    trajectories: int
+    frames: int
+    seed: int
+    workers: int
+    kind: str
+    holdout: float
+    success_frames: int
+    options: dict[str, Any]
+    progress: bool
+
+    def settings(self) -> dict[str, Any]:
+        """The run's settings (``learn.json``)."""
+        return {
+            "task": self.task.name,
+            "task_config": self.task.config.to_dict(),
+            "scene_file": self.config.get("scene_file"),
+            "objects": [count for _, count in self.sets],
+            "trajectories": self.trajectories,
+            "frames": self.frames,
+            "seed": self.seed,
+            "analyzer": self.analyzer.to_dict(),
+            "sets": [
+                {"name": name, "objects": count, "generation_seed": generation, "analysis_seed": analysis}
+                for (name, count), (generation, analysis) in zip(self.sets, self.seeds, strict=True)
+            ],
+            "fit_seed": self.fit_seed,
+            "kind": self.kind,
+            "holdout": self.holdout,
+            "success_frames": self.success_frames,
+            "regressor": self.options,
+            "workers": self.workers,
+        }
+
+
+def _plan(
+    task: str | None,
+    scene: str | os.PathLike[str] | None,
+    objects: Sequence[int] | None,
+    counts: tuple[int, int, int, int, int | None, int],
+    *,
+    kind: str,
+    holdout: float,
+    options: dict[str, Any],
+    progress: bool,
+) -> _Plan:
+    """Check the arguments, resolve the task and its sets, derive the seeds (:func:`learn_pipeline`).
+
+    ``counts`` holds ``(trajectories, frames, seed, workers, iterations, success_frames)``.
+    """
+    trajectories, frames, seed, workers, iterations, success_frames = counts
     check_int("trajectories", trajectories, minimum=2)
     check_int("frames", frames, minimum=1)
     check_int("seed", seed, minimum=0)
@@ -283,69 +322,38 @@ def learn_pipeline(
     resolved, config, sets = _task_and_sets(task, scene, objects)
     analyzer = AnalyzerConfig() if iterations is None else AnalyzerConfig(iterations=iterations)
     check_engine(resolved, analyzer.engine)
-    work, out = Path(work), Path(out)
-    _check_out(out, work, overwrite=overwrite)
     fit_seed, seeds = pipeline_seeds(seed, len(sets))
-    settings: dict[str, Any] = {
-        "task": resolved.name,
-        "task_config": resolved.config.to_dict(),
-        "scene_file": config.get("scene_file"),
-        "objects": [count for _, count in sets],
-        "trajectories": trajectories,
-        "frames": frames,
-        "seed": seed,
-        "analyzer": analyzer.to_dict(),
-        "sets": [
-            {"name": name, "objects": count, "generation_seed": generation, "analysis_seed": analysis}
-            for (name, count), (generation, analysis) in zip(sets, seeds, strict=True)
-        ],
-        "fit_seed": fit_seed,
-        "kind": kind,
-        "holdout": holdout,
-        "success_frames": success_frames,
-        "regressor": options,
-        "workers": workers,
-    }
-    say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
+    return _Plan(
+        resolved, config, sets, seeds, fit_seed, analyzer, trajectories, frames, seed, workers, kind, holdout,
+        success_frames, options, progress,
+    )  # fmt: skip
+
+
+def _open_learn_run(work: Path, settings: dict[str, Any], *, overwrite: bool, engine: str) -> RunDirectory:
+    """The locked learn run in ``work``; its errors name ``work`` (the run layer says ``out``)."""
     try:
-        run = open_run(work, LEARN_RUN, settings, overwrite=overwrite, engine=analyzer.engine)
+        return open_run(work, LEARN_RUN, settings, overwrite=overwrite, engine=engine)
     except EnergyMarginError as error:
         # The run layer names `out`, the directory of most commands; here it is `work`.
         message = str(error).replace("choose another `out`", "choose another `work`")
         raise (RunLockedError if isinstance(error, RunLockedError) else EnergyMarginError)(message) from None
-    with run:
-        if run.resumed:
-            say(f"learn: resuming {work} (what is generated and analysed there is kept)")
-        (work / SETS_DIR).mkdir(exist_ok=True)
-        done: list[LearnSet] = []
-        for number, ((name, count), (generation, analysis)) in enumerate(zip(sets, seeds, strict=True), start=1):
-            prefix = f"learn [{number}/{len(sets)}] {name}"
-            directory = work / SETS_DIR / name
-            made = _generate(resolved.name, config, directory, count, trajectories, frames, generation, progress)
-            state = "generated" if made else "already generated"
-            say(f"{prefix}: {state} {trajectories} trajectories x {frames} frames")
-            scored = not (directory / SCORES_FILE).is_file()
-            tick = time.perf_counter()
-            analyze(directory, analyzer, seed=analysis, workers=workers, progress=progress)
-            say(f"{prefix}: " + (f"analysed ({time.perf_counter() - tick:.0f} s)" if scored else "already analysed"))
-            done.append(LearnSet(name, count, directory, generation, analysis, made, scored))
-        say(f"learn: fitting a {kind} margin on {len(done)} set{'s' if len(done) > 1 else ''}")
-        datasets = load_training_datasets([item.directory for item in done])
-        model, report = fit_margin_model(
-            datasets, seed=fit_seed, kind=kind, holdout=holdout, success_frames=success_frames, **options
-        )
-        model.save(work / MODEL_FILE)
-        _copy(work / MODEL_FILE, out)
-    return LearnResult(
-        model=model,
-        report=report,
-        out=out,
-        work=work,
-        sets=tuple(done),
-        fit_seed=fit_seed,
-        resumed=run.resumed,
-        seconds=time.perf_counter() - started,
+
+
+def _prepare_set(plan: _Plan, work: Path, index: int, say: Callable[[str], None]) -> LearnSet:
+    """Generate and analyse set ``index`` of the plan in ``work`` (or keep what is there), saying so."""
+    (name, count), (generation, analysis) = plan.sets[index], plan.seeds[index]
+    prefix = f"learn [{index + 1}/{len(plan.sets)}] {name}"
+    directory = work / SETS_DIR / name
+    made = _generate(
+        plan.task.name, plan.config, directory, count, plan.trajectories, plan.frames, generation, plan.progress
     )
+    state = "generated" if made else "already generated"
+    say(f"{prefix}: {state} {plan.trajectories} trajectories x {plan.frames} frames")
+    scored = not (directory / SCORES_FILE).is_file()
+    tick = time.perf_counter()
+    analyze(directory, plan.analyzer, seed=analysis, workers=plan.workers, progress=plan.progress)
+    say(f"{prefix}: " + (f"analysed ({time.perf_counter() - tick:.0f} s)" if scored else "already analysed"))
+    return LearnSet(name, count, directory, generation, analysis, made, scored)
 
 
 def _generate(

@@ -24,6 +24,7 @@ outputs.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -253,27 +254,8 @@ def fit_set_regressor(
         EnergyMarginError: PyTorch is not installed (naming the extra).
         InvalidParameterError: an unknown option, or targets of the wrong shape.
     """
-    from energy_margin.errors import EnergyMarginError, check_choice
-
-    unknown = sorted(set(options) - set(DEFAULTS))
-    if unknown:
-        raise InvalidParameterError(
-            "options", f"names unknown set options: {', '.join(unknown)} (known: {', '.join(DEFAULTS)})"
-        )
-    settings = {**DEFAULTS, **options}
-    targets = np.asarray(targets, dtype=float)
-    if targets.shape != (len(inputs), N_OUTPUTS):
-        raise InvalidParameterError("targets", f"must have shape {(len(inputs), N_OUTPUTS)}, got {targets.shape}")
-    auxiliary = settings.pop("auxiliary")
-    if auxiliary is not None:
-        auxiliary = np.asarray(auxiliary, dtype=float).reshape(len(inputs), -1)
-        targets = np.concatenate([targets, auxiliary], axis=1)
-    try:
-        import torch
-    except ImportError:
-        raise EnergyMarginError(
-            "the set margin model is fitted with PyTorch: pip install 'energy-margin[learn]'"
-        ) from None
+    settings, targets = _settings_and_targets(inputs, targets, options)
+    torch = _import_torch()
     started = time.perf_counter()
     rng = np.random.default_rng(seed)
     groups = np.arange(len(inputs)) if groups is None else np.asarray(groups)
@@ -301,48 +283,7 @@ def fit_set_regressor(
         network = _torch_network(
             torch, inputs.objects.shape[2], inputs.frame.shape[1], int(settings["hidden"]), targets.shape[1]
         )
-        optimiser = torch.optim.Adam(
-            network.parameters(), lr=settings["learning_rate"], weight_decay=settings["weight_decay"]
-        )
-        check_choice("loss", settings["loss"], LOSSES)
-        weights = torch.as_tensor(
-            [1.0, float(settings["success_weight"])]
-            + [float(settings["auxiliary_weight"])] * (targets.shape[1] - N_OUTPUTS),
-            dtype=torch.float32,
-        )
-        if settings["loss"] == "bce":
-            bce = torch.nn.BCEWithLogitsLoss(reduction="none")
-
-            def loss_function(logits: Any, scores: Any) -> Any:
-                return (bce(logits, scores) * weights).mean()
-
-        else:
-
-            def loss_function(logits: Any, scores: Any) -> Any:
-                clipped = scores.clamp(_LOGIT_FLOOR, 1.0 - _LOGIT_FLOOR)
-                return (((logits - torch.log(clipped / (1.0 - clipped))) ** 2) * weights).mean()
-
-        best_loss, best_epoch, best_state, epoch = float("inf"), -1, None, 0
-        count = train[0].shape[0]
-        for epoch in range(int(settings["epochs"])):
-            network.train()
-            order = rng.permutation(count)
-            for start in range(0, count, int(settings["batch_size"])):
-                rows = torch.as_tensor(order[start : start + int(settings["batch_size"])])
-                optimiser.zero_grad()
-                loss = loss_function(network(train[0][rows], train[1][rows], train[2][rows]), train[3][rows])
-                loss.backward()
-                optimiser.step()
-            network.eval()
-            with torch.no_grad():
-                validation_loss = float(loss_function(network(*validation[:3]), validation[3]))
-            if validation_loss < best_loss - 1e-6:
-                best_loss, best_epoch = validation_loss, epoch
-                best_state = {name: value.detach().clone() for name, value in network.state_dict().items()}
-            elif epoch - best_epoch >= int(settings["patience"]):
-                break
-        assert best_state is not None
-        network.load_state_dict(best_state)
+        best_loss, best_epoch, epoch = _train(torch, network, settings, targets.shape[1], train, validation, rng)
     finally:
         torch.set_num_threads(previous_threads)
     regressor = _from_torch(network, object_mean, object_scale, frame_mean, frame_scale)
@@ -353,6 +294,109 @@ def fit_set_regressor(
         "fit_seconds": time.perf_counter() - started,
         "settings": settings,
     }
+
+
+def _settings_and_targets(
+    inputs: SetInputs, targets: np.ndarray, options: dict[str, Any]
+) -> tuple[dict[str, Any], np.ndarray]:
+    """The options over :data:`DEFAULTS` (less ``auxiliary``); the scores and A auxiliaries, (F, 2 + A).
+
+    Raises:
+        InvalidParameterError: an unknown option, or targets of the wrong shape.
+    """
+    unknown = sorted(set(options) - set(DEFAULTS))
+    if unknown:
+        raise InvalidParameterError(
+            "options", f"names unknown set options: {', '.join(unknown)} (known: {', '.join(DEFAULTS)})"
+        )
+    settings = {**DEFAULTS, **options}
+    targets = np.asarray(targets, dtype=float)
+    if targets.shape != (len(inputs), N_OUTPUTS):
+        raise InvalidParameterError("targets", f"must have shape {(len(inputs), N_OUTPUTS)}, got {targets.shape}")
+    auxiliary = settings.pop("auxiliary")
+    if auxiliary is not None:
+        auxiliary = np.asarray(auxiliary, dtype=float).reshape(len(inputs), -1)
+        targets = np.concatenate([targets, auxiliary], axis=1)
+    return settings, targets
+
+
+def _import_torch() -> Any:
+    """The ``torch`` module, or an error naming the extra that installs it."""
+    from energy_margin.errors import EnergyMarginError
+
+    try:
+        import torch
+    except ImportError:
+        raise EnergyMarginError(
+            "the set margin model is fitted with PyTorch: pip install 'energy-margin[learn]'"
+        ) from None
+    return torch
+
+
+def _loss_function(torch: Any, settings: dict[str, Any], n_targets: int) -> Callable[[Any, Any], Any]:
+    """The weighted loss of logits against scores, both shape (B, n_targets): BCE or logit MSE."""
+    from energy_margin.errors import check_choice
+
+    check_choice("loss", settings["loss"], LOSSES)
+    weights = torch.as_tensor(
+        [1.0, float(settings["success_weight"])] + [float(settings["auxiliary_weight"])] * (n_targets - N_OUTPUTS),
+        dtype=torch.float32,
+    )
+    if settings["loss"] == "bce":
+        bce = torch.nn.BCEWithLogitsLoss(reduction="none")
+
+        def loss_function(logits: Any, scores: Any) -> Any:
+            return (bce(logits, scores) * weights).mean()
+
+    else:
+
+        def loss_function(logits: Any, scores: Any) -> Any:
+            clipped = scores.clamp(_LOGIT_FLOOR, 1.0 - _LOGIT_FLOOR)
+            return (((logits - torch.log(clipped / (1.0 - clipped))) ** 2) * weights).mean()
+
+    return loss_function
+
+
+def _train(
+    torch: Any,
+    network: Any,
+    settings: dict[str, Any],
+    n_targets: int,
+    train: tuple[Any, ...],
+    validation: tuple[Any, ...],
+    rng: np.random.Generator,
+) -> tuple[float, int, int]:
+    """Adam on shuffled batches with early stopping; leaves ``network`` with its best weights.
+
+    Returns:
+        The best validation loss, its epoch and the last epoch run (0-based).
+    """
+    optimiser = torch.optim.Adam(
+        network.parameters(), lr=settings["learning_rate"], weight_decay=settings["weight_decay"]
+    )
+    loss_function = _loss_function(torch, settings, n_targets)
+    best_loss, best_epoch, best_state, epoch = float("inf"), -1, None, 0
+    count = train[0].shape[0]
+    for epoch in range(int(settings["epochs"])):
+        network.train()
+        order = rng.permutation(count)
+        for start in range(0, count, int(settings["batch_size"])):
+            rows = torch.as_tensor(order[start : start + int(settings["batch_size"])])
+            optimiser.zero_grad()
+            loss = loss_function(network(train[0][rows], train[1][rows], train[2][rows]), train[3][rows])
+            loss.backward()
+            optimiser.step()
+        network.eval()
+        with torch.no_grad():
+            validation_loss = float(loss_function(network(*validation[:3]), validation[3]))
+        if validation_loss < best_loss - 1e-6:
+            best_loss, best_epoch = validation_loss, epoch
+            best_state = {name: value.detach().clone() for name, value in network.state_dict().items()}
+        elif epoch - best_epoch >= int(settings["patience"]):
+            break
+    assert best_state is not None
+    network.load_state_dict(best_state)
+    return best_loss, best_epoch, epoch
 
 
 def _from_torch(

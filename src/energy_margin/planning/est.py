@@ -19,7 +19,7 @@ import numpy as np
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features
 from energy_margin.planning.methods import expansion_factory
-from energy_margin.planning.tree import CostField, TreeBudget, grow
+from energy_margin.planning.tree import CostField, Expansion, TreeBudget, grow
 from energy_margin.sim.base import Simulator, release_states
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
@@ -79,17 +79,7 @@ def grow_tree(
     random variation) is evaluated at ``start_time`` plus the node's time when a propagation
     starts, and again every :attr:`Task.control_period` seconds within it when the task sets one.
     """
-    total = budget.iterations if budget.iterations is not None else budget.node_capacity - 1
-    make = expansion_factory(
-        method,
-        n_objects=root.n_objects,
-        total=int(total),
-        capacity=budget.node_capacity,
-        n_projections=n_projections,
-        cell_size=cell_size,
-        rollout_length=rollout_length,
-        rrt_extent=rrt_extent,
-    )
+    make = _expansion(method, root, budget, n_projections, cell_size, rollout_length, rrt_extent)
     try:
         return grow(
             simulator,
@@ -112,3 +102,26 @@ def grow_tree(
     finally:
         # Engines that keep saved states outside the node array (PyBullet) free them now.
         release_states(simulator)
+
+
+def _expansion(
+    method: str,
+    root: FrameState,
+    budget: TreeBudget,
+    n_projections: int,
+    cell_size: float,
+    rollout_length: int,
+    rrt_extent: float,
+) -> Callable[[np.random.Generator, np.ndarray, Features], Expansion]:
+    """The ``make_expansion`` of ``method`` for a tree of ``budget`` (:func:`grow_tree`'s arguments)."""
+    total = budget.iterations if budget.iterations is not None else budget.node_capacity - 1
+    return expansion_factory(
+        method,
+        n_objects=root.n_objects,
+        total=int(total),
+        capacity=budget.node_capacity,
+        n_projections=n_projections,
+        cell_size=cell_size,
+        rollout_length=rollout_length,
+        rrt_extent=rrt_extent,
+    )

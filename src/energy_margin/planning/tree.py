@@ -7,11 +7,12 @@ Carlo roll-outs, RRT). Every method shares:
   its duration (``max_duration * u**(1/d)``, d the number of perturbed wrench components) from
   blocks of 256 iterations, so the controls are a fixed function of the seed, the method (which
   draws its own uniforms in the same blocks) and the iteration number, whatever the batch size;
-* the propagation (:func:`_propagate_one`, or :class:`~energy_margin.sim.mujoco_rollout.RolloutPropagator`
-  for a batch) and the acceptance test: a reached state outside the task's state box, or not
-  finite, is rejected but still consumes the iteration;
+* the propagation (:mod:`energy_margin.planning.propagate`: one at a time, or
+  :class:`~energy_margin.sim.mujoco_rollout.RolloutPropagator` for a batch) and the acceptance
+  test: a reached state outside the task's state box, or not finite, is rejected but still
+  consumes the iteration;
 * the incremental cost Q of the cost model; a child's cost is its parent's plus Q (costed in
-  batches when the field is read, :class:`_Tree`).
+  batches when the field is read, :mod:`energy_margin.planning.nodes`).
 
 Only the choice of the parent differs between methods (:class:`Expansion`).
 
@@ -33,10 +34,12 @@ from typing import Protocol
 import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_int, check_positive_int
-from energy_margin.planning.costs import CostModel, Propagation
+from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
+from energy_margin.planning.nodes import CostField, Outcome, _Tree
+from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _read
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
-from energy_margin.tasks.base import Task, command_robot
+from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -83,51 +86,6 @@ class TreeBudget:
         return int(limit) + 1
 
 
-@dataclass(frozen=True)
-class CostField:
-    """The energy-cost field {(z^m, c^m)} of one tree.
-
-    Attributes:
-        costs: cost-to-come of every node, root first, shape (M,), J.
-        object_pos: object centres of every node, shape (M, n_objects, 3), m.
-        object_vel: object linear then angular velocities of every node, shape (M, n_objects, 6),
-            m/s and rad/s, world frame.
-        parents: parent index of every node (-1 for the root), shape (M,); a parent always
-            precedes its children.
-        times: simulated time of every node, shape (M,), s.
-        iterations: expansions (propagations) performed, accepted and rejected.
-        physics_s: wall time spent inside the simulator, s.
-        total_s: wall time of the whole growth, s.
-        object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``
-            (``None`` when not kept); regions that test geometry (``contact``) use them.
-        robot_q: the robot's coordinates at every node (as ``FrameState.robot_q``), shape
-            (M, n_robot); ``None`` when not kept (batched expansion of a model whose propagator
-            does not return them). Regions that follow the robot use them.
-        rejected: reached states rejected for leaving the task's state box (an object outside
-            its bounds or faster than its speed bound).
-        diverged: reached states rejected for holding a non-finite number (the simulation blew up).
-
-    """
-
-    costs: np.ndarray
-    object_pos: np.ndarray
-    object_vel: np.ndarray
-    parents: np.ndarray
-    times: np.ndarray
-    iterations: int
-    physics_s: float
-    total_s: float
-    object_quat: np.ndarray | None = None
-    robot_q: np.ndarray | None = None
-    rejected: int = 0
-    diverged: int = 0
-
-    @property
-    def nodes(self) -> int:
-        """Number of nodes including the root."""
-        return int(self.costs.shape[0])
-
-
 class Expansion(Protocol):
     """How a tree method chooses the node each iteration extends.
 
@@ -159,178 +117,6 @@ class Expansion(Protocol):
     def rejected(self, iteration: int, parent: int) -> None:
         """Iteration ``iteration``'s child of ``parent`` was rejected."""
         ...
-
-
-@dataclass
-class Outcome:
-    """What one propagation reached."""
-
-    pos: np.ndarray
-    vel: np.ndarray
-    quat: np.ndarray
-    energy: float
-    friction_work: float
-    state: np.ndarray
-    robot: np.ndarray | None = None  # the robot's coordinates (``FrameState.robot_q``), when known
-
-
-class _Tree:
-    """Growing node arrays; ``offer`` tests a reached state and stores it.
-
-    Costs are computed lazily: a node keeps its wrenches and its propagation's energies, and the
-    nodes added since the last look are costed together by the cost model's vectorised
-    ``increments`` when the field is read (a convergence check or the end), which saves a
-    cost-model call per expansion; the values are those of one call per node.
-    """
-
-    def __init__(
-        self, capacity: int, state_size: int, n_objects: int, n_robot: int, task: Task, cost_model: CostModel
-    ) -> None:
-        self.states = np.empty((capacity, state_size))
-        self.robots = np.full((capacity, n_robot), np.nan)
-        self.robots_known = True
-        self.costs = np.empty(capacity)
-        self.parents = np.empty(capacity, dtype=np.int64)
-        self.times = np.empty(capacity)
-        self.positions = np.empty((capacity, n_objects, 3))
-        self.velocities = np.empty((capacity, n_objects, 6))
-        self.quaternions = np.empty((capacity, n_objects, 4))
-        self.energies = np.zeros(capacity)
-        self.wrenches = np.zeros((capacity, n_objects, 6))
-        self.friction_works = np.zeros(capacity)
-        self.capacity = capacity
-        self.count = 0
-        self.costed = 0
-        self.rejected = 0
-        self.diverged = 0
-        self.task = task
-        self.cost_model = cost_model
-
-    def set_root(self, outcome: Outcome) -> None:
-        self.states[0] = outcome.state
-        self.costs[0], self.parents[0], self.times[0] = 0.0, -1, 0.0
-        self.positions[0] = outcome.pos
-        self.velocities[0] = outcome.vel
-        self.quaternions[0] = outcome.quat
-        self.energies[0] = outcome.energy
-        self._keep_robot(0, outcome)
-        self.count = self.costed = 1
-
-    def offer(self, parent: int, wrenches: np.ndarray, duration: float, outcome: Outcome) -> int | None:
-        """Add the reached state as a child of ``parent``; its index, or ``None`` when rejected."""
-        if self.count >= self.capacity:
-            return None
-        pos, vel = outcome.pos, outcome.vel
-        if not np.isfinite(pos.sum() + vel.sum()):
-            self.diverged += 1
-            return None
-        if not self.task.within_bounds(pos, vel):
-            self.rejected += 1
-            return None
-        node = self.count
-        self.states[node] = outcome.state
-        self.parents[node] = parent
-        self.times[node] = self.times[parent] + duration
-        self.positions[node] = pos
-        self.velocities[node] = vel
-        self.quaternions[node] = outcome.quat
-        self.energies[node] = outcome.energy
-        self.wrenches[node] = wrenches
-        self.friction_works[node] = outcome.friction_work
-        self._keep_robot(node, outcome)
-        self.count += 1
-        return node
-
-    def _keep_robot(self, node: int, outcome: Outcome) -> None:
-        robot = outcome.robot
-        if robot is None or robot.shape != self.robots.shape[1:]:
-            self.robots_known = False
-        else:
-            self.robots[node] = robot
-
-    def _robot_q(self, count: int, *, copy: bool) -> np.ndarray | None:
-        if not self.robots_known:
-            return None
-        return self.robots[:count].copy() if copy else self.robots[:count]
-
-    def _cost_new_nodes(self) -> None:
-        """Cost-to-come of the nodes added since the last call (a child's is its parent's plus Q)."""
-        first, count = self.costed, self.count
-        if first >= count:
-            return
-        parents = self.parents[first:count]
-        stacked = Propagation(
-            wrenches=self.wrenches[first:count],
-            pos_before=self.positions[parents],
-            pos_after=self.positions[first:count],
-            quat_before=self.quaternions[parents],
-            quat_after=self.quaternions[first:count],
-            energy_before=self.energies[parents],
-            energy_after=self.energies[first:count],
-            friction_work=self.friction_works[first:count],
-        )
-        batched = getattr(self.cost_model, "increments", None)
-        if batched is not None:
-            increments = np.asarray(batched(stacked), dtype=float)
-        else:
-            # A cost model of one's own that only costs one propagation at a time.
-            increments = np.array([self.cost_model(_one(stacked, j)) for j in range(count - first)], dtype=float)
-        costs = self.costs
-        # In index order: a parent precedes its children, and may itself be new.
-        for node, parent, increment in zip(range(first, count), parents.tolist(), increments.tolist(), strict=True):
-            costs[node] = costs[parent] + increment
-        self.costed = count
-
-    def view(self, iterations: int) -> CostField:
-        """The nodes so far, without copies or timings (valid until the next ``offer``)."""
-        self._cost_new_nodes()
-        count = self.count
-        return CostField(
-            costs=self.costs[:count],
-            object_pos=self.positions[:count],
-            object_vel=self.velocities[:count],
-            object_quat=self.quaternions[:count],
-            parents=self.parents[:count],
-            times=self.times[:count],
-            iterations=iterations,
-            physics_s=0.0,
-            total_s=0.0,
-            robot_q=self._robot_q(count, copy=False),
-            rejected=self.rejected,
-            diverged=self.diverged,
-        )
-
-    def field(self, iterations: int, physics_s: float, started: float) -> CostField:
-        self._cost_new_nodes()
-        count = self.count
-        return CostField(
-            costs=self.costs[:count].copy(),
-            object_pos=self.positions[:count].copy(),
-            object_vel=self.velocities[:count].copy(),
-            object_quat=self.quaternions[:count].copy(),
-            parents=self.parents[:count].copy(),
-            times=self.times[:count].copy(),
-            iterations=iterations,
-            physics_s=physics_s,
-            total_s=time.perf_counter() - started,
-            robot_q=self._robot_q(count, copy=True),
-            rejected=self.rejected,
-            diverged=self.diverged,
-        )
-
-
-def _one(stacked: Propagation, index: int) -> Propagation:
-    """Propagation ``index`` of stacked ones."""
-    return Propagation(
-        wrenches=stacked.wrenches[index],
-        pos_before=stacked.pos_before[index],
-        pos_after=stacked.pos_after[index],
-        quat_before=stacked.quat_before[index],
-        quat_after=stacked.quat_after[index],
-        energy_before=float(np.asarray(stacked.energy_before)[index]),
-        energy_after=float(np.asarray(stacked.energy_after)[index]),
-        friction_work=float(np.asarray(stacked.friction_work)[index]),
-    )
 
 
 class _Controls:
@@ -372,18 +158,6 @@ class _Controls:
                 1, (self.max_duration * rng.random(size) ** self.exponent / self.dt).astype(np.int64)
             )
         return slot
-
-
-def _read(simulator: Simulator, *, needs_energy: bool) -> Outcome:
-    return Outcome(
-        pos=simulator.object_positions().copy(),
-        vel=simulator.object_velocities(),
-        quat=simulator.object_quaternions().copy(),
-        energy=simulator.mechanical_energy() if needs_energy else 0.0,
-        friction_work=0.0,
-        state=simulator.get_state(),
-        robot=simulator.robot_positions(),
-    )
 
 
 def grow(
@@ -443,23 +217,80 @@ def grow(
     check_positive_int("threads", threads)
     check_positive_int("check_every", check_every)
     features = features if features is not None else ObjectPositions()
-    limits = task.wrench_limits(simulator.scene)
-    # The scales multiply the task's bounds (1: exactly the task's, bit for bit).
-    max_wrench = limits.max_wrench * wrench_scale if wrench_scale != 1.0 else limits.max_wrench
-    max_duration = limits.max_duration * duration_scale
-    dt = simulator.timestep
-    needs_friction = cost_model.needs_friction_work
-    control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
-
+    bounds = _Bounds.of(simulator, task, cost_model, wrench_scale, duration_scale)
     simulator.reset(root)
-    propagator: Propagator | None = None
-    if batch > 1:
-        if needs_friction:
-            raise InvalidParameterError(
-                "cost", f"must be 'wrench': batched expansion does not integrate friction work, got {cost_model.name!r}"
-            )
-        propagator = require(simulator, BatchedRollout, purpose="batched expansion").rollout_propagator(threads)
-    first = _read(simulator, needs_energy=needs_friction)
+    propagator = _batch_propagator(simulator, cost_model, batch, threads)
+    tree = _plant(simulator, task, root, budget, cost_model, propagator)
+    root_pos = tree.positions[0].copy()
+    expansion = make_expansion(rng, root_pos, features)
+    expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
+    limit = budget.iteration_limit
+    controls = _Controls(rng, expansion.uniforms, bounds.max_wrench, bounds.max_duration, bounds.dt, limit)
+    growth = _Growth(simulator, task, drive, tree, expansion, controls, features, root_pos, propagator, bounds)
+    iterations, physics_s = growth.run(limit, batch, start_time, stop, check_every)
+    return tree.field(iterations, physics_s, started)
+
+
+@dataclass(frozen=True)
+class _Bounds:
+    """The controls' bounds and the clock of one growth.
+
+    Attributes:
+        max_wrench: largest perturbation wrench per object, shape (n_objects, 6), N and N m.
+        max_duration: longest propagation, s.
+        dt: simulator time step, s.
+        needs_friction: whether the cost model needs the friction work.
+        control_steps: steps between two end-effector commands, or ``None`` (one per propagation).
+
+    """
+
+    max_wrench: np.ndarray
+    max_duration: float
+    dt: float
+    needs_friction: bool
+    control_steps: int | None
+
+    @classmethod
+    def of(
+        cls, simulator: Simulator, task: Task, cost_model: CostModel, wrench_scale: float, duration_scale: float
+    ) -> _Bounds:
+        """The task's bounds times the scales (1: exactly the task's, bit for bit)."""
+        limits = task.wrench_limits(simulator.scene)
+        max_wrench = limits.max_wrench * wrench_scale if wrench_scale != 1.0 else limits.max_wrench
+        max_duration = limits.max_duration * duration_scale
+        dt = simulator.timestep
+        needs_friction = cost_model.needs_friction_work
+        control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
+        return cls(max_wrench, max_duration, dt, needs_friction, control_steps)
+
+
+def _batch_propagator(simulator: Simulator, cost_model: CostModel, batch: int, threads: int) -> Propagator | None:
+    """The batched propagator when ``batch`` > 1, else ``None``.
+
+    Raises:
+        InvalidParameterError: a cost model that needs the friction work, or a simulator without
+            batched propagation.
+
+    """
+    if batch <= 1:
+        return None
+    if cost_model.needs_friction_work:
+        raise InvalidParameterError(
+            "cost", f"must be 'wrench': batched expansion does not integrate friction work, got {cost_model.name!r}"
+        )
+    return require(simulator, BatchedRollout, purpose="batched expansion").rollout_propagator(threads)
+
+
+def _plant(
+    simulator: Simulator,
+    task: Task,
+    root: FrameState,
+    budget: TreeBudget,
+    cost_model: CostModel,
+    propagator: Propagator | None,
+) -> _Tree:
+    """An empty tree of the budget's capacity holding the root, the simulator's current state."""
+    first = _read(simulator, needs_energy=cost_model.needs_friction_work)
     assert first.robot is not None
     tree = _Tree(
         budget.node_capacity,
@@ -472,44 +303,78 @@ def grow(
     if propagator is not None:
         first.state = propagator.current_state()
     tree.set_root(first)
-    root_pos = tree.positions[0].copy()
-    expansion = make_expansion(rng, root_pos, features)
-    expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
-    limit = budget.iteration_limit
-    controls = _Controls(rng, expansion.uniforms, max_wrench, max_duration, dt, limit)
+    return tree
 
-    iterations = 0
-    physics_s = 0.0
-    next_check = check_every
-    while iterations < limit and tree.count < tree.capacity:
-        round_ = _next_round(expansion, controls, tree, iterations, min(batch, limit - iterations), max_wrench)
-        tick = time.perf_counter()
-        if propagator is None:
+
+@dataclass
+class _Growth:
+    """The expansion loop: rounds of parents, propagations, and offers to the tree."""
+
+    simulator: Simulator
+    task: Task
+    drive: np.ndarray
+    tree: _Tree
+    expansion: Expansion
+    controls: _Controls
+    features: Features
+    root_pos: np.ndarray
+    propagator: Propagator | None
+    bounds: _Bounds
+
+    def run(
+        self, limit: int, batch: int, start_time: float, stop: Callable[[CostField], bool] | None, check_every: int
+    ) -> tuple[int, float]:
+        """Expand until the budget, the capacity or ``stop`` ends growth: (iterations, physics wall time in s)."""
+        tree = self.tree
+        iterations = 0
+        physics_s = 0.0
+        next_check = check_every
+        while iterations < limit and tree.count < tree.capacity:
+            round_ = _next_round(
+                self.expansion, self.controls, tree, iterations, min(batch, limit - iterations), self.bounds.max_wrench
+            )
+            tick = time.perf_counter()
+            outcomes = self._propagate(round_, start_time)
+            physics_s += time.perf_counter() - tick
+            self._offer(round_, outcomes)
+            iterations += len(round_)
+            if stop is not None and iterations >= next_check:
+                next_check += check_every
+                if stop(tree.view(iterations)):
+                    break
+        return iterations, physics_s
+
+    def _propagate(self, round_: list[_Expansion], start_time: float) -> list[Outcome]:
+        """The outcomes of a round, one at a time or batched."""
+        bounds = self.bounds
+        if self.propagator is None:
             _, parent, wrenches, n_steps = round_[0]
-            outcomes = [
+            return [
                 _propagate_one(
-                    simulator, task, drive, tree, parent, wrenches, n_steps, start_time, control_steps, needs_friction
+                    self.simulator,
+                    self.task,
+                    self.drive,
+                    self.tree,
+                    parent,
+                    wrenches,
+                    n_steps,
+                    start_time,
+                    bounds.control_steps,
+                    bounds.needs_friction,
                 )
             ]
-        else:
-            outcomes = _propagate_round(propagator, task, drive, tree, round_, start_time, control_steps)
-        physics_s += time.perf_counter() - tick
+        return _propagate_round(
+            self.propagator, self.task, self.drive, self.tree, round_, start_time, bounds.control_steps
+        )
+
+    def _offer(self, round_: list[_Expansion], outcomes: list[Outcome]) -> None:
+        """Offer a round's outcomes to the tree in iteration order and tell the method."""
         for (iteration, parent, wrenches, n_steps), outcome in zip(round_, outcomes, strict=True):
-            node = tree.offer(parent, wrenches, n_steps * dt, outcome)
+            node = self.tree.offer(parent, wrenches, n_steps * self.bounds.dt, outcome)
             if node is None:
-                expansion.rejected(iteration, parent)
+                self.expansion.rejected(iteration, parent)
             else:
-                expansion.added(iteration, node, parent, features(outcome.pos, root_pos))
-        iterations += len(round_)
-        if stop is not None and iterations >= next_check:
-            next_check += check_every
-            if stop(tree.view(iterations)):
-                break
-    return tree.field(iterations, physics_s, started)
-
-
-#: One expansion of a round: (iteration, parent node, wrench (6,), propagation steps).
-_Expansion = tuple[int, int, np.ndarray, int]
+                self.expansion.added(iteration, node, parent, self.features(outcome.pos, self.root_pos))
 
 
 def _next_round(
@@ -531,54 +396,3 @@ def _next_round(
     if not round_:
         raise AssertionError("an expansion method returned no parent for the first iteration of a round")
     return round_
-
-
-def _propagate_round(
-    propagator: Propagator,
-    task: Task,
-    drive: np.ndarray,
-    tree: _Tree,
-    round_: list[_Expansion],
-    start_time: float,
-    control_steps: int | None,
-) -> list[Outcome]:
-    """The outcomes of a round's expansions, propagated together (``mujoco.rollout``)."""
-    pos, vel, quat, states = propagator.propagate(
-        task,
-        drive,
-        tree.states[[parent for _, parent, _, _ in round_]],
-        np.array([start_time + tree.times[parent] for _, parent, _, _ in round_]),
-        np.stack([wrenches for _, _, wrenches, _ in round_]),
-        np.array([n_steps for _, _, _, n_steps in round_]),
-        control_steps,
-    )
-    robots = propagator.object_states(states)[3]  # joint coordinates (a model's mocap poses are not among them)
-    return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
-
-
-def _propagate_one(
-    simulator: Simulator,
-    task: Task,
-    drive: np.ndarray,
-    tree: _Tree,
-    parent: int,
-    wrenches: np.ndarray,
-    n_steps: int,
-    start_time: float,
-    control_steps: int | None,
-    needs_friction: bool,
-) -> Outcome:
-    """Restore ``parent``, hold the wrenches and the scripted command, step ``n_steps`` times."""
-    dt = simulator.timestep
-    simulator.set_state(tree.states[parent])
-    simulator.set_object_wrenches(wrenches)
-    friction_work = 0.0
-    done = 0
-    while done < n_steps:
-        chunk = n_steps - done if control_steps is None else min(control_steps, n_steps - done)
-        command_robot(task, simulator, drive, start_time + tree.times[parent] + done * dt, None)
-        friction_work += simulator.step(chunk, track_friction_work=needs_friction)
-        done += chunk
-    outcome = _read(simulator, needs_energy=needs_friction)
-    outcome.friction_work = friction_work
-    return outcome

@@ -186,7 +186,7 @@ def region_meshes(shapes: tuple[RegionShape, ...], bounds: np.ndarray) -> list[t
 
 def view_figure(tree: AnalysedTree) -> Any:
     """The plotly figure of an analysed frame's tree (see the module docstring)."""
-    from energy_margin.report.render import CAPTURE_RGBA, SUCCESS_RGBA, near_objects, region_shapes
+    from energy_margin.report.render import near_objects
     from energy_margin.sim.mujoco_backend import MujocoSimulator
 
     go = _plotly()
@@ -206,6 +206,19 @@ def view_figure(tree: AnalysedTree) -> Any:
     margin = 0.25 * float(np.max(high - low)) + max(max(obj.geom.size) for obj in scene.objects)
     bounds = np.array([low - margin, high + margin])
 
+    traces = _scene_traces(go, simulator, tree, bounds)
+    traces.append(_node_trace(go, tree))
+    traces.append(_edge_trace(go, tree))
+    figure = go.Figure(data=traces)
+    _lay_out(figure, tree, planar=scene.object_motion == "upright", edge_trace=len(traces) - 1)
+    return figure
+
+
+def _scene_traces(go: Any, simulator: Any, tree: AnalysedTree, bounds: np.ndarray) -> list[Any]:
+    """Meshes of the objects, end-effector and statics, then the capture and success regions, within ``bounds`` (m)."""
+    from energy_margin.report.render import CAPTURE_RGBA, SUCCESS_RGBA, region_shapes
+
+    task, frame = tree.dataset.task, tree.frame
     traces = []
     names = {"object": "objects (frame)", "robot": "end-effector", "static": "statics"}
     for role, meshes in scene_meshes(simulator, bounds).items():
@@ -220,7 +233,12 @@ def view_figure(tree: AnalysedTree) -> Any:
         if meshes:
             colour = "rgb({:.0f},{:.0f},{:.0f})".format(*(255 * c for c in rgba[:3]))
             traces.append(_mesh_trace(go, meshes, name=label, colour=colour, opacity=0.25))
+    return traces
 
+
+def _node_trace(go: Any, tree: AnalysedTree) -> Any:
+    """Every node's object positions (m), coloured by log10 likelihood, with node, parent and cost (J)."""
+    field = tree.field
     n_nodes, n_objects = field.object_pos.shape[:2]
     nodes = np.repeat(np.arange(n_nodes), n_objects)
     objects = np.tile(np.arange(n_objects), n_nodes)
@@ -228,28 +246,31 @@ def view_figure(tree: AnalysedTree) -> Any:
     log_likelihood = np.log10(np.maximum(np.repeat(tree.likelihoods, n_objects), 1e-300))
     parents = np.repeat(field.parents, n_objects)
     costs = np.repeat(field.costs, n_objects)
-    traces.append(
-        go.Scatter3d(
-            x=positions[:, 0],
-            y=positions[:, 1],
-            z=positions[:, 2],
-            mode="markers",
-            name=f"tree nodes ({n_nodes} × {n_objects} object positions)",
-            marker={
-                "size": 3,
-                "color": log_likelihood,
-                "colorscale": "Viridis",
-                "cmin": float(log_likelihood.max()) - 6.0,
-                "cmax": float(log_likelihood.max()),
-                "colorbar": {"title": {"text": "log10 likelihood"}, "x": 1.0},
-            },
-            customdata=np.column_stack([nodes, objects, parents, costs, log_likelihood]),
-            hovertemplate=(
-                "node %{customdata[0]}, object %{customdata[1]}<br>parent %{customdata[2]}<br>"
-                "cost %{customdata[3]:.3g} J<br>log10 L %{customdata[4]:.2f}<extra></extra>"
-            ),
-        )
+    return go.Scatter3d(
+        x=positions[:, 0],
+        y=positions[:, 1],
+        z=positions[:, 2],
+        mode="markers",
+        name=f"tree nodes ({n_nodes} × {n_objects} object positions)",
+        marker={
+            "size": 3,
+            "color": log_likelihood,
+            "colorscale": "Viridis",
+            "cmin": float(log_likelihood.max()) - 6.0,
+            "cmax": float(log_likelihood.max()),
+            "colorbar": {"title": {"text": "log10 likelihood"}, "x": 1.0},
+        },
+        customdata=np.column_stack([nodes, objects, parents, costs, log_likelihood]),
+        hovertemplate=(
+            "node %{customdata[0]}, object %{customdata[1]}<br>parent %{customdata[2]}<br>"
+            "cost %{customdata[3]:.3g} J<br>log10 L %{customdata[4]:.2f}<extra></extra>"
+        ),
     )
+
+
+def _edge_trace(go: Any, tree: AnalysedTree) -> Any:
+    """The segments from every node's object positions to its parent's (hidden until shown)."""
+    field = tree.field
     children = np.flatnonzero(field.parents >= 0)
     start = field.object_pos[field.parents[children]].reshape(-1, 3)
     end = field.object_pos[children].reshape(-1, 3)
@@ -257,30 +278,31 @@ def view_figure(tree: AnalysedTree) -> Any:
     pairs = np.full((len(start), 3, 3), np.nan)
     pairs[:, 0], pairs[:, 1] = start, end
     segments = pairs.reshape(-1, 3)
-    traces.append(
-        go.Scatter3d(
-            x=segments[:, 0],
-            y=segments[:, 1],
-            z=segments[:, 2],
-            mode="lines",
-            name="edges to parents",
-            line={"color": "rgba(60,60,60,0.5)", "width": 2},
-            hoverinfo="skip",
-            visible="legendonly",
-            connectgaps=False,
-        )
+    return go.Scatter3d(
+        x=segments[:, 0],
+        y=segments[:, 1],
+        z=segments[:, 2],
+        mode="lines",
+        name="edges to parents",
+        line={"color": "rgba(60,60,60,0.5)", "width": 2},
+        hoverinfo="skip",
+        visible="legendonly",
+        connectgaps=False,
     )
-    edge_trace = len(traces) - 1
-    time = float(arrays["frame_time"][tree.trajectory, tree.frame_index])
+
+
+def _lay_out(figure: Any, tree: AnalysedTree, *, planar: bool, edge_trace: int) -> None:
+    """The title (frame, scores, nodes), the camera, the legend and the buttons of trace ``edge_trace``."""
+    dataset = tree.dataset
+    n_nodes = tree.field.object_pos.shape[0]
+    time = float(dataset.arrays["frame_time"][tree.trajectory, tree.frame_index])
     title = (
         f"{html.escape(dataset.metadata['task'])}: trajectory {tree.trajectory}, frame {tree.frame_index} "
         f"(t = {time:.2f} s): capture {tree.stored['capture_score']:.3f}, success "
         f"{tree.stored['success_score']:.3f}; {n_nodes} nodes, λ = {tree.likelihood_lambda:g} 1/J"
     )
     # From the front (−y) and above: the pusher's wall or the gripper's far side is at the back.
-    planar = scene.object_motion == "upright"
     eye = {"x": 0.0, "y": -1.5, "z": 1.3} if planar else {"x": 1.0, "y": -1.5, "z": 0.6}
-    figure = go.Figure(data=traces)
     figure.update_layout(
         title={"text": title, "font": {"size": 14}},
         scene={
@@ -307,7 +329,6 @@ def view_figure(tree: AnalysedTree) -> Any:
             }
         ],
     )
-    return figure
 
 
 def write_view(tree: AnalysedTree, path: Path | str) -> Path:

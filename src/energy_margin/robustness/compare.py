@@ -141,14 +141,7 @@ def compare_perturbed(
     """
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
     result = evaluate(path, **options, resamples=resamples, seed=seed).to_dict()
-    others = expand_compare_paths(list(compare))
-    if not others:
-        raise InvalidParameterError("compare", "needs at least one perturbed dataset")
-    for candidate in others:
-        if candidate.resolve() == Path(path).resolve():
-            raise InvalidParameterError(
-                "compare", f"{candidate} compares the dataset with itself: name its perturbed copies"
-            )
+    others = _copy_paths(path, compare)
     true = load_dataset(path)
     true_scores = load_scores(path)
     true_capture = score_grid(true, true_scores, "capture_score")
@@ -162,14 +155,7 @@ def compare_perturbed(
     for other_path in others:
         other = load_dataset(other_path)
         _check_correspondence(true, other, other_path)
-        protocols.setdefault(copy_protocol(other), Path(other_path))
-        if len(protocols) > 1:
-            (first, first_path), (second, second_path) = list(protocols.items())[:2]
-            raise InvalidParameterError(
-                "compare",
-                f"mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
-                f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time",
-            )
+        _add_protocol(protocols, copy_protocol(other), Path(other_path))
         other_result = evaluate(other_path, **options, resamples=0)  # a copy's AP, no verdict
         scores = load_scores(other_path)
         capture_errors.append(score_grid(other, scores, "capture_score") - true_capture)
@@ -177,22 +163,12 @@ def compare_perturbed(
         capture_aps.append(other_result.capture_ap)
         success_aps.append(other_result.success_ap)
         runtimes.append(other_result.runtime_per_frame_s)
-    capture_error = np.stack(capture_errors)
-    success_error = np.stack(success_errors)
     result.update(
         {
             "capture_ap_perturbed": _mean_std(capture_aps),
             "success_ap_perturbed": _mean_std(success_aps),
-            "capture_score_error": {
-                "mean": float(capture_error.mean()),
-                "std": float(capture_error.std()),
-                "values": [float(e.mean()) for e in capture_error],
-            },
-            "success_score_error": {
-                "mean": float(success_error.mean()),
-                "std": float(success_error.std()),
-                "values": [float(e.mean()) for e in success_error],
-            },
+            "capture_score_error": _error_summary(np.stack(capture_errors)),
+            "success_score_error": _error_summary(np.stack(success_errors)),
             "n_repeats": len(others),
             "protocol": next(iter(protocols)),
             "compare": [str(p) for p in others],
@@ -200,6 +176,40 @@ def compare_perturbed(
         }
     )
     return PerturbedComparison.from_dict(result)
+
+
+def _copy_paths(path: Path | str, compare: list[Path | str]) -> list[Path]:
+    """The perturbed copies' directories (``compare`` expanded); refuses none, and the dataset itself."""
+    others = expand_compare_paths(list(compare))
+    if not others:
+        raise InvalidParameterError("compare", "needs at least one perturbed dataset")
+    for candidate in others:
+        if candidate.resolve() == Path(path).resolve():
+            raise InvalidParameterError(
+                "compare", f"{candidate} compares the dataset with itself: name its perturbed copies"
+            )
+    return others
+
+
+def _add_protocol(protocols: dict[str | None, Path], protocol: str | None, path: Path) -> None:
+    """Record the copy's perturbation protocol (the first copy of each); refuses a second protocol."""
+    protocols.setdefault(protocol, path)
+    if len(protocols) > 1:
+        (first, first_path), (second, second_path) = list(protocols.items())[:2]
+        raise InvalidParameterError(
+            "compare",
+            f"mixes perturbation protocols: {first_path} is {first or 'not a perturbed copy'}, "
+            f"{second_path} is {second or 'not a perturbed copy'}; compare one protocol at a time",
+        )
+
+
+def _error_summary(error: np.ndarray) -> dict[str, Any]:
+    """Mean and standard deviation of score errors of shape (copies, ...), and each copy's mean."""
+    return {
+        "mean": float(error.mean()),
+        "std": float(error.std()),
+        "values": [float(e.mean()) for e in error],
+    }
 
 
 def _pm(entry: dict[str, Any], signed: bool = False) -> str:

@@ -112,23 +112,9 @@ def perturb_dataset(
         The paths of the copies. A copy already written with the same settings is kept as is.
 
     """
-    check_int("repeats", repeats, minimum=1)
-    check_seed(seed)
-    check_int("workers", workers, minimum=1)
-    check_choice("protocol", protocol, PROTOCOLS)
-    if tolerance is not None and protocol != "valid":
-        raise EnergyMarginError(
-            f"tolerance applies to the valid protocol only (protocol {protocol!r} checks no overlaps)"
-        )
-    tolerance = check_float("tolerance", 5e-4 if tolerance is None else tolerance, minimum=0.0)
-    if min_thickness is not None:
-        check_float("min_thickness", min_thickness, minimum=0.0, exclusive_minimum=True)
+    tolerance = _checked_options(repeats, seed, workers, protocol, tolerance, min_thickness)
     source = load_dataset(path)
-    out = Path(out)
-    if out.resolve() == Path(path).resolve() or Path(path).resolve() in out.resolve().parents:
-        raise InvalidParameterError("out", f"{out} must not be the dataset {path} or lie inside it")
-    if out.exists() and not out.is_dir():
-        raise EnergyMarginError(f"{out} exists and is not a directory")
+    out = _checked_out(path, out)
     thickness = float(min_thickness) if min_thickness is not None else object_size(source)
     planar = is_planar(source)
     settings = _copy_settings(protocol, planar=planar, thickness=thickness, keep_orientation=keep_orientation)
@@ -138,11 +124,7 @@ def perturb_dataset(
     targets = [out / str(r + 1) for r in range(repeats)]
     spec = dataclasses.replace(PERTURB_RUN, outputs=tuple(target.name for target in targets))
     with run_directory(out, spec, run_settings, overwrite=overwrite):
-        pending = []
-        for target in targets:
-            if not _existing(target, source, seed, settings):
-                _check_target(target, overwrite=overwrite)
-                pending.append(target)
+        pending = _pending(targets, source, seed, settings, overwrite=overwrite)
         if pending:
             options = {
                 "planar": planar,
@@ -158,6 +140,46 @@ def perturb_dataset(
                 source, options, targets, pending, seed=seed, workers=workers, progress=progress, write=copy
             )
     return targets
+
+
+def _checked_options(
+    repeats: int, seed: int, workers: int, protocol: str, tolerance: float | None, min_thickness: float | None
+) -> float:
+    """The penetration tolerance (m, 5e-4 by default) once every option is checked."""
+    check_int("repeats", repeats, minimum=1)
+    check_seed(seed)
+    check_int("workers", workers, minimum=1)
+    check_choice("protocol", protocol, PROTOCOLS)
+    if tolerance is not None and protocol != "valid":
+        raise EnergyMarginError(
+            f"tolerance applies to the valid protocol only (protocol {protocol!r} checks no overlaps)"
+        )
+    tolerance = check_float("tolerance", 5e-4 if tolerance is None else tolerance, minimum=0.0)
+    if min_thickness is not None:
+        check_float("min_thickness", min_thickness, minimum=0.0, exclusive_minimum=True)
+    return tolerance
+
+
+def _checked_out(path: Path | str, out: Path | str) -> Path:
+    """The copies' parent directory: neither the dataset nor inside it, and not a file."""
+    out = Path(out)
+    if out.resolve() == Path(path).resolve() or Path(path).resolve() in out.resolve().parents:
+        raise InvalidParameterError("out", f"{out} must not be the dataset {path} or lie inside it")
+    if out.exists() and not out.is_dir():
+        raise EnergyMarginError(f"{out} exists and is not a directory")
+    return out
+
+
+def _pending(
+    targets: list[Path], source: Dataset, seed: int, settings: dict[str, Any], *, overwrite: bool
+) -> list[Path]:
+    """The copies still to write (a copy with the same settings is kept); refuses others unless ``overwrite``."""
+    pending = []
+    for target in targets:
+        if not _existing(target, source, seed, settings):
+            _check_target(target, overwrite=overwrite)
+            pending.append(target)
+    return pending
 
 
 #: A directory of perturbed copies: ``perturb.json`` (the settings) and the copies ``1`` ... ``R``.

@@ -127,12 +127,74 @@ def perturb_frame(
     # BLAS, another Khachiyan step order) leaves every candidate, hence every decision, unchanged.
     snapped = ellipsoid.snapped()
     if protocol == "paper":
-        # The authors' draw: every centre at once (angles, then radii), nothing checked.
-        points = snapped.sample(rng, n)
-        perturbed = _with_objects(frame, np.column_stack([points, heights]) if planar else points, quat)
-        simulator.reset(perturbed)
-        depth = _max_penetration(simulator, list(range(n)))
-        return FramePerturbation(perturbed, ellipsoid, n, 0, 1.0, depth)
+        return _paper_draw(frame, simulator, rng, ellipsoid, snapped, heights, quat, planar=planar)
+    return _rejection_draw(
+        frame,
+        simulator,
+        rng,
+        ellipsoid,
+        snapped,
+        parked,
+        heights,
+        quat,
+        planar=planar,
+        tolerance=tolerance,
+        limits=(max_attempts, max_restarts, max_growth_restarts),
+    )
+
+
+def _paper_draw(
+    frame: FrameState,
+    simulator: Any,
+    rng: np.random.Generator,
+    ellipsoid: Ellipsoid,
+    snapped: Ellipsoid,
+    heights: np.ndarray,
+    quat: np.ndarray,
+    *,
+    planar: bool,
+) -> FramePerturbation:
+    """The authors' draw: every centre at once (angles, then radii), nothing checked."""
+    n = frame.n_objects
+    points = snapped.sample(rng, n)
+    perturbed = _with_objects(frame, np.column_stack([points, heights]) if planar else points, quat)
+    simulator.reset(perturbed)
+    depth = _max_penetration(simulator, list(range(n)))
+    return FramePerturbation(perturbed, ellipsoid, n, 0, 1.0, depth)
+
+
+def _rejection_draw(
+    frame: FrameState,
+    simulator: Any,
+    rng: np.random.Generator,
+    ellipsoid: Ellipsoid,
+    snapped: Ellipsoid,
+    parked: np.ndarray,
+    heights: np.ndarray,
+    quat: np.ndarray,
+    *,
+    planar: bool,
+    tolerance: float,
+    limits: tuple[int, int, int],
+) -> FramePerturbation:
+    """Place the objects one by one, rejecting overlaps; start over (then with larger radii) when stuck.
+
+    Args:
+        frame: the true state.
+        simulator: a simulator of the frame's scene.
+        rng: the frame's generator.
+        ellipsoid: the fitted ellipsoid (reported).
+        snapped: its snapped copy, which the candidates are drawn from.
+        parked: where the objects not yet placed wait, far from everything, shape (n, 3), m.
+        heights: the centres' heights when ``planar``, shape (n,), m.
+        quat: the objects' orientations, shape (n, 4), ``(w, x, y, z)``.
+        planar: draw (x, y) and keep ``heights``, else draw 3-D centres.
+        tolerance: largest accepted contact penetration of a placed object, m.
+        limits: ``(max_attempts, max_restarts, max_growth_restarts)`` of :func:`perturb_frame`.
+
+    """
+    max_attempts, max_restarts, max_growth_restarts = limits
+    n = frame.n_objects
     candidates = 0
     for restart in range(max_restarts + max_growth_restarts + 1):
         growth = 1.1 ** max(0, restart - max_restarts)
