@@ -19,10 +19,9 @@ MAX_FUNCTION_LINES = 80
 
 #: Modules still over :data:`MAX_LINES`, by path inside the package, with their line counts.
 ALLOWED = {
-    "tasks/base.py": 775,
-    "tasks/scene_task.py": 700,
-    "tasks/pushing.py": 697,
-    "tasks/scooping.py": 676,
+    "tasks/scene_task.py": 694,
+    "tasks/pushing.py": 691,
+    "tasks/scooping.py": 664,
     "planning/tree.py": 584,
     "tasks/regions.py": 563,
     "control/episodes.py": 496,

@@ -24,6 +24,7 @@ from energy_margin.tasks.base import (
     DesignParameter,
     ReferenceLayout,
     RegionShape,
+    RobotState,
     Task,
     TaskConfig,
     Trajectory,
@@ -598,17 +599,10 @@ class PushingTask(Task):
         initial = FrameState(object_pos, object_quat, object_vel, robot_q, robot_v)
         return Trajectory(initial=initial, friction=friction, drive=np.array([0.0, forward]))
 
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """World-frame force (x, y) at the pusher centre; no vertical force or torque."""
         force = np.zeros(4)
-        force[:2] = drive[:2]
+        force[:2] = state.drive[:2]
         if rng is not None:
             cfg = self.config
             force[0] += rng.uniform(-cfg.lateral_force, cfg.lateral_force)

@@ -21,7 +21,8 @@ import numpy as np
 from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
-from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
+from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, WrenchLimits, all_inside
+from energy_margin.tasks.motion import RobotState, Trajectory
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_model import LoadedScene, load_scene
 from energy_margin.tasks.scene_spec import BOUNDS_MARGIN
@@ -515,16 +516,9 @@ class SceneTask(Task):
             return np.concatenate([data.mocap_pos.ravel(), data.mocap_quat.ravel()])
         return np.concatenate([poses[0].ravel(), poses[1].ravel()])
 
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """No generalized forces: the model's actuators and mocap bodies move the robot."""
-        del drive, time, robot_q, robot_v, rng
+        del state, rng
         return np.zeros(self.robot_dofs())
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:

@@ -45,6 +45,7 @@ from energy_margin.tasks.base import (
     DesignParameter,
     ReferenceLayout,
     RegionShape,
+    RobotState,
     Task,
     TaskConfig,
     Trajectory,
@@ -593,28 +594,15 @@ class ScoopingTask(Task):
         finger = self.closed_travel * _smoothstep(time, cfg.approach_end, cfg.close_end)
         return np.array([base, finger, cfg.scoop_angle, finger, cfg.scoop_angle])
 
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """No generalized force: the servos move the gripper (its weight is compensated)."""
-        del drive, time, robot_q, robot_v, rng
+        del state, rng
         return np.zeros(5)
 
-    def robot_targets(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_targets(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """Servo targets, the same in roll-out and analysis: the script's, or the recorded motion's."""
-        del robot_q, robot_v, rng
+        del rng
+        drive, time = state.drive, state.time
         if not self.config.recorded_waypoints:
             return self._targets(time)
         # Checked once where the scene was built (build_scene), not at every servo update.
