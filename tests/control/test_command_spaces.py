@@ -13,7 +13,7 @@ from energy_margin.control.commands import (
     register_command_space,
 )
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks import get_task
+from energy_margin.tasks import RobotState, get_task
 
 
 def test_pushing_inputs_hold_each_command_for_its_period() -> None:
@@ -70,7 +70,7 @@ def test_scooping_descent_follows_the_script_before_approach_end() -> None:
     times = dt * np.arange(1, 201)
     for index in (0, 50, 148):
         assert times[index] < task.config.approach_end
-        scripted = task.robot_targets(trajectory.drive, times[index], held, held, None)
+        scripted = task.robot_targets(RobotState(trajectory.drive, times[index], held, held), None)
         assert inputs.targets[0, index, 0] == pytest.approx(scripted[0])
         assert inputs.targets[0, index, 2] == pytest.approx(task.config.scoop_angle)
     # After the descent the base lifts from the contact height.

@@ -20,7 +20,7 @@ from energy_margin.control.costs import (
     task_cost,
 )
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks import Task, get_task
+from energy_margin.tasks import RobotState, Task, get_task
 from energy_margin.world.state import FrameState
 
 
@@ -125,8 +125,8 @@ def test_learned_subtracts_the_model_scores_of_every_end_state() -> None:
 def test_holding_task_holds_the_command_and_leaves_the_task_alone() -> None:
     task = get_task("scooping")
     held = holding_task(task, np.zeros(5), np.full(5, 0.01))
-    np.testing.assert_array_equal(held.robot_targets(np.ones(1), 1.5, np.zeros(5), np.zeros(5), None), 0.01)
-    scripted = task.robot_targets(np.ones(1), 1.5, np.zeros(5), np.zeros(5), None)
+    np.testing.assert_array_equal(held.robot_targets(RobotState(np.ones(1), 1.5, np.zeros(5), np.zeros(5)), None), 0.01)
+    scripted = task.robot_targets(RobotState(np.ones(1), 1.5, np.zeros(5), np.zeros(5)), None)
     assert not np.allclose(scripted, 0.01)
 
 

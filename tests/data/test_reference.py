@@ -14,7 +14,7 @@ from energy_margin.data.reference import SCOOP_BLADE_HALF_WIDTH, import_referenc
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.versions import engine_versions
-from energy_margin.tasks import get_task
+from energy_margin.tasks import RobotState, get_task
 
 ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT.parent / "shared" / "reference" / "energy_margin_workshop"
@@ -197,7 +197,7 @@ def test_scooping_import_replays_the_recorded_gripper_motion(tmp_path: Path) -> 
     zeros = np.zeros(5)
     for frame in range(dataset.n_frames):
         time = float(arrays["frame_time"][0, frame])
-        targets = task.robot_targets(arrays["drive"][0], time, zeros, zeros, None)
+        targets = task.robot_targets(RobotState(arrays["drive"][0], time, zeros, zeros), None)
         np.testing.assert_allclose(targets, arrays["robot_q"][0, frame])
     assert load_dataset(tmp_path / "out").task.config == task.config
 

@@ -13,7 +13,7 @@ from energy_margin.planning import CostField, TreeBudget, grow_tree
 from energy_margin.planning.costs import MIN_COST, CostModel, EnergyBalanceCost, Propagation, WrenchWorkCost
 from energy_margin.sim import Simulator
 from energy_margin.sim.mujoco_backend import MujocoSimulator
-from energy_margin.tasks import PushingTask, Task, TaskConfig, Trajectory, WrenchLimits
+from energy_margin.tasks import PushingTask, RobotState, Task, TaskConfig, Trajectory, WrenchLimits
 from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, RigidObject, Scene
 from energy_margin.world.state import FrameState
@@ -142,14 +142,7 @@ class PlaneTask(Task):
     def sample_trajectory(self, rng: np.random.Generator, n_objects: int) -> Trajectory:
         return Trajectory(initial=_point_frame(n_objects), friction=0.0, drive=np.zeros(0))
 
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         return np.zeros(0)
 
     def capture_region(self, root: FrameState) -> HalfSpace:

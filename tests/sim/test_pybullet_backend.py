@@ -25,7 +25,7 @@ from energy_margin.planning.costs import make_cost_model
 from energy_margin.sim import ENGINES, make_simulator
 from energy_margin.sim.base import Simulator
 from energy_margin.sim.pybullet_backend import PybulletSimulator
-from energy_margin.tasks import PushingTask, ScoopingTask, command_robot
+from energy_margin.tasks import PushingTask, RobotState, ScoopingTask, command_robot
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
@@ -210,7 +210,7 @@ def test_pusher_drive_moves_it_forward() -> None:
         np.zeros(4),
     )
     simulator.reset(frame)
-    simulator.set_robot_force(task.robot_force(drive, 0.0, frame.robot_q, frame.robot_v, None))
+    simulator.set_robot_force(task.robot_force(RobotState(drive, 0.0, frame.robot_q, frame.robot_v), None))
     simulator.step(60)
     q = simulator.robot_positions()
     assert q[1] - frame.robot_q[1] > 0.01
@@ -226,7 +226,7 @@ def test_scooping_gripper_holds_its_pose() -> None:
         command_robot(task, simulator, trajectory.drive, step * simulator.timestep, None)
         simulator.step(1)
     q = simulator.robot_positions()
-    targets = task.robot_targets(trajectory.drive, 50 * simulator.timestep, q, q, None)
+    targets = task.robot_targets(RobotState(trajectory.drive, 50 * simulator.timestep, q, q), None)
     np.testing.assert_allclose(q, targets, atol=5e-3)
     assert np.all(np.isfinite(simulator.object_positions()))
 

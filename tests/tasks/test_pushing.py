@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from energy_margin.errors import InvalidDataError
-from energy_margin.tasks import all_inside
+from energy_margin.tasks import RobotState, all_inside
 from energy_margin.tasks.base import sample_separated as _sample_separated
 from energy_margin.tasks.pushing import PushingConfig, PushingTask, SweptRegion, WallBand
 from energy_margin.world.state import FrameState
@@ -255,10 +255,10 @@ def test_sample_trajectory_is_valid_and_seeded() -> None:
 def test_robot_force_nominal_and_jittered() -> None:
     task = PushingTask()
     drive = np.array([0.0, 10.0])
-    nominal = task.robot_force(drive, 0.5, np.zeros(4), np.zeros(4), None)
+    nominal = task.robot_force(RobotState(drive, 0.5, np.zeros(4), np.zeros(4)), None)
     np.testing.assert_array_equal(nominal, [0.0, 10.0, 0.0, 0.0])
     rng = np.random.default_rng(0)
-    forces = np.array([task.robot_force(drive, 0.0, np.zeros(4), np.zeros(4), rng) for _ in range(200)])
+    forces = np.array([task.robot_force(RobotState(drive, 0.0, np.zeros(4), np.zeros(4)), rng) for _ in range(200)])
     assert np.all(np.abs(forces[:, 0]) <= 0.4)
     assert np.all((forces[:, 1] >= 8.0) & (forces[:, 1] <= 12.0))
     assert forces[:, 1].std() > 0.5  # actually random

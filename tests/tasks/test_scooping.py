@@ -12,7 +12,7 @@ from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.sim import make_simulator
-from energy_margin.tasks import ScoopingTask, command_robot, get_task
+from energy_margin.tasks import RobotState, ScoopingTask, command_robot, get_task
 from energy_margin.world.state import FrameState
 
 # robot_q = (base z, right finger, right tip, left finger, left tip)
@@ -23,7 +23,8 @@ def _frame(task: ScoopingTask, xy: np.ndarray, robot_q: np.ndarray | None = None
     n = len(xy)
     pos = np.column_stack([xy, np.full(n, task.rest_height)])
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-    q = task.robot_targets(np.array([1000.0]), 0.0, np.zeros(5), np.zeros(5), None) if robot_q is None else robot_q
+    start = RobotState(np.array([1000.0]), 0.0, np.zeros(5), np.zeros(5))
+    q = task.robot_targets(start, None) if robot_q is None else robot_q
     return FrameState(pos, quat, np.zeros((n, 6)), q, np.zeros(5))
 
 
@@ -206,7 +207,7 @@ def test_recorded_motion_is_interpolated_held_and_continued() -> None:
     zeros = np.zeros(5)
 
     def targets(time: float) -> np.ndarray:
-        return task.robot_targets(drive, time, zeros, zeros, None)
+        return task.robot_targets(RobotState(drive, time, zeros, zeros), None)
 
     np.testing.assert_allclose(targets(0.0), positions[0])  # held before the first waypoint
     np.testing.assert_allclose(targets(0.75), positions[1])

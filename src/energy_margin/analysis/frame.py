@@ -29,7 +29,7 @@ from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
 from energy_margin.sim import ENGINES, Simulator
-from energy_margin.tasks import Task, all_inside, with_contacts
+from energy_margin.tasks import Task, TaskRegions, all_inside, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.world.state import FrameState
 
@@ -170,14 +170,14 @@ def frame_seeds(seed: int, count: int) -> list[int]:
     return [int(child.generate_state(1, np.uint64)[0]) for child in children]
 
 
-def field_membership(task: Task, root: FrameState, field: CostField) -> tuple[np.ndarray, np.ndarray]:
+def field_membership(task: TaskRegions, root: FrameState, field: CostField) -> tuple[np.ndarray, np.ndarray]:
     """Which nodes of a cost field are captured and which successful, each shape (M,), bool."""
     captured = task.capture_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
     successful = all_inside(task.success_region_at(root), field.object_pos, field.object_vel, field.object_quat)
     return captured, successful
 
 
-def score_field(task: Task, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
+def score_field(task: TaskRegions, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
     """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
     captured, successful = field_membership(task, root, field)
     return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)

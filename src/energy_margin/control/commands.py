@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
-from energy_margin.tasks import Task, Trajectory
+from energy_margin.tasks import RobotState, Task, Trajectory
 from energy_margin.tasks.pushing import PushingTask
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.tasks.scooping import ScoopingTask
@@ -257,7 +257,9 @@ class ScoopingCommands(CommandSpace):
         # A sequence that ends the descent lifts from where the descent ends.
         origin = bottom if approach.any() else held[0]
         base = np.clip(origin + np.cumsum(lift_rate * dt, axis=1), bottom, bottom + cfg.lift_height)
-        scripted_base = np.array([task.robot_targets(np.zeros(1), t, held, held, None)[0] for t in times[approach]])
+        scripted_base = np.array(
+            [task.robot_targets(RobotState(np.zeros(1), t, held, held), None)[0] for t in times[approach]]
+        )
         if scripted_base.size:
             base[:, approach] = scripted_base
         tip = np.where(approach, cfg.scoop_angle, per_step[..., 0])

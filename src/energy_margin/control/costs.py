@@ -236,10 +236,10 @@ def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None, ctrl
     """
     held = copy.copy(task)
     force = np.array(force, dtype=float)
-    setattr(held, "robot_force", lambda drive, time, robot_q, robot_v, rng: force)  # noqa: B010
+    setattr(held, "robot_force", lambda state, rng=None: force)  # noqa: B010
     if targets is not None:
         fixed = np.array(targets, dtype=float)
-        setattr(held, "robot_targets", lambda drive, time, robot_q, robot_v, rng: fixed)  # noqa: B010
+        setattr(held, "robot_targets", lambda state, rng=None: fixed)  # noqa: B010
     if ctrl is not None:
         command = ModelCommand(ctrl=np.array(ctrl, dtype=float))
         setattr(held, "model_command", lambda drive, time: command)  # noqa: B010

@@ -15,6 +15,7 @@ import numpy as np
 from energy_margin.errors import check_int
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command
+from energy_margin.world.state import RobotState
 
 __all__ = [
     "RolloutPropagator",
@@ -195,8 +196,9 @@ class RolloutPropagator:
             while done < steps:
                 chunk = steps - done if control_steps is None else min(control_steps, steps - done)
                 time = float(start_times[j]) + done * dt
-                force = task.robot_force(drive, time, robot_q, robot_v, None)
-                targets = task.robot_targets(drive, time, robot_q, robot_v, None)
+                state = RobotState(drive, time, robot_q, robot_v)
+                force = task.robot_force(state, None)
+                targets = task.robot_targets(state, None)
                 row = self._control(wrenches[j], force, targets, task.model_command(drive, time))
                 controls[j, done : done + chunk] = row
                 done += chunk

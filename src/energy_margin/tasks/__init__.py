@@ -18,6 +18,7 @@ from energy_margin.tasks.base import (
     DesignParameter,
     ReferenceLayout,
     Region,
+    RobotState,
     Task,
     TaskConfig,
     Trajectory,
@@ -26,6 +27,7 @@ from energy_margin.tasks.base import (
     command_robot,
     with_contacts,
 )
+from energy_margin.tasks.protocols import DesignSpace, PhysicsReadout, ScriptedMotion, TaskRegions
 from energy_margin.tasks.pushing import PushingConfig, PushingTask
 from energy_margin.tasks.scene_task import SceneTask, SceneTaskConfig
 from energy_margin.tasks.scooping import ScoopingConfig, ScoopingTask
@@ -127,16 +129,21 @@ register_task(SceneTask)
 __all__ = [
     "DesignAlias",
     "DesignParameter",
+    "DesignSpace",
+    "PhysicsReadout",
     "PushingConfig",
     "PushingTask",
     "ReferenceLayout",
     "Region",
+    "RobotState",
     "SceneTask",
     "SceneTaskConfig",
     "ScoopingConfig",
     "ScoopingTask",
+    "ScriptedMotion",
     "Task",
     "TaskConfig",
+    "TaskRegions",
     "Trajectory",
     "WrenchLimits",
     "all_inside",

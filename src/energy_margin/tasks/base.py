@@ -4,22 +4,45 @@ A task never runs physics itself and never grows trees: the data generator drive
 :class:`~energy_margin.sim.base.Simulator` with the task's scripted forces, and the analyzer asks
 the task which reached states are captured or successful. Tasks are registered by name in
 :mod:`energy_margin.tasks` so a user can add one without editing the core.
+
+:class:`Task` implements the protocols of :mod:`energy_margin.tasks.protocols`, one per concern;
+the types it speaks in live beside it (:mod:`~energy_margin.tasks.config`,
+:mod:`~energy_margin.tasks.design_params`, :mod:`~energy_margin.tasks.motion`,
+:mod:`~energy_margin.tasks.region_types`) and are re-exported here.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar
 
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError, check_choice
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice
 from energy_margin.sim import make_simulator
 from energy_margin.sim.base import ModelCommand, Simulator
-from energy_margin.tasks.state_box import StateBox
+from energy_margin.tasks.command import command_robot
+from energy_margin.tasks.config import (
+    CONTACT_MODELS,
+    TaskConfig,
+    require_non_negative,
+    require_positive,
+    require_ranges,
+)
+from energy_margin.tasks.design_params import DesignAlias, DesignParameter
+from energy_margin.tasks.motion import RobotState, Trajectory, adapt_legacy_robot_hooks, sample_separated
+from energy_margin.tasks.region_types import (
+    DrawableRegion,
+    FrameRegions,
+    MeasurableRegion,
+    Region,
+    RegionShape,
+    all_inside,
+)
+from energy_margin.tasks.state_box import StateBox, WrenchLimits
 from energy_margin.world.scene import Scene
 from energy_margin.world.state import FrameState
 
@@ -33,6 +56,7 @@ __all__ = [
     "ReferenceLayout",
     "Region",
     "RegionShape",
+    "RobotState",
     "Task",
     "TaskConfig",
     "Trajectory",
@@ -45,287 +69,6 @@ __all__ = [
     "sample_separated",
     "with_contacts",
 ]
-
-
-class Region(Protocol):
-    """A region of object states: centre-of-mass positions and, where it matters, velocities."""
-
-    def contains(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
-        """Whether each object state lies inside.
-
-        Args:
-            positions: shape (..., 3), metres, world frame.
-            velocities: linear then angular velocities, shape (..., 6), m/s and rad/s, world
-                frame; ``None`` when unknown (a region that needs them then treats the objects
-                as at rest).
-
-        Returns:
-            Boolean array of shape (...).
-
-        """
-        ...
-
-
-@runtime_checkable
-class MeasurableRegion(Region, Protocol):
-    """A region that also tells how far object positions are from its boundary."""
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """Signed distance (m) of each position (..., 3) to the boundary: > 0 inside, < 0 outside, 0 on it."""
-        ...
-
-
-class FrameRegions:
-    """One region per frame, measured row by row: the default of :meth:`Task.capture_regions`.
-
-    Args:
-        regions: the region of each of F frames.
-    """
-
-    def __init__(self, regions: Sequence[Region]) -> None:
-        self.regions = list(regions)
-        # all_inside passes orientations on when some frame's region tests them (a contact test).
-        self.uses_orientation = any(getattr(region, "uses_orientation", False) for region in self.regions)
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Whether row f of positions (F, ..., 3) lies in frame f's region; shape (F, ...).
-
-        ``quaternions`` (F, ..., 4) go to the regions that test orientations.
-        """
-        rows = []
-        for f, region in enumerate(self.regions):
-            velocity = None if velocities is None else velocities[f]
-            if quaternions is not None and getattr(region, "uses_orientation", False):
-                rows.append(region.contains(positions[f], velocity, quaternions=quaternions[f]))  # type: ignore[call-arg]
-            else:
-                rows.append(region.contains(positions[f], velocity))
-        return np.stack(rows)
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """Signed distance (m) of row f of positions (F, ..., 3) to frame f's region; 0 where it measures none."""
-        return np.stack(
-            [
-                np.asarray(region.signed_distance(positions[f]), dtype=float)
-                if isinstance(region, MeasurableRegion)
-                else np.zeros(np.shape(positions[f])[:-1])
-                for f, region in enumerate(self.regions)
-            ]
-        )
-
-
-@dataclass(frozen=True)
-class RegionShape:
-    """One solid of a region's drawing (pictures only: :meth:`Region.contains` decides membership).
-
-    Attributes:
-        kind: ``"box"`` or ``"cylinder"`` (axis along world z).
-        centre: centre of the solid, shape (3,), m, world frame.
-        half_size: box half extents (x, y, z) before the yaw, or cylinder (radius, half height, 0), m.
-        yaw: rotation about world z, rad.
-
-    """
-
-    kind: str
-    centre: tuple[float, float, float]
-    half_size: tuple[float, float, float]
-    yaw: float = 0.0
-
-    def __post_init__(self) -> None:
-        check_choice("kind", self.kind, ("box", "cylinder"))
-
-    def contains(self, positions: np.ndarray) -> np.ndarray:
-        """Whether each position (..., 3), m, lies in the solid; shape (...)."""
-        relative = np.asarray(positions, dtype=float) - np.asarray(self.centre)
-        cos, sin = np.cos(self.yaw), np.sin(self.yaw)
-        local_x = cos * relative[..., 0] + sin * relative[..., 1]
-        local_y = -sin * relative[..., 0] + cos * relative[..., 1]
-        within_z = np.abs(relative[..., 2]) <= self.half_size[2 if self.kind == "box" else 1]
-        if self.kind == "cylinder":
-            return (np.hypot(local_x, local_y) <= self.half_size[0]) & within_z
-        return (np.abs(local_x) <= self.half_size[0]) & (np.abs(local_y) <= self.half_size[1]) & within_z
-
-
-@runtime_checkable
-class DrawableRegion(Region, Protocol):
-    """A region that can be drawn as a union of solids (renders, interactive views)."""
-
-    def shapes(self) -> tuple[RegionShape, ...]:
-        """Solids whose union draws the region (unbounded sides cut off).
-
-        A region that ignores height (a planar task's) is drawn as its footprint: thin solids on
-        the floor under the objects, whose horizontal extent matches ``contains``.
-        """
-        ...
-
-
-def all_inside(
-    region: Region,
-    object_positions: np.ndarray,
-    object_velocities: np.ndarray | None = None,
-    object_quaternions: np.ndarray | None = None,
-) -> np.ndarray:
-    """True where every object of a state lies in ``region``.
-
-    Args:
-        region: the region.
-        object_positions: shape (..., n_objects, 3), metres.
-        object_velocities: shape (..., n_objects, 6), m/s and rad/s, or ``None``.
-        object_quaternions: shape (..., n_objects, 4), ``(w, x, y, z)``, or ``None``; passed on to a
-            region whose ``uses_orientation`` attribute is true (e.g. a contact test).
-
-    Returns:
-        Boolean array of shape (...).
-
-    """
-    if object_quaternions is not None and getattr(region, "uses_orientation", False):
-        inside = region.contains(object_positions, object_velocities, quaternions=object_quaternions)  # type: ignore[call-arg]
-    else:
-        inside = region.contains(object_positions, object_velocities)
-    return np.all(inside, axis=-1)
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """The randomised start of one scripted roll-out.
-
-    Attributes:
-        initial: the initial frame state.
-        friction: Coulomb coefficient of every contact in this trajectory.
-        drive: task-defined parameters of the scripted end-effector motion, shape (n_drive,).
-
-    """
-
-    initial: FrameState
-    friction: float
-    drive: np.ndarray
-
-
-@dataclass(frozen=True)
-class WrenchLimits:
-    """Uniform perturbation ranges of one analysis.
-
-    Attributes:
-        max_wrench: per-object bound on |force| (N) and |torque| (N m) per world axis, shape
-            (n_objects, 6); a zero entry is never perturbed.
-        max_duration: longest propagation, seconds.
-
-    """
-
-    max_wrench: np.ndarray
-    max_duration: float
-
-    @property
-    def control_dimension(self) -> int:
-        """Number of perturbed wrench components (sets the duration bias)."""
-        return int(np.count_nonzero(self.max_wrench))
-
-
-@dataclass(frozen=True)
-class TaskConfig:
-    """Settings shared by every task.
-
-    Attributes:
-        duration: length of a scripted roll-out, seconds.
-        timestep: physics time step, seconds.
-        likelihood_lambda: softmax inverse temperature lambda of Algorithm 1, 1/J.
-        max_duration: longest perturbation propagation of the analyzer, seconds.
-
-    """
-
-    #: Settings added after datasets were first written, with the value those datasets used:
-    #: a recorded configuration without the key gets this value (see ``get_recorded_task``).
-    recorded_defaults: ClassVar[dict[str, Any]] = {}
-    #: Settings that select the task's fast contact model: the same contact geometry from cheaper
-    #: pairs (``AnalyzerConfig(contacts="fast")``, ``analyze --contacts fast``); empty: none.
-    fast_contacts: ClassVar[dict[str, Any]] = {}
-
-    duration: float = 2.0
-    timestep: float = 1.0 / 240.0
-    likelihood_lambda: float = 5.0
-    max_duration: float = 0.1
-
-    def __post_init__(self) -> None:
-        # Every setting must have the type and length of its default: a number stays a finite
-        # number, a range stays a pair of finite numbers.
-        for field in dataclasses.fields(self):
-            value = getattr(self, field.name)
-            default = field.default
-            if isinstance(default, tuple):
-                if not isinstance(value, tuple | list) or len(value) != len(default):
-                    raise InvalidParameterError(field.name, f"must be a list of {len(default)} numbers, got {value!r}")
-                numbers = tuple(_finite(field.name, item) for item in value)
-                object.__setattr__(self, field.name, numbers)
-            elif field.type in ("int", int):
-                number = _finite(field.name, value)
-                if not number.is_integer():
-                    raise InvalidParameterError(field.name, f"must be an integer, got {value!r}")
-                object.__setattr__(self, field.name, int(number))
-            elif isinstance(default, int | float) and not isinstance(default, bool):
-                object.__setattr__(self, field.name, _finite(field.name, value))
-        self.check()
-
-    def check(self) -> None:
-        """Raise ``ValueError`` naming the first setting outside its valid range."""
-        require_positive(self, "duration", "timestep", "max_duration")
-        require_non_negative(self, "likelihood_lambda")
-        if self.timestep > self.duration:
-            raise InvalidParameterError("timestep", f"({self.timestep}) must not exceed duration ({self.duration})")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-compatible dictionary of every field."""
-        return dataclasses.asdict(self)
-
-
-@dataclass(frozen=True)
-class DesignAlias:
-    """A design parameter that is not a configuration field itself but sets one (``sweep --param``).
-
-    Attributes:
-        name: the parameter's name on the command line.
-        field: the configuration field it sets.
-        doc: what the parameter is, with its unit.
-        to_field: the field's value for a parameter value, given the field's current value.
-
-    """
-
-    name: str
-    field: str
-    doc: str
-    to_field: Callable[[Any, Any], Any]
-
-
-@dataclass(frozen=True)
-class DesignParameter:
-    """One axis of a task's tool family: what ``design`` searches when no ``--param`` is given.
-
-    Exactly one of ``(low, high)`` or ``choices`` is set.
-
-    Attributes:
-        name: a ``sweep``/``design --param`` name (a configuration field or a :class:`DesignAlias`).
-        doc: what the parameter is, with its unit.
-        low: smallest value of a numeric range, in the parameter's unit (``None`` for a categorical one).
-        high: largest value of a numeric range (``None`` for a categorical one).
-        choices: the values of a categorical parameter (``None`` for a numeric one).
-        integer: whether a numeric parameter takes whole values only (e.g. a number of tines).
-
-    """
-
-    name: str
-    doc: str
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[Any, ...] | None = None
-    integer: bool = False
-
-    def __post_init__(self) -> None:
-        if (self.choices is None) == (self.low is None or self.high is None):
-            raise InvalidDataError(f"design parameter {self.name!r}: give either low and high or choices")
-        if self.choices is None and not (self.low is not None and self.high is not None and self.low < self.high):
-            raise InvalidDataError(f"design parameter {self.name!r}: low ({self.low}) must be below high ({self.high})")
-        if self.choices is not None and len(self.choices) < 2:
-            raise InvalidDataError(f"design parameter {self.name!r}: choices need at least two values")
 
 
 @dataclass(frozen=True)
@@ -350,74 +93,38 @@ class ReferenceLayout:
     replays_recorded: bool = False
 
 
-CONTACT_MODELS = ("recorded", "fast")
-
-
-def with_contacts(task: Task, contacts: str) -> Task:
-    """``task`` with the contact model ``contacts``.
-
-    Args:
-        task: a task, as recorded by its dataset.
-        contacts: ``"recorded"`` (the task itself) or ``"fast"`` (its settings
-            :attr:`TaskConfig.fast_contacts` applied).
-
-    Raises:
-        InvalidParameterError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
-
-    """
-    if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
-        return task
-    fast = type(task.config).fast_contacts
-    if not fast:
-        raise InvalidParameterError(
-            "contacts", f"must be 'recorded': task {task.name!r} has no fast contact model, got {contacts!r}"
-        )
-    current = task.config.to_dict()
-    if all(current.get(key) == value for key, value in fast.items()):
-        return task
-    return type(task)(dataclasses.replace(task.config, **fast))
-
-
-def _finite(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InvalidParameterError(name, f"must be a number, got {value!r}")
-    if not np.isfinite(value):
-        raise InvalidParameterError(name, f"must be finite, got {value!r}")
-    return float(value)
-
-
-def require_positive(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is > 0."""
-    for name in names:
-        values = np.atleast_1d(getattr(config, name))
-        if np.any(values <= 0):
-            raise InvalidParameterError(name, f"must be > 0, got {getattr(config, name)!r}")
-
-
-def require_non_negative(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is >= 0."""
-    for name in names:
-        values = np.atleast_1d(getattr(config, name))
-        if np.any(values < 0):
-            raise InvalidParameterError(name, f"must be >= 0, got {getattr(config, name)!r}")
-
-
-def require_ranges(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named ``(low, high)`` setting has low <= high."""
-    for name in names:
-        low, high = getattr(config, name)
-        if low > high:
-            raise InvalidParameterError(name, f"must be (low, high) with low <= high, got {getattr(config, name)!r}")
-
-
 class Task(ABC):
-    """Base class of a manipulation task."""
+    """Base class of a manipulation task: it implements every protocol of :mod:`energy_margin.tasks.protocols`.
+
+    Its hooks by protocol:
+
+    * ``PhysicsReadout``: :meth:`build_scene`, :meth:`make_simulator`, :meth:`model_sha256`,
+      :meth:`wrench_limits`, :attr:`state_box` (from :meth:`_state_box`), :attr:`frame_box`,
+      :meth:`within_bounds`, :attr:`planar`, :attr:`engines`, :attr:`fixed_objects`,
+      :attr:`typical_objects`, :attr:`default_objects`.
+    * ``ScriptedMotion``: :meth:`sample_trajectory`, :meth:`robot_force`, :meth:`robot_targets`,
+      :meth:`model_command`, :meth:`drive_size`, :meth:`robot_dofs`, :attr:`n_steps`,
+      :meth:`frame_steps`, :attr:`control_period`.
+    * ``TaskRegions``: :meth:`capture_region`, :meth:`capture_regions`, :meth:`capture_inside`,
+      :meth:`success_region`, :meth:`success_region_at`, :meth:`is_captured`,
+      :meth:`is_successful`, :meth:`capture_region_shape`, :attr:`region_caption`.
+    * ``DesignSpace``: :attr:`config`, :meth:`design_aliases`, :meth:`design_fields`,
+      :meth:`design_space`, :meth:`configured`.
+
+    Besides them the task's identity: :attr:`name`, :attr:`label`, :attr:`config_class`,
+    :meth:`from_dict`, :meth:`analysis_problem` and :attr:`reference_layout`.
+    """
 
     name: ClassVar[str]
     config_class: ClassVar[type[TaskConfig]] = TaskConfig
 
     def __init__(self, config: TaskConfig | None = None) -> None:
         self.config = config if config is not None else self.config_class()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # A task class of another package may still write the robot hooks with five arguments.
+        adapt_legacy_robot_hooks(cls)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> Task:
@@ -452,33 +159,20 @@ class Task(ABC):
         """Randomised initial state, friction and drive parameters of one scripted roll-out."""
 
     @abstractmethod
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
-        """Generalized end-effector forces at ``time`` (s) of a roll-out with parameters ``drive``.
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Generalized end-effector forces (n_robot_dofs,) at ``state``: N, or N m on a rotation.
 
+        ``state`` holds the roll-out's ``drive``, the ``time`` (s) and the end-effector's ``q`` and ``v``.
         With ``rng`` the scripted roll-out's random variation is drawn; with ``None`` the nominal
         (expected) force is returned, which the analyzer applies while it perturbs the objects.
         """
 
-    def robot_targets(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray | None:
-        """Servo targets (n_robot_dofs,) at ``time`` (s), or ``None`` for a task without servos.
+    def robot_targets(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray | None:
+        """Servo targets (n_robot_dofs,) at ``state``, or ``None`` for a task without servos.
 
-        Called after :meth:`robot_force` with the same arguments (and the same ``rng``).
+        Called after :meth:`robot_force` with the same ``state`` (and the same ``rng``).
         """
-        del drive, time, robot_q, robot_v, rng
+        del state, rng
         return None
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
@@ -719,57 +413,26 @@ class Task(ABC):
         return np.round(np.linspace(0, self.n_steps, n_frames)).astype(int)
 
 
-def command_robot(
-    task: Task, simulator: Simulator, drive: np.ndarray, time: float, rng: np.random.Generator | None
-) -> None:
-    """Hold the task's scripted command at ``time`` (s) on the simulator's end-effector.
-
-    Sets the generalized forces of :meth:`Task.robot_force`, then, for a task with servos, the
-    targets of :meth:`Task.robot_targets`; both see the current joint positions and velocities.
-    A task on a user's model then sets its :meth:`Task.model_command`.
-    Used identically by the data generator (every step, with ``rng``) and the analyzer (with
-    ``None``).
-    """
-    robot_q, robot_v = simulator.robot_positions(), simulator.robot_velocities()
-    simulator.set_robot_force(task.robot_force(drive, time, robot_q, robot_v, rng))
-    targets = task.robot_targets(drive, time, robot_q, robot_v, rng)
-    if targets is not None:
-        simulator.set_robot_targets(targets)
-    command = task.model_command(drive, time)
-    if command is not None:
-        command.apply_to(simulator, purpose=f"task {task.name!r}")
-
-
-def sample_separated(
-    rng: np.random.Generator, count: int, low: np.ndarray, high: np.ndarray, separation: float
-) -> np.ndarray:
-    """``count`` points uniform in the box [low, high] with pairwise distance > ``separation``.
-
-    Rejection sampling, one candidate (``rng.uniform(low, high)``) at a time.
+def with_contacts(task: Task, contacts: str) -> Task:
+    """``task`` with the contact model ``contacts``.
 
     Args:
-        rng: random generator.
-        count: number of points.
-        low: lower corner, shape (d,).
-        high: upper corner, shape (d,).
-        separation: smallest distance between two points (same unit as the box).
-
-    Returns:
-        Points, shape (count, d).
+        task: a task, as recorded by its dataset.
+        contacts: ``"recorded"`` (the task itself) or ``"fast"`` (its settings
+            :attr:`TaskConfig.fast_contacts` applied).
 
     Raises:
-        InvalidDataError: when 100 000 candidates do not suffice.
+        InvalidParameterError: ``contacts`` is unknown, or ``"fast"`` for a task without a fast model.
 
     """
-    points = np.empty((count, len(low)))
-    placed = 0
-    attempts = 0
-    while placed < count:
-        attempts += 1
-        if attempts > 100_000:
-            raise InvalidDataError(f"cannot place {count} objects {separation} m apart in the spawn area")
-        candidate = rng.uniform(low, high)
-        if placed == 0 or np.min(np.linalg.norm(points[:placed] - candidate, axis=1)) > separation:
-            points[placed] = candidate
-            placed += 1
-    return points
+    if check_choice("contacts", contacts, CONTACT_MODELS) == "recorded":
+        return task
+    fast = type(task.config).fast_contacts
+    if not fast:
+        raise InvalidParameterError(
+            "contacts", f"must be 'recorded': task {task.name!r} has no fast contact model, got {contacts!r}"
+        )
+    current = task.config.to_dict()
+    if all(current.get(key) == value for key, value in fast.items()):
+        return task
+    return type(task)(dataclasses.replace(task.config, **fast))

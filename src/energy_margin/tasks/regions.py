@@ -32,17 +32,23 @@ Primitives (the ``type`` of a region table; keys in :data:`REGION_TYPES`):
 Sets quantify over objects: :class:`AtLeast` holds for every object of a state when at least k
 objects of that state are inside its region, so ``all_inside`` of the tasks then means "at least
 k objects" (the paper's sets are "every object": the region itself).
+
+The combinations and :class:`AtLeast` are in :mod:`~energy_margin.tasks.region_sets`, the
+``contact`` region and :class:`FrameLookup` in :mod:`~energy_margin.tasks.region_contact`; this
+module re-exports them beside the geometric primitives and the registry.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from energy_margin.errors import InvalidParameterError, check_float, check_positive_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_positive_float
+from energy_margin.tasks.region_contact import ContactRegion, FrameLookup
+from energy_margin.tasks.region_sets import AllOf, AnyOf, AtLeast, NotIn
 
 __all__ = [
     "REGION_TYPES",
@@ -62,36 +68,6 @@ __all__ = [
     "height_region",
     "register_region_type",
 ]
-
-
-class FrameLookup(Protocol):
-    """The pose of a named body, site or geom at the frame a region is built from.
-
-    Attributes:
-        model: the compiled MuJoCo model (for regions that test geometry, e.g. ``contact``).
-        data: MuJoCo data holding the frame's kinematics (read-only for regions).
-        object_geoms: geom ids of each object, in object order.
-
-    """
-
-    model: Any
-    data: Any
-    object_geoms: list[np.ndarray]
-
-    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Origin (3,) m and rotation matrix (3, 3) (columns: the frame's axes in world coordinates)."""
-        ...
-
-
-def _contains(
-    region: Any, positions: np.ndarray, velocities: np.ndarray | None, quaternions: np.ndarray | None
-) -> np.ndarray:
-    """``region.contains``, with the orientations when the region uses them."""
-    if quaternions is not None and getattr(region, "uses_orientation", False):
-        result: np.ndarray = region.contains(positions, velocities, quaternions=quaternions)
-        return result
-    result = region.contains(positions, velocities)
-    return result
 
 
 _IDENTITY = np.eye(3)
@@ -241,171 +217,6 @@ class SpeedRegion:
         linear = np.linalg.norm(velocities[..., :3], axis=-1)
         angular = np.linalg.norm(velocities[..., 3:], axis=-1)
         return (linear <= self.max_linear) & (angular <= self.max_angular)
-
-
-class AllOf:
-    """Inside every one of ``parts``."""
-
-    def __init__(self, parts: list[Any]) -> None:
-        """Build it from at least one region."""
-        if not parts:
-            raise InvalidParameterError("parts", "must hold at least one region")
-        self.parts = parts
-        self.uses_orientation = any(getattr(part, "uses_orientation", False) for part in parts)
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """The smallest of the parts' signed distances (m), shape (...)."""
-        return np.min([part.signed_distance(positions) for part in self.parts], axis=0)
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Inside every part, shape (...)."""
-        return np.all([_contains(part, positions, velocities, quaternions) for part in self.parts], axis=0)
-
-
-class AnyOf(AllOf):
-    """Inside at least one of ``parts``."""
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """The largest of the parts' signed distances (m), shape (...)."""
-        return np.max([part.signed_distance(positions) for part in self.parts], axis=0)
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Inside some part, shape (...)."""
-        return np.any([_contains(part, positions, velocities, quaternions) for part in self.parts], axis=0)
-
-
-class NotIn:
-    """Outside ``region``."""
-
-    def __init__(self, region: Any) -> None:
-        """Build the complement of ``region``."""
-        self.region = region
-        self.uses_orientation = bool(getattr(region, "uses_orientation", False))
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """The region's signed distance, negated (m), shape (...)."""
-        return -self.region.signed_distance(positions)
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Outside the region, shape (...)."""
-        return ~_contains(self.region, positions, velocities, quaternions)
-
-
-class AtLeast:
-    """At least ``count`` objects of a state inside ``region``: the same answer for each object.
-
-    ``contains`` returns, for every object of a state (last axis), whether ``count`` or more of
-    that state's objects are inside, so "every object in this region" (``all_inside``) reads
-    "at least ``count`` objects in ``region``".
-    """
-
-    def __init__(self, count: int, region: Any) -> None:
-        """Build it (``count`` >= 1)."""
-        self.count = check_positive_int("count", count)
-        self.region = region
-        self.uses_orientation = bool(getattr(region, "uses_orientation", False))
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """The ``count``-th largest object distance of each state, for each object (m), shape (..., n)."""
-        distances = self.region.signed_distance(positions)
-        n = distances.shape[-1]
-        if self.count > n:
-            return np.full_like(distances, -np.inf)
-        kth = -np.sort(-distances, axis=-1)[..., self.count - 1]
-        return np.broadcast_to(kth[..., None], distances.shape).copy()
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Whether at least ``count`` objects of each state are inside, for each object, shape (..., n)."""
-        inside = _contains(self.region, positions, velocities, quaternions)
-        enough = np.sum(inside, axis=-1) >= self.count
-        return np.broadcast_to(enough[..., None], inside.shape).copy()
-
-
-class ContactRegion:
-    """Each object's geoms within ``margin`` of target geoms, the objects at their own poses.
-
-    The targets stay where they are at the analysed frame. Distances are MuJoCo's
-    ``mj_geomDistance`` between every geom of the object and every target geom (the smallest).
-    """
-
-    uses_orientation = True
-
-    def __init__(self, lookup: FrameLookup, targets: np.ndarray, margin: float) -> None:
-        """Build it.
-
-        Args:
-            lookup: the frame's model, kinematics and object geoms.
-            targets: geom ids of the other body (or the one geom), shape (k,).
-            margin: largest distance that counts as contact, m (>= 0).
-
-        """
-        import mujoco
-
-        check_float("margin", margin, minimum=0.0)
-        self._mujoco = mujoco
-        self.model = lookup.model
-        self.data = mujoco.MjData(self.model)
-        self.data.geom_xpos[:] = lookup.data.geom_xpos
-        self.data.geom_xmat[:] = lookup.data.geom_xmat
-        self.targets = np.asarray(targets, dtype=int)
-        self.object_geoms = lookup.object_geoms
-        self.margin = float(margin)
-        model = self.model
-        # Each object geom's pose in its body frame.
-        self._local_pos = [model.geom_pos[geoms].copy() for geoms in self.object_geoms]
-        self._local_mat = []
-        for geoms in self.object_geoms:
-            mats = np.empty((len(geoms), 9))
-            for row, geom in enumerate(geoms):
-                mujoco.mju_quat2Mat(mats[row], model.geom_quat[geom])
-            self._local_mat.append(mats.reshape(-1, 3, 3))
-
-    def _distances(self, positions: np.ndarray, quaternions: np.ndarray | None) -> np.ndarray:
-        """Smallest geom distance of each object to the targets, shape (..., n), m."""
-        positions = np.asarray(positions, dtype=float)
-        shape = positions.shape[:-1]
-        flat_pos = positions.reshape(-1, 3)
-        if quaternions is None:
-            flat_quat = np.tile([1.0, 0.0, 0.0, 0.0], (flat_pos.shape[0], 1))
-        else:
-            flat_quat = np.asarray(quaternions, dtype=float).reshape(-1, 4)
-        n = len(self.object_geoms)
-        result = np.empty(flat_pos.shape[0])
-        mujoco, model, data = self._mujoco, self.model, self.data
-        rotation = np.empty(9)
-        limit = self.margin + 1.0
-        for index in range(flat_pos.shape[0]):
-            obj = index % n
-            geoms = self.object_geoms[obj]
-            mujoco.mju_quat2Mat(rotation, flat_quat[index] / np.linalg.norm(flat_quat[index]))
-            body = rotation.reshape(3, 3)
-            data.geom_xpos[geoms] = flat_pos[index] + self._local_pos[obj] @ body.T
-            data.geom_xmat[geoms] = (body @ self._local_mat[obj]).reshape(-1, 9)
-            result[index] = min(
-                mujoco.mj_geomDistance(model, data, int(geom), int(target), limit, None)
-                for geom in geoms
-                for target in self.targets
-            )
-        return result.reshape(shape)
-
-    def signed_distance(self, positions: np.ndarray) -> np.ndarray:
-        """``margin`` minus the geom distance of each object in its model orientation, m, shape (...)."""
-        return self.margin - self._distances(positions, None)
-
-    def contains(
-        self, positions: np.ndarray, velocities: np.ndarray | None = None, quaternions: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Whether each object (..., n) touches the targets (without orientations: identity)."""
-        del velocities
-        return self._distances(positions, quaternions) <= self.margin
 
 
 @dataclass(frozen=True)

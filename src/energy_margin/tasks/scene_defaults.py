@@ -28,6 +28,7 @@ example robots (docs/results/generality.md), the derived settings are level with
 behind on the others, which is why they are not the default.
 
 ``energy-margin scene`` prints each derived value with the reason (:attr:`PerturbationSettings.derived`).
+:func:`object_armature` is what a scene's wrench limits add to each object's mass and inertia.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.sim.mujoco_index import object_geoms, object_inertials
+from energy_margin.sim.mujoco_index import ModelIndex, object_geoms, object_inertials
 from energy_margin.tasks.scene_spec import SceneSpec
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "PROPAGATION_PER_FRAME",
     "PerturbationSettings",
     "check_planar_gravity",
+    "object_armature",
     "resolve_perturbation",
 ]
 
@@ -210,3 +212,23 @@ def resolve_perturbation(spec: SceneSpec, model: mujoco.MjModel, bodies: np.ndar
         likelihood_lambda=float(likelihood_lambda),
         derived=derived,
     )
+
+
+def object_armature(model: mujoco.MjModel, index: ModelIndex, n_objects: int) -> tuple[np.ndarray, np.ndarray]:
+    """Armature of each object's joints along x, y, z (n, 3), kg, and about them (n, 3), kg m^2.
+
+    Args:
+        model: the scene's compiled model.
+        index: the objects' coordinates in it.
+        n_objects: number of objects.
+
+    """
+    armature = model.dof_armature
+    n = n_objects
+    if not index.upright:
+        return armature[index.linvel_index], armature[index.angvel_index]
+    mask = index.axis_mask if index.axis_mask is not None else np.ones((n, 4), dtype=bool)
+    linear = np.where(mask[:, :3], armature[index.linvel_index], 0.0)
+    angular = np.zeros((n, 3))
+    angular[:, 2] = np.where(mask[:, 3], armature[index.yaw_rate_index], 0.0)
+    return linear, angular

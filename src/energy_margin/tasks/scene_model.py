@@ -12,6 +12,7 @@ arrays made by :mod:`~energy_margin.tasks.scene_motion`.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -48,7 +49,16 @@ from energy_margin.tasks.scene_objects import (
 from energy_margin.tasks.scene_sections import region_names
 from energy_margin.tasks.scene_spec import SceneSpec
 
-__all__ = ["LoadedScene", "Motion", "apply_design", "compile_spec", "load_scene", "model_hash", "resolve_scene"]
+__all__ = [
+    "LoadedScene",
+    "Motion",
+    "apply_design",
+    "compile_spec",
+    "load_scene",
+    "load_scene_cached",
+    "model_hash",
+    "resolve_scene",
+]
 
 _SLIDE = mujoco.mjtJoint.mjJNT_SLIDE
 _HINGE = mujoco.mjtJoint.mjJNT_HINGE
@@ -251,3 +261,31 @@ def resolve_scene(
         perturbation=resolve_perturbation(spec, model, np.array(bodies, dtype=int)),
         design_values=dict(design_values or {}),
     )
+
+
+_LOADED: dict[tuple[str, int, int, str], LoadedScene] = {}
+
+
+def load_scene_cached(path: Path, design: Mapping[str, Any] | None = None) -> LoadedScene:
+    """Load a scene file once per (path, modification times of the file and its model, design values)."""
+    design = dict(design or {})
+    try:
+        scene_time = path.stat().st_mtime_ns
+        design_key = json.dumps(design, sort_keys=True)
+    except (OSError, TypeError, ValueError):
+        return load_scene(path, design)
+    loaded = None
+    for key, value in _LOADED.items():
+        if key[0] == str(path) and key[1] == scene_time and key[3] == design_key:
+            try:
+                if value.spec.mjcf.stat().st_mtime_ns == key[2]:
+                    loaded = value
+            except OSError:
+                pass
+    if loaded is None:
+        loaded = load_scene(path, design)
+        model_time = loaded.spec.mjcf.stat().st_mtime_ns
+        if len(_LOADED) > 8:
+            _LOADED.clear()
+        _LOADED[(str(path), scene_time, model_time, design_key)] = loaded
+    return loaded

@@ -8,154 +8,35 @@ and refuses to (``dataset.json: task_config: ...``) when the file or the model c
 from __future__ import annotations
 
 import copy
-import dataclasses
-import json
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
+from energy_margin.errors import InvalidDataError, InvalidParameterError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
-from energy_margin.tasks.base import DesignParameter, Region, Task, TaskConfig, Trajectory, WrenchLimits, all_inside
+from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits, all_inside
+from energy_margin.tasks.motion import RobotState, Trajectory
 from energy_margin.tasks.regions import AtLeast, build_region
-from energy_margin.tasks.scene_model import LoadedScene, load_scene
+from energy_margin.tasks.scene_defaults import object_armature
+from energy_margin.tasks.scene_layout import draw_layout
+from energy_margin.tasks.scene_lookup import SceneFrameLookup, lookup_frame
+from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
 from energy_margin.tasks.scene_spec import BOUNDS_MARGIN
+from energy_margin.tasks.scene_task_config import BASE_FIELDS, SceneTaskConfig, design_config_class, design_overrides
 from energy_margin.tasks.state_box import StateBox, box_around_model
 from energy_margin.world.scene import Geom, RigidObject, Scene
-from energy_margin.world.state import FrameState, yaw_from_quat
+from energy_margin.world.state import FrameState
 
 __all__ = ["SceneTask", "SceneTaskConfig", "design_overrides"]
 
 #: Redraws of an object layout that overlaps the robot or an obstacle before giving up.
 _LAYOUT_ATTEMPTS = 200
-#: Draws of one object's origin before the layout starts again (the objects before took its room).
-_DRAWS_PER_OBJECT = 2_000
-#: Fresh layouts before the separation is declared impossible in the start ranges.
-_LAYOUT_RESTARTS = 50
 #: Deepest accepted contact penetration of a freshly placed object, m.
 _PLACEMENT_TOLERANCE = 1e-3
-
-
-@dataclass(frozen=True)
-class SceneTaskConfig(TaskConfig):
-    """Settings of a scene-file task (everything else comes from the file).
-
-    Attributes:
-        scene_file: path of the scene file (absolute once resolved).
-        scene_sha256: SHA-256 of the scene file the data were made with ("" accepts any).
-        model_sha256: SHA-256 of the compiled model the data were made with ("" accepts any).
-
-    """
-
-    scene_file: str = ""
-    scene_sha256: str = ""
-    model_sha256: str = ""
-
-
-_BASE_FIELDS = frozenset(field.name for field in dataclasses.fields(SceneTaskConfig))
-_DESIGN_CONFIGS: dict[tuple[tuple[str, float], ...], type[SceneTaskConfig]] = {}
-
-
-def _design_config_class(values: Mapping[str, float]) -> type[SceneTaskConfig]:
-    """:class:`SceneTaskConfig` with one number field per ``[design]`` parameter (defaults: ``values``).
-
-    A configuration field per parameter lets ``--set``, ``sweep --param`` and ``design`` treat a
-    scene file's design parameters as they treat a built-in task's settings.
-    """
-    if not values:
-        return SceneTaskConfig
-    key = tuple(values.items())
-    if key not in _DESIGN_CONFIGS:
-        fields = [(name, float, dataclasses.field(default=float(value))) for name, value in values.items()]
-        _DESIGN_CONFIGS[key] = dataclasses.make_dataclass(
-            "SceneDesignConfig", fields, bases=(SceneTaskConfig,), frozen=True
-        )
-    return _DESIGN_CONFIGS[key]
-
-
-def design_overrides(config: SceneTaskConfig) -> dict[str, Any]:
-    """The ``[design]`` values a configuration holds (its fields beyond :class:`SceneTaskConfig`'s)."""
-    return {
-        field.name: getattr(config, field.name)
-        for field in dataclasses.fields(config)
-        if field.name not in _BASE_FIELDS
-    }
-
-
-_CACHE: dict[tuple[str, int, int, str], LoadedScene] = {}
-
-
-def _cached_load(path: Path, design: Mapping[str, Any] | None = None) -> LoadedScene:
-    """Load a scene file once per (path, modification times of the file and its model, design values)."""
-    design = dict(design or {})
-    try:
-        scene_time = path.stat().st_mtime_ns
-        design_key = json.dumps(design, sort_keys=True)
-    except (OSError, TypeError, ValueError):
-        return load_scene(path, design)
-    loaded = None
-    for key, value in _CACHE.items():
-        if key[0] == str(path) and key[1] == scene_time and key[3] == design_key:
-            try:
-                if value.spec.mjcf.stat().st_mtime_ns == key[2]:
-                    loaded = value
-            except OSError:
-                pass
-    if loaded is None:
-        loaded = load_scene(path, design)
-        model_time = loaded.spec.mjcf.stat().st_mtime_ns
-        if len(_CACHE) > 8:
-            _CACHE.clear()
-        _CACHE[(str(path), scene_time, model_time, design_key)] = loaded
-    return loaded
-
-
-def _quat_yaw(yaw: float) -> np.ndarray:
-    return np.array([np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)])
-
-
-def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    result = np.empty(4)
-    mujoco.mju_mulQuat(result, a, b)
-    return result
-
-
-class _FrameLookup:
-    """Poses of named bodies, sites and geoms in one frame's kinematics (a ``FrameLookup``)."""
-
-    _KINDS: ClassVar[dict[str, mujoco.mjtObj]] = {
-        "body": mujoco.mjtObj.mjOBJ_BODY,
-        "site": mujoco.mjtObj.mjOBJ_SITE,
-        "geom": mujoco.mjtObj.mjOBJ_GEOM,
-    }
-
-    def __init__(self, loaded: LoadedScene, data: mujoco.MjData, object_geoms: list[np.ndarray]) -> None:
-        self.loaded = loaded
-        self.model = loaded.model
-        self.data = data
-        self.object_geoms = object_geoms
-        self._poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
-
-    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Origin (3,) m and rotation matrix (3, 3) of body, site or geom ``name``."""
-        if (kind, name) not in self._poses:
-            index = mujoco.mj_name2id(self.model, self._KINDS[kind], name)
-            if index < 0:
-                spec = self.loaded.spec
-                raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
-            data = self.data
-            positions, matrices = {
-                "body": (data.xpos, data.xmat),
-                "site": (data.site_xpos, data.site_xmat),
-                "geom": (data.geom_xpos, data.geom_xmat),
-            }[kind]
-            self._poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
-        return self._poses[(kind, name)]
 
 
 class SceneTask(Task):
@@ -194,7 +75,7 @@ class SceneTask(Task):
             )
         else:
             path = Path(config.scene_file).resolve()
-            loaded = _cached_load(path, {**design_overrides(config), **dict(design or {})})
+            loaded = load_scene_cached(path, {**design_overrides(config), **dict(design or {})})
         if config.scene_sha256 and config.scene_sha256 != loaded.spec.text_sha256:
             raise InvalidDataError(
                 f"scene file {path} changed since these data were made "
@@ -207,7 +88,7 @@ class SceneTask(Task):
             )
         spec = loaded.spec
         model = loaded.model
-        resolved = _design_config_class(loaded.design_values)(
+        resolved = design_config_class(loaded.design_values)(
             duration=spec.motion.duration,
             timestep=float(model.opt.timestep),
             likelihood_lambda=loaded.perturbation.likelihood_lambda,
@@ -221,7 +102,6 @@ class SceneTask(Task):
         self.fixed_objects = loaded.n_objects
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
-        self._object_geoms = loaded.object_geoms
         # The objects' coordinates in the model (partially jointed upright objects included).
         self._index = ModelIndex.of(
             model,
@@ -241,7 +121,7 @@ class SceneTask(Task):
         file's ``[design]`` parameters: its value is set on the model before it is compiled.
         """
         values = dict(values or {})
-        known = set(_BASE_FIELDS)
+        known = set(BASE_FIELDS)
         for key in ("scene_file", "scene_sha256", "model_sha256"):
             if key in values and not isinstance(values[key], str):
                 raise InvalidParameterError(key, f"must be a string, got {values[key]!r}")
@@ -373,7 +253,7 @@ class SceneTask(Task):
         simulator = self.make_simulator(n_objects, friction, drive)
         deepest = (0, -1, 0.0)
         for _ in range(_LAYOUT_ATTEMPTS):
-            pos, quat = self._draw_layout(rng)
+            pos, quat = draw_layout(self.loaded, self._index, rng)
             initial = self.initial_frame(pos, quat, drive)
             simulator.reset(initial)
             self._apply_start_command(simulator, drive)
@@ -396,100 +276,6 @@ class SceneTask(Task):
             require(simulator, ModelCommands, purpose="a scene file's motion").set_model_command(command)
         compiled = require(simulator, CompiledModel, purpose="a scene file's start layout")
         mujoco.mj_forward(compiled.model, compiled.data)
-
-    def _draw_layout(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation.
-
-        Objects are placed one at a time, each drawn until it lies the separation away from those
-        already placed; an object that finds no room in :data:`_DRAWS_PER_OBJECT` draws (the ones
-        before took it) starts the layout again, up to :data:`_LAYOUT_RESTARTS` times.
-
-        Raises:
-            InvalidDataError: no layout fits, naming the object that found no room, the start ranges,
-                the separation and how many origins a grid of that spacing fits in the ranges.
-        """
-        loaded = self.loaded
-        n = loaded.n_objects
-        separation = self._separation()
-        most_placed = 0
-        for _restart in range(_LAYOUT_RESTARTS):
-            pos = np.empty((n, 3))
-            quat = np.empty((n, 4))
-            placed = 0
-            for index in range(n):
-                for _attempt in range(_DRAWS_PER_OBJECT):
-                    candidate = self._draw_origin(rng, index)
-                    if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
-                        pos[index] = candidate
-                        # Drawn right after its origin: the order of draws of every layout that fits.
-                        quat[index] = self._draw_orientation(rng, index)
-                        placed += 1
-                        break
-                else:
-                    break
-            most_placed = max(most_placed, placed)
-            if placed == n:
-                return pos, quat
-        raise InvalidDataError(self._placement_failure(most_placed, separation))
-
-    def _separation(self) -> float:
-        start = self.loaded.spec.start
-        if start.min_separation is not None:
-            return float(start.min_separation)
-        return 2.0 * float(np.max(self.loaded.object_radius))
-
-    def _draw_origin(self, rng: np.random.Generator, index: int) -> np.ndarray:
-        start = self.loaded.spec.start
-        if start.low is not None and start.high is not None:
-            return np.asarray(rng.uniform(start.low, start.high), dtype=float)
-        candidate = self._index.object_positions(self.loaded.initial_qpos)[index].copy()
-        for axis, column in (("x", 0), ("y", 1), ("z", 2)):
-            if axis in start.ranges:
-                candidate[column] = rng.uniform(*start.ranges[axis])
-        return np.asarray(candidate, dtype=float)
-
-    def _draw_orientation(self, rng: np.random.Generator, index: int) -> np.ndarray:
-        start = self.loaded.spec.start
-        if start.mode == "pile":
-            axis_angle = rng.normal(size=4)
-            return np.asarray(axis_angle / np.linalg.norm(axis_angle), dtype=float)
-        yaw = float(rng.uniform(*start.ranges["yaw"])) if "yaw" in start.ranges else 0.0
-        return _quat_multiply(_quat_yaw(yaw), self._base_quat(index))
-
-    def _placement_failure(self, most_placed: int, separation: float) -> str:
-        """Why no layout fits: the object that found no room, the ranges and a grid's capacity."""
-        loaded = self.loaded
-        start = loaded.spec.start
-        n = loaded.n_objects
-        if start.low is not None and start.high is not None:
-            spans = {axis: (float(lo), float(hi)) for axis, lo, hi in zip("xyz", start.low, start.high, strict=True)}
-        else:
-            spans = {axis: start.ranges[axis] for axis in "xyz" if axis in start.ranges}
-        described = ", ".join(f"{axis} in [{lo:.3g}, {hi:.3g}] m" for axis, (lo, hi) in spans.items())
-        stuck = loaded.object_names[min(most_placed, n - 1)]
-        grid = ""
-        if separation > 0.0:
-            capacity = 1
-            for lo, hi in spans.values():
-                capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
-            # An upper bound: objects drawn one at a time jam well before a grid is full.
-            grid = f"; a grid of {separation:.3g} m spacing holds at most {capacity} origins there"
-        return (
-            f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart "
-            f"({described or 'at their model positions'}): at most {most_placed} fit in {_LAYOUT_RESTARTS} layouts, "
-            f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws{grid}; widen the start ranges or lower "
-            "min_separation"
-        )
-
-    def _qpos_address(self, index: int) -> int:
-        return int(self.loaded.model.jnt_qposadr[self.loaded.object_joints[index]])
-
-    def _base_quat(self, index: int) -> np.ndarray:
-        if self.loaded.spec.object_joints == "upright":
-            return np.array([1.0, 0.0, 0.0, 0.0])
-        address = self._qpos_address(index)
-        quat = self.loaded.initial_qpos[address + 3 : address + 7]
-        return quat / np.linalg.norm(quat)
 
     def initial_frame(self, object_pos: np.ndarray, object_quat: np.ndarray, drive: np.ndarray) -> FrameState:
         """The start frame: objects at rest at these poses, the robot at its start and the motion's t = 0."""
@@ -515,16 +301,9 @@ class SceneTask(Task):
             return np.concatenate([data.mocap_pos.ravel(), data.mocap_quat.ravel()])
         return np.concatenate([poses[0].ravel(), poses[1].ravel()])
 
-    def robot_force(
-        self,
-        drive: np.ndarray,
-        time: float,
-        robot_q: np.ndarray,
-        robot_v: np.ndarray,
-        rng: np.random.Generator | None,
-    ) -> np.ndarray:
+    def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """No generalized forces: the model's actuators and mocap bodies move the robot."""
-        del drive, time, robot_q, robot_v, rng
+        del state, rng
         return np.zeros(self.robot_dofs())
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
@@ -540,38 +319,13 @@ class SceneTask(Task):
 
     # -- regions ---------------------------------------------------------------------------
 
-    def frame_lookup(self, frame: FrameState | None) -> _FrameLookup:
+    def frame_lookup(self, frame: FrameState | None) -> SceneFrameLookup:
         """Poses of bodies, sites and geoms at ``frame`` (the model's start configuration for ``None``).
 
         The lookup holds the scene's kinematics data, which the next call overwrites: regions copy
         what they keep when they are built.
         """
-        loaded = self.loaded
-        model, data = loaded.model, self._kinematics
-        mujoco.mj_resetData(model, data)
-        data.qpos[:] = loaded.initial_qpos
-        if frame is not None:
-            index = self._index
-            if index.upright:
-                zeros = np.zeros((loaded.n_objects, 3))
-                yaw = yaw_from_quat(np.asarray(frame.object_quat, dtype=float))
-                index.write_objects(data.qpos, data.qvel, frame.object_pos, zeros, yaw, zeros[:, 0])
-            else:
-                data.qpos[index.pos_index] = frame.object_pos
-                data.qpos[index.quat_index] = frame.object_quat
-            joints = len(loaded.robot_joints)
-            data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
-            nmocap = int(model.nmocap)
-            if nmocap:
-                data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)
-                data.mocap_quat[:] = frame.robot_q[joints + 3 * nmocap :].reshape(-1, 4)
-        else:
-            command = self.model_command(np.ones(2), 0.0)
-            if command is not None and command.mocap_pos is not None:
-                data.mocap_pos[:] = command.mocap_pos
-                data.mocap_quat[:] = command.mocap_quat
-        mujoco.mj_kinematics(model, data)
-        return _FrameLookup(loaded, data, self._object_geoms)
+        return lookup_frame(self.loaded, self._index, self._kinematics, frame, self.model_command)
 
     def _set(self, table: dict[str, Any], at_least: int | None, frame: FrameState | None) -> Region:
         region = build_region(table, self.frame_lookup(frame))
@@ -659,7 +413,7 @@ class SceneTask(Task):
         base_mass, base_inertia = loaded.object_inertials
         scale = scene.object_masses / base_mass
         inertia = base_inertia * scale[:, None]
-        linear_armature, angular_armature = self._object_armature()
+        linear_armature, angular_armature = object_armature(loaded.model, self._index, loaded.n_objects)
         perturbation = loaded.perturbation
         limits = np.zeros((scene.n_objects, 6))
         limits[:, :3] = (scene.object_masses[:, None] + linear_armature) * np.asarray(perturbation.linear_acceleration)
@@ -667,19 +421,6 @@ class SceneTask(Task):
         if loaded.spec.object_joints == "upright":
             limits[:, 3:5] = 0.0
         return WrenchLimits(max_wrench=limits, max_duration=perturbation.max_duration)
-
-    def _object_armature(self) -> tuple[np.ndarray, np.ndarray]:
-        """Armature of each object's joints along x, y, z (n, 3), kg, and about them (n, 3), kg m^2."""
-        index = self._index
-        armature = self.loaded.model.dof_armature
-        n = self.loaded.n_objects
-        if not index.upright:
-            return armature[index.linvel_index], armature[index.angvel_index]
-        mask = index.axis_mask if index.axis_mask is not None else np.ones((n, 4), dtype=bool)
-        linear = np.where(mask[:, :3], armature[index.linvel_index], 0.0)
-        angular = np.zeros((n, 3))
-        angular[:, 2] = np.where(mask[:, 3], armature[index.yaw_rate_index], 0.0)
-        return linear, angular
 
     def _state_box(self) -> StateBox:
         """The scene file's ``[bounds]``; a side it leaves out is a box around the model (:data:`BOUNDS_MARGIN`)."""

@@ -1,8 +1,9 @@
-"""The physically sane states of a task: objects inside a box, slower than a speed bound.
+"""The bounds of a task's analysis: its sane states (a box, a speed bound) and its perturbation ranges.
 
 One :class:`StateBox` per task serves twice: a tree rejects every reached state outside it
 (:meth:`Task.within_bounds`), and no frame outside it becomes data (``generate``, ``record``, the
-wrappers' recorder and ``check``, :mod:`energy_margin.data.physical`).
+wrappers' recorder and ``check``, :mod:`energy_margin.data.physical`). Its :class:`WrenchLimits`
+bound the wrenches the analyzer perturbs the objects with.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from energy_margin.errors import InvalidParameterError
 
 if TYPE_CHECKING:
     import mujoco
+
+__all__ = ["OUTSIDE", "TOO_FAST", "StateBox", "Violation", "WrenchLimits", "box_around_model"]
 
 #: Kinds of :class:`Violation`.
 OUTSIDE = "outside the bounds"
@@ -159,4 +162,21 @@ def box_around_model(model: mujoco.MjModel, margin: float) -> tuple[tuple[float,
     return tuple(float(x) for x in low), tuple(float(x) for x in high)
 
 
-__all__ = ["OUTSIDE", "TOO_FAST", "StateBox", "Violation", "box_around_model"]
+@dataclass(frozen=True)
+class WrenchLimits:
+    """Uniform perturbation ranges of one analysis.
+
+    Attributes:
+        max_wrench: per-object bound on |force| (N) and |torque| (N m) per world axis, shape
+            (n_objects, 6); a zero entry is never perturbed.
+        max_duration: longest propagation, seconds.
+
+    """
+
+    max_wrench: np.ndarray
+    max_duration: float
+
+    @property
+    def control_dimension(self) -> int:
+        """Number of perturbed wrench components (sets the duration bias)."""
+        return int(np.count_nonzero(self.max_wrench))

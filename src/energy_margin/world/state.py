@@ -1,4 +1,4 @@
-"""The physical state of one recorded frame, independent of any engine."""
+"""The physical state of one recorded frame and the end-effector state a scripted command sees, engine-free."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from energy_margin.errors import InvalidParameterError
 
 __all__ = [
     "FrameState",
+    "RobotState",
     "relative_rotation_vector",
     "yaw_from_quat",
 ]
@@ -89,3 +90,24 @@ def relative_rotation_vector(quat_from: np.ndarray, quat_to: np.ndarray) -> np.n
     # angle / sin(angle / 2) -> 2 as the angle -> 0.
     scale = np.divide(angle, sin_half, out=np.full_like(angle, 2.0), where=sin_half > 1e-12) * sign
     return v_rel * scale[..., None]
+
+
+@dataclass(frozen=True, slots=True)
+class RobotState:
+    """The end-effector at one instant of a roll-out, as a task's scripted command sees it.
+
+    Passed to ``Task.robot_force(state, rng)`` and ``Task.robot_targets(state, rng)``.
+
+    Attributes:
+        drive: the trajectory's drive parameters (``Trajectory.drive``), shape (n_drive,), in the
+            task's units.
+        time: time since the start of the roll-out, s.
+        q: end-effector generalized coordinates, shape (n_robot_dofs,), m or rad.
+        v: end-effector generalized velocities, shape (n_robot_dofs,), m/s or rad/s.
+
+    """
+
+    drive: np.ndarray
+    time: float
+    q: np.ndarray
+    v: np.ndarray

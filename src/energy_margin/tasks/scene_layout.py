@@ -1,0 +1,132 @@
+"""Start layouts of a scene's objects: origins drawn apart by the separation, orientations drawn after each.
+
+:meth:`~energy_margin.tasks.scene_task.SceneTask.sample_trajectory` draws layouts here until one
+places no object into the robot or an obstacle.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import InvalidDataError
+from energy_margin.sim.mujoco_index import ModelIndex
+from energy_margin.tasks.scene_model import LoadedScene
+
+__all__ = ["draw_layout"]
+
+#: Draws of one object's origin before the layout starts again (the objects before took its room).
+_DRAWS_PER_OBJECT = 2_000
+#: Fresh layouts before the separation is declared impossible in the start ranges.
+_LAYOUT_RESTARTS = 50
+
+
+def draw_layout(
+    loaded: LoadedScene, model_index: ModelIndex, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Object origins (n, 3) and quaternions (n, 4), origins pairwise apart by the separation.
+
+    Objects are placed one at a time, each drawn until it lies the separation away from those
+    already placed; an object that finds no room in :data:`_DRAWS_PER_OBJECT` draws (the ones
+    before took it) starts the layout again, up to :data:`_LAYOUT_RESTARTS` times.
+
+    Raises:
+        InvalidDataError: no layout fits, naming the object that found no room, the start ranges,
+            the separation and how many origins a grid of that spacing fits in the ranges.
+    """
+    n = loaded.n_objects
+    separation = _separation(loaded)
+    most_placed = 0
+    for _restart in range(_LAYOUT_RESTARTS):
+        pos = np.empty((n, 3))
+        quat = np.empty((n, 4))
+        placed = 0
+        for index in range(n):
+            for _attempt in range(_DRAWS_PER_OBJECT):
+                candidate = _draw_origin(loaded, model_index, rng, index)
+                if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
+                    pos[index] = candidate
+                    # Drawn right after its origin: the order of draws of every layout that fits.
+                    quat[index] = _draw_orientation(loaded, rng, index)
+                    placed += 1
+                    break
+            else:
+                break
+        most_placed = max(most_placed, placed)
+        if placed == n:
+            return pos, quat
+    raise InvalidDataError(_placement_failure(loaded, most_placed, separation))
+
+
+def _separation(loaded: LoadedScene) -> float:
+    start = loaded.spec.start
+    if start.min_separation is not None:
+        return float(start.min_separation)
+    return 2.0 * float(np.max(loaded.object_radius))
+
+
+def _draw_origin(loaded: LoadedScene, model_index: ModelIndex, rng: np.random.Generator, index: int) -> np.ndarray:
+    start = loaded.spec.start
+    if start.low is not None and start.high is not None:
+        return np.asarray(rng.uniform(start.low, start.high), dtype=float)
+    candidate = model_index.object_positions(loaded.initial_qpos)[index].copy()
+    for axis, column in (("x", 0), ("y", 1), ("z", 2)):
+        if axis in start.ranges:
+            candidate[column] = rng.uniform(*start.ranges[axis])
+    return np.asarray(candidate, dtype=float)
+
+
+def _draw_orientation(loaded: LoadedScene, rng: np.random.Generator, index: int) -> np.ndarray:
+    start = loaded.spec.start
+    if start.mode == "pile":
+        axis_angle = rng.normal(size=4)
+        return np.asarray(axis_angle / np.linalg.norm(axis_angle), dtype=float)
+    yaw = float(rng.uniform(*start.ranges["yaw"])) if "yaw" in start.ranges else 0.0
+    return _quat_multiply(_quat_yaw(yaw), _base_quat(loaded, index))
+
+
+def _placement_failure(loaded: LoadedScene, most_placed: int, separation: float) -> str:
+    """Why no layout fits: the object that found no room, the ranges and a grid's capacity."""
+    start = loaded.spec.start
+    n = loaded.n_objects
+    if start.low is not None and start.high is not None:
+        spans = {axis: (float(lo), float(hi)) for axis, lo, hi in zip("xyz", start.low, start.high, strict=True)}
+    else:
+        spans = {axis: start.ranges[axis] for axis in "xyz" if axis in start.ranges}
+    described = ", ".join(f"{axis} in [{lo:.3g}, {hi:.3g}] m" for axis, (lo, hi) in spans.items())
+    stuck = loaded.object_names[min(most_placed, n - 1)]
+    grid = ""
+    if separation > 0.0:
+        capacity = 1
+        for lo, hi in spans.values():
+            capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
+        # An upper bound: objects drawn one at a time jam well before a grid is full.
+        grid = f"; a grid of {separation:.3g} m spacing holds at most {capacity} origins there"
+    return (
+        f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart "
+        f"({described or 'at their model positions'}): at most {most_placed} fit in {_LAYOUT_RESTARTS} layouts, "
+        f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws{grid}; widen the start ranges or lower "
+        "min_separation"
+    )
+
+
+def _qpos_address(loaded: LoadedScene, index: int) -> int:
+    return int(loaded.model.jnt_qposadr[loaded.object_joints[index]])
+
+
+def _base_quat(loaded: LoadedScene, index: int) -> np.ndarray:
+    if loaded.spec.object_joints == "upright":
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    address = _qpos_address(loaded, index)
+    quat = loaded.initial_qpos[address + 3 : address + 7]
+    return quat / np.linalg.norm(quat)
+
+
+def _quat_yaw(yaw: float) -> np.ndarray:
+    return np.array([np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)])
+
+
+def _quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    result = np.empty(4)
+    mujoco.mju_mulQuat(result, a, b)
+    return result

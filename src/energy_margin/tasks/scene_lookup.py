@@ -1,0 +1,99 @@
+"""Poses of a scene's named bodies, sites and geoms in one frame's kinematics.
+
+:class:`SceneFrameLookup` is the ``FrameLookup`` a scene's regions are built with
+(:func:`~energy_margin.tasks.regions.build_region`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.sim.base import ModelCommand
+from energy_margin.sim.mujoco_index import ModelIndex
+from energy_margin.tasks.scene_model import LoadedScene
+from energy_margin.world.state import FrameState, yaw_from_quat
+
+__all__ = ["SceneFrameLookup", "lookup_frame"]
+
+
+class SceneFrameLookup:
+    """Poses of named bodies, sites and geoms in one frame's kinematics (a ``FrameLookup``)."""
+
+    _KINDS: ClassVar[dict[str, mujoco.mjtObj]] = {
+        "body": mujoco.mjtObj.mjOBJ_BODY,
+        "site": mujoco.mjtObj.mjOBJ_SITE,
+        "geom": mujoco.mjtObj.mjOBJ_GEOM,
+    }
+
+    def __init__(self, loaded: LoadedScene, data: mujoco.MjData, object_geoms: list[np.ndarray]) -> None:
+        self.loaded = loaded
+        self.model = loaded.model
+        self.data = data
+        self.object_geoms = object_geoms
+        self._poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Origin (3,) m and rotation matrix (3, 3) of body, site or geom ``name``."""
+        if (kind, name) not in self._poses:
+            index = mujoco.mj_name2id(self.model, self._KINDS[kind], name)
+            if index < 0:
+                spec = self.loaded.spec
+                raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
+            data = self.data
+            positions, matrices = {
+                "body": (data.xpos, data.xmat),
+                "site": (data.site_xpos, data.site_xmat),
+                "geom": (data.geom_xpos, data.geom_xmat),
+            }[kind]
+            self._poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
+        return self._poses[(kind, name)]
+
+
+def lookup_frame(
+    loaded: LoadedScene,
+    model_index: ModelIndex,
+    data: mujoco.MjData,
+    frame: FrameState | None,
+    command_at: Callable[[np.ndarray, float], ModelCommand | None],
+) -> SceneFrameLookup:
+    """Poses of bodies, sites and geoms at ``frame``, computed in ``data`` (overwritten).
+
+    Args:
+        loaded: the scene.
+        model_index: the scene's :class:`~energy_margin.sim.mujoco_index.ModelIndex`.
+        data: kinematics data of the scene's model, reset here.
+        frame: the frame; ``None`` for the model's start configuration.
+        command_at: the task's model command at a drive and a time (s): without a frame, it
+            places the mocap bodies where it puts them at time 0.
+
+    """
+    model = loaded.model
+    mujoco.mj_resetData(model, data)
+    data.qpos[:] = loaded.initial_qpos
+    if frame is not None:
+        index = model_index
+        if index.upright:
+            zeros = np.zeros((loaded.n_objects, 3))
+            yaw = yaw_from_quat(np.asarray(frame.object_quat, dtype=float))
+            index.write_objects(data.qpos, data.qvel, frame.object_pos, zeros, yaw, zeros[:, 0])
+        else:
+            data.qpos[index.pos_index] = frame.object_pos
+            data.qpos[index.quat_index] = frame.object_quat
+        joints = len(loaded.robot_joints)
+        data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
+        nmocap = int(model.nmocap)
+        if nmocap:
+            data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)
+            data.mocap_quat[:] = frame.robot_q[joints + 3 * nmocap :].reshape(-1, 4)
+    else:
+        command = command_at(np.ones(2), 0.0)
+        if command is not None and command.mocap_pos is not None:
+            data.mocap_pos[:] = command.mocap_pos
+            data.mocap_quat[:] = command.mocap_quat
+    mujoco.mj_kinematics(model, data)
+    return SceneFrameLookup(loaded, data, loaded.object_geoms)
