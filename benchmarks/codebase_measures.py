@@ -153,18 +153,40 @@ def cli_measures(root: Path) -> dict[str, int] | None:
     return json.loads(found.stdout) if found.returncode == 0 else None
 
 
-def duplicate_pairs(package: Path) -> int | None:
-    """Pairs of places in ``package`` sharing six or more lines (``duplicates``); ``None`` without it."""
+def _is_listing(line: str) -> bool:
+    """A line of an ``__all__`` list: a quoted name, the list's opening or its end."""
+    return bool(re.match(r'\s*"\w+",\s*$', line)) or "__all__" in line or line.strip() in ("]", "")
+
+
+def duplicate_pairs(package: Path) -> dict[str, int] | None:
+    """Pairs of places in ``package`` sharing six or more lines (``duplicates``), and how many of them
+    have an ``__all__`` list on one side (a re-export list repeats the names its module imports);
+    ``None`` without the command.
+    """
     if shutil.which("duplicates") is None:
         return None
     found = subprocess.run(
-        ["duplicates", "--repo", str(package), "--seconds", "120"], capture_output=True, text=True, check=False
+        ["duplicates", "--repo", str(package), "--most", "200", "--seconds", "120"],
+        capture_output=True,
+        text=True,
+        check=False,
     )
     first = found.stdout.splitlines()[0] if found.stdout else ""
     if first.startswith("no duplicates"):
-        return 0
+        return {"pairs": 0, "with_an_all_list": 0}
     match = re.match(r"(\d+) pairs?", first)
-    return int(match.group(1)) if match else None
+    if match is None:
+        return None
+    listing = 0
+    for row in found.stdout.splitlines():
+        for path, start, end in re.findall(r"(\S+\.py):(\d+)-(\d+)", row if re.match(r"D\d+ ", row) else ""):
+            lines = (package / path).read_text(encoding="utf-8").splitlines()[int(start) - 1 : int(end)]
+            if all(
+                re.match(r'\s*"\w+",\s*$', line) or "__all__" in line or line.strip() in ("]", "") for line in lines
+            ):
+                listing += 1
+                break
+    return {"pairs": int(match.group(1)), "with_an_all_list": listing}
 
 
 def main() -> None:
@@ -205,7 +227,10 @@ def main() -> None:
         print(f"command line: {figures['cli']['commands']} commands, {figures['cli']['options']} options")
     readme = figures["readme"]
     print(f"README: {readme['lines']} lines, {readme['words']} words, {readme['numbers']} numbers")
-    print(f"repeated-code pairs in src: {figures['duplicate_pairs']}")
+    pairs = figures["duplicate_pairs"]
+    if pairs is not None:
+        listing = pairs["with_an_all_list"]
+        print(f"repeated-code pairs in src: {pairs['pairs']} ({listing} with an __all__ list on one side)")
     if args.out:
         args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
 
