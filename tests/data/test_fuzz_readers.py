@@ -132,7 +132,7 @@ def assert_readers_cope(directory: Path, *, with_evaluate: bool = True) -> list[
         else:
             assert not problems
             assert listed == []
-            assert result["n_frames"] == 6
+            assert result.n_frames == 6
     shutil.rmtree(directory)
     return problems
 

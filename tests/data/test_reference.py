@@ -51,19 +51,19 @@ def test_pushing_set_reproduces_table_one(pushing: Path) -> None:
     assert dataset.metadata["task_config"]["wall_y"] == 1.6
     np.testing.assert_allclose(dataset.arrays["object_pos"][..., 2], 0.0)
     result = evaluate(pushing, **TABLE_I)  # type: ignore[arg-type]
-    assert result["capture_ap"] == pytest.approx(0.9996, abs=5e-5)
-    assert result["success_ap"] == pytest.approx(0.9790, abs=5e-5)
-    assert result["success_positive_rate"] == pytest.approx(16 / 20)
-    assert result["runtime_per_frame_s"] == pytest.approx(1.24, abs=0.01)
+    assert result.capture_ap == pytest.approx(0.9996, abs=5e-5)
+    assert result.success_ap == pytest.approx(0.9790, abs=5e-5)
+    assert result.success_positive_rate == pytest.approx(16 / 20)
+    assert result.runtime_per_frame_s == pytest.approx(1.24, abs=0.01)
 
 
 def test_scooping_set_reproduces_table_one(scooping: Path) -> None:
     dataset = load_dataset(scooping)
     assert (dataset.n_trajectories, dataset.n_frames, dataset.n_objects) == (20, 10, 5)
     result = evaluate(scooping, **TABLE_I)  # type: ignore[arg-type]
-    assert result["capture_ap"] == pytest.approx(0.9525, abs=5e-5)
-    assert result["success_ap"] == pytest.approx(1.0)
-    assert result["success_positive_rate"] == pytest.approx(6 / 20)
+    assert result.capture_ap == pytest.approx(0.9525, abs=5e-5)
+    assert result.success_ap == pytest.approx(1.0)
+    assert result.success_positive_rate == pytest.approx(6 / 20)
     assert int(dataset.arrays["captured"].sum()) == 59
 
 
@@ -97,7 +97,7 @@ def test_other_score_runs_are_selectable(tmp_path: Path) -> None:
     folder = _reference("planepush-10objects")
     import_reference(folder, tmp_path / "run1", scores="1")
     result = evaluate(tmp_path / "run1", **TABLE_I)  # type: ignore[arg-type]
-    assert result["capture_ap"] == pytest.approx(0.951, abs=1e-3)
+    assert result.capture_ap == pytest.approx(0.951, abs=1e-3)
 
 
 def test_cli_import_then_evaluate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -432,7 +432,7 @@ def test_overlaps_of_a_recorded_set_are_warnings(scored: Path, rewrite_frames: C
     warnings: list = []
     assert check_dataset(scored, warnings=warnings) == []
     assert warnings and "overlaps object" in warnings[0].message
-    assert evaluate(scored)["n_frames"] > 0
+    assert evaluate(scored).n_frames > 0
 
 
 def test_small_objects_get_the_overlap_floor(tmp_path: Path) -> None:

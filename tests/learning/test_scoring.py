@@ -152,13 +152,13 @@ def test_evaluate_reads_learned_scores(
     dataset = load_dataset(fresh)
     capture, _ = model.predict(dataset.task, frames_of(dataset))
     result = evaluate(fresh)
-    assert result["n_frames"] == capture.size
-    assert result["capture_ap"] is not None and result["success_ap"] is not None
-    assert result["capture_ap"] == average_precision(dataset.capture_labels(0), capture.reshape(6, 3))
-    assert result["physics_per_frame_s"] == 0.0 and result["runtime_per_frame_s"] > 0
+    assert result.n_frames == capture.size
+    assert result.capture_ap is not None and result.success_ap is not None
+    assert result.capture_ap == average_precision(dataset.capture_labels(0), capture.reshape(6, 3))
+    assert result.physics_per_frame_s == 0.0 and result.runtime_per_frame_s > 0
     code, out, err = run_cli(["evaluate", str(fresh), "--json"], capsys)
     assert code == 0 and err == ""
-    assert json.loads(out)["capture_ap"] == result["capture_ap"]
+    assert json.loads(out)["capture_ap"] == result.capture_ap
 
 
 @pytest.mark.parametrize(
