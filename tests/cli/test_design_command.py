@@ -235,3 +235,10 @@ def test_the_command_line_and_python_design_the_same_trees_by_default() -> None:
         ["design", "--task", "pushing", "--evaluations", "1", "--verify", "1", "--out", "x"]
     )
     assert args.iterations == TreeScorer().analyzer.iterations == DESIGN_EXPANSIONS
+    import inspect
+
+    from energy_margin.design.search import design_search
+
+    defaults = inspect.signature(design_search).parameters
+    assert args.trajectories == defaults["n_trajectories"].default
+    assert args.frames == defaults["n_frames"].default

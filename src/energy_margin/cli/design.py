@@ -60,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``design``."""
     from energy_margin.control.disturbances import DISTURBANCES
     from energy_margin.design.optimizers import OPTIMIZERS
-    from energy_margin.design.scorers import DESIGN_EXPANSIONS
+    from energy_margin.design.scorers import DESIGN_EXPANSIONS, DESIGN_FRAMES, DESIGN_TRAJECTORIES
     from energy_margin.design.verification import VERIFY_POLICIES
     from energy_margin.planning.costs import COST_MODELS
     from energy_margin.planning.methods import METHODS
@@ -95,8 +95,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="success",
         help="the score averaged over the roll-outs: success (all frames, default), early (first half) or capture",
     )
-    parser.add_argument("--trajectories", type=positive_int, default=5, help="roll-outs per evaluation (default 5)")
-    parser.add_argument("--frames", type=positive_int, default=10, help="frames per roll-out (default 10)")
+    parser.add_argument(
+        "--trajectories",
+        type=positive_int,
+        default=DESIGN_TRAJECTORIES,
+        help=f"roll-outs per evaluation (default {DESIGN_TRAJECTORIES})",
+    )
+    parser.add_argument(
+        "--frames", type=positive_int, default=DESIGN_FRAMES, help=f"frames per roll-out (default {DESIGN_FRAMES})"
+    )
     parser.add_argument("--objects", type=positive_int, help="objects per scene")
     parser.add_argument(
         "--iterations",

@@ -18,11 +18,15 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.tasks import Task
 
-__all__ = ["DESIGN_EXPANSIONS", "Scorer", "TreeScorer", "Verifier"]
+__all__ = ["DESIGN_EXPANSIONS", "DESIGN_FRAMES", "DESIGN_TRAJECTORIES", "Scorer", "TreeScorer", "Verifier"]
 
 #: Expansions per frame of a design's trees by default (``design --iterations``): a search scores
 #: many designs, and ranks them as well at 100 as at 300 on the tasks' families (docs/howto/design.md).
 DESIGN_EXPANSIONS = 100
+#: Roll-outs of one evaluation of a design, and frames per roll-out, by default (``design
+#: --trajectories``, ``--frames``; ``design_search``'s ``n_trajectories``, ``n_frames``).
+DESIGN_TRAJECTORIES = 5
+DESIGN_FRAMES = 10
 
 
 class Scorer(Protocol):

@@ -45,7 +45,7 @@ from typing import Any
 
 from energy_margin.design.optimizers import OPTIMIZERS, require_optimizer
 from energy_margin.design.rank import MARGINS
-from energy_margin.design.scorers import Scorer, TreeScorer, Verifier
+from energy_margin.design.scorers import DESIGN_FRAMES, DESIGN_TRAJECTORIES, Scorer, TreeScorer, Verifier
 from energy_margin.design.search_result import (
     DesignSearchResult,
     format_result,
@@ -109,8 +109,8 @@ def design_search(
     verify: int,
     out: Path | str,
     n_objects: int | None = None,
-    n_trajectories: int = 4,
-    n_frames: int = 6,
+    n_trajectories: int = DESIGN_TRAJECTORIES,
+    n_frames: int = DESIGN_FRAMES,
     seed: int = 0,
     score: str = "success_score",
     scorer: Scorer | None = None,
