@@ -18,7 +18,7 @@ import numpy as np
 
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.runs.display import Display
-from energy_margin.runs.results import TypedResult
+from energy_margin.runs.results import TypedResult, plain_result
 from energy_margin.runs.tables import fmt
 
 __all__ = [
@@ -56,8 +56,7 @@ class DesignSearchDisplay(Display):
     @classmethod
     def from_result(cls, result: TypedResult | dict[str, Any]) -> DesignSearchDisplay:
         """The figure of a design search's result (or ``result.json``)."""
-        if isinstance(result, TypedResult):
-            result = result.to_dict()
+        result = plain_result(result)
         settings = result["settings"]
         return cls(
             task=settings["task"],

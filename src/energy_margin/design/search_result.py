@@ -18,7 +18,7 @@ import numpy as np
 
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.evaluation.statistics import spearman, wilson_interval
-from energy_margin.runs.results import TypedResult
+from energy_margin.runs.results import TypedResult, plain_result
 from energy_margin.runs.tables import Column, fmt
 from energy_margin.runs.tables import format_table as text_table
 
@@ -188,8 +188,7 @@ def _level_cell(level: str) -> Callable[[dict[str, Any]], str]:
 
 def format_result(result: DesignSearchResult | dict[str, Any]) -> str:
     """The verified designs as a table, then what was searched and the rank correlation, as text."""
-    if isinstance(result, DesignSearchResult):
-        result = result.to_dict()
+    result = plain_result(result)
     settings = result["settings"]
     names = [p["name"] for p in settings["space"]]
     levels = list(settings["verify"]["disturbances"])

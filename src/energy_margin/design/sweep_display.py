@@ -19,7 +19,7 @@ import numpy as np
 from energy_margin.design.rank import MARGIN_LABELS, MARGINS
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.display import Display
-from energy_margin.runs.results import TypedResult
+from energy_margin.runs.results import TypedResult, plain_result
 from energy_margin.runs.tables import fmt
 
 __all__ = [
@@ -60,8 +60,7 @@ class SweepDisplay(Display):
             EnergyMarginError: the results have no correlations (fewer than two analysed designs).
 
         """
-        if isinstance(results, TypedResult):
-            results = results.to_dict()
+        results = plain_result(results)
         if "correlations" not in results:
             raise EnergyMarginError("a sweep's figure needs at least two analysed designs")
         settings = results["settings"]

@@ -24,7 +24,7 @@ from energy_margin.design.rank import MARGIN_LABELS, MARGINS, DesignOutcome, ran
 from energy_margin.design.sweep_display import SweepDisplay
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
-from energy_margin.runs.results import TypedResult
+from energy_margin.runs.results import TypedResult, plain_result
 from energy_margin.runs.tables import Column, field, fmt, write_csv, write_json
 from energy_margin.runs.tables import format_table as text_table
 
@@ -189,8 +189,7 @@ CONVERGENCE_COLUMNS = (
 
 def format_table(results: SweepResult | dict[str, Any]) -> str:
     """The design table, the rank correlations and the convergence table as text."""
-    if isinstance(results, SweepResult):
-        results = results.to_dict()
+    results = plain_result(results)
     names = [param["name"] for param in results["settings"]["params"]]
     failed = results.get("failed", [])
     everyone = [*results["rows"], *failed]

@@ -36,7 +36,7 @@ from energy_margin.errors import (
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import evaluate_capture_windows
 from energy_margin.evaluation.verdict import verdicts
-from energy_margin.runs.results import TypedResult
+from energy_margin.runs.results import TypedResult, plain_result
 
 __all__ = ["Evaluation", "average_precision", "check_options", "evaluate", "score_grid"]
 
@@ -54,7 +54,7 @@ def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
         return float(average_precision_score(labels, scores))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Evaluation(TypedResult):
     """What :func:`evaluate` measured: the margin's AP per question, its baselines', the verdict.
 
@@ -88,18 +88,18 @@ class Evaluation(TypedResult):
     """
 
     capture_ap: float | None
-    capture_ap_window2: float | None
+    capture_ap_window2: float | None = None
     success_ap: float | None
     success_ap_first_half: float | None
     baselines: dict[str, dict[str, float | None]]
-    verdict: dict[str, dict[str, Any]] | None
-    verdict_resamples: int | None
-    seed: int | None
+    verdict: dict[str, dict[str, Any]] | None = None
+    verdict_resamples: int | None = None
+    seed: int | None = None
     capture_window: int
     success_frames: int
     weights: str
     capture_positive_rate: float
-    capture_positive_rate_window2: float | None
+    capture_positive_rate_window2: float | None = None
     success_positive_rate: float
     n_frames: int
     n_trajectories: int
@@ -117,12 +117,6 @@ class Evaluation(TypedResult):
         if self.verdict is None:
             left_out |= {"verdict", "verdict_resamples", "seed"}
         return left_out
-
-    @classmethod
-    def from_dict(cls, values: Any) -> Evaluation:
-        """The evaluation of ``evaluate --json``'s dictionary (absent fields ``None``)."""
-        optional = ("capture_ap_window2", "capture_positive_rate_window2", "verdict", "verdict_resamples", "seed")
-        return cls(**{**dict.fromkeys(optional), **dict(values)})
 
 
 def score_grid(dataset: Dataset, scores: dict[str, np.ndarray], column: str) -> np.ndarray:
@@ -290,8 +284,7 @@ def verdict_cell(verdict: dict[str, Any], drawn: int | None = None) -> str:
 
 def format_table(result: Evaluation | dict[str, Any]) -> str:
     """A human-readable table of :func:`evaluate`'s result (or its dictionary)."""
-    if isinstance(result, Evaluation):
-        result = result.to_dict()
+    result = plain_result(result)
     k_hat, k_bar = result["capture_window"], result["success_frames"]
     rows = [
         *((f"capture AP, k-hat={window}", key) for key, window in evaluate_capture_windows(k_hat).items()),

@@ -22,6 +22,7 @@ from energy_margin.data.dataset import METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.metrics import Evaluation, evaluate, score_grid
+from energy_margin.runs.results import plain_result
 
 __all__ = [
     "PerturbedComparison",
@@ -81,7 +82,7 @@ def _mean_std(values: list[float | None] | np.ndarray) -> dict[str, Any]:
     return {"mean": float(array.mean()), "std": float(array.std()), "values": [float(v) for v in array]}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PerturbedComparison(Evaluation):
     """The true states' :class:`~energy_margin.evaluation.metrics.Evaluation` and Table I's comparison.
 
@@ -108,12 +109,6 @@ class PerturbedComparison(Evaluation):
     protocol: str | None
     compare: list[str]
     runtime_per_frame_perturbed_s: float
-
-    @classmethod
-    def from_dict(cls, values: Any) -> PerturbedComparison:
-        """The comparison of ``evaluate --compare --json``'s dictionary."""
-        optional = ("capture_ap_window2", "capture_positive_rate_window2", "verdict", "verdict_resamples", "seed")
-        return cls(**{**dict.fromkeys(optional), **dict(values)})
 
 
 def compare_perturbed(
@@ -221,8 +216,7 @@ def _pm(entry: dict[str, Any], signed: bool = False) -> str:
 
 def format_robustness_table(result: PerturbedComparison | dict[str, Any]) -> str:
     """Table I row of :func:`compare_perturbed`'s result (or its dictionary), human-readable."""
-    if isinstance(result, PerturbedComparison):
-        result = result.to_dict()
+    result = plain_result(result)
 
     def cell(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.2f}"

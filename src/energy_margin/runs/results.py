@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Iterator, Mapping
 from typing import Any
 
-__all__ = ["TypedResult"]
+__all__ = ["TypedResult", "plain_result"]
 
 
 class TypedResult(Mapping[str, Any]):
@@ -57,3 +57,8 @@ class TypedResult(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self.to_dict())
+
+
+def plain_result(result: TypedResult | dict[str, Any]) -> dict[str, Any]:
+    """A result as the dictionary its command writes: ``to_dict()`` of a :class:`TypedResult`, else itself."""
+    return result.to_dict() if isinstance(result, TypedResult) else result
