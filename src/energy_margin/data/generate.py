@@ -24,7 +24,7 @@ from energy_margin.data.validation import deep_overlaps, describe_overlap, overl
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.sim import ENGINES, Simulator
-from energy_margin.tasks import Task, Trajectory, command_robot, get_task
+from energy_margin.tasks import Task, Trajectory, command_robot, resolve_task
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -385,7 +385,7 @@ def generate_dataset(
     """
     if engine not in ENGINES:
         raise EnergyMarginError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINES)}")
-    task = task_name.configured(task_config) if isinstance(task_name, Task) else get_task(task_name, task_config)
+    task = resolve_task(task_name, task_config)
     check_engine(task, engine)
     if task.fixed_objects is not None:
         if n_objects is not None and n_objects != task.fixed_objects:

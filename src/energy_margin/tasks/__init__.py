@@ -12,7 +12,7 @@ import sys
 from importlib.metadata import entry_points
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError, InvalidParameterError
+from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks.base import (
     DesignAlias,
     DesignParameter,
@@ -87,13 +87,7 @@ def task_class(name: str) -> type[Task]:
 
 def get_task(name: str, config: dict[str, Any] | None = None) -> Task:
     """Build the registered task ``name`` with optional configuration overrides."""
-    cls = task_class(name)
-    try:
-        return cls.from_dict(config)
-    except InvalidParameterError as error:
-        raise InvalidParameterError(error.parameter, f"{error.reason} (task {name!r})") from None
-    except (TypeError, ValueError) as error:
-        raise EnergyMarginError(f"bad configuration for task {name!r}: {error}") from None
+    return task_class(name).build(config)
 
 
 def get_recorded_task(name: str, config: dict[str, Any] | None) -> Task:

@@ -240,12 +240,17 @@ class Task(ABC):
         """
         if not overrides:
             return self
+        return type(self).build({**self._settings(), **overrides})
+
+    @classmethod
+    def build(cls, values: dict[str, Any] | None) -> Task:
+        """:meth:`from_dict`, its errors naming the task (a parameter's keeps its name)."""
         try:
-            return type(self).from_dict({**self._settings(), **overrides})
+            return cls.from_dict(values)
         except InvalidParameterError as error:
-            raise InvalidParameterError(error.parameter, f"{error.reason} (task {self.name!r})") from None
+            raise InvalidParameterError(error.parameter, f"{error.reason} (task {cls.name!r})") from None
         except (TypeError, ValueError) as error:
-            raise EnergyMarginError(f"bad configuration for task {self.name!r}: {error}") from None
+            raise EnergyMarginError(f"bad configuration for task {cls.name!r}: {error}") from None
 
     def _settings(self) -> dict[str, Any]:
         """The settings :meth:`configured` builds a variant from: every configuration field."""
