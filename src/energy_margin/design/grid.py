@@ -24,7 +24,9 @@ from energy_margin.tasks import Task, available_tasks, get_task
 
 __all__ = [
     "Design",
+    "config_fields",
     "design_grid",
+    "design_label",
 ]
 
 
@@ -46,10 +48,11 @@ class Design:
     @property
     def label(self) -> str:
         """The design as people read it, e.g. ``scoop_angle=1.31, open_gap=0.09``."""
-        return _label(self.values)
+        return design_label(self.values)
 
 
-def _config_fields(task: Task) -> dict[str, Any]:
+def config_fields(task: Task) -> dict[str, Any]:
+    """Every configuration field of ``task`` with its value."""
     return {field.name: getattr(task.config, field.name) for field in dataclasses.fields(task.config)}
 
 
@@ -59,7 +62,7 @@ def _design_names(task_name: str) -> set[str] | None:
         task = get_task(task_name)
     except EnergyMarginError:
         return None
-    return set(_config_fields(task)) | {alias.name for alias in task.design_aliases()}
+    return set(config_fields(task)) | {alias.name for alias in task.design_aliases()}
 
 
 def _unknown_parameter(task: Task, name: str, known: set[str]) -> InvalidParameterError:
@@ -96,14 +99,14 @@ def design_grid(task: Task, params: Sequence[tuple[str, Any]], *, fixed: dict[st
     """
     fixed = dict(fixed or {})
     task = task.configured(fixed)
-    fields = _config_fields(task)
+    fields = config_fields(task)
     aliases = {alias.name: alias for alias in task.design_aliases()}
     _check_params(task, params, fixed, set(fields) | set(aliases), aliases)
     designs: list[Design] = []
     slugs: dict[str, str] = {}
     for combination in itertools.product(*(values for _, values in params)):
         chosen = {name: value for (name, _), value in zip(params, combination, strict=True)}
-        label = _label(chosen)
+        label = design_label(chosen)
         overrides = dict(fixed)
         for name, value in chosen.items():
             if name in aliases:
@@ -150,7 +153,8 @@ def _check_params(
         targets[field] = name
 
 
-def _label(values: dict[str, Any]) -> str:
+def design_label(values: dict[str, Any]) -> str:
+    """Design values as people read them, e.g. ``scoop_angle=1.31, open_gap=0.09``."""
     return ", ".join(f"{name}={json.dumps(value)}" for name, value in values.items())
 
 

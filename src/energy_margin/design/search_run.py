@@ -22,7 +22,7 @@ import numpy as np
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
-from energy_margin.design.grid import Design
+from energy_margin.design.grid import Design, design_label
 from energy_margin.design.optimizers import make_optimizer
 from energy_margin.design.rank import design_outcome
 from energy_margin.design.scorers import Scorer, Verifier
@@ -87,10 +87,6 @@ def directory_name(slug: str) -> str:
     if len(slug) <= 100:
         return slug
     return "design-" + hashlib.sha256(slug.encode("utf-8")).hexdigest()[:16]
-
-
-def _label(values: dict[str, Any]) -> str:
-    return ", ".join(f"{name}={json.dumps(value)}" for name, value in values.items())
 
 
 # The search ---------------------------------------------------------------------------------------
@@ -179,8 +175,9 @@ class DesignSearchRun:
         if done is not None:
             if _plain(done["values"]) != _plain(values):
                 raise EnergyMarginError(
-                    f"{self.out / EVALUATIONS_JOURNAL}: evaluation {phase} {index} holds {_label(done['values'])} "
-                    f"but the search now asks for {_label(values)}; pass `overwrite=True` to start again"
+                    f"{self.out / EVALUATIONS_JOURNAL}: evaluation {phase} {index} holds "
+                    f"{design_label(done['values'])} but the search now asks for {design_label(values)}; "
+                    "pass `overwrite=True` to start again"
                 )
             if design is not None and done["objective"] is not None:
                 self.measured.setdefault(design.slug, {key: done[key] for key in _MEASURED if key in done})
@@ -193,7 +190,7 @@ class DesignSearchRun:
         journal.append(row)
         bar.update(1)
         objective = "failed: " + str(row["error"]) if row["objective"] is None else f"{row['objective']:.4f}"
-        self.say(f"{prefix} {_label(values)}: {self.settings['objective']['score']} {objective}")
+        self.say(f"{prefix} {design_label(values)}: {self.settings['objective']['score']} {objective}")
         if self.on_evaluation is not None:
             self.on_evaluation(phase, index)
         return row
@@ -250,7 +247,7 @@ class DesignSearchRun:
         journal.append(row)
         bar.update(1)
         objective = "failed: " + str(row["error"]) if row["objective"] is None else f"{row['objective']:.4f}"
-        self.say(f"design default {_label(design.values)}: {self.settings['objective']['score']} {objective}")
+        self.say(f"design default {design_label(design.values)}: {self.settings['objective']['score']} {objective}")
         if self.on_evaluation is not None:
             self.on_evaluation("default", 0)
         return row

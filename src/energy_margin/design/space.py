@@ -17,7 +17,6 @@ naming it; :func:`even_grid` is the grid of at most N designs spread evenly over
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import json
 import math
@@ -27,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.data.generate import trajectory_rng
-from energy_margin.design.grid import Design, design_grid
+from energy_margin.design.grid import Design, config_fields, design_grid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import DesignParameter, Task, available_tasks, get_task
 
@@ -51,10 +50,6 @@ __all__ = [
 DIGITS = 6
 #: The most corner combinations :func:`check_models` compiles; beyond it, each axis's ends alone.
 MAX_CORNERS = 64
-
-
-def _fields(task: Task) -> dict[str, Any]:
-    return {field.name: getattr(task.config, field.name) for field in dataclasses.fields(task.config)}
 
 
 def _is_number(value: Any) -> bool:
@@ -98,7 +93,7 @@ def resolve_space(
                 f"(Task.design_space; known: {', '.join(known_names(task))})",
             )
         return list(family.values())
-    fields = _fields(task)
+    fields = config_fields(task)
     aliases = {alias.name: alias for alias in task.design_aliases()}
     known = known_names(task)
     targets: dict[str, str] = {}
@@ -211,7 +206,7 @@ def default_design(task: Task, space: Sequence[DesignParameter], fixed: dict[str
 
     An axis that is an alias has no inverse from the configuration; it is labelled ``"default"``.
     """
-    fields = _fields(task.configured(fixed))
+    fields = config_fields(task.configured(fixed))
     values = {p.name: fields.get(p.name, "default") for p in space}
     return Design(values=values, overrides=dict(fixed), slug="default")
 
