@@ -21,6 +21,9 @@ def test_configured_equals_the_registry_build_of_the_same_settings() -> None:
     )
     assert base.config.pusher_speed_x != (0.1, 0.2)  # the base is unchanged
     assert base.configured({}) is base and base.configured(None) is base
+    # Settings it already has change nothing: the same task, not a rebuilt one.
+    assert base.configured({"pusher_mass": 3.0}) is base
+    assert base.configured({"pusher_mass": 4.0}) is not base
 
 
 def test_configured_refuses_a_bad_setting_naming_the_task() -> None:

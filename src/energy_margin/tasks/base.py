@@ -228,7 +228,7 @@ class Task(ABC):
         return ()
 
     def configured(self, overrides: dict[str, Any] | None) -> Task:
-        """This task with ``overrides`` applied to its configuration (one design of it); itself without any.
+        """This task with ``overrides`` applied to its configuration (one design); itself if they change nothing.
 
         A design, a sweep's grid point or a verification episode is the resolved task with some
         settings changed: it is built from this object (:meth:`from_dict` of its settings and
@@ -238,9 +238,12 @@ class Task(ABC):
             EnergyMarginError: an unknown setting or an invalid configuration, naming the task.
 
         """
-        if not overrides:
-            return self
-        return type(self).build({**self._settings(), **overrides})
+        overrides = dict(overrides or {})
+        settings = self._settings()
+        as_given = {key: tuple(value) if isinstance(value, list) else value for key, value in overrides.items()}
+        if all(key in settings and settings[key] == value for key, value in as_given.items()):
+            return self  # nothing changes: ``fixed`` applied again at each stage rebuilds nothing
+        return type(self).build({**settings, **overrides})
 
     @classmethod
     def build(cls, values: dict[str, Any] | None) -> Task:
