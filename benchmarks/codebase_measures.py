@@ -49,22 +49,25 @@ print(json.dumps({"commands": commands, "options": options}))
 """
 
 
+def _docstring(node: ast.AST) -> ast.Expr | None:
+    """The docstring statement of a module, class or function, or ``None``."""
+    if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef) and node.body:
+        first = node.body[0]
+        if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+            return first
+    return None
+
+
 def _docstring_nodes(tree: ast.AST) -> set[int]:
-    ids: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef) and node.body:
-            first = node.body[0]
-            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
-                ids.add(id(first.value))
-    return ids
+    return {id(statement.value) for node in ast.walk(tree) if (statement := _docstring(node)) is not None}
 
 
 def _code_lines(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
     """A function's lines without its docstring."""
     total = int(node.end_lineno or node.lineno) - node.lineno + 1
-    first = node.body[0]
-    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
-        total -= int(first.end_lineno or first.lineno) - first.lineno + 1
+    statement = _docstring(node)
+    if statement is not None:
+        total -= int(statement.end_lineno or statement.lineno) - statement.lineno + 1
     return total
 
 

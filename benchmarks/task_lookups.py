@@ -41,8 +41,10 @@ def count_lookups(argv: list[str]) -> Counter[str]:
     def profile(frame: FrameType, event: str, arg: Any) -> None:
         del arg
         if event == "call" and frame.f_code in LOOKUPS and frame.f_back is not None:
+            # resolve_task given a task object builds no task from a name: not a lookup.
+            by_name = not isinstance(frame.f_locals.get("task"), tasks.Task)
             caller = frame.f_back.f_globals.get("__name__", "?")
-            if caller != "energy_margin.tasks":
+            if caller != "energy_margin.tasks" and by_name:
                 calls[caller] += 1
 
     sys.setprofile(profile)
