@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/bench_analysis.py [--task pushing] [--objects 1 3 5 10 20] [--iterations 300]
+    python benchmarks/bench_analysis.py [--task pushing] [--objects 1 3 5 10 20] [--expansions 300]
         [--trajectories 2] [--frames 5] [--cost wrench] [--set timestep=0.0041667]
 
 Everything runs in this one process, one frame after another. For every n_o a small
@@ -50,7 +50,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="pushing", help="registered task (pushing, scooping)")
     parser.add_argument("--objects", type=int, nargs="+", default=[1, 3, 5, 10, 20])
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--trajectories", type=int, default=2)
     parser.add_argument("--frames", type=int, default=5)
     parser.add_argument("--cost", choices=("wrench", "energy"), default="wrench")
@@ -61,11 +61,11 @@ def main() -> None:
         task = get_task(args.task, task_overrides(args.set))
     except EnergyMarginError as error:
         raise SystemExit(f"bench_analysis.py: {error}") from None
-    config = AnalyzerConfig(iterations=args.iterations, cost=args.cost)
+    config = AnalyzerConfig(expansions=args.expansions, cost=args.cost)
 
     print(f"machine: {machine()}")
     print(
-        f"{args.task}, {args.iterations} iterations, cost={args.cost}, timestep={task.config.timestep:.6f} s, "
+        f"{args.task}, {args.expansions} iterations, cost={args.cost}, timestep={task.config.timestep:.6f} s, "
         f"{args.trajectories} trajectories x {args.frames} frames per n_o, one process"
     )
     print()

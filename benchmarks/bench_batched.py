@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/bench_batched.py [--objects 10] [--iterations 300] [--batches 8 16 32]
+    python benchmarks/bench_batched.py [--objects 10] [--expansions 300] [--batches 8 16 32]
         [--threads 1 2] [--trajectories 2] [--frames 5] [--task pushing]
 
 Everything runs in this one process. A small dataset is generated in memory; every frame is analysed
@@ -39,7 +39,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="pushing")
     parser.add_argument("--objects", type=int, default=10)
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--batches", type=int, nargs="+", default=[8, 16, 32])
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--trajectories", type=int, default=2)
@@ -53,7 +53,7 @@ def main() -> None:
     settings: list[tuple[int, int, str]] = [(1, 1, "est")]
     settings += [(batch, threads, "est") for batch in args.batches for threads in args.threads]
     settings += [(1, 1, method) for method in args.methods]
-    configs = {s: AnalyzerConfig(iterations=args.iterations, batch=s[0], threads=s[1], method=s[2]) for s in settings}
+    configs = {s: AnalyzerConfig(expansions=args.expansions, batch=s[0], threads=s[1], method=s[2]) for s in settings}
     times: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
     physics: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
     capture: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
@@ -62,7 +62,7 @@ def main() -> None:
     print(f"machine: {machine()}")
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print(
-        f"{args.task}, n_o = {args.objects}, {args.iterations} expansions, "
+        f"{args.task}, n_o = {args.objects}, {args.expansions} expansions, "
         f"{args.trajectories} trajectories x {args.frames} frames, one process, settings interleaved"
     )
     seeds = np.random.SeedSequence([args.seed, args.objects]).spawn(args.trajectories)

@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_engines.py [--reference ../shared/reference/energy_margin_workshop/planepush-10objects]
-        [--frames 10] [--iterations 300] [--engines mujoco pybullet]
+        [--frames 10] [--expansions 300] [--engines mujoco pybullet]
 
 The frames are the authors' 10-object pushing frames (imported in memory, every
 ``200 / frames``-th frame so early and late frames are both sampled) or, when the reference folder
@@ -49,7 +49,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reference", type=Path, default=DEFAULT_REFERENCE)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--engines", nargs="+", default=["mujoco", "pybullet"])
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -59,7 +59,7 @@ def main() -> None:
         total = dataset.n_trajectories * dataset.n_frames
         picks = np.unique(np.linspace(0, total - 1, args.frames).round().astype(int))
         analyzers = {
-            engine: FrameAnalyzer(dataset, AnalyzerConfig(iterations=args.iterations, engine=engine), args.seed)
+            engine: FrameAnalyzer(dataset, AnalyzerConfig(expansions=args.expansions, engine=engine), args.seed)
             for engine in args.engines
         }
         rows: dict[str, list[dict[str, float]]] = {engine: [] for engine in args.engines}
@@ -68,7 +68,7 @@ def main() -> None:
                 rows[engine].append(analyzer(int(index)))
     print(f"machine: {machine()}, pybullet {version('pybullet')}")
     print(
-        f"{source}: n_o = {dataset.n_objects}, {len(picks)} frames, {args.iterations} iterations, "
+        f"{source}: n_o = {dataset.n_objects}, {len(picks)} frames, {args.expansions} iterations, "
         f"timestep {dataset.task.config.timestep:.6f} s, one process, engines interleaved per frame"
     )
     print()

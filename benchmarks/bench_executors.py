@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_executors.py [--objects 5] [--trajectories 4] [--frames 10]
-        [--iterations 100] [--ray] [--memory-frames 1000]
+        [--expansions 100] [--ray] [--memory-frames 1000]
 
 Part 1 analyses the same dataset with ``analyze`` and the local executor with 1 and 2 workers (and
 Ray with 2 workers when ``--ray`` is given), each into a fresh copy, and prints frames per second
@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--objects", type=int, default=5)
     parser.add_argument("--trajectories", type=int, default=4)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--iterations", type=int, default=100)
+    parser.add_argument("--expansions", type=int, default=100)
     parser.add_argument("--ray", action="store_true", help="also measure the Ray executor")
     parser.add_argument("--memory-frames", type=int, default=1000)
     parser.add_argument("--memory-objects", type=int, default=10)
@@ -60,11 +60,11 @@ def main() -> None:
             seed=0,
             out=source,
         )
-        config = AnalyzerConfig(iterations=args.iterations)
+        config = AnalyzerConfig(expansions=args.expansions)
         runs = [("local", 1), ("local", 2)] + ([("ray", 2)] if args.ray else [])
         frames = args.trajectories * args.frames
         print(
-            f"pushing, n_o = {args.objects}, {frames} frames, {args.iterations} iterations per frame\n\n"
+            f"pushing, n_o = {args.objects}, {frames} frames, {args.expansions} iterations per frame\n\n"
             "| executor | workers | wall [s] | frames/s | mean frame runtime [s] | executor overhead per frame [ms] |\n"
             "|---|---:|---:|---:|---:|---:|"
         )
@@ -96,7 +96,7 @@ def main() -> None:
             "pushing", n_objects=args.memory_objects, n_trajectories=10, n_frames=10, seed=1, out=memory_set
         )
         dataset = load_dataset(memory_set)
-        analyzer = FrameAnalyzer(dataset, AnalyzerConfig(iterations=args.memory_iterations), seed=0)
+        analyzer = FrameAnalyzer(dataset, AnalyzerConfig(expansions=args.memory_iterations), seed=0)
         total = dataset.n_trajectories * dataset.n_frames
         print("| frames analysed | resident [MiB] |\n|---:|---:|")
         print(f"| 0 | {resident_mb():.1f} |")

@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("derived", type=Path, help="the same trajectories from the file without [perturbation]")
     parser.add_argument("--work", type=Path, required=True, help="directory of the calibration run")
     parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--iterations", type=int, default=300, help="expansions per frame (default 300)")
+    parser.add_argument("--expansions", type=int, default=300, help="expansions per frame (default 300)")
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     parser.add_argument(
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     started = time.perf_counter()
-    config = AnalyzerConfig(iterations=args.iterations)
+    config = AnalyzerConfig(expansions=args.expansions)
     calibration = calibrate(args.dataset, args.work / "calibration", config=config, workers=args.workers, seed=0)
     calibrate_seconds = time.perf_counter() - started
     extra = dict(item.split("=", 1) for item in args.variant)
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         if not (directory / "scores.csv").exists():
             started = time.perf_counter()
             code = cli_main(
-                ["analyze", str(directory), "--iterations", str(args.iterations), "--workers", str(args.workers)]
+                ["analyze", str(directory), "--expansions", str(args.expansions), "--workers", str(args.workers)]
             )
             if code:
                 return code

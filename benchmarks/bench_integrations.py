@@ -101,7 +101,7 @@ def learned_model(directory: Path, seed: int) -> Path:
             env.step(rng.uniform(-2, 2, size=7))
         episodes.append(env.save_episode(directory / f"episode_{episode}.npz"))
     record_dataset(scene, episodes, n_frames=8, out=directory / "dataset")
-    analyze(directory / "dataset", AnalyzerConfig(iterations=60), seed=seed, workers=1)
+    analyze(directory / "dataset", AnalyzerConfig(expansions=60), seed=seed, workers=1)
     model, _ = fit_margin_model([load_dataset(directory / "dataset")], seed=seed, kind="boosting")
     path = directory / "model.npz"
     model.save(path)

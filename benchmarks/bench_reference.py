@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/bench_reference.py [--frames 20] [--block 5] [--start 0] [--iterations 300]
+    python benchmarks/bench_reference.py [--frames 20] [--block 5] [--start 0] [--expansions 300]
         [--seed 0] [--authors-venv DIR] [--data DIR] [--json FILE] [--set KEY=JSON] [--analyzer KEY=JSON]
 
 Their side is their unchanged planner (pomp AO-EST over PyBullet, ``time_frames.py`` from
@@ -109,7 +109,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=20, help="frames to score on each side (default 20)")
     parser.add_argument("--block", type=int, default=5, help="frames per alternation (default 5)")
     parser.add_argument("--start", type=int, default=0, help="first frame (row of their CSV)")
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--authors-venv", type=Path, default=None)
     parser.add_argument("--json", type=Path, default=None, help="also write every row and the summary here")
@@ -140,7 +140,7 @@ def main() -> None:
         dataset = import_reference(FRAMES, scratch / "frames", with_scores=False)
         try:
             task = get_task("pushing", {**dataset.task.config.to_dict(), **task_config})
-            config = AnalyzerConfig(iterations=args.iterations, **analyzer)  # type: ignore[arg-type]
+            config = AnalyzerConfig(expansions=args.expansions, **analyzer)  # type: ignore[arg-type]
         except (EnergyMarginError, TypeError, ValueError) as error:
             raise SystemExit(f"bench_reference.py: {error}") from None
         total = dataset.n_trajectories * dataset.n_frames
@@ -152,7 +152,7 @@ def main() -> None:
         load_before = os.getloadavg()
         for block_start in range(args.start, end, args.block):
             count = min(args.block, end - block_start)
-            theirs.update(run_theirs(python, block_start, count, args.iterations, args.seed, scratch / "theirs"))
+            theirs.update(run_theirs(python, block_start, count, args.expansions, args.seed, scratch / "theirs"))
             for index in range(block_start, block_start + count):
                 # Their row i is trajectory i // K, frame i % K (their CSV is trajectory-major).
                 trajectory, frame = divmod(index, dataset.n_frames)
@@ -187,7 +187,7 @@ def main() -> None:
         skip("no frame was scored by both sides")
     print(f"machine: {machine()}; load average {load_before[0]:.2f} before, {load_after[0]:.2f} after")
     print(
-        f"frames {frames[0]}..{frames[-1]} of {FRAMES.name} ({len(frames)}), {args.iterations} iterations, "
+        f"frames {frames[0]}..{frames[-1]} of {FRAMES.name} ({len(frames)}), {args.expansions} iterations, "
         f"blocks of {args.block} alternating, {elapsed:.0f} s in all; ours: {config}; task overrides {task_config}"
     )
     print()

@@ -41,7 +41,7 @@ def main() -> None:
     for task, n_objects in (("pushing", 10), ("scooping", 5)):
         directory = out / task
         dataset = generate_dataset(task, n_objects=n_objects, n_trajectories=1, n_frames=5, seed=0, out=directory)
-        analyze(directory, AnalyzerConfig(iterations=300), seed=0, workers=1, progress=False)
+        analyze(directory, AnalyzerConfig(expansions=300), seed=0, workers=1, progress=False)
         tree = analysed_tree(directory, 0, 2)
         with dataset_renderer(dataset, 0) as renderer:
             tick = time.perf_counter()

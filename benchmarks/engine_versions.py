@@ -87,7 +87,7 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
         shutil.copytree(out / "frames" / name, target)
         started = time.perf_counter()
         settings = [
-            "--iterations",
+            "--expansions",
             str(iterations),
             "--workers",
             str(workers),
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("runs/engine_versions"))
     parser.add_argument("--trajectories", type=int, default=20)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--iterations", type=int, default=300)
+    parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--reference", default="4.0.0")
@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.step == "prepare":
         prepare(args.out, args.trajectories, args.frames, args.seed)
     elif args.step == "analyze":
-        analyze(args.out, args.workers, args.seed, args.iterations)
+        analyze(args.out, args.workers, args.seed, args.expansions)
     else:
         compare(args.out, args.reference)
     return 0

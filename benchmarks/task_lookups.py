@@ -67,7 +67,7 @@ def main() -> None:
         data = str(Path(work) / "data")
         commands = {
             "generate": ["generate", "--task", "pushing", *TINY, "--out", data],
-            "analyze": ["analyze", data, "--iterations", "10", "--seed", "1"],
+            "analyze": ["analyze", data, "--expansions", "10", "--seed", "1"],
             "design": [
                 "design",
                 "--task",
@@ -80,7 +80,7 @@ def main() -> None:
                 "2",
                 "--verify",
                 "1",
-                "--iterations",
+                "--expansions",
                 "10",
                 *TINY,
                 "--out",

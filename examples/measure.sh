@@ -13,7 +13,7 @@ mkdir -p "$out"
 run() {  # name, then the command that writes the dataset
   local name=$1; shift
   "$@" --out "$out/$name" --overwrite
-  /usr/bin/env time -f "$name: analyze %e s" energy-margin analyze "$out/$name" --iterations "$iterations" --workers 1 --seed 0 --overwrite
+  /usr/bin/env time -f "$name: analyze %e s" energy-margin analyze "$out/$name" --expansions "$iterations" --workers 1 --seed 0 --overwrite
   energy-margin evaluate "$out/$name" | tee "$out/$name.evaluate.txt"
 }
 sets=(--trajectories "$trajectories" --frames "$frames" --seed 0)

@@ -167,7 +167,7 @@ def record_analyze_evaluate(
     """``energy-margin record``, ``analyze`` and ``evaluate`` of the recorded episodes; evaluate's text and JSON."""
     cli("record", "--scene", str(scene), *files, "--frames", str(frames), "--out", str(dataset), "--overwrite")
     cli(
-        "analyze", str(dataset), "--iterations", str(iterations), "--workers", "1", "--seed", str(seed), "--no-progress"
+        "analyze", str(dataset), "--expansions", str(iterations), "--workers", "1", "--seed", str(seed), "--no-progress"
     )
     printed = cli("evaluate", str(dataset))
     return printed, json.loads(cli("evaluate", str(dataset), "--json", echo=False))

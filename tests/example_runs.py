@@ -39,7 +39,7 @@ def generate_quick(scene: Path, out: Path) -> Dataset:
 def analyze_and_evaluate(dataset: Path, capsys: pytest.CaptureFixture[str]) -> str:
     """Check, analyse (every search grew past its root node) and evaluate ``dataset``; return evaluate's output."""
     assert main(["check", str(dataset)]) == 0
-    assert main(["analyze", str(dataset), "--iterations", "15", "--workers", "1"]) == 0
+    assert main(["analyze", str(dataset), "--expansions", "15", "--workers", "1"]) == 0
     assert load_scores(dataset)["nodes"].min() > 1
     capsys.readouterr()
     assert main(["evaluate", str(dataset)]) == 0

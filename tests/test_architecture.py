@@ -43,6 +43,7 @@ FOUNDATIONS = (
     "energy_margin.compat",
     "energy_margin._moved",
     "energy_margin._lazy",
+    "energy_margin._renamed",
     "energy_margin._version",
     "energy_margin.__main__",
 )

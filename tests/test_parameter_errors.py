@@ -22,10 +22,10 @@ SOURCE = Path(__file__).resolve().parents[1] / "src" / "energy_margin"
 @pytest.mark.parametrize(
     ("make", "parameter", "message"),
     [
-        (lambda: AnalyzerConfig(iterations=None, nodes=None), "iterations", "and nodes cannot both be None"),
+        (lambda: AnalyzerConfig(expansions=None, nodes=None), "expansions", "and nodes cannot both be None"),
         (lambda: AnalyzerConfig(batch=2, cost="energy"), "cost", "does not integrate friction work"),
         (lambda: AnalyzerConfig(contacts="fast", engine="pybullet"), "contacts", "'fast' is a MuJoCo contact model"),
-        (lambda: AnalyzerConfig(iterations=-1), "iterations", "must be a non-negative integer, got -1"),
+        (lambda: AnalyzerConfig(expansions=-1), "expansions", "must be a non-negative integer, got -1"),
         (lambda: PushingConfig(tine_count=1), "tine_count", "must be at least 2, got 1"),
         (lambda: PushingConfig(timestep=2.0, duration=1.0), "timestep", "must not exceed duration"),
         (lambda: ScoopingConfig(recorded_waypoints=1), "recorded_waypoints", "must be 0 or at least 2, got 1"),

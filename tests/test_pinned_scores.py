@@ -47,13 +47,13 @@ def test_pushing_scores_are_pinned(tmp_path: Path) -> None:
         out=out,
         task_config={"ground_contact": "geometry"},
     )
-    energy_margin.analyze(out, AnalyzerConfig(iterations=30, cost="energy"), seed=2, progress=False)
+    energy_margin.analyze(out, AnalyzerConfig(expansions=30, cost="energy"), seed=2, progress=False)
     scores = load_scores(out)
     assert [float(v) for v in scores["capture_score"]] in expected["pushing_capture"]
     assert [float(v) for v in scores["success_score"]] == expected["pushing_success"]
     assert [int(v) for v in scores["seed"]] == PUSHING_SEEDS
     assert set(scores["nodes"].tolist()) == {31}
-    assert set(scores["iterations"].tolist()) == {30}
+    assert set(scores["expansions"].tolist()) == {30}
 
 
 @pytest.mark.slow
@@ -61,7 +61,7 @@ def test_scooping_scores_are_pinned(tmp_path: Path) -> None:
     expected = for_release(PINNED_SCORES, "the scores")
     out = tmp_path / "scoop"
     energy_margin.generate_dataset("scooping", n_objects=3, n_trajectories=1, n_frames=4, seed=2, out=out)
-    energy_margin.analyze(out, AnalyzerConfig(iterations=15), seed=1, progress=False)
+    energy_margin.analyze(out, AnalyzerConfig(expansions=15), seed=1, progress=False)
     scores = load_scores(out)
     assert [float(v) for v in scores["capture_score"]] == expected["scooping_capture"]
     assert [float(v) for v in scores["success_score"]] == [0.0] * 4

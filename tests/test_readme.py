@@ -33,7 +33,7 @@ def test_python_example_runs_on_a_small_dataset(tiny_dataset: Path, monkeypatch,
     import sys
 
     monkeypatch.setattr(sys, "argv", ["example", str(tiny_dataset)])
-    source = python_example().replace("iterations=300", "iterations=5")
+    source = python_example().replace("expansions=300", "expansions=5")
     exec(compile(source, "README.md", "exec"), {"__name__": "__main__"})
     capture, success, _ = capsys.readouterr().out.split(maxsplit=2)
     assert 0.0 <= float(capture) <= 1.0

@@ -162,13 +162,13 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--out", type=Path, default=Path("runs/metaworld_bin_picking"))
     parser.add_argument("--budget", type=float, default=0.05, help="wall-clock budget of one live call, s")
-    parser.add_argument("--iterations", type=int, default=100, help="expansions per frame of the offline analysis")
+    parser.add_argument("--expansions", type=int, default=100, help="expansions per frame of the offline analysis")
     parser.add_argument("--seed", type=int, default=0, help="seed of the trees, the task sampler and the noise")
     parser.add_argument("--env-seed", type=int, default=1000, help="environment seed of episode 0")
     parser.add_argument("--no-picture", action="store_true", help="render nothing")
     args = parser.parse_args(argv)
-    if args.episodes < 1 or args.iterations < 1 or args.budget <= 0:
-        parser.error("--episodes and --iterations must be at least 1 and --budget > 0")
+    if args.episodes < 1 or args.expansions < 1 or args.budget <= 0:
+        parser.error("--episodes and --expansions must be at least 1 and --budget > 0")
     return args
 
 
@@ -217,7 +217,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         f"{times['p95_ms']:.1f}, max {times['max_ms']:.1f}), {times['mean_expansions']:.1f} expansions on average"
     )
     printed, evaluation = common.record_analyze_evaluate(
-        scene, files, SCORED, out / "dataset", args.iterations, args.seed
+        scene, files, SCORED, out / "dataset", args.expansions, args.seed
     )
     results = {
         "environment": ENVIRONMENT,
@@ -226,7 +226,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "same_model": same_model,
         "episodes": args.episodes,
         "budget_s": args.budget,
-        "iterations": args.iterations,
+        "iterations": args.expansions,
         "seed": args.seed,
         "noises": noises.tolist(),
         "success_rate": float(np.mean([episode["success"] for episode in episodes])),

@@ -9,7 +9,7 @@ for seed in 0 1 2; do
   energy-margin generate --task pushing --objects 10 --trajectories 20 --frames 10 --seed "$seed" --out "$out/builtin_$seed" --overwrite
   energy-margin generate --scene "$here/pushing.toml" --trajectories 20 --frames 10 --seed "$seed" --out "$out/scene_$seed" --overwrite
   for name in builtin scene; do
-    /usr/bin/env time -f "${name}_$seed: analyze %e s" energy-margin analyze "$out/${name}_$seed" --iterations "$iterations" --workers 1 --seed "$seed" --overwrite
+    /usr/bin/env time -f "${name}_$seed: analyze %e s" energy-margin analyze "$out/${name}_$seed" --expansions "$iterations" --workers 1 --seed "$seed" --overwrite
     energy-margin evaluate "$out/${name}_$seed" --json > "$out/${name}_$seed.json"
   done
 done

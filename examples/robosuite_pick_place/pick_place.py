@@ -16,7 +16,7 @@
    propagation (``hold="still"``; the controller's torques are not known ahead). It records each
    episode as ``OUT/episodes/episode_NNN.npz``.
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
-   ``energy-margin analyze`` (``--iterations`` expansions per frame) and ``energy-margin evaluate``
+   ``energy-margin analyze`` (``--expansions`` expansions per frame) and ``energy-margin evaluate``
    (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores
    into ``OUT/live`` (the same dataset) and evaluates them.
 5. Draws ``OUT/pick_place.png`` with MuJoCo's renderer: three states of the first successful
@@ -201,7 +201,7 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--steps", type=int, default=180, help="control steps per episode (20 per second)")
     parser.add_argument("--every", type=int, default=18, help="score the reset and every this many steps")
     parser.add_argument("--budget", type=float, default=0.05, help="wall-clock budget of one scoring call, s")
-    parser.add_argument("--iterations", type=int, default=100, help="expansions per frame of `analyze`")
+    parser.add_argument("--expansions", type=int, default=100, help="expansions per frame of `analyze`")
     parser.add_argument("--seed", type=int, default=0, help="seed of the policy's draws and of the trees")
     parser.add_argument("--env-seed", type=int, default=0, help="robosuite's seed (the object placements)")
     parser.add_argument("--out", type=Path, default=Path("runs/robosuite_pick_place"))
@@ -255,7 +255,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     shutil.rmtree(live, ignore_errors=True)
     shutil.copytree(dataset, live)
     common.write_live_scores(live, episodes)
-    assert cli(["analyze", str(dataset), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]) == 0
+    assert cli(["analyze", str(dataset), "--expansions", str(args.expansions), "--workers", "1", "--no-progress"]) == 0
     evaluations: dict[str, Any] = {}
     for name, directory in (("analyze", dataset), ("live", live)):
         print(f"\n== energy-margin evaluate {directory}  ({name} scores)")

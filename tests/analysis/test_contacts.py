@@ -42,7 +42,7 @@ def test_config_validates_contacts() -> None:
 
 
 def test_the_analysis_simulates_the_fast_model(tiny_dataset: Path) -> None:
-    analyzer = FrameAnalyzer(load_dataset(tiny_dataset), AnalyzerConfig(iterations=5, contacts="fast"), 0)
+    analyzer = FrameAnalyzer(load_dataset(tiny_dataset), AnalyzerConfig(expansions=5, contacts="fast"), 0)
     simulator = analyzer._simulator(0.2, load_dataset(tiny_dataset).arrays["drive"][0])
     assert simulator.scene.lateral_contact == "sphere"
     assert simulator.scene.ground_contact == "footprint"
@@ -51,8 +51,8 @@ def test_the_analysis_simulates_the_fast_model(tiny_dataset: Path) -> None:
 def test_cli_records_the_contact_model(tiny_dataset: Path, tmp_path: Path) -> None:
     fast = tmp_path / "fast"
     shutil.copytree(tiny_dataset, fast)
-    assert main(["analyze", str(tiny_dataset), "--iterations", "40", "--no-progress"]) == 0
-    assert main(["analyze", str(fast), "--iterations", "40", "--contacts", "fast", "--no-progress"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "40", "--no-progress"]) == 0
+    assert main(["analyze", str(fast), "--expansions", "40", "--contacts", "fast", "--no-progress"]) == 0
     recorded = json.loads((fast / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["contacts"] == "fast"
     assert recorded["analysis_task_config"]["lateral_contact"] == "sphere"
@@ -61,14 +61,14 @@ def test_cli_records_the_contact_model(tiny_dataset: Path, tmp_path: Path) -> No
     # Another contact model gives other trees: the scores differ (both are scores of every frame).
     assert not np.array_equal(load_scores(fast)["capture_score"], load_scores(tiny_dataset)["capture_score"])
     # Resuming with the other model is refused (another configuration), as for any setting.
-    assert main(["analyze", str(fast), "--iterations", "40", "--no-progress"]) == 2
+    assert main(["analyze", str(fast), "--expansions", "40", "--no-progress"]) == 2
 
 
 def test_fast_contacts_are_deterministic(tiny_dataset: Path, tmp_path: Path) -> None:
     other = tmp_path / "other"
     shutil.copytree(tiny_dataset, other)
-    assert main(["analyze", str(tiny_dataset), "--iterations", "40", "--contacts", "fast", "--no-progress"]) == 0
-    arguments = ["analyze", str(other), "--iterations", "40", "--contacts", "fast", "--workers", "2", "--no-progress"]
+    assert main(["analyze", str(tiny_dataset), "--expansions", "40", "--contacts", "fast", "--no-progress"]) == 0
+    arguments = ["analyze", str(other), "--expansions", "40", "--contacts", "fast", "--workers", "2", "--no-progress"]
     assert main(arguments) == 0
     for column in ("capture_score", "success_score", "nodes"):
         np.testing.assert_array_equal(load_scores(other)[column], load_scores(tiny_dataset)[column])
@@ -77,7 +77,7 @@ def test_fast_contacts_are_deterministic(tiny_dataset: Path, tmp_path: Path) -> 
 def test_cli_refuses_fast_contacts_without_a_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "scoop"
     generate_dataset("scooping", out=out, n_objects=1, n_trajectories=1, n_frames=2, seed=0)
-    assert main(["analyze", str(out), "--iterations", "5", "--contacts", "fast", "--no-progress"]) == 2
+    assert main(["analyze", str(out), "--expansions", "5", "--contacts", "fast", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no fast contact model" in err[0]
     assert err[0].startswith("energy-margin: error: --contacts must be 'recorded'")
@@ -88,7 +88,7 @@ def test_a_simulator_of_the_recorded_scene_is_refused(tiny_dataset: Path) -> Non
     dataset = load_dataset(tiny_dataset)
     task, friction, drive = dataset.task, float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]
     recorded = task.make_simulator(dataset.n_objects, friction, drive, "mujoco")
-    config = AnalyzerConfig(iterations=5, contacts="fast")
+    config = AnalyzerConfig(expansions=5, contacts="fast")
     with pytest.raises(InvalidParameterError, match="simulator"):
         analyze_frame(
             task, dataset.frame(0, 0), friction=friction, drive=drive, seed=0, config=config, simulator=recorded
@@ -97,4 +97,4 @@ def test_a_simulator_of_the_recorded_scene_is_refused(tiny_dataset: Path) -> Non
     scores, _ = analyze_frame(
         task, dataset.frame(0, 0), friction=friction, drive=drive, seed=0, config=config, simulator=fast
     )
-    assert scores.iterations == 5
+    assert scores.expansions == 5

@@ -17,15 +17,15 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.planning.tree import CostField, TreeBudget
 
 
-def _field(iterations: int, nodes: int | None = None) -> CostField:
-    count = (iterations if nodes is None else nodes) + 1
+def _field(expansions: int, nodes: int | None = None) -> CostField:
+    count = (expansions if nodes is None else nodes) + 1
     return CostField(
         costs=np.zeros(count),
         object_pos=np.zeros((count, 1, 3)),
         object_vel=np.zeros((count, 1, 6)),
         parents=np.full(count, -1),
         times=np.zeros(count),
-        iterations=iterations,
+        expansions=expansions,
         physics_s=0.0,
         total_s=0.0,
     )
@@ -77,13 +77,13 @@ def test_the_projected_rule_lets_a_slow_drift_run_until_the_budget_cannot_carry_
     checks = [25 * (i + 1) for i in range(12)]
     window = _rule(monkeypatch, drifting, tolerance=0.0105, window=50, rule="window")
     assert [window(_field(n)) for n in checks].index(True) == checks.index(75)
-    projected = _rule(monkeypatch, drifting, tolerance=0.0105, window=50, budget=TreeBudget(iterations=300))
+    projected = _rule(monkeypatch, drifting, tolerance=0.0105, window=50, budget=TreeBudget(expansions=300))
     assert [projected(_field(n)) for n in checks].index(True) == checks.index(175)
 
 
 def test_the_projected_rule_counts_the_nodes_a_node_budget_still_allows(monkeypatch: pytest.MonkeyPatch) -> None:
     # 0.01 over the last 50 expansions; 100 nodes allowed, 95 accepted: 5 left, 0.001 to come.
-    budget = TreeBudget(iterations=None, nodes=100)
+    budget = TreeBudget(expansions=None, nodes=100)
     rule = _rule(monkeypatch, [(0.50, 0.2), (0.51, 0.2)], tolerance=0.002, window=50, budget=budget)
     assert rule(_field(50, nodes=45)) is False
     assert rule(_field(100, nodes=95)) is True
@@ -105,7 +105,7 @@ def test_converge_must_be_a_tolerance(value: object) -> None:
 def test_a_converged_tree_stops_early_and_deterministically(tiny_dataset: Path) -> None:
     dataset = load_dataset(tiny_dataset)
     seeds = frame_seeds(0, 6)
-    config = AnalyzerConfig(iterations=400, converge=0.05)
+    config = AnalyzerConfig(expansions=400, converge=0.05)
     runs = []
     for _ in range(2):
         scores, field = analyze_frame(
@@ -117,41 +117,41 @@ def test_a_converged_tree_stops_early_and_deterministically(tiny_dataset: Path) 
             config=config,
             start_time=float(dataset.arrays["frame_time"][0, 1]),
         )
-        runs.append((scores.capture_score, scores.success_score, scores.iterations, field.nodes))
+        runs.append((scores.capture_score, scores.success_score, scores.expansions, field.nodes))
     assert runs[0] == runs[1]
-    iterations = runs[0][2]
-    assert config.converge_window <= iterations < 400
-    assert iterations % config.converge_every == 0
+    expansions = runs[0][2]
+    assert config.converge_window <= expansions < 400
+    assert expansions % config.converge_every == 0
 
 
 def test_workers_do_not_change_converged_scores(copy_dataset) -> None:  # type: ignore[no-untyped-def]
-    config = AnalyzerConfig(iterations=200, converge=0.02)
+    config = AnalyzerConfig(expansions=200, converge=0.02)
     tables = []
     for workers in (1, 2):
         directory = copy_dataset(f"w{workers}")
         analyze(directory, config, seed=4, workers=workers, progress=False)
         scores = load_scores(directory)
-        tables.append({k: scores[k].tolist() for k in ("capture_score", "success_score", "iterations", "seed")})
+        tables.append({k: scores[k].tolist() for k in ("capture_score", "success_score", "expansions", "seed")})
     assert tables[0] == tables[1]
-    assert max(tables[0]["iterations"]) <= 200
+    assert max(tables[0]["expansions"]) <= 200
 
 
 def test_cli_converge_is_recorded(tiny_dataset: Path) -> None:
-    assert main(["analyze", str(tiny_dataset), "--iterations", "100", "--converge", "0.05", "--no-progress"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "100", "--converge", "0.05", "--no-progress"]) == 0
     recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["converge"] == 0.05
-    assert max(load_scores(tiny_dataset)["iterations"]) <= 100
+    assert max(load_scores(tiny_dataset)["expansions"]) <= 100
 
 
 def test_cli_converge_rule_is_recorded(tiny_dataset: Path) -> None:
-    arguments = ["analyze", str(tiny_dataset), "--iterations", "100", "--converge", "0.05", "--no-progress"]
+    arguments = ["analyze", str(tiny_dataset), "--expansions", "100", "--converge", "0.05", "--no-progress"]
     assert main([*arguments, "--converge-rule", "window"]) == 0
     recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["converge_rule"] == "window"
 
 
 def test_a_file_from_before_the_rule_existed_resumes_only_under_the_window_rule(tiny_dataset: Path) -> None:
-    config = AnalyzerConfig(iterations=60, converge=0.05, converge_rule="window")
+    config = AnalyzerConfig(expansions=60, converge=0.05, converge_rule="window")
     analyze(tiny_dataset, config, seed=0, progress=False)
     path = tiny_dataset / CONFIG_FILE
     recorded = json.loads(path.read_text())
@@ -159,11 +159,11 @@ def test_a_file_from_before_the_rule_existed_resumes_only_under_the_window_rule(
     path.write_text(json.dumps(recorded))
     analyze(tiny_dataset, config, seed=0, progress=False)  # the same run: nothing to redo
     with pytest.raises(EnergyMarginError, match="holds scores of other settings"):
-        analyze(tiny_dataset, AnalyzerConfig(iterations=60, converge=0.05), seed=0, progress=False)
+        analyze(tiny_dataset, AnalyzerConfig(expansions=60, converge=0.05), seed=0, progress=False)
 
 
 def test_a_full_budget_file_from_before_the_rule_existed_still_resumes(tiny_dataset: Path) -> None:
-    config = AnalyzerConfig(iterations=20)
+    config = AnalyzerConfig(expansions=20)
     analyze(tiny_dataset, config, seed=0, progress=False)
     path = tiny_dataset / CONFIG_FILE
     recorded = json.loads(path.read_text())
@@ -173,7 +173,7 @@ def test_a_full_budget_file_from_before_the_rule_existed_still_resumes(tiny_data
 
 
 def test_cli_spends_the_whole_budget_by_default(tiny_dataset: Path) -> None:
-    assert main(["analyze", str(tiny_dataset), "--iterations", "40", "--no-progress"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "40", "--no-progress"]) == 0
     recorded = json.loads((tiny_dataset / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["converge"] is None
-    assert set(load_scores(tiny_dataset)["iterations"]) == {40}
+    assert set(load_scores(tiny_dataset)["expansions"]) == {40}

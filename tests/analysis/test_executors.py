@@ -25,7 +25,7 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, load_scores, read_journal
 from energy_margin.errors import EnergyMarginError
 
-SMALL = AnalyzerConfig(iterations=30)
+SMALL = AnalyzerConfig(expansions=30)
 SEED = 3
 #: Every column that does not depend on timing.
 DETERMINISTIC = tuple(c for c in COLUMNS if c not in ("runtime_s", "physics_s"))
@@ -99,7 +99,7 @@ def test_bad_executor_arguments_write_nothing(tiny_dataset: Path, capsys: pytest
         analyze(tiny_dataset, SMALL, executor="spark", progress=False)
     with pytest.raises(EnergyMarginError, match=r"^address is only for `executor=ray`$"):
         analyze(tiny_dataset, SMALL, address="auto", progress=False)
-    code = main(["analyze", str(tiny_dataset), "--iterations", "5", "--address", "auto", "--no-progress"])
+    code = main(["analyze", str(tiny_dataset), "--expansions", "5", "--address", "auto", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2
     assert err.splitlines() == ["energy-margin: error: --address is only for --executor ray"]
@@ -167,7 +167,7 @@ def _children_gone(timeout: float) -> bool:
 def test_stopping_early_terminates_the_pool(tiny_dataset: Path) -> None:
     dataset = load_dataset(tiny_dataset)
     assert not multiprocessing.active_children()
-    stream = LocalExecutor(2).run(dataset, AnalyzerConfig(iterations=200), SEED, list(range(6)))
+    stream = LocalExecutor(2).run(dataset, AnalyzerConfig(expansions=200), SEED, list(range(6)))
     first = next(stream)
     assert set(first) == set(COLUMNS)
     assert multiprocessing.active_children()  # the pool is still working on the other frames
@@ -244,7 +244,7 @@ def test_missing_ray_on_the_command_line(
     tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)
-    code = main(["analyze", str(tiny_dataset), "--iterations", "5", "--executor", "ray", "--no-progress"])
+    code = main(["analyze", str(tiny_dataset), "--expansions", "5", "--executor", "ray", "--no-progress"])
     captured = capsys.readouterr()
     assert code == 2
     assert captured.err.splitlines() == [
@@ -254,7 +254,7 @@ def test_missing_ray_on_the_command_line(
     assert not (tiny_dataset / SCORES_FILE).exists()
     # The same analysis then completes locally (the executor is not part of the configuration).
     monkeypatch.delitem(sys.modules, "ray")
-    assert main(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress"]) == 0
     assert len(load_scores(tiny_dataset)["frame"]) == 6
 
 

@@ -85,7 +85,7 @@ def test_max_expansions_is_deterministic_with_a_seed(pushing_state) -> None:
         friction=trajectory.friction,
         drive=trajectory.drive,
         seed=5,
-        config=AnalyzerConfig(iterations=12),
+        config=AnalyzerConfig(expansions=12),
     )
     assert (scores.capture_score, scores.success_score, scores.nodes) == (first.capture, first.success, first.nodes)
 
@@ -103,12 +103,12 @@ def test_analyze_frame_stop_rule_beside_convergence(pushing_state) -> None:
     task, trajectory, simulator = pushing_state
     common = {"friction": trajectory.friction, "drive": trajectory.drive, "seed": 2, "simulator": simulator}
     scores, _ = analyze_frame(
-        task, trajectory.initial, stop=lambda field: field.iterations >= 7, check_every=1, **common
+        task, trajectory.initial, stop=lambda field: field.expansions >= 7, check_every=1, **common
     )
-    assert scores.iterations == 7
+    assert scores.expansions == 7
     # With a convergence rule too, the caller's rule still stops growth at its own period.
-    config = AnalyzerConfig(iterations=40, converge=0.5, converge_window=10, converge_every=10)
+    config = AnalyzerConfig(expansions=40, converge=0.5, converge_window=10, converge_every=10)
     scores, _ = analyze_frame(
-        task, trajectory.initial, config=config, stop=lambda field: field.iterations >= 4, check_every=2, **common
+        task, trajectory.initial, config=config, stop=lambda field: field.expansions >= 4, check_every=2, **common
     )
-    assert scores.iterations == 4
+    assert scores.expansions == 4

@@ -33,7 +33,7 @@ _MEASURE = textwrap.dedent(
             return int(stream.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
     dataset = load_dataset(path)
-    analyzer = FrameAnalyzer(dataset, AnalyzerConfig(iterations=20), seed=0)
+    analyzer = FrameAnalyzer(dataset, AnalyzerConfig(expansions=20), seed=0)
     total = dataset.n_trajectories * dataset.n_frames
     # "all": every frame once, trajectory by trajectory; "first10": the first 10 trajectories over and over.
     indices = range(frames) if order == "all" else [i % (10 * dataset.n_frames) for i in range(frames)]

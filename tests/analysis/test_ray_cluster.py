@@ -29,8 +29,8 @@ from energy_margin.data.scores_file import JOURNAL_FILE, load_scores, read_journ
 pytestmark = pytest.mark.slow
 
 RAY = Path(sys.executable).with_name("ray")
-DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "iterations", "seed")
-CONFIG = AnalyzerConfig(iterations=400)
+DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "expansions", "seed")
+CONFIG = AnalyzerConfig(expansions=400)
 SEED = 3
 
 
@@ -103,8 +103,8 @@ def test_a_lost_node_loses_no_frame(tmp_path: Path, cluster: tuple[str, set[int]
         "energy_margin",
         "analyze",
         str(on_cluster),
-        "--iterations",
-        str(CONFIG.iterations),
+        "--expansions",
+        str(CONFIG.expansions),
         "--seed",
         str(SEED),
         "--workers",

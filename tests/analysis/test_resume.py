@@ -23,7 +23,7 @@ from energy_margin.data.scores_file import COLUMNS, CONFIG_FILE, JOURNAL_FILE, S
 
 # 3 objects x 4 trajectories x 5 frames = 20 frames of about 70 ms each: a run lasts a second or two,
 # long enough to be interrupted after its first rows.
-ITERATIONS = 200
+EXPANSIONS = 200
 SHAPE = {"n_objects": 3, "n_trajectories": 4, "n_frames": 5}
 N_ROWS = 4 * 5
 DETERMINISTIC = tuple(c for c in COLUMNS if c not in ("runtime_s", "physics_s"))
@@ -38,8 +38,8 @@ def _command(directory: Path, workers: int) -> list[str]:
         "energy_margin",
         "analyze",
         str(directory),
-        "--iterations",
-        str(ITERATIONS),
+        "--expansions",
+        str(EXPANSIONS),
         "--no-progress",
         "--workers",
         str(workers),
@@ -99,7 +99,7 @@ def reference(source: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[tu
     """Scores of an uninterrupted run (in this process) of the same dataset."""
     target = tmp_path_factory.mktemp("resume-reference") / "data"
     shutil.copytree(source, target)
-    analyze(target, AnalyzerConfig(iterations=ITERATIONS), seed=0, workers=2, progress=False)
+    analyze(target, AnalyzerConfig(expansions=EXPANSIONS), seed=0, workers=2, progress=False)
     table = _table(target)
     assert sorted(table) == [(t, k) for t in range(SHAPE["n_trajectories"]) for k in range(SHAPE["n_frames"])]
     return table
@@ -258,7 +258,7 @@ def test_workers_exit_when_the_parent_is_killed(
 
 # ---------------------------------------------------------------- torn journals (in process)
 
-SMALL = AnalyzerConfig(iterations=20)
+SMALL = AnalyzerConfig(expansions=20)
 
 
 @pytest.fixture(scope="module")

@@ -18,8 +18,8 @@ from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.directory import run_versions
 from energy_margin.tasks import all_inside
 
-SMALL = AnalyzerConfig(iterations=30)
-DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "iterations", "seed")
+SMALL = AnalyzerConfig(expansions=30)
+DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "expansions", "seed")
 
 
 def _rows(directory: Path) -> list[str]:
@@ -78,7 +78,7 @@ def test_analyze_frame_scores_are_likelihood_masses(tiny_dataset: Path) -> None:
     dataset = load_dataset(tiny_dataset)
     task = dataset.task
     frame = dataset.frame(1, 1)
-    config = AnalyzerConfig(iterations=25, likelihood_lambda=40.0)
+    config = AnalyzerConfig(expansions=25, likelihood_lambda=40.0)
     scores, field = analyze_frame(
         task,
         frame,
@@ -92,12 +92,12 @@ def test_analyze_frame_scores_are_likelihood_masses(tiny_dataset: Path) -> None:
     assert scores.capture_score == pytest.approx(region_score(field.costs, captured, 40.0), abs=1e-15)
     assert scores.success_score == pytest.approx(region_score(field.costs, successful, 40.0), abs=1e-15)
     assert 0.0 <= scores.capture_score <= 1.0
-    assert (scores.nodes, scores.iterations) == (field.nodes, 25)
+    assert (scores.nodes, scores.expansions) == (field.nodes, 25)
     assert scores.runtime_s >= scores.physics_s > 0
     # The task's lambda is the default.
     default, _ = analyze_frame(
         task, frame, friction=float(dataset.arrays["friction"][1]), drive=dataset.arrays["drive"][1], seed=3,
-        config=AnalyzerConfig(iterations=25),
+        config=AnalyzerConfig(expansions=25),
     )  # fmt: skip
     assert default.capture_score == pytest.approx(region_score(field.costs, captured, task.config.likelihood_lambda))
 
@@ -105,10 +105,10 @@ def test_analyze_frame_scores_are_likelihood_masses(tiny_dataset: Path) -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"iterations": -1}, "iterations must be a non-negative integer"),
-        ({"iterations": True}, "iterations must be a non-negative integer"),
+        ({"expansions": -1}, "expansions must be a non-negative integer"),
+        ({"expansions": True}, "expansions must be a non-negative integer"),
         ({"nodes": -3}, "nodes must be a non-negative integer"),
-        ({"iterations": None, "nodes": None}, "cannot both be None"),
+        ({"expansions": None, "nodes": None}, "cannot both be None"),
         ({"cost": "heat"}, "cost must be one of"),
         ({"likelihood_lambda": -1.0}, "likelihood_lambda must be a finite number >= 0, got -1.0"),
         ({"likelihood_lambda": float("nan")}, "likelihood_lambda must be a finite number >= 0, got nan"),
@@ -133,7 +133,7 @@ def test_analyze_writes_one_row_per_frame(tiny_dataset: Path) -> None:
     scores = load_scores(tiny_dataset)
     np.testing.assert_array_equal(scores["trajectory"], [0, 0, 0, 1, 1, 1])
     np.testing.assert_array_equal(scores["frame"], [0, 1, 2, 0, 1, 2])
-    np.testing.assert_array_equal(scores["iterations"], 30)
+    np.testing.assert_array_equal(scores["expansions"], 30)
     assert np.all((scores["nodes"] >= 1) & (scores["nodes"] <= 31))
     # Likelihood masses: within [0, 1] up to rounding (see test_scores for the exact bound).
     assert np.all((scores["capture_score"] >= 0) & (scores["capture_score"] <= 1 + 1e-12))
@@ -142,10 +142,10 @@ def test_analyze_writes_one_row_per_frame(tiny_dataset: Path) -> None:
     seed_column = COLUMNS.index("seed")
     assert [int(line.split(",")[seed_column]) for line in lines[1:]] == frame_seeds(0, 6)
     # Every state a tree reached was kept, rejected for leaving the state box, or diverged.
-    assert np.all(scores["nodes"] - 1 + scores["rejected"] + scores["diverged"] <= scores["iterations"])
+    assert np.all(scores["nodes"] - 1 + scores["rejected"] + scores["diverged"] <= scores["expansions"])
     assert np.all((scores["rejected"] >= 0) & (scores["diverged"] >= 0))
     description = json.loads((tiny_dataset / CONFIG_FILE).read_text())
-    assert description["analyzer"]["iterations"] == 30
+    assert description["analyzer"]["expansions"] == 30
     assert description["seed"] == 0
     assert description["likelihood_lambda"] == 5.0
     assert description["dataset"]["n_trajectories"] == 2
@@ -204,17 +204,17 @@ def test_same_seed_gives_identical_scores(copy_dataset: Callable[[str], Path]) -
 @pytest.mark.slow
 def test_workers_do_not_change_the_scores(copy_dataset: Callable[[str], Path]) -> None:
     one, two = copy_dataset("one"), copy_dataset("two")
-    config = AnalyzerConfig(iterations=30, cost="energy")
+    config = AnalyzerConfig(expansions=30, cost="energy")
     analyze(one, config, seed=2, workers=1, progress=False)
     analyze(two, config, seed=2, workers=2, progress=False)
     _assert_same_columns(_columns(one), _columns(two))
 
 
 def test_node_budget_and_energy_cost(tiny_dataset: Path) -> None:
-    analyze(tiny_dataset, AnalyzerConfig(iterations=None, nodes=12, cost="energy"), seed=0, progress=False)
+    analyze(tiny_dataset, AnalyzerConfig(expansions=None, nodes=12, cost="energy"), seed=0, progress=False)
     scores = load_scores(tiny_dataset)
     np.testing.assert_array_equal(scores["nodes"], 13)
-    assert np.all(scores["iterations"] >= 12)
+    assert np.all(scores["expansions"] >= 12)
 
 
 # ---------------------------------------------------------------- reruns and resume
@@ -322,16 +322,16 @@ def test_different_configuration_needs_overwrite(tiny_dataset: Path) -> None:
     analyze(tiny_dataset, SMALL, seed=0, progress=False)
     files = {p.name: p.read_bytes() for p in tiny_dataset.iterdir()}
     for config, seed in (
-        (AnalyzerConfig(iterations=20), 0),
+        (AnalyzerConfig(expansions=20), 0),
         (SMALL, 1),
-        (AnalyzerConfig(iterations=30, cost="energy"), 0),
+        (AnalyzerConfig(expansions=30, cost="energy"), 0),
     ):
         with pytest.raises(EnergyMarginError, match=r"holds scores of other settings.*`overwrite=True`"):
             analyze(tiny_dataset, config, seed=seed, progress=False)
         assert {p.name: p.read_bytes() for p in tiny_dataset.iterdir()} == files
-    analyze(tiny_dataset, AnalyzerConfig(iterations=20), seed=0, overwrite=True, progress=False)
-    np.testing.assert_array_equal(load_scores(tiny_dataset)["iterations"], 20)
-    assert json.loads((tiny_dataset / CONFIG_FILE).read_text())["analyzer"]["iterations"] == 20
+    analyze(tiny_dataset, AnalyzerConfig(expansions=20), seed=0, overwrite=True, progress=False)
+    np.testing.assert_array_equal(load_scores(tiny_dataset)["expansions"], 20)
+    assert json.loads((tiny_dataset / CONFIG_FILE).read_text())["analyzer"]["expansions"] == 20
 
 
 def test_unreadable_configuration_needs_overwrite(tiny_dataset: Path) -> None:
@@ -396,7 +396,7 @@ def test_load_scores_errors(tiny_dataset: Path) -> None:
 
 
 def test_progress_bar_goes_to_stderr(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    analyze(tiny_dataset, AnalyzerConfig(iterations=2), seed=0, progress=True)
+    analyze(tiny_dataset, AnalyzerConfig(expansions=2), seed=0, progress=True)
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "6/6" in captured.err
@@ -416,17 +416,17 @@ def test_worker_entry_points(tiny_dataset: Path) -> None:
         signal.signal(signal.SIGINT, previous)
     assert (row["trajectory"], row["frame"]) == (1, 1)
     assert row["seed"] == frame_seeds(0, 6)[4]
-    assert row["iterations"] == 30
+    assert row["expansions"] == 30
 
 
 def test_an_analysis_json_without_the_method_fields_is_the_same_run(tiny_dataset: Path) -> None:
 
-    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)
+    analyze(tiny_dataset, AnalyzerConfig(expansions=5), progress=False)
     path = tiny_dataset / CONFIG_FILE
     description = json.loads(path.read_text())
     for key in ("method", "batch", "threads", "rollout_length", "rrt_extent"):
         del description["analyzer"][key]
     path.write_text(json.dumps(description))
-    analyze(tiny_dataset, AnalyzerConfig(iterations=5), progress=False)  # no "other settings" error
+    analyze(tiny_dataset, AnalyzerConfig(expansions=5), progress=False)  # no "other settings" error
     with pytest.raises(EnergyMarginError, match="holds scores of other settings"):
-        analyze(tiny_dataset, AnalyzerConfig(iterations=5, method="rrt"), progress=False)
+        analyze(tiny_dataset, AnalyzerConfig(expansions=5, method="rrt"), progress=False)

@@ -63,7 +63,7 @@ def test_help_exits_zero(capsys: pytest.CaptureFixture[str]) -> None:
     assert "evaluate" in out
     code, out, _ = run_cli(["analyze", "--help"], capsys)
     assert code == 0
-    assert "--iterations" in out
+    assert "--expansions" in out
     assert "--workers" in out
 
 
@@ -84,7 +84,7 @@ def test_generate_analyze_evaluate(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "2 trajectories x 3 frames, 2 objects" in out
     assert sorted(p.name for p in data.iterdir()) == ["dataset.json", "frames.npz"]
 
-    code, out, err = run_cli(["analyze", str(data), "--iterations", "30", "--seed", "1", "--no-progress"], capsys)
+    code, out, err = run_cli(["analyze", str(data), "--expansions", "30", "--seed", "1", "--no-progress"], capsys)
     assert code == 0, err
     assert err == ""
     assert out.strip() == f"wrote {data / 'scores.csv'}"
@@ -111,17 +111,17 @@ def test_analyze_options_reach_the_configuration(tiny_dataset: Path, capsys: pyt
     code, _, err = run_cli(args, capsys)
     assert code == 0, err
     description = json.loads((tiny_dataset / "analysis.json").read_text())
-    assert description["analyzer"]["iterations"] is None
+    assert description["analyzer"]["expansions"] is None
     assert description["analyzer"]["nodes"] == 8
     assert description["analyzer"]["cost"] == "energy"
     assert description["likelihood_lambda"] == 2.5
     # A different configuration is refused, then accepted with --overwrite.
-    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"], capsys)
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress"], capsys)
     assert_one_error_line(code, err)
     assert "--overwrite" in err
-    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress", "--overwrite"], capsys)
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress", "--overwrite"], capsys)
     assert code == 0, err
-    assert json.loads((tiny_dataset / "analysis.json").read_text())["analyzer"]["iterations"] == 5
+    assert json.loads((tiny_dataset / "analysis.json").read_text())["analyzer"]["expansions"] == 5
 
 
 def test_default_budget_is_300_iterations(
@@ -136,7 +136,7 @@ def test_default_budget_is_300_iterations(
     monkeypatch.setattr("energy_margin.analysis.run.analyze", fake_analyze)
     code, _, err = run_cli(["analyze", str(tiny_dataset)], capsys)
     assert code == 0, err
-    assert (seen["config"].iterations, seen["config"].nodes) == (300, None)
+    assert (seen["config"].expansions, seen["config"].nodes) == (300, None)
 
 
 # ---------------------------------------------------------------- bad input: one line, nothing written
@@ -157,19 +157,19 @@ def _nan_frame(directory: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "prepare", "message"),
     [
-        (["analyze", "{tmp}/missing", "--iterations", "5"], None, "does not exist"),
+        (["analyze", "{tmp}/missing", "--expansions", "5"], None, "does not exist"),
         (["evaluate", "{tmp}/missing"], None, "does not exist"),
-        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _garbage_frames, "is corrupt"),
+        (["analyze", "{data}", "--expansions", "5", "--no-progress"], _garbage_frames, "is corrupt"),
         (["evaluate", "{data}"], _garbage_frames, "is corrupt"),
-        (["analyze", "{data}", "--iterations", "5", "--no-progress"], _nan_frame, "object_pos [trajectory 1, frame 0"),
+        (["analyze", "{data}", "--expansions", "5", "--no-progress"], _nan_frame, "object_pos [trajectory 1, frame 0"),
         (["evaluate", "{data}"], None, "run `energy-margin analyze` first"),
-        (["analyze", "{data}", "--iterations", "-5"], None, "--iterations: expected an integer >= 0, got -5"),
+        (["analyze", "{data}", "--expansions", "-5"], None, "--expansions: expected an integer >= 0, got -5"),
         (["analyze", "{data}", "--nodes", "many"], None, "--nodes: expected an integer"),
         (["analyze", "{data}", "--workers", "0"], None, "--workers: expected an integer >= 1"),
         (["analyze", "{data}", "--lambda", "nan"], None, "--lambda: expected a finite number >= 0"),
         (["analyze", "{data}", "--cost", "heat"], None, "invalid choice"),
         (["analyze", "{data}", "--engine", "bullet", "--no-progress"], None, "invalid choice: 'bullet'"),
-        (["analyze", "{data}", "--iterations", "0", "--no-progress"], None, "--iterations 0 grows no tree"),
+        (["analyze", "{data}", "--expansions", "0", "--no-progress"], None, "--expansions 0 grows no tree"),
         (["evaluate", "{scored}", "--capture-window", "3"], None, "--capture-window 3 needs more than 3 frames"),
         (["evaluate", "{scored}", "--success-frames", "4"], None, "--success-frames 4 exceeds the 3 frames"),
         (["evaluate", "{scored}", "--compare", "{scored}"], None, "compares the dataset with itself"),
@@ -210,7 +210,7 @@ def test_bad_input_is_one_line_and_writes_nothing(
         prepare(tiny_dataset)
     before = snapshot(tmp_path)
     if any("{scored}" in a for a in args):
-        assert main(["analyze", str(tiny_dataset), "--iterations", "3", "--no-progress"]) == 0
+        assert main(["analyze", str(tiny_dataset), "--expansions", "3", "--no-progress"]) == 0
         capsys.readouterr()
         before = snapshot(tmp_path)
     argv = [
@@ -322,7 +322,7 @@ def test_damaged_archive_is_a_user_error(tiny_dataset: Path, capsys: pytest.Capt
     for i in range(200, 260):
         data[i] ^= 0xFF
     path.write_bytes(bytes(data))
-    code, _, err = run_cli(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"], capsys)
+    code, _, err = run_cli(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress"], capsys)
     assert_one_error_line(code, err, expected_code=2)
     assert "frames.npz" in err
     assert "corrupt" in err
@@ -373,10 +373,46 @@ def test_module_entry_point_in_a_subprocess(tmp_path: Path) -> None:
     assert not data.exists()
 
     assert cli(*GENERATE[:4], "1", *GENERATE[5:], "--out", str(data)).returncode == 0
-    analyzed = cli("analyze", str(data), "--iterations", "20", "--no-progress")
+    analyzed = cli("analyze", str(data), "--expansions", "20", "--no-progress")
     assert analyzed.returncode == 0, analyzed.stderr
     evaluated = cli("evaluate", str(data), "--json")
     assert evaluated.returncode == 0, evaluated.stderr
     result = json.loads(evaluated.stdout)
     assert set(result) >= REQUIRED
     assert result["n_frames"] == 6
+
+
+@pytest.mark.parametrize(
+    ("command", "old", "value"),
+    [
+        ("analyze", "--iterations", ["7"]),
+        ("calibrate", "--iterations", ["7"]),
+        ("design", "--iterations", ["7"]),
+        ("sweep", "--iterations", ["7"]),
+        ("learn", "--iterations", ["7"]),
+        ("budget", "--budgets", ["7", "9"]),
+        ("study", "--budgets", ["7", "9"]),
+        ("control", "--score-expansions", ["7"]),
+    ],
+)
+def test_an_old_spelling_of_expansions_still_works_with_a_warning(
+    command: str, old: str, value: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from energy_margin.cli.app import build_parser
+
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    sub = subparsers.choices[command]
+    positional = [a for a in sub._actions if not a.option_strings and a.dest != "help"]
+    required = [a for a in sub._actions if a.option_strings and a.required]
+    argv = [command, *["x"] * len(positional)]
+    for action in required:
+        argv += [action.option_strings[0], str(next(iter(action.choices))) if action.choices else "1"]
+    for group in sub._mutually_exclusive_groups:
+        if group.required:
+            argv += [group._group_actions[0].option_strings[0], "pushing"]
+    new = parser.parse_args([*argv, "--expansions", *value])
+    old_args = parser.parse_args([*argv, old, *value])
+    assert old_args.expansions == new.expansions == ([int(v) for v in value] if len(value) > 1 else int(value[0]))
+    assert f"{old} is now --expansions" in capsys.readouterr().err
+    assert old not in sub.format_help()

@@ -102,12 +102,12 @@ def test_an_added_command_touches_no_other_module(monkeypatch: pytest.MonkeyPatc
 def test_resume_is_announced(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from energy_margin.data.scores_file import JOURNAL_FILE, SCORES_FILE
 
-    assert main(["analyze", str(tiny_dataset), "--iterations", "3"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "3"]) == 0
     journal = (tiny_dataset / JOURNAL_FILE).read_text().splitlines()
     (tiny_dataset / JOURNAL_FILE).write_text("\n".join(journal[:3]) + "\n")  # header + 2 rows
     (tiny_dataset / SCORES_FILE).unlink()
     capsys.readouterr()
-    assert main(["analyze", str(tiny_dataset), "--iterations", "3"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "3"]) == 0
     assert "resuming: 2 of 6 frames already scored" in capsys.readouterr().err
 
 
@@ -123,7 +123,7 @@ def test_files_and_folders_follow_the_umask(tmp_path: Path, umask: int) -> None:
         "d = sys.argv[2];"
         "assert main(['generate', '--task', 'pushing', '--objects', '1', '--trajectories', '1', '--frames', '2',"
         " '--out', d + '/data']) == 0;"
-        "assert main(['analyze', d + '/data', '--iterations', '2', '--no-progress']) == 0"
+        "assert main(['analyze', d + '/data', '--expansions', '2', '--no-progress']) == 0"
     )
     subprocess.run([sys.executable, "-c", script, oct(umask)[2:], str(tmp_path)], check=True, capture_output=True)
     modes = _modes(tmp_path)
@@ -137,7 +137,7 @@ def test_interrupt_delivered_twice_is_one_line(tmp_path: Path, delay: float) -> 
     data = tmp_path / "data"
     assert main(["generate", "--task", "pushing", "--objects", "3", "--trajectories", "2", "--frames", "3",
                  "--out", str(data)]) == 0  # fmt: skip
-    command = [sys.executable, "-m", "energy_margin", "analyze", str(data), "--iterations", "20000", "--workers", "2"]
+    command = [sys.executable, "-m", "energy_margin", "analyze", str(data), "--expansions", "20000", "--workers", "2"]
     process = subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
@@ -160,7 +160,7 @@ def test_pybullet_without_the_extra_is_one_line(tiny_dataset: Path) -> None:
     script = (
         "import sys; sys.modules['pybullet'] = None;"
         "from energy_margin.cli import main;"
-        "sys.exit(main(['analyze', sys.argv[1], '--engine', 'pybullet', '--iterations', '2', '--no-progress']))"
+        "sys.exit(main(['analyze', sys.argv[1], '--engine', 'pybullet', '--expansions', '2', '--no-progress']))"
     )
     result = subprocess.run([sys.executable, "-c", script, str(tiny_dataset)], capture_output=True, text=True)
     assert result.returncode == 2, result.stderr

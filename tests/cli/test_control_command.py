@@ -20,7 +20,7 @@ SHORT = [
     "0.05",
     "--frames",
     "3",
-    "--score-expansions",
+    "--expansions",
     "2",
     "--no-progress",
 ]
@@ -39,7 +39,7 @@ def test_control_prints_a_summary_and_writes_a_dataset(tmp_path: Path, capsys: p
     )
     assert code == 0
     assert "95 % Wilson interval" in text and "ms per decision" in text and "mean capture score" in text
-    code, _, err = _run(["analyze", str(out), "--iterations", "5", "--no-progress"], capsys)
+    code, _, err = _run(["analyze", str(out), "--expansions", "5", "--no-progress"], capsys)
     assert code == 0, err
     code, text, _ = _run(["evaluate", str(out), "--json"], capsys)
     assert code == 0 and "capture" in text

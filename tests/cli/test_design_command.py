@@ -23,7 +23,7 @@ from energy_margin.design.verification import EpisodeVerifier
 from energy_margin.learning.margin_model import fit_margin_model
 from energy_margin.tasks import DesignParameter, PushingTask, get_task, register_task
 
-TINY = ["--objects", "2", "--trajectories", "2", "--frames", "3", "--iterations", "10", "--verify", "2", "--seed", "1"]
+TINY = ["--objects", "2", "--trajectories", "2", "--frames", "3", "--expansions", "10", "--verify", "2", "--seed", "1"]
 
 
 class BrokenFamily(PushingTask):
@@ -154,7 +154,7 @@ def model_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small boosted-tree margin of 2-object pushing frames."""
     root = tmp_path_factory.mktemp("learned")
     generate_dataset("pushing", out=root / "train", n_objects=2, n_trajectories=4, n_frames=3, seed=2)
-    analyze(root / "train", AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(root / "train", AnalyzerConfig(expansions=8), seed=0, progress=False)
     model, _ = fit_margin_model([load_dataset(root / "train")], seed=0, kind="boosting", max_iter=5, max_depth=2)
     path = root / "push2.npz"
     model.save(path)
@@ -234,7 +234,7 @@ def test_the_command_line_and_python_design_the_same_trees_by_default() -> None:
     args = build_parser().parse_args(
         ["design", "--task", "pushing", "--evaluations", "1", "--verify", "1", "--out", "x"]
     )
-    assert args.iterations == TreeScorer().analyzer.iterations == DESIGN_EXPANSIONS
+    assert args.expansions == TreeScorer().analyzer.expansions == DESIGN_EXPANSIONS
     import inspect
 
     from energy_margin.design.search import design_search

@@ -84,7 +84,7 @@ def test_a_bad_value_is_one_line_naming_the_flag(
     tmp_path: Path, tiny_dataset: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
 ) -> None:
     if args[0] == "evaluate":
-        assert main(["analyze", str(tiny_dataset), "--iterations", "3", "--no-progress"]) == 0
+        assert main(["analyze", str(tiny_dataset), "--expansions", "3", "--no-progress"]) == 0
         capsys.readouterr()
     argv = [a.replace("{tmp}", str(tmp_path)).replace("{data}", str(tiny_dataset)) for a in args]
     code, out, err = run_cli(argv, capsys)

@@ -17,7 +17,7 @@ from releases import OTHER_MUJOCO
 from tiny_scene import write_tiny_scene
 
 MUJOCO = mujoco.__version__
-ANALYZE = ["--iterations", "5", "--no-progress"]
+ANALYZE = ["--expansions", "5", "--no-progress"]
 EVALUATE = ["--resamples", "0", "--success-frames", "1"]
 
 

@@ -134,7 +134,7 @@ def model_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small MLP margin fitted on 6 analysed pushing trajectories of 3 objects x 3 frames."""
     root = tmp_path_factory.mktemp("learned")
     generate_dataset("pushing", out=root / "train", n_objects=3, n_trajectories=6, n_frames=3, seed=2)
-    analyze(root / "train", AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(root / "train", AnalyzerConfig(expansions=8), seed=0, progress=False)
     model, _ = fit_margin_model([load_dataset(root / "train")], seed=0, kind="mlp", hidden=(8,), max_iter=40)
     path = root / "push3.npz"
     model.save(path)
@@ -166,7 +166,7 @@ def _control_cli(out: Path, policy: str, *extra: str) -> None:
         str(CONTROLLER.margin_samples),
         "--frames",
         str(OPTIONS["n_frames"]),
-        "--score-expansions",
+        "--expansions",
         str(OPTIONS["score_expansions"]),
         "--policy",
         policy,

@@ -52,7 +52,7 @@ def scored(tiny_dataset_source: Path, tmp_path_factory: pytest.TempPathFactory) 
     """A valid tiny dataset with its scores.csv: the base every fuzzed copy starts from."""
     target = tmp_path_factory.mktemp("fuzz") / "scored"
     shutil.copytree(tiny_dataset_source, target)
-    analyze(target, AnalyzerConfig(iterations=5), seed=0, progress=False)
+    analyze(target, AnalyzerConfig(expansions=5), seed=0, progress=False)
     for name in ("analysis.json", "scores.journal.csv"):
         (target / name).unlink()
     return target
@@ -502,7 +502,7 @@ def test_robot_dofs_that_do_not_match_the_task(copy: Copy, scored: Path) -> None
     assert problems[0].field == "n_robot_dofs"
 
 
-@pytest.mark.parametrize("column", ["nodes", "iterations"])
+@pytest.mark.parametrize("column", ["nodes", "expansions"])
 def test_counts_beyond_int64_in_scores(copy: Copy, scored: Path, column: str) -> None:
     lines = (scored / SCORES_FILE).read_text().splitlines(keepends=True)
     fields = lines[1].split(",")

@@ -50,7 +50,7 @@ def test_record_turns_logged_rollouts_into_a_dataset(tiny_scene: Path, tmp_path:
     assert dataset.metadata["versions"] == engine_versions("mujoco")
     assert dataset.arrays["captured"].any()
     assert main(["check", str(out)]) == 0
-    assert main(["analyze", str(out), "--iterations", "20", "--workers", "1"]) == 0
+    assert main(["analyze", str(out), "--expansions", "20", "--workers", "1"]) == 0
     assert load_scores(out)["nodes"].min() > 1
 
 
@@ -161,7 +161,7 @@ def test_recorded_mocap_arrays_override_the_declared_motion(tiny_scene: Path, tm
         simulator.reset(turned.frame(0, frame))
         np.testing.assert_allclose(simulator.data.mocap_pos[0], arrays["mocap_pos"][row, 0])  # type: ignore[attr-defined]
         np.testing.assert_allclose(simulator.data.mocap_quat[0], arrays["mocap_quat"][row, 0])  # type: ignore[attr-defined]
-    config = AnalyzerConfig(iterations=15)
+    config = AnalyzerConfig(expansions=15)
     analyze(tmp_path / "with_mocap", config, seed=0, progress=False)
     analyze(tmp_path / "without", config, seed=0, progress=False)
     turned_capture = load_scores(tmp_path / "with_mocap")["capture_score"]

@@ -152,7 +152,7 @@ def test_a_robomimic_file_becomes_a_dataset_that_analyze_and_check_accept(
     assert dataset.metadata["task_config"]["scene_file"] == str(out.resolve() / "source" / "scene.toml")
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     assert main(["check", str(out)]) == 0
-    analyze(out, AnalyzerConfig(iterations=10), seed=0, progress=False)
+    analyze(out, AnalyzerConfig(expansions=10), seed=0, progress=False)
     assert len(load_scores(out)["capture_score"]) == 12
 
 

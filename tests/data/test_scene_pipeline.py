@@ -49,17 +49,17 @@ def test_scene_file_generate_check_analyze_evaluate(tiny_scene: Path, tmp_path: 
     assert np.all(pos[:, -1, :, 1] > pos[:, 0, :, 1] + 0.2)
     assert dataset.arrays["captured"].any()
     assert main(["check", str(one)]) == 0
-    common = ["--iterations", "30", "--seed", "4"]
+    common = ["--expansions", "30", "--seed", "4"]
     assert main(["analyze", str(one), "--workers", "1", *common]) == 0
     assert main(["analyze", str(two), "--workers", "2", *common]) == 0
     first, second = load_scores(one), load_scores(two)
-    for column in ("capture_score", "success_score", "nodes", "iterations", "seed"):
+    for column in ("capture_score", "success_score", "nodes", "expansions", "seed"):
         np.testing.assert_array_equal(first[column], second[column], err_msg=column)
     assert np.all(first["nodes"] > 1)
     assert main(["evaluate", str(one)]) == 0
     out = capsys.readouterr().out
     assert "capture AP, k-hat=0" in out and "positive rate" in out
-    assert main(["analyze", str(one), "--engine", "pybullet", "--iterations", "30", "--overwrite"]) == 2
+    assert main(["analyze", str(one), "--engine", "pybullet", "--expansions", "30", "--overwrite"]) == 2
     assert "runs on mujoco only, not --engine pybullet" in capsys.readouterr().err
 
 
@@ -70,7 +70,7 @@ def test_analyze_refuses_a_dataset_whose_model_changed(tiny_scene: Path, tmp_pat
     model = tiny_scene.parent / "model.xml"
     model.write_text(model.read_text().replace('mass="0.1"', 'mass="0.2"'))
     capsys.readouterr()
-    assert main(["analyze", str(out), "--iterations", "10"]) == 2
+    assert main(["analyze", str(out), "--expansions", "10"]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1
     assert "the model of" in error and "changed since these data were made" in error
@@ -92,7 +92,7 @@ def test_perturb_and_budget_work_on_a_scene_dataset(tiny_scene: Path, tmp_path: 
     assert main(argv) == 0
     copy = load_dataset(copies / "1")
     assert copy.metadata["task_config"]["model_sha256"] == load_dataset(data).metadata["task_config"]["model_sha256"]
-    assert main(["budget", str(data), "--budgets", "5", "10", "--methods", "est", "montecarlo"]) == 0
+    assert main(["budget", str(data), "--expansions", "5", "10", "--methods", "est", "montecarlo"]) == 0
     assert (data / "budget" / "budget.csv").is_file()
 
 
@@ -101,7 +101,7 @@ def test_render_and_view_work_on_a_scene_dataset(tiny_scene: Path, tmp_path: Pat
     pytest.importorskip("plotly")
     data = tmp_path / "data"
     assert _generate(tiny_scene, data) == 0
-    assert main(["analyze", str(data), "--iterations", "10"]) == 0
+    assert main(["analyze", str(data), "--expansions", "10"]) == 0
     video, page = tmp_path / "roll.gif", tmp_path / "view.html"
     assert (
         main(["render", str(data), "--trajectory", "0", "--out", str(video), "--width", "160", "--height", "120"]) == 0

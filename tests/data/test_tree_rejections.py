@@ -13,11 +13,11 @@ from energy_margin.cli import main
 from energy_margin.data.scores_file import load_scores, rejection_note, tree_rejections
 
 
-def _scores(rejected: list[int], diverged: list[int], iterations: int = 100) -> dict[str, np.ndarray]:
+def _scores(rejected: list[int], diverged: list[int], expansions: int = 100) -> dict[str, np.ndarray]:
     return {
         "rejected": np.array(rejected),
         "diverged": np.array(diverged),
-        "iterations": np.full(len(rejected), iterations),
+        "expansions": np.full(len(rejected), expansions),
     }
 
 
@@ -43,7 +43,7 @@ def test_unknown_counts_give_no_summary() -> None:
 
 
 def test_evaluate_shows_the_counts(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    analyze(tiny_dataset, AnalyzerConfig(iterations=30), seed=0, progress=False)
+    analyze(tiny_dataset, AnalyzerConfig(expansions=30), seed=0, progress=False)
     scores = load_scores(tiny_dataset)
     capsys.readouterr()
     assert main(["evaluate", str(tiny_dataset)]) == 0

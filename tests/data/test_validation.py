@@ -20,7 +20,7 @@ from energy_margin.data.validation import OVERLAP_FRACTION, check_dataset, overl
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.metrics import evaluate
 
-SMALL = AnalyzerConfig(iterations=5)
+SMALL = AnalyzerConfig(expansions=5)
 HEADER = ",".join(COLUMNS)
 
 
@@ -235,7 +235,7 @@ def test_analyze_refuses_overlaps_before_writing(
         analyze(tiny_dataset, SMALL, progress=False)
     with pytest.raises(EnergyMarginError, match="overlaps object"):
         analyze(tiny_dataset, SMALL, workers=2, progress=False)
-    code = main(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"])
+    code = main(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2
     assert len(err.splitlines()) == 1
@@ -322,6 +322,7 @@ def test_scores_problems(scored: Path, edit: Callable[[list[str]], list[str]], e
 def test_a_scores_file_without_the_tree_counts_is_still_read(scored: Path) -> None:
     # Written before the trees' rejections were counted: the counts read as -1 (unknown).
     lines = [",".join(line.split(",")[:9]) for line in _scores_lines(scored)]
+    lines[0] = lines[0].replace("expansions", "iterations")  # the column's name then
     assert _write_and_check(scored, lines) == []
     scores = load_scores(scored)
     assert (scores["rejected"] == -1).all() and (scores["diverged"] == -1).all()
@@ -454,3 +455,13 @@ def test_small_objects_get_the_overlap_floor(tmp_path: Path) -> None:
     pos[0, 0, 1] = pos[0, 0, 0] + [width - 0.006, 0.0, 0.0]
     np.savez_compressed(out / FRAMES_FILE, **{**arrays, "object_pos": pos, "object_quat": quat})
     assert any("overlaps object" in p.message and "(limit 4.0 mm)" in p.message for p in check_dataset(out))
+
+
+def test_a_scores_file_of_release_0_2_with_its_iterations_column_is_still_read(scored: Path) -> None:
+    before = load_scores(scored)
+    lines = _scores_lines(scored)
+    lines[0] = lines[0].replace(",expansions,", ",iterations,")
+    assert _write_and_check(scored, lines) == []
+    after = load_scores(scored)
+    np.testing.assert_array_equal(after["expansions"], before["expansions"])
+    assert "iterations" not in after

@@ -93,7 +93,7 @@ def _search(out: Path, *, optimizer: str = "tpe", evaluations: int = 3, **option
         optimizer=optimizer,
         evaluations=evaluations,
         out=out,
-        scorer=TreeScorer(AnalyzerConfig(iterations=10)),
+        scorer=TreeScorer(AnalyzerConfig(expansions=10)),
         verifier=EpisodeVerifier(),
         log=settings.pop("log", lambda line: None),
         **settings,
@@ -233,7 +233,7 @@ def test_a_search_writes_its_settings_results_and_figure(reference: tuple[Path, 
     settings = json.loads((out / SETTINGS_FILE).read_text())
     assert settings["optimizer"] == "tpe" and settings["evaluations"] == 3 and settings["seed"] == 1
     assert settings["objective"]["kind"] == "margin" and settings["objective"]["score"] == "success_score"
-    assert settings["objective"]["analyzer"]["iterations"] == 10
+    assert settings["objective"]["analyzer"]["expansions"] == 10
     [axis] = settings["space"]
     assert {key: axis[key] for key in ("name", "low", "high", "integer")} == {
         "name": "pusher_width",

@@ -40,7 +40,7 @@ PARAMS = [("pusher_width", [0.6, 0.8])]
 def _sweep(out: Path, *, workers: int = 1, log: list[str] | None = None) -> dict:
     lines = log if log is not None else []
     results = design_sweep(
-        "pushing", PARAMS, out=out, workers=workers, analyzer=AnalyzerConfig(iterations=8), log=lines.append, **TINY
+        "pushing", PARAMS, out=out, workers=workers, analyzer=AnalyzerConfig(expansions=8), log=lines.append, **TINY
     )
     assert isinstance(results, SweepResult)
     return results.to_dict()
@@ -159,7 +159,7 @@ def test_tiny_sweep_table(tiny_sweep: tuple[Path, dict, list[str]]) -> None:
     assert json.loads((out / "results.json").read_text())["rows"] == rows
     settings = json.loads((out / "sweep.json").read_text())
     assert settings["designs"][0]["task_config"] == {"pusher_half_extents": [0.3, 0.1, 0.015]}
-    assert settings["seed"] == 3 and settings["analyzer"]["iterations"] == 8
+    assert settings["seed"] == 3 and settings["analyzer"]["expansions"] == 8
     assert (out / "results.png").stat().st_size > 0
     assert set(results["correlations"]) == {"early_success_score", "success_score", "capture_score"}
     assert [row["trajectories"] for row in results["convergence"]] == [1, 2]
@@ -233,7 +233,7 @@ def test_cli_prints_the_table_of_a_finished_sweep(
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", "--trajectories", "2", "--frames", "2"]
-    code = main([*argv, "--objects", "2", "--seed", "3", "--iterations", "8", "--out", str(copy), "--bootstrap", "20"])
+    code = main([*argv, "--objects", "2", "--seed", "3", "--expansions", "8", "--out", str(copy), "--bootstrap", "20"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     lines = captured.out.splitlines()
@@ -250,7 +250,7 @@ def test_a_design_that_cannot_be_generated_is_reported_and_skipped(tmp_path: Pat
         "pushing",
         [("min_separation", [0.1, 5.0])],
         out=tmp_path / "sweep",
-        analyzer=AnalyzerConfig(iterations=4),
+        analyzer=AnalyzerConfig(expansions=4),
         log=log.append,
         **{**TINY, "n_frames": 1},
     ).to_dict()
@@ -286,7 +286,7 @@ except RunLockedError as error:
 else:
     print("taken")
 """
-CLI_TINY = ["--trajectories", "2", "--frames", "2", "--objects", "2", "--seed", "3", "--iterations", "8"]
+CLI_TINY = ["--trajectories", "2", "--frames", "2", "--objects", "2", "--seed", "3", "--expansions", "8"]
 
 
 def _cli(out: Path, *extra: str) -> int:
@@ -320,7 +320,7 @@ def test_the_sweep_holds_its_lock_until_it_returns(tmp_path: Path) -> None:
         probes.append(result.stdout.strip())
 
     design_sweep(
-        "pushing", PARAMS, out=out, analyzer=AnalyzerConfig(iterations=4), log=probe, **{**TINY, "n_frames": 1}
+        "pushing", PARAMS, out=out, analyzer=AnalyzerConfig(expansions=4), log=probe, **{**TINY, "n_frames": 1}
     )
     assert len(probes) == 2 and all(p.startswith("refused:") and "is being written by" in p for p in probes), probes
     assert not (out / LOCK_FILE).exists()  # released at the end
@@ -338,7 +338,7 @@ def test_overwrite_replaces_a_sweep_of_other_settings_and_nothing_else(
     stale = copy / DESIGNS_DIR / "pusher_width-1.5"
     stale.mkdir()
     argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", "--trajectories", "2", "--frames", "1"]
-    argv += ["--objects", "2", "--seed", "3", "--iterations", "4", "--bootstrap", "20", "--out", str(copy)]
+    argv += ["--objects", "2", "--seed", "3", "--expansions", "4", "--bootstrap", "20", "--out", str(copy)]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "holds a sweep of other settings (n_frames: 2 there, 1 now)" in err
@@ -347,7 +347,7 @@ def test_overwrite_replaces_a_sweep_of_other_settings_and_nothing_else(
     assert (copy / "notes.txt").read_text() == "mine"  # not the sweep's: kept
     assert not stale.exists()  # the old designs went with the old sweep
     settings = json.loads((copy / "sweep.json").read_text())
-    assert settings["n_frames"] == 1 and settings["analyzer"]["iterations"] == 4
+    assert settings["n_frames"] == 1 and settings["analyzer"]["expansions"] == 4
     for row in results["rows"]:
         assert load_dataset(copy / DESIGNS_DIR / row["design"]).n_frames == 1
     again = json.loads((copy / "results.json").read_text())

@@ -40,7 +40,7 @@ def small_calibration(dataset: Path, out: Path, **changes: Any) -> Calibration:
         "lambdas": LAMBDAS,
         "folds": 4,
         "objective": OBJECTIVE,
-        "config": AnalyzerConfig(iterations=12),
+        "config": AnalyzerConfig(expansions=12),
         "seed": 1,
         "resamples": 50,
         "progress": False,
@@ -118,7 +118,7 @@ def test_analyze_takes_the_calibrated_lambda(dataset: Path, calibrated, tmp_path
     copy = tmp_path / "copy"
     shutil.copytree(dataset, copy)
     file = str(out / CALIBRATION_FILE)
-    assert main(["analyze", str(copy), "--iterations", "12", "--calibration", file, "--no-progress"]) == 0
+    assert main(["analyze", str(copy), "--expansions", "12", "--calibration", file, "--no-progress"]) == 0
     recorded = json.loads((copy / CONFIG_FILE).read_text())
     assert recorded["analyzer"]["likelihood_lambda"] == result.likelihood_lambda
     assert (recorded["analyzer"]["wrench_scale"], recorded["analyzer"]["duration_scale"]) == (1.0, 1.0)
@@ -164,7 +164,7 @@ def test_growth_scales_grow_their_own_trees_and_join_the_choice(dataset: Path, t
     stored = json.loads((out / CALIBRATION_FILE).read_text())
     assert stored["settings"]["growth"] == [[1.0, 1.0], [3.0, 1.0]]
     with pytest.raises(EnergyMarginError, match="wrench_scales must be positive numbers"):
-        calibrate(dataset, tmp_path / "bad", wrench_scales=(0.0,), config=AnalyzerConfig(iterations=12))
+        calibrate(dataset, tmp_path / "bad", wrench_scales=(0.0,), config=AnalyzerConfig(expansions=12))
 
 
 def test_a_wider_wrench_bound_grows_a_different_tree(dataset: Path) -> None:
@@ -173,12 +173,12 @@ def test_a_wider_wrench_bound_grows_a_different_tree(dataset: Path) -> None:
     data = load_dataset(dataset)
     frame = data.frame(0, 1)
     friction, drive = float(data.arrays["friction"][0]), data.arrays["drive"][0]
-    own = analyze_frame(data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20))
+    own = analyze_frame(data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(expansions=20))
     again = analyze_frame(
-        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20, wrench_scale=1.0)
+        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(expansions=20, wrench_scale=1.0)
     )
     wider = analyze_frame(
-        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(iterations=20, wrench_scale=2.0)
+        data.task, frame, friction=friction, drive=drive, seed=0, config=AnalyzerConfig(expansions=20, wrench_scale=2.0)
     )
     assert (own[0].capture_score, own[0].success_score) == (again[0].capture_score, again[0].success_score)
     np.testing.assert_array_equal(own[1].object_pos, again[1].object_pos)

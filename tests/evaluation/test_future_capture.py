@@ -24,7 +24,7 @@ MARGIN = 0.05
 def test_the_margin_beats_both_baselines_on_capture_two_frames_ahead(tmp_path: Path) -> None:
     out = tmp_path / "push10"
     energy_margin.generate_dataset("pushing", n_objects=10, n_trajectories=6, n_frames=6, seed=0, out=out)
-    energy_margin.analyze(out, AnalyzerConfig(iterations=20), seed=0, progress=False)
+    energy_margin.analyze(out, AnalyzerConfig(expansions=20), seed=0, progress=False)
     result = energy_margin.evaluate(out)
     # Both classes among the k̂ = 2 labels, so every AP below is defined and informative.
     assert 0.1 < result.capture_positive_rate_window2 < 0.9

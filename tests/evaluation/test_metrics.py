@@ -123,7 +123,7 @@ def test_evaluate_refuses_a_duplicated_row(labelled: Path) -> None:
 
 
 def test_evaluate_an_analyzed_dataset(tiny_dataset: Path) -> None:
-    analyze(tiny_dataset, AnalyzerConfig(iterations=30), seed=0, progress=False)
+    analyze(tiny_dataset, AnalyzerConfig(expansions=30), seed=0, progress=False)
     result = evaluate(tiny_dataset)
     assert set(result) >= REQUIRED
     assert set(result) >= QUESTIONS

@@ -35,7 +35,7 @@ def test_average_precision_matches_scikit_learn(seed: int) -> None:
 @pytest.mark.slow
 def test_budget_sweep_writes_tables_and_resumes(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
     before = sorted(p.name for p in tiny_dataset.iterdir())
-    code = main(["budget", str(tiny_dataset), "--budgets", "5", "10", "--bootstrap", "50", "--seed", "3"])
+    code = main(["budget", str(tiny_dataset), "--expansions", "5", "10", "--bootstrap", "50", "--seed", "3"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert "montecarlo" in captured.out and "rrt" in captured.out
@@ -63,11 +63,11 @@ def test_budget_sweep_writes_tables_and_resumes(tiny_dataset: Path, capsys: pyte
 
 
 def test_budget_bad_input_is_one_line(tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["budget", str(tmp_path / "missing"), "--budgets", "5"])
+    code = main(["budget", str(tmp_path / "missing"), "--expansions", "5"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "error" in err
     with pytest.raises(SystemExit) as exit_:
-        main(["budget", str(tiny_dataset), "--budgets", "0"])
+        main(["budget", str(tiny_dataset), "--expansions", "0"])
     code = exit_.value.code
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1

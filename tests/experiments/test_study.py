@@ -44,12 +44,12 @@ from energy_margin.experiments.study import (
 TINY_TASK = {"pushing": StudyTask(objects=3, seed=3)}  # both classes in capture and success
 SMALL = {
     "tasks": ["pushing"],
-    "trajectories": 3,
-    "frames": 3,
-    "budgets": [3],
+    "n_trajectories": 3,
+    "n_frames": 3,
+    "expansions": [3],
     "methods": ["est", "montecarlo"],
     "lambdas": [1.0, 5.0],
-    "lambda_budget": 3,
+    "lambda_expansions": 3,
     "bootstrap": 20,
     "seed": 2,
     "task_specs": TINY_TASK,
@@ -121,7 +121,7 @@ def test_study_writes_every_row_and_column(tmp_path: Path) -> None:
 
 def test_an_interrupted_study_resumes_without_regrowing_a_tree(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     out = tmp_path / "study"
-    frames = SMALL["trajectories"] * SMALL["frames"]
+    frames = SMALL["n_trajectories"] * SMALL["n_frames"]
     # Interrupted at the 5th tree of the first configuration (the lambda sweep sharing est-3).
     first = CountingAnalyzeFrame(stop=5)
     monkeypatch.setattr(frame_module, "analyze_frame", first)
@@ -183,19 +183,19 @@ def test_paired_difference_of_a_perfect_and_a_random_scorer_is_positive(labelled
 def test_lambda_rescoring_equals_a_direct_analysis_at_that_lambda(
     tiny_dataset: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    config = AnalyzerConfig(iterations=8)
+    config = AnalyzerConfig(expansions=8)
     rescored = rescore_lambdas(tiny_dataset, tmp_path / "lambda", [0.5, 50.0], config=config, seed=4, progress=False)
     direct_dir = tmp_path / "direct"
     shutil.copytree(tiny_dataset, direct_dir)
-    analyze(direct_dir, AnalyzerConfig(iterations=8, likelihood_lambda=50.0), seed=4, progress=False)
+    analyze(direct_dir, AnalyzerConfig(expansions=8, likelihood_lambda=50.0), seed=4, progress=False)
     direct = load_scores(direct_dir)
-    for column in ("capture_score", "success_score", "nodes", "iterations", "seed", "trajectory", "frame"):
+    for column in ("capture_score", "success_score", "nodes", "expansions", "seed", "trajectory", "frame"):
         assert np.array_equal(rescored[50.0][column], direct[column]), column
     assert not np.array_equal(rescored[0.5]["capture_score"], rescored[50.0]["capture_score"])
     # The lambda directory is what analyze at that lambda writes: analyze finds it finished.
     counting = CountingAnalyzeFrame()
     monkeypatch.setattr(frame_module, "analyze_frame", counting)
-    analyze(tmp_path / "lambda" / "est-8-lambda-50", AnalyzerConfig(iterations=8, likelihood_lambda=50.0), seed=4)
+    analyze(tmp_path / "lambda" / "est-8-lambda-50", AnalyzerConfig(expansions=8, likelihood_lambda=50.0), seed=4)
     assert counting.calls == 0
     with pytest.raises(EnergyMarginError, match="converge"):
         rescore_lambdas(tiny_dataset, tmp_path / "x", [1.0], config=AnalyzerConfig(converge=0.01), progress=False)
@@ -205,8 +205,17 @@ def test_study_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     code = main(["study", str(tmp_path / "s"), "--trajectories", "1"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "trajectories" in err
-    with pytest.raises(EnergyMarginError, match="budgets"):
-        run_study(tmp_path / "s", **{**SMALL, "budgets": [3, 3]})
+    with pytest.raises(EnergyMarginError, match="expansions"):
+        run_study(tmp_path / "s", **{**SMALL, "expansions": [3, 3]})
+    old = {"trajectories": 3, "frames": 3, "budgets": [3], "lambda_budget": 3}
+    renamed = {
+        k: v for k, v in SMALL.items() if k not in {"n_trajectories", "n_frames", "expansions", "lambda_expansions"}
+    }
+    with (
+        pytest.warns(DeprecationWarning, match="'budgets' is now 'expansions'"),
+        pytest.raises(EnergyMarginError, match="expansions"),
+    ):
+        run_study(tmp_path / "s", **{**renamed, **old, "budgets": [3, 3]})
 
 
 TRY_LOCK = """

@@ -24,7 +24,7 @@ from energy_margin.design.sweep_display import SweepDisplay
 from energy_margin.runs.files import atomic_write_text, write_json
 from energy_margin.runs.journal import Journal
 
-ANALYZE = ["--iterations", "5", "--no-progress"]
+ANALYZE = ["--expansions", "5", "--no-progress"]
 
 
 def _full() -> OSError:
@@ -303,7 +303,7 @@ def test_a_sweep_with_the_disk_full_at_its_results_keeps_the_previous_results(
     monkeypatch.setattr(SweepDisplay, "save", lambda self, path, **options: None)  # the tables are the point
     out = tmp_path / "sweep"
     argv = ["sweep", "--task", "pushing", "--param", "pusher_width=0.6,0.8", "--trajectories", "2", "--frames", "2"]
-    argv += ["--objects", "2", "--seed", "3", "--iterations", "8", "--bootstrap", "20", "--out", str(out)]
+    argv += ["--objects", "2", "--seed", "3", "--expansions", "8", "--bootstrap", "20", "--out", str(out)]
     assert main(argv) == 0
     capsys.readouterr()
     results = out / "results.json"

@@ -61,7 +61,7 @@ def test_analyze_removes_what_a_killed_analyze_left_in_the_dataset(
     (tiny_dataset / f".{CONFIG_FILE}.abcdefgh.tmp").write_text("{")
     (tiny_dataset / f".{SCORES_FILE}.abcdefgh.tmp").write_text("trajectory,fr")
     (tiny_dataset / ".frames.npz.abcdefgh.npz").write_text("not the analysis's")  # the dataset's, not the run's
-    assert main(["analyze", str(tiny_dataset), "--iterations", "5", "--no-progress"]) == 0
+    assert main(["analyze", str(tiny_dataset), "--expansions", "5", "--no-progress"]) == 0
     capsys.readouterr()
     hidden = sorted(p.name for p in tiny_dataset.iterdir() if p.name.startswith("."))
     assert hidden == [".frames.npz.abcdefgh.npz"]
@@ -75,7 +75,7 @@ def test_analyze_removes_what_a_killed_analyze_left_in_the_dataset(
             "sweep.json",
         ),
         (
-            ["control", "--episodes", "1", "--objects", "1", "--score-expansions", "0", "--set", "duration=0.1"],
+            ["control", "--episodes", "1", "--objects", "1", "--expansions", "0", "--set", "duration=0.1"],
             "control.json",
         ),
     ],
@@ -86,7 +86,7 @@ def test_a_command_killed_inside_its_first_settings_write_runs_again(
     out = tmp_path / "out"
     out.mkdir()
     (out / f".{temporary}.abcdefgh.tmp").write_text("{")
-    extra = ["--iterations", "2", "--frames", "1", "--bootstrap", "5"] if argv[0] == "sweep" else ["--frames", "2"]
+    extra = ["--expansions", "2", "--frames", "1", "--bootstrap", "5"] if argv[0] == "sweep" else ["--frames", "2"]
     code = main([*argv, *extra, "--out", str(out), "--no-progress"])
     assert code == 0, capsys.readouterr().err
     assert not [p for p in out.rglob(".*")]

@@ -194,7 +194,7 @@ def pusher_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
             wrapper.step(action)
         episodes.append(wrapper.save_episode(directory / f"episode_{episode}.npz"))
     record_dataset(scene, episodes, n_frames=4, out=directory / "dataset")
-    analyze(directory / "dataset", AnalyzerConfig(iterations=10), seed=0, workers=1)
+    analyze(directory / "dataset", AnalyzerConfig(expansions=10), seed=0, workers=1)
     model, _ = fit_margin_model([load_dataset(directory / "dataset")], seed=0, kind="boosting", max_iter=5, max_depth=2)
     model.save(directory / "model.npz")
     return directory / "model.npz"

@@ -88,7 +88,7 @@ def test_recorded_episode_scores_as_the_generated_one(tmp_path: Path) -> None:
     for name in ("object_pos", "object_quat", "object_vel", "robot_q", "robot_v", "captured", "in_success"):
         assert np.allclose(recorded.arrays[name], generated.arrays[name], rtol=0, atol=1e-12), name
 
-    config = AnalyzerConfig(iterations=40)
+    config = AnalyzerConfig(expansions=40)
     for directory in ("generated", "recorded"):
         analyze(tmp_path / directory, config, seed=5, workers=1)
     ours, theirs = load_scores(tmp_path / "recorded"), load_scores(tmp_path / "generated")

@@ -35,7 +35,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Dataset:
     """A pushing dataset of 3 objects, 8 trajectories x 6 frames, analysed with 8 expansions per frame."""
     out = tmp_path_factory.mktemp("curve") / "push3"
     generate_dataset("pushing", out=out, n_objects=3, n_trajectories=8, n_frames=6, seed=2)
-    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(out, AnalyzerConfig(expansions=8), seed=0, progress=False)
     return load_dataset(out)
 
 

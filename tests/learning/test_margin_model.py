@@ -33,7 +33,7 @@ def analysed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A pushing dataset of 3 objects, 6 trajectories x 3 frames, analysed with 8 expansions per frame."""
     out = tmp_path_factory.mktemp("learn") / "push3"
     generate_dataset("pushing", out=out, n_objects=3, n_trajectories=6, n_frames=3, seed=2)
-    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(out, AnalyzerConfig(expansions=8), seed=0, progress=False)
     return out
 
 
@@ -259,7 +259,7 @@ def test_held_out_r2_and_ap_match_an_independent_computation(tmp_path: Path, mon
     # Ten objects: about half the frames captured, half the trajectories successful (seed 2).
     out = tmp_path / "push10"
     generate_dataset("pushing", out=out, n_objects=10, n_trajectories=8, n_frames=4, seed=2)
-    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(out, AnalyzerConfig(expansions=8), seed=0, progress=False)
     dataset = load_dataset(out)
     fitted_on: list[tuple[np.ndarray, np.ndarray]] = []
     original = margin_model.fit_regressor

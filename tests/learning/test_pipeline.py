@@ -45,7 +45,7 @@ TINY: dict[str, Any] = {
     "max_iter": 40,
     "kind": "mlp",
 }
-CLI_TINY = ["--task", "pushing", "--objects", "2,3", "--trajectories", "3", "--frames", "3", "--iterations", "10"]
+CLI_TINY = ["--task", "pushing", "--objects", "2,3", "--trajectories", "3", "--frames", "3", "--expansions", "10"]
 
 
 def run_tiny(work: Path, out: Path, **changes: Any) -> LearnResult:
@@ -83,7 +83,7 @@ def assert_same_scores(directory: Path, other: Path) -> None:
     """The two scores.csv hold the same scores of the same frames (their timing columns aside)."""
     one, two = load_scores(directory), load_scores(other)
     assert len(one["trajectory"]) == 9
-    for column in ("trajectory", "frame", "capture_score", "success_score", "nodes", "iterations", "seed"):
+    for column in ("trajectory", "frame", "capture_score", "success_score", "nodes", "expansions", "seed"):
         np.testing.assert_array_equal(one[column], two[column])
 
 
@@ -121,7 +121,7 @@ def test_pipeline_writes_a_model_that_loads(baseline: LearnResult) -> None:
         assert dataset.metadata["seed"] == item.generation_seed
         assert (item.directory / SCORES_FILE).is_file() and item.generated and item.analysed
         analysis = json.loads((item.directory / "analysis.json").read_text())
-        assert analysis["seed"] == item.analysis_seed and analysis["analyzer"]["iterations"] == 10
+        assert analysis["seed"] == item.analysis_seed and analysis["analyzer"]["expansions"] == 10
     settings = json.loads((work / SETTINGS_FILE).read_text())
     assert settings["objects"] == [2, 3] and settings["fit_seed"] == baseline.fit_seed == baseline.report["seed"]
     assert not baseline.resumed and not (work / LOCK_FILE).exists()
@@ -201,7 +201,7 @@ def test_changed_settings_are_refused(baseline: LearnResult, tmp_path: Path) -> 
     assert "\n" not in str(error.value)
     with pytest.raises(EnergyMarginError, match=r"objects: \[2, 3\] there, \[3, 2\] now"):
         run_tiny(work, out, objects=[3, 2])
-    with pytest.raises(EnergyMarginError, match=r"analyzer.iterations: 10 there, 20 now"):
+    with pytest.raises(EnergyMarginError, match=r"analyzer.expansions: 10 there, 20 now"):
         run_tiny(work, out, iterations=20)
     with pytest.raises(EnergyMarginError, match=r"seed: 0 there, 1 now"):
         run_tiny(work, out, seed=1)
@@ -278,7 +278,7 @@ def test_cli_runs_the_pipeline_and_resumes(tmp_path: Path, capsys: pytest.Captur
 def test_cli_scene_form(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     scene = write_tiny_scene(tmp_path / "scene")
     work, out = tmp_path / "work", tmp_path / "model.npz"
-    args = ["learn", "--scene", str(scene), "--trajectories", "3", "--frames", "3", "--iterations", "5"]
+    args = ["learn", "--scene", str(scene), "--trajectories", "3", "--frames", "3", "--expansions", "5"]
     assert cli([*args, "--work", str(work), "--out", str(out), "--kind", "boosting", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["task"] == "scene" and [s["name"] for s in report["sets"]] == ["scene"]

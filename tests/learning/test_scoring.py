@@ -43,7 +43,7 @@ def analysed(pristine: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The same dataset analysed with 8 expansions per frame (never modified after)."""
     out = tmp_path_factory.mktemp("scoring-tree") / "push3"
     shutil.copytree(pristine, out)
-    analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+    analyze(out, AnalyzerConfig(expansions=8), seed=0, progress=False)
     return out
 
 
@@ -106,7 +106,7 @@ def test_scores_have_the_tree_columns_and_the_model_predictions(
     np.testing.assert_allclose(score_grid(dataset, scores, "capture_score").ravel(), capture, rtol=0, atol=1e-12)
     np.testing.assert_allclose(score_grid(dataset, scores, "success_score").ravel(), success, rtol=0, atol=1e-12)
     # No tree, no physics, nothing drawn; the prediction's own time per frame.
-    assert np.all(scores["nodes"] == 1) and np.all(scores["iterations"] == 0)
+    assert np.all(scores["nodes"] == 1) and np.all(scores["expansions"] == 0)
     assert np.all(scores["physics_s"] == 0.0) and np.all(scores["seed"] == 0)
     assert np.all(scores["runtime_s"] > 0) and np.all(scores["runtime_s"] < 1.0)
     assert not (fresh / JOURNAL_FILE).exists() and not list(fresh.glob(".*"))
@@ -164,7 +164,7 @@ def test_evaluate_reads_learned_scores(
 @pytest.mark.parametrize(
     "options",
     [
-        ["--iterations", "5"],
+        ["--expansions", "5"],
         ["--nodes", "10"],
         ["--workers", "2"],
         ["--converge", "0.02"],
@@ -253,7 +253,7 @@ def test_scores_of_another_configuration_need_overwrite(
     learned = snapshot(tree_scored)
     assert learned[SCORES_FILE] != before[SCORES_FILE]
     # A tree analysis refuses to mix its scores with learned ones.
-    code, _, err = run_cli(["analyze", str(tree_scored), "--iterations", "2", "--no-progress"], capsys)
+    code, _, err = run_cli(["analyze", str(tree_scored), "--expansions", "2", "--no-progress"], capsys)
     assert_refused(code, err, "holds scores of other settings", LEARNED_ANALYZER, "--overwrite")
     assert snapshot(tree_scored) == learned
     # Another model (other file contents) is another configuration too.
@@ -267,10 +267,10 @@ def test_scores_of_another_configuration_need_overwrite(
     record = json.loads((tree_scored / CONFIG_FILE).read_text(encoding="utf-8"))
     assert record["model"]["sha256"] == hashlib.sha256(other.read_bytes()).hexdigest()
     # The tree analysis replaces learned scores with --overwrite.
-    code, _, _ = run_cli(["analyze", str(tree_scored), "--iterations", "2", "--overwrite", "--no-progress"], capsys)
+    code, _, _ = run_cli(["analyze", str(tree_scored), "--expansions", "2", "--overwrite", "--no-progress"], capsys)
     assert code == 0
     assert isinstance(json.loads((tree_scored / CONFIG_FILE).read_text(encoding="utf-8"))["analyzer"], dict)
-    assert np.all(load_scores(tree_scored)["iterations"] == 2)
+    assert np.all(load_scores(tree_scored)["expansions"] == 2)
 
 
 def test_the_same_model_resumes(

@@ -170,7 +170,7 @@ def two_sizes(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     for n, seed in ((2, 1), (4, 2)):
         out = root / f"push{n}"
         generate_dataset("pushing", out=out, n_objects=n, n_trajectories=4, n_frames=3, seed=seed)
-        analyze(out, AnalyzerConfig(iterations=8), seed=0, progress=False)
+        analyze(out, AnalyzerConfig(expansions=8), seed=0, progress=False)
         paths.append(out)
     return paths
 

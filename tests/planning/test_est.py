@@ -208,9 +208,9 @@ def _check_tree_invariants(field: CostField, max_step: float) -> None:
 
 def test_rejecting_everything_leaves_the_root_alone() -> None:
     task = PlaneTask(accept=lambda pos, vel: False)
-    field, simulator = _grow_fake(task, TreeBudget(iterations=25))
+    field, simulator = _grow_fake(task, TreeBudget(expansions=25))
     assert field.nodes == 1
-    assert field.iterations == 25
+    assert field.expansions == 25
     np.testing.assert_array_equal(field.costs, [0.0])
     np.testing.assert_array_equal(field.object_pos[0], _point_frame(2).object_pos)
     # Every iteration still propagated (and was checked) before being rejected.
@@ -221,9 +221,9 @@ def test_rejecting_everything_leaves_the_root_alone() -> None:
 
 def test_child_costs_are_the_work_of_the_sampled_wrenches() -> None:
     task = PlaneTask()
-    field, simulator = _grow_fake(task, TreeBudget(iterations=40))
+    field, simulator = _grow_fake(task, TreeBudget(expansions=40))
     assert field.nodes == 41
-    assert field.iterations == 40
+    assert field.expansions == 40
     _check_tree_invariants(field, max_step=0.1)
     assert len(simulator.propagations) == 40
     for child, record in enumerate(simulator.propagations, start=1):
@@ -261,17 +261,17 @@ class _OneAtATimeCost:
 
 def test_a_cost_model_without_increments_is_called_once_per_node() -> None:
     own = _OneAtATimeCost()
-    field, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=40), cost=own)  # type: ignore[arg-type]
-    reference, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=40))
+    field, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=40), cost=own)  # type: ignore[arg-type]
+    reference, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=40))
     assert own.calls == field.nodes - 1 == 40
     assert field.costs.tolist() == reference.costs.tolist()
 
 
 def test_rejected_states_never_enter_the_tree() -> None:
     task = PlaneTask(accept=lambda pos, vel: bool(np.all(pos[:, 1] <= 0.002)))
-    field, simulator = _grow_fake(task, TreeBudget(iterations=60))
+    field, simulator = _grow_fake(task, TreeBudget(expansions=60))
     assert 1 < field.nodes < 61
-    assert field.iterations == 60
+    assert field.expansions == 60
     assert np.all(field.object_pos[:, :, 1] <= 0.002)
     rejected = [r for r in simulator.propagations if np.any(r.after[:, 1] > 0.002)]
     assert len(rejected) == 60 - (field.nodes - 1)
@@ -284,17 +284,17 @@ def test_node_budget_counts_accepted_children() -> None:
         calls["n"] += 1
         return calls["n"] % 2 == 0
 
-    field, _ = _grow_fake(PlaneTask(accept=every_other), TreeBudget(iterations=None, nodes=5))
+    field, _ = _grow_fake(PlaneTask(accept=every_other), TreeBudget(expansions=None, nodes=5))
     assert field.nodes == 6
-    assert field.iterations == 10
-    both, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=4, nodes=50))
-    assert (both.nodes, both.iterations) == (5, 4)
+    assert field.expansions == 10
+    both, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=4, nodes=50))
+    assert (both.nodes, both.expansions) == (5, 4)
 
 
 def test_fake_tree_is_a_fixed_function_of_the_seed() -> None:
-    first, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=30), seed=11)
-    again, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=30), seed=11)
-    other, _ = _grow_fake(PlaneTask(), TreeBudget(iterations=30), seed=12)
+    first, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=30), seed=11)
+    again, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=30), seed=11)
+    other, _ = _grow_fake(PlaneTask(), TreeBudget(expansions=30), seed=12)
     for name in ("costs", "object_pos", "parents", "times"):
         assert np.array_equal(getattr(first, name), getattr(again, name))
     assert not np.array_equal(first.costs, other.costs)
@@ -304,7 +304,7 @@ def test_algorithm_1_scores_with_physics_faked() -> None:
     task = PlaneTask()
     frame = _point_frame(1)
     simulator = PointMassSimulator(task.build_scene(1, 0.0))
-    config = AnalyzerConfig(iterations=50)
+    config = AnalyzerConfig(expansions=50)
     scores, field = analyze_frame(
         task, frame, friction=0.0, drive=np.zeros(0), seed=3, config=config, simulator=simulator
     )
@@ -313,7 +313,7 @@ def test_algorithm_1_scores_with_physics_faked() -> None:
     assert 0 < captured.sum() < field.nodes  # the tree spreads to both sides
     assert scores.capture_score == pytest.approx(region_score(field.costs, captured, 50.0))
     assert scores.success_score == pytest.approx(region_score(field.costs, successful, 50.0))
-    assert (scores.nodes, scores.iterations) == (51, 50)
+    assert (scores.nodes, scores.expansions) == (51, 50)
     # With lambda = 0 the likelihood is uniform: the scores are the fractions of nodes.
     uniform = score_field(task, frame, field, 0.0)
     assert uniform == pytest.approx((captured.mean(), successful.mean()))
@@ -345,8 +345,8 @@ def _grow_mujoco(
 
 @pytest.mark.parametrize("budget", [1, 20, 45])
 def test_iteration_budget(pushing_frame: PushingFrame, budget: int) -> None:
-    field = _grow_mujoco(pushing_frame, TreeBudget(iterations=budget), seed=0)
-    assert field.iterations == budget
+    field = _grow_mujoco(pushing_frame, TreeBudget(expansions=budget), seed=0)
+    assert field.expansions == budget
     assert field.nodes <= budget + 1
     assert field.nodes > 1
     _check_tree_invariants(field, max_step=0.1)
@@ -355,32 +355,32 @@ def test_iteration_budget(pushing_frame: PushingFrame, budget: int) -> None:
 
 
 def test_node_budget(pushing_frame: PushingFrame) -> None:
-    field = _grow_mujoco(pushing_frame, TreeBudget(iterations=None, nodes=15), seed=1)
+    field = _grow_mujoco(pushing_frame, TreeBudget(expansions=None, nodes=15), seed=1)
     assert field.nodes == 16
-    assert field.iterations >= 15
+    assert field.expansions >= 15
 
 
 def test_zero_budget_gives_the_root_only(pushing_frame: PushingFrame) -> None:
-    field = _grow_mujoco(pushing_frame, TreeBudget(iterations=0), seed=1)
-    assert (field.nodes, field.iterations) == (1, 0)
+    field = _grow_mujoco(pushing_frame, TreeBudget(expansions=0), seed=1)
+    assert (field.nodes, field.expansions) == (1, 0)
 
 
 def test_same_seed_same_field_different_seed_different_field(pushing_frame: PushingFrame) -> None:
-    first = _grow_mujoco(pushing_frame, TreeBudget(iterations=30), seed=5)
-    again = _grow_mujoco(pushing_frame, TreeBudget(iterations=30), seed=5)
-    other = _grow_mujoco(pushing_frame, TreeBudget(iterations=30), seed=6)
+    first = _grow_mujoco(pushing_frame, TreeBudget(expansions=30), seed=5)
+    again = _grow_mujoco(pushing_frame, TreeBudget(expansions=30), seed=5)
+    other = _grow_mujoco(pushing_frame, TreeBudget(expansions=30), seed=6)
     for name in ("costs", "object_pos", "parents", "times"):
         assert np.array_equal(getattr(first, name), getattr(again, name))
-    assert first.iterations == again.iterations
+    assert first.expansions == again.expansions
     assert not np.array_equal(first.costs, other.costs)
     assert not np.array_equal(first.object_pos, other.object_pos)
 
 
 def test_energy_cost_model_tree(pushing_frame: PushingFrame) -> None:
-    field = _grow_mujoco(pushing_frame, TreeBudget(iterations=30), seed=2, cost=EnergyBalanceCost())
-    assert field.iterations == 30
+    field = _grow_mujoco(pushing_frame, TreeBudget(expansions=30), seed=2, cost=EnergyBalanceCost())
+    assert field.expansions == 30
     _check_tree_invariants(field, max_step=0.1)
-    wrench = _grow_mujoco(pushing_frame, TreeBudget(iterations=30), seed=2)
+    wrench = _grow_mujoco(pushing_frame, TreeBudget(expansions=30), seed=2)
     # Same random stream, same propagations: only the costs differ.
     np.testing.assert_array_equal(field.object_pos, wrench.object_pos)
     assert not np.array_equal(field.costs, wrench.costs)
@@ -390,14 +390,14 @@ def test_energy_cost_model_tree(pushing_frame: PushingFrame) -> None:
 
 
 def test_tree_budget_validation_and_capacity() -> None:
-    assert TreeBudget().iterations == 300
-    assert TreeBudget(iterations=10).node_capacity == 11
-    assert TreeBudget(iterations=10, nodes=3).node_capacity == 4
-    assert TreeBudget(iterations=3, nodes=10).node_capacity == 4
-    assert TreeBudget(iterations=None, nodes=7).iteration_limit == 100_000
-    with pytest.raises(InvalidParameterError, match="give iterations, nodes or both"):
-        TreeBudget(iterations=None, nodes=None)
-    with pytest.raises(InvalidParameterError, match="iterations must be a non-negative integer"):
-        TreeBudget(iterations=-5)
+    assert TreeBudget().expansions == 300
+    assert TreeBudget(expansions=10).node_capacity == 11
+    assert TreeBudget(expansions=10, nodes=3).node_capacity == 4
+    assert TreeBudget(expansions=3, nodes=10).node_capacity == 4
+    assert TreeBudget(expansions=None, nodes=7).expansion_limit == 100_000
+    with pytest.raises(InvalidParameterError, match="give expansions, nodes or both"):
+        TreeBudget(expansions=None, nodes=None)
+    with pytest.raises(InvalidParameterError, match="expansions must be a non-negative integer"):
+        TreeBudget(expansions=-5)
     with pytest.raises(InvalidParameterError, match="nodes must be a non-negative integer"):
-        TreeBudget(iterations=5, nodes=2.5)
+        TreeBudget(expansions=5, nodes=2.5)

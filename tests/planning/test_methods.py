@@ -13,7 +13,7 @@ from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.tasks import PushingTask, ScoopingTask
 
 
-def _grow(method: str, iterations: int, *, seed: int = 0, task: PlaneTask | None = None, **options: object):
+def _grow(method: str, expansions: int, *, seed: int = 0, task: PlaneTask | None = None, **options: object):
     task = task or PlaneTask()
     simulator = PointMassSimulator(task.build_scene(2, 0.0))
     field = grow_tree(
@@ -22,7 +22,7 @@ def _grow(method: str, iterations: int, *, seed: int = 0, task: PlaneTask | None
         _point_frame(2),
         np.zeros(0),
         np.random.default_rng(seed),
-        budget=TreeBudget(iterations=iterations),
+        budget=TreeBudget(expansions=expansions),
         cost_model=WrenchWorkCost(),
         method=method,
         **options,  # type: ignore[arg-type]
@@ -33,7 +33,7 @@ def _grow(method: str, iterations: int, *, seed: int = 0, task: PlaneTask | None
 @pytest.mark.parametrize("method", ["est", "montecarlo", "rrt"])
 def test_every_method_gives_a_valid_cost_field(method: str) -> None:
     field, simulator = _grow(method, 57)
-    assert field.iterations == 57
+    assert field.expansions == 57
     assert len(simulator.propagations) == 57  # one propagation per iteration, whatever the method
     assert field.nodes == 58  # nothing is rejected in this world
     _check_tree_invariants(field, max_step=0.1)
@@ -118,7 +118,7 @@ def _pushing(n_objects: int = 3):
     return task, trajectory
 
 
-def _grow_batched(method: str, batch: int, threads: int, iterations: int = 40):
+def _grow_batched(method: str, batch: int, threads: int, expansions: int = 40):
     task, trajectory = _pushing()
     simulator = MujocoSimulator(task.build_scene(3, trajectory.friction))
     return grow_tree(
@@ -127,7 +127,7 @@ def _grow_batched(method: str, batch: int, threads: int, iterations: int = 40):
         trajectory.initial,
         trajectory.drive,
         np.random.default_rng(5),
-        budget=TreeBudget(iterations=iterations),
+        budget=TreeBudget(expansions=expansions),
         cost_model=WrenchWorkCost(),
         method=method,
         batch=batch,
@@ -144,7 +144,7 @@ def test_batched_is_deterministic_and_independent_of_threads(method: str) -> Non
         np.testing.assert_array_equal(first.costs, other.costs)
         np.testing.assert_array_equal(first.object_pos, other.object_pos)
         np.testing.assert_array_equal(first.parents, other.parents)
-    assert first.iterations == 40
+    assert first.expansions == 40
     _check_tree_invariants(first, max_step=0.1)
 
 
@@ -158,13 +158,13 @@ def test_batch_one_is_the_reference_path() -> None:
     task, trajectory = _pushing()
     frame, drive = trajectory.initial, trajectory.drive
     kwargs = {"friction": trajectory.friction, "drive": drive, "seed": 11}
-    reference, reference_field = analyze_frame(task, frame, config=AnalyzerConfig(iterations=30), **kwargs)
-    explicit, explicit_field = analyze_frame(task, frame, config=AnalyzerConfig(iterations=30, batch=1), **kwargs)
+    reference, reference_field = analyze_frame(task, frame, config=AnalyzerConfig(expansions=30), **kwargs)
+    explicit, explicit_field = analyze_frame(task, frame, config=AnalyzerConfig(expansions=30, batch=1), **kwargs)
     np.testing.assert_array_equal(reference_field.costs, explicit_field.costs)
     assert reference.capture_score == explicit.capture_score
-    batched, batched_field = analyze_frame(task, frame, config=AnalyzerConfig(iterations=30, batch=8), **kwargs)
+    batched, batched_field = analyze_frame(task, frame, config=AnalyzerConfig(expansions=30, batch=8), **kwargs)
     # Rounds pick parents against the tree before the round: the tree differs, its size does not.
-    assert batched_field.iterations == reference_field.iterations == 30
+    assert batched_field.expansions == reference_field.expansions == 30
     assert not np.array_equal(batched_field.parents, reference_field.parents)
     assert 0.0 <= batched.capture_score <= 1.0
 
@@ -172,8 +172,8 @@ def test_batch_one_is_the_reference_path() -> None:
 def test_batched_first_round_matches_one_at_a_time_physics() -> None:
     # Monte Carlo's first layer starts every roll-out at the root with the same controls in both
     # paths: the reached states agree up to the solver's warm start (zero in the batched path).
-    one = _grow_batched("montecarlo", 1, 1, iterations=8)
-    batched = _grow_batched("montecarlo", 8, 1, iterations=8)
+    one = _grow_batched("montecarlo", 1, 1, expansions=8)
+    batched = _grow_batched("montecarlo", 8, 1, expansions=8)
     np.testing.assert_array_equal(one.parents, batched.parents)
     np.testing.assert_allclose(one.object_pos, batched.object_pos, atol=1e-6)
     np.testing.assert_allclose(one.costs, batched.costs, rtol=1e-4, atol=1e-9)
@@ -184,10 +184,10 @@ def test_batched_scooping_follows_the_script() -> None:
     trajectory = task.sample_trajectory(np.random.default_rng(0), 2)
     kwargs = {"friction": trajectory.friction, "drive": trajectory.drive, "seed": 2, "start_time": 1.2}
     _, one_field = analyze_frame(
-        task, trajectory.initial, config=AnalyzerConfig(iterations=6, method="montecarlo"), **kwargs
+        task, trajectory.initial, config=AnalyzerConfig(expansions=6, method="montecarlo"), **kwargs
     )
     _, batched_field = analyze_frame(
-        task, trajectory.initial, config=AnalyzerConfig(iterations=6, method="montecarlo", batch=6), **kwargs
+        task, trajectory.initial, config=AnalyzerConfig(expansions=6, method="montecarlo", batch=6), **kwargs
     )
     # One layer of six roll-outs from the root: same controls and servo targets in both paths.
     np.testing.assert_allclose(one_field.object_pos, batched_field.object_pos, atol=1e-5)
@@ -203,7 +203,7 @@ def test_batched_refuses_friction_work() -> None:
             trajectory.initial,
             trajectory.drive,
             np.random.default_rng(0),
-            budget=TreeBudget(iterations=4),
+            budget=TreeBudget(expansions=4),
             cost_model=EnergyBalanceCost(),
             batch=2,
         )

@@ -17,9 +17,9 @@ def test_every_nodes_robot_coordinates_are_those_of_its_own_state(monkeypatch: p
     kept: dict[str, np.ndarray] = {}
     original = tree_module._Tree.field
 
-    def field(self, iterations, physics_s, started):  # type: ignore[no-untyped-def]
+    def field(self, expansions, physics_s, started):  # type: ignore[no-untyped-def]
         kept["states"] = self.states[: self.count].copy()
-        return original(self, iterations, physics_s, started)
+        return original(self, expansions, physics_s, started)
 
     monkeypatch.setattr(tree_module._Tree, "field", field)
     simulator = task.make_simulator(3, trajectory.friction, trajectory.drive)
@@ -29,7 +29,7 @@ def test_every_nodes_robot_coordinates_are_those_of_its_own_state(monkeypatch: p
         friction=trajectory.friction,
         drive=trajectory.drive,
         seed=2,
-        config=AnalyzerConfig(iterations=30, batch=batch),
+        config=AnalyzerConfig(expansions=30, batch=batch),
         simulator=simulator,
     )
     assert grown.robot_q is not None and grown.robot_q.shape[0] == grown.nodes > 5

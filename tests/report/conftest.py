@@ -26,10 +26,10 @@ CHROMIUM_ARGS = [
 
 @pytest.fixture(scope="session")
 def analysed_source(tiny_dataset_source: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The tiny pushing dataset analysed with 10 iterations per frame (never modified)."""
+    """The tiny pushing dataset analysed with 10 expansions per frame (never modified)."""
     target = tmp_path_factory.mktemp("analysed") / "tiny"
     shutil.copytree(tiny_dataset_source, target)
-    analyze(target, AnalyzerConfig(iterations=10), seed=0, workers=1, progress=False)
+    analyze(target, AnalyzerConfig(expansions=10), seed=0, workers=1, progress=False)
     return target
 
 

@@ -39,14 +39,14 @@ def _is_object_orange(pixel: np.ndarray) -> bool:
     return red > 90 and red > green and red > blue + 50
 
 
-def _field(dataset: Dataset, trajectory: int, frame: int, iterations: int = 30):
+def _field(dataset: Dataset, trajectory: int, frame: int, expansions: int = 30):
     _, field = analyze_frame(
         dataset.task,
         dataset.frame(trajectory, frame),
         friction=float(dataset.arrays["friction"][trajectory]),
         drive=dataset.arrays["drive"][trajectory],
         seed=3,
-        config=AnalyzerConfig(iterations=iterations),
+        config=AnalyzerConfig(expansions=expansions),
         start_time=float(dataset.arrays["frame_time"][trajectory, frame]),
     )
     return field, likelihood(field.costs, dataset.task.config.likelihood_lambda)
@@ -160,7 +160,7 @@ def test_without_gl_the_projection_is_drawn_with_one_warning(
     dataset = load_dataset(tiny_dataset)
     monkeypatch.setenv("MUJOCO_GL", "none-such")
     monkeypatch.setattr(render, "_warned", set())
-    field, likelihoods = _field(dataset, 0, 1, iterations=10)
+    field, likelihoods = _field(dataset, 0, 1, expansions=10)
     with render.dataset_renderer(dataset, 0) as renderer:
         assert renderer.backend == "matplotlib"
         image = renderer.render(dataset.frame(0, 1), field=field, likelihoods=likelihoods)

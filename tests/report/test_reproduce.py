@@ -16,13 +16,13 @@ pytest.importorskip("matplotlib")
 
 TINY = ReproduceConfig(
     quick=True,
-    trajectories=3,
-    frames=3,
-    iterations=10,
+    n_trajectories=3,
+    n_frames=3,
+    expansions=10,
     repeats=1,
     ablation_objects=(2, 3),
-    ablation_trajectories=2,
-    ablation_frames=3,
+    ablation_n_trajectories=2,
+    ablation_n_frames=3,
     workers=1,
 )
 
@@ -153,7 +153,7 @@ def test_running_again_resumes_without_recomputing(
 @pytest.mark.slow
 def test_other_settings_in_the_same_directory_are_refused(reproduced: Path) -> None:
     with pytest.raises(EnergyMarginError, match="other settings"):
-        reproduce(reproduced, ReproduceConfig(quick=True, trajectories=4))
+        reproduce(reproduced, ReproduceConfig(quick=True, n_trajectories=4))
 
 
 def test_markdown_tables_put_the_paper_beside_ours() -> None:
@@ -237,7 +237,7 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
 def test_calibration_measures_this_machine() -> None:
     from energy_margin.report.estimate import measure_step_times
 
-    calibration = measure_step_times(ReproduceConfig(iterations=20, workers=1), ["pushing", "scooping"])
+    calibration = measure_step_times(ReproduceConfig(expansions=20, workers=1), ["pushing", "scooping"])
     assert set(calibration.frame_s) == set(calibration.perturb_s) == {"pushing", "scooping"}
     assert all(0 < value < 30 for value in calibration.frame_s.values())
     assert 0 < calibration.picture_s < 5 and calibration.measured_s < 60

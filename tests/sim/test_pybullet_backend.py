@@ -116,7 +116,7 @@ def test_saved_states_are_released_after_a_tree() -> None:
         frame,
         drive,
         np.random.default_rng(0),
-        budget=TreeBudget(iterations=20),
+        budget=TreeBudget(expansions=20),
         cost_model=make_cost_model("wrench"),
     )
     assert field.nodes > 5
@@ -240,7 +240,7 @@ def test_generate_and_analyze_with_pybullet(tmp_path: Path) -> None:
     out = tmp_path / "pb"
     dataset = generate_dataset("pushing", n_objects=2, n_trajectories=1, n_frames=2, seed=0, out=out, engine="pybullet")
     assert dataset.metadata["engine"] == "pybullet"
-    analyze(out, AnalyzerConfig(iterations=15, engine="pybullet"), progress=False)
+    analyze(out, AnalyzerConfig(expansions=15, engine="pybullet"), progress=False)
     scores = load_scores(out)
     assert scores["nodes"].min() > 1
     assert np.all((scores["capture_score"] >= 0) & (scores["capture_score"] <= 1))

@@ -70,7 +70,7 @@ def test_scoring_leaves_the_environment_unchanged(tmp_path: Path) -> None:
 def test_example_end_to_end(tmp_path: Path) -> None:
     example = _module("insertion")
     out = tmp_path / "run"
-    arguments = ["--episodes", "2", "--steps", "90", "--every", "15", "--budget", "0.01", "--iterations", "5"]
+    arguments = ["--episodes", "2", "--steps", "90", "--every", "15", "--budget", "0.01", "--expansions", "5"]
     returned = example.main([*arguments, "--out", str(out)])
     results = json.loads((out / "results.json").read_text())
     assert results == json.loads(json.dumps(returned))

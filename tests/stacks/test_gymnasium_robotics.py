@@ -91,7 +91,7 @@ def test_wrapper_scores_without_changing_the_environment(tmp_path: Path) -> None
 
 def test_example_end_to_end(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    returned = live_scores.main(["--episodes", "3", "--out", str(out), "--iterations", "10", "--budget", "0.02"])
+    returned = live_scores.main(["--episodes", "3", "--out", str(out), "--expansions", "10", "--budget", "0.02"])
     results = json.loads((out / "results.json").read_text())
     assert results == json.loads(json.dumps(returned))
     assert results["same_model"] and results["mujoco"] == ".".join(map(str, mujoco_version()))

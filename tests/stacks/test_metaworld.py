@@ -81,7 +81,7 @@ def test_wrapper_scores_without_changing_the_environment(tmp_path: Path) -> None
 
 def test_example_end_to_end(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    returned = live_scores.main(["--episodes", "2", "--out", str(out), "--iterations", "3", "--budget", "0.01"])
+    returned = live_scores.main(["--episodes", "2", "--out", str(out), "--expansions", "3", "--budget", "0.01"])
     results = json.loads((out / "results.json").read_text())
     assert results == json.loads(json.dumps(returned))
     assert results["same_model"] and results["mujoco"] == ".".join(map(str, mujoco_version()))

@@ -73,7 +73,7 @@ def test_scoring_leaves_the_environment_unchanged(tmp_path: Path) -> None:
 def test_example_end_to_end(tmp_path: Path) -> None:
     example = _module("pick_place")
     out = tmp_path / "run"
-    arguments = ["--episodes", "3", "--every", "36", "--budget", "0.01", "--iterations", "5", "--out", str(out)]
+    arguments = ["--episodes", "3", "--every", "36", "--budget", "0.01", "--expansions", "5", "--out", str(out)]
     returned = example.main(arguments)
     results = json.loads((out / "results.json").read_text())
     assert results == json.loads(json.dumps(returned))

@@ -120,7 +120,7 @@ def test_plots_draw_a_registered_planar_task_from_the_top(
         object_vel=np.zeros((2, dataset.n_objects, 6)),
         parents=np.array([-1, 0]),
         times=np.array([0.0, 0.05]),
-        iterations=1,
+        expansions=1,
         physics_s=0.0,
         total_s=0.0,
     )

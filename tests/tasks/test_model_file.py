@@ -53,14 +53,14 @@ def test_generate_and_analyze_give_the_same_data_and_scores_as_the_xml(tmp_path:
         generate = ["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--seed", "3"]
         assert main([*generate, "--out", str(out)]) == 0
         assert main(["check", str(out)]) == 0
-        assert main(["analyze", str(out), "--iterations", "20", "--seed", "4", "--workers", "1"]) == 0
+        assert main(["analyze", str(out), "--expansions", "20", "--seed", "4", "--workers", "1"]) == 0
         scores[name] = (load_dataset(out), load_scores(out))
     capsys.readouterr()
     (xml_data, xml_scores), (mjb_data, mjb_scores) = scores["xml"], scores["mjb"]
     assert mjb_data.metadata["task_config"]["model_sha256"] == xml_data.metadata["task_config"]["model_sha256"]
     for name, array in xml_data.arrays.items():
         np.testing.assert_array_equal(mjb_data.arrays[name], array, err_msg=name)
-    for column in ("capture_score", "success_score", "nodes", "iterations"):
+    for column in ("capture_score", "success_score", "nodes", "expansions"):
         np.testing.assert_array_equal(mjb_scores[column], xml_scores[column], err_msg=column)
 
 

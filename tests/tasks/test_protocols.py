@@ -107,7 +107,7 @@ def test_a_regions_only_object_is_accepted_where_regions_suffice() -> None:
         object_vel=np.zeros((2, 1, 6)),
         parents=np.array([-1, 0]),
         times=np.zeros(2),
-        iterations=1,
+        expansions=1,
         physics_s=0.0,
         total_s=0.0,
     )

@@ -341,7 +341,7 @@ def test_contact_region_uses_each_objects_orientation(make_scene) -> None:
     # The analysis scores the tree's states with their orientations: resting boxes stay in contact.
     from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 
-    config = AnalyzerConfig(iterations=10)
+    config = AnalyzerConfig(expansions=10)
     scores, field = analyze_frame(task, frame, friction=0.5, drive=trajectory.drive, seed=0, config=config)
     assert field.object_quat.shape == (field.nodes, 2, 4)
     assert 0.5 < scores.success_score <= 1.0
@@ -598,7 +598,7 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
         friction=trajectory.friction,
         drive=trajectory.drive,
         seed=1,
-        config=AnalyzerConfig(iterations=40),
+        config=AnalyzerConfig(expansions=40),
     )
     assert field.robot_q is not None and field.robot_q.shape == (field.nodes, 7)
     np.testing.assert_array_equal(field.robot_q[0], trajectory.initial.robot_q)
@@ -618,7 +618,7 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
             friction=trajectory.friction,
             drive=trajectory.drive,
             seed=1,
-            config=AnalyzerConfig(iterations=8, batch=2),
+            config=AnalyzerConfig(expansions=8, batch=2),
         )
 
 
@@ -629,7 +629,7 @@ def test_follow_with_batched_expansion_of_a_mocap_model_is_refused_before_any_tr
     out = tmp_path / "d"
     assert main(["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--out", str(out)]) == 0
     capsys.readouterr()
-    assert main(["analyze", str(out), "--iterations", "8", "--batch", "2", "--no-progress"]) == 2
+    assert main(["analyze", str(out), "--expansions", "8", "--batch", "2", "--no-progress"]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "capture.follow needs the robot's coordinates" in error
     assert not (out / "scores.csv").exists() and not (out / "analysis.json").exists()

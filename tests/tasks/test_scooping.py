@@ -177,11 +177,11 @@ def test_generate_and_analyze_are_deterministic(tmp_path) -> None:
     loaded = load_dataset(tmp_path / "a")
     assert loaded.metadata["task"] == "scooping"
     assert loaded.metadata["n_robot_dofs"] == 5 and loaded.metadata["n_drive"] == 1
-    config = AnalyzerConfig(iterations=20)
+    config = AnalyzerConfig(expansions=20)
     analyze(tmp_path / "a", config, seed=3, workers=1, progress=False)
     analyze(tmp_path / "b", config, seed=3, workers=2, progress=False)
     scores_a, scores_b = load_scores(tmp_path / "a"), load_scores(tmp_path / "b")
-    for column in ("capture_score", "success_score", "nodes", "iterations", "seed"):
+    for column in ("capture_score", "success_score", "nodes", "expansions", "seed"):
         np.testing.assert_array_equal(scores_a[column], scores_b[column], err_msg=column)
     assert np.all((scores_a["capture_score"] >= 0) & (scores_a["capture_score"] <= 1 + 1e-9))
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin._renamed import renamed_fields
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import (
@@ -49,12 +50,13 @@ __all__ = [
 CONVERGE_RULES = ("projected", "window")
 
 
+@renamed_fields(iterations="expansions")
 @dataclass(frozen=True)
 class AnalyzerConfig:
     """Settings of an energy-margin analysis.
 
     Attributes:
-        iterations: EST expansions per frame (accepted or rejected); ``None`` for a node budget only.
+        expansions: tree expansions per frame (accepted or rejected); ``None`` for a node budget only.
         nodes: accepted tree nodes (children of the root) per frame; ``None`` for no node budget.
         cost: incremental cost model, ``"wrench"`` (perturbation work) or ``"energy"`` (|dE - W_fri|).
         likelihood_lambda: softmax inverse temperature lambda, 1/J; ``None`` uses the task's value.
@@ -64,7 +66,7 @@ class AnalyzerConfig:
         method: tree method, ``"est"`` (the paper), ``"montecarlo"`` (independent roll-outs) or
             ``"rrt"`` (nearest node to a random target, one random control); see
             :mod:`energy_margin.planning.methods`.
-        batch: iterations propagated together per round through ``mujoco.rollout`` (1: one at a
+        batch: expansions propagated together per round through ``mujoco.rollout`` (1: one at a
             time, the reference behaviour; > 1 needs the ``"wrench"`` cost).
         threads: ``mujoco.rollout`` threads when ``batch`` > 1.
         rollout_length: propagations per Monte Carlo roll-out.
@@ -73,7 +75,7 @@ class AnalyzerConfig:
             root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
         converge: adaptive budget: a score tolerance in (0, 1); the tree stops once the rule of
             ``converge_rule`` says neither score will move by more than it (checked every
-            ``converge_every`` expansions); the iteration/node budget stays the upper bound.
+            ``converge_every`` expansions); the expansion/node budget stays the upper bound.
             ``None``: always spend the whole budget.
         converge_rule: ``"projected"``: stop once neither score, moving on at its rate over the
             last ``converge_window`` expansions, would move by more than ``converge`` by the end
@@ -91,7 +93,7 @@ class AnalyzerConfig:
 
     """
 
-    iterations: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
+    expansions: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
     nodes: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
     cost: str = constrained("wrench", Constraint("choice", choices=tuple(COST_MODELS)))
     likelihood_lambda: float | None = constrained(None, Constraint("float", minimum=0.0, optional=True))
@@ -117,8 +119,8 @@ class AnalyzerConfig:
     def __post_init__(self) -> None:
         # Each field's constraint is declared once, beside its default (the command line takes both).
         check_fields(self)
-        if self.iterations is None and self.nodes is None:
-            raise InvalidParameterError("iterations", "and nodes cannot both be None")
+        if self.expansions is None and self.nodes is None:
+            raise InvalidParameterError("expansions", "and nodes cannot both be None")
         if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
             raise InvalidParameterError(
                 "cost", f"must be 'wrench' with batch > 1, which does not integrate friction work, got {self.cost!r}"
@@ -131,13 +133,14 @@ class AnalyzerConfig:
     @property
     def budget(self) -> TreeBudget:
         """The tree budget."""
-        return TreeBudget(iterations=self.iterations, nodes=self.nodes)
+        return TreeBudget(expansions=self.expansions, nodes=self.nodes)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-compatible dictionary of every field."""
         return dataclasses.asdict(self)
 
 
+@renamed_fields(iterations="expansions")
 @dataclass(frozen=True)
 class FrameScores:
     """Scores of one frame.
@@ -146,7 +149,7 @@ class FrameScores:
         capture_score: likelihood mass of captured states, in [0, 1].
         success_score: likelihood mass of successful states, in [0, 1].
         nodes: tree nodes including the root.
-        iterations: expansions performed.
+        expansions: expansions performed.
         runtime_s: wall time of tree growth and scoring, s.
         physics_s: part of it spent in the simulator, s.
         rejected: reached states the tree rejected for leaving the task's state box.
@@ -157,7 +160,7 @@ class FrameScores:
     capture_score: float
     success_score: float
     nodes: int
-    iterations: int
+    expansions: int
     runtime_s: float
     physics_s: float
     rejected: int = 0
@@ -217,15 +220,15 @@ class ScoresConverged:
 
     def _remaining(self, field: CostField) -> int:
         """Expansions the budget still allows after ``field`` (accepted nodes, when fewer)."""
-        remaining = self.budget.iteration_limit - field.iterations
+        remaining = self.budget.expansion_limit - field.expansions
         if self.budget.nodes is not None:
             remaining = min(remaining, self.budget.nodes - (field.nodes - 1))
         return max(remaining, 0)
 
     def __call__(self, field: CostField) -> bool:
-        """Whether growth can stop after ``field.iterations`` expansions."""
+        """Whether growth can stop after ``field.expansions`` expansions."""
         capture, success = score_field(self.task, self.root, field, self.lam)
-        now = field.iterations
+        now = field.expansions
         self.history.append((now, capture, success))
         earlier = [entry for entry in self.history if entry[0] <= now - self.window]
         if not earlier:
@@ -252,12 +255,12 @@ class _EitherStop:
         self.next_check = period
 
     def __call__(self, field: CostField) -> bool:
-        """Whether growth can stop after ``field.iterations`` expansions."""
+        """Whether growth can stop after ``field.expansions`` expansions."""
         if self.first(field):
             return True
-        if field.iterations < self.next_check:
+        if field.expansions < self.next_check:
             return False
-        self.next_check = (field.iterations // self.period + 1) * self.period
+        self.next_check = (field.expansions // self.period + 1) * self.period
         return self.periodic(field)
 
 
@@ -328,7 +331,7 @@ def analyze_frame(
     capture, success = score_field(task, frame, field, lam)
     runtime = time.perf_counter() - started
     scores = FrameScores(
-        capture, success, field.nodes, field.iterations, runtime, field.physics_s, field.rejected, field.diverged
+        capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
     )
     return scores, field
 
@@ -424,7 +427,7 @@ class FrameAnalyzer:
             "capture_score": scores.capture_score,
             "success_score": scores.success_score,
             "nodes": scores.nodes,
-            "iterations": scores.iterations,
+            "expansions": scores.expansions,
             "runtime_s": scores.runtime_s,
             "physics_s": scores.physics_s,
             "seed": self.seeds[index],

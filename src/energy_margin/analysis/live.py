@@ -131,7 +131,7 @@ def score_state(
         check_positive_float("budget_s", budget_s)
     check_positive_int("max_expansions", max_expansions)
     base = config if config is not None else AnalyzerConfig()
-    settings = dataclasses.replace(base, iterations=int(max_expansions), nodes=None, engine=engine)
+    settings = dataclasses.replace(base, expansions=int(max_expansions), nodes=None, engine=engine)
     deadline = Deadline(started + budget_s) if budget_s is not None else None
     scores, _ = analyze_frame(
         task,
@@ -148,7 +148,7 @@ def score_state(
     return LiveScore(
         capture=scores.capture_score,
         success=scores.success_score,
-        expansions=scores.iterations,
+        expansions=scores.expansions,
         nodes=scores.nodes,
         seconds=time.perf_counter() - started,
         stopped_by="budget" if deadline is not None and deadline.reached else "max_expansions",

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from energy_margin._renamed import renamed_keys
 from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
@@ -22,6 +23,7 @@ from energy_margin.errors import EnergyMarginError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
 from energy_margin.runs.files import atomic_write_text
+from energy_margin.runs.progress import Progress
 from energy_margin.tasks import with_contacts
 
 __all__ = [
@@ -68,7 +70,7 @@ def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:
     tolerance: without one it takes the default, so a full-budget run resumes whatever file wrote it.
     """
     defaults = AnalyzerConfig().to_dict()
-    filled = {**defaults, **(_EARLIER_BEHAVIOUR if earlier else {}), **analyzer}
+    filled = {**defaults, **(_EARLIER_BEHAVIOUR if earlier else {}), **renamed_keys(analyzer)}
     if filled.get("converge") is None:
         filled["converge_rule"] = defaults["converge_rule"]
     return filled
@@ -102,7 +104,7 @@ def analyze(
     executor: str = "local",
     address: str | None = None,
     overwrite: bool = False,
-    progress: bool = True,
+    progress: Progress = True,
 ) -> Path:
     """Score every frame of the dataset at ``path`` and write ``scores.csv`` beside it.
 
@@ -142,7 +144,7 @@ def analyze(
             return scores_path
         total = dataset.n_trajectories * dataset.n_frames
         pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
-        if done and progress:
+        if done and progress is True:
             print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
         bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
         try:

@@ -14,6 +14,7 @@ from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import CONVERGE_RULES, AnalyzerConfig
 from energy_margin.cli.common import (
     add_engine,
+    add_old_spelling,
     add_seed,
     analyzer_default,
     non_negative_float,
@@ -30,7 +31,7 @@ from energy_margin.tasks.base import CONTACT_MODELS
 
 __all__ = [
     "COSTS",
-    "DEFAULT_ITERATIONS",
+    "DEFAULT_EXPANSIONS",
     "EXAMPLES",
     "NAME",
     "SUMMARY",
@@ -47,7 +48,7 @@ __all__ = [
 NAME = "analyze"
 SUMMARY = "score every frame of a dataset: capture and success scores into scores.csv"
 EXAMPLES = (
-    "energy-margin analyze runs/push10 --iterations 300 --workers 2 --seed 0",
+    "energy-margin analyze runs/push10 --expansions 300 --workers 2 --seed 0",
     "energy-margin analyze runs/push10 --nodes 200 --cost energy --overwrite",
     "energy-margin analyze runs/push10-perturbed --model runs/push10-margin.npz",
 )
@@ -56,11 +57,11 @@ COSTS = tuple(COST_MODELS)
 default = analyzer_default
 
 
-#: The expansions per frame without ``--iterations`` and ``--nodes`` (AnalyzerConfig's own).
-DEFAULT_ITERATIONS = default("iterations")
+#: The expansions per frame without ``--expansions`` and ``--nodes`` (AnalyzerConfig's own).
+DEFAULT_EXPANSIONS = default("expansions")
 #: The options of the tree analysis (by ``dest``): a learned margin (``--model``) grows no tree.
 TREE_ONLY = {
-    "iterations": "--iterations",
+    "expansions": "--expansions",
     "nodes": "--nodes",
     "cost": "--cost",
     "likelihood_lambda": "--lambda",
@@ -84,11 +85,15 @@ TREE_ONLY = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``analyze``."""
     parser.add_argument("dataset", help="dataset directory")
-    parser.add_argument(
+    add_old_spelling(
+        parser,
         "--iterations",
-        type=non_negative_int,
-        default=None,
-        help=f"expansions per frame (default {DEFAULT_ITERATIONS} when --nodes is absent)",
+        parser.add_argument(
+            "--expansions",
+            type=non_negative_int,
+            default=None,
+            help=f"expansions per frame (default {DEFAULT_EXPANSIONS} when --nodes is absent)",
+        ),
     )
     parser.add_argument("--nodes", type=non_negative_int, default=default("nodes"), help="tree nodes per frame")
     parser.add_argument(
@@ -210,9 +215,9 @@ def calibrated_settings(args: argparse.Namespace) -> dict[str, float]:
 
 def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     """The :class:`~energy_margin.analysis.frame.AnalyzerConfig` the arguments ask for."""
-    if args.iterations == 0 and args.nodes is None:
-        raise EnergyMarginError("--iterations 0 grows no tree: give a positive number or a --nodes budget")
-    iterations = args.iterations if args.iterations is not None or args.nodes is not None else DEFAULT_ITERATIONS
+    if args.expansions == 0 and args.nodes is None:
+        raise EnergyMarginError("--expansions 0 grows no tree: give a positive number or a --nodes budget")
+    expansions = args.expansions if args.expansions is not None or args.nodes is not None else DEFAULT_EXPANSIONS
     chosen = {
         "likelihood_lambda": args.likelihood_lambda,
         "wrench_scale": args.wrench_scale,
@@ -221,7 +226,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     if getattr(args, "calibration", None) is not None:
         chosen.update(calibrated_settings(args))
     return AnalyzerConfig(
-        iterations=iterations,
+        expansions=expansions,
         nodes=args.nodes,
         cost=args.cost,
         likelihood_lambda=chosen["likelihood_lambda"],

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import add_seed, analyzer_default, non_negative_int, positive_int
+from energy_margin.cli.common import add_old_spelling, add_seed, analyzer_default, non_negative_int, positive_int
 from energy_margin.planning.methods import METHODS
 
 __all__ = [
@@ -17,14 +17,22 @@ __all__ = [
 
 NAME = "budget"
 SUMMARY = "AP (with bootstrap intervals) and runtime against the expansion budget, per tree method"
-EXAMPLES = ("energy-margin budget runs/push10 --budgets 10 30 100 300 --methods est montecarlo --workers 2",)
+EXAMPLES = ("energy-margin budget runs/push10 --expansions 10 30 100 300 --methods est montecarlo --workers 2",)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``budget``."""
     parser.add_argument("dataset", help="dataset directory")
-    parser.add_argument(
-        "--budgets", type=positive_int, nargs="+", default=[10, 30, 100, 300, 1000], help="iterations per frame"
+    add_old_spelling(
+        parser,
+        "--budgets",
+        parser.add_argument(
+            "--expansions",
+            type=positive_int,
+            nargs="+",
+            default=[10, 30, 100, 300, 1000],
+            help="the budgets to compare: expansions per frame",
+        ),
     )
     parser.add_argument(
         "--methods", nargs="+", choices=METHODS, default=list(METHODS), help=f"tree methods: {', '.join(METHODS)}"
@@ -54,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     base = AnalyzerConfig(batch=args.batch, threads=args.threads)
     rows = budget_sweep(
         args.dataset,
-        budgets=args.budgets,
+        budgets=args.expansions,
         methods=args.methods,
         workers=args.workers,
         seed=args.seed,

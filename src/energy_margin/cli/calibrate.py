@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from energy_margin.cli.common import add_seed, non_negative_float, positive_float, positive_int, print_json
+from energy_margin.cli.common import (
+    add_old_spelling,
+    add_seed,
+    non_negative_float,
+    positive_float,
+    positive_int,
+    print_json,
+)
 from energy_margin.errors import EnergyMarginError
 
 if TYPE_CHECKING:
@@ -26,7 +33,7 @@ SUMMARY = "choose lambda by cross-validated AP (nested, grouped by trajectory); 
 EXAMPLES = (
     "energy-margin calibrate runs/jaco --out runs/jaco-calibration --workers 2",
     "energy-margin calibrate runs/jaco --out runs/cal --lambdas 1 5 20 --folds 4 --json",
-    "energy-margin calibrate runs/push10 --out runs/push10-cal --objective capture_ap_window2 --iterations 100",
+    "energy-margin calibrate runs/push10 --out runs/push10-cal --objective capture_ap_window2 --expansions 100",
 )
 
 
@@ -67,7 +74,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="propagation-length factors (implies --grow)",
     )
-    parser.add_argument("--iterations", type=positive_int, default=300, help="expansions per frame (default 300)")
+    add_old_spelling(
+        parser,
+        "--iterations",
+        parser.add_argument(
+            "--expansions",
+            type=positive_int,
+            default=300,
+            help="expansions per frame (default 300)",
+        ),
+    )
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--resamples", type=positive_int, default=1000, help="bootstrap resamples (default 1000)")
     add_seed(parser)
@@ -93,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         lambdas=tuple(args.lambdas),
         folds=args.folds,
         objective=tuple(args.objective),
-        config=AnalyzerConfig(iterations=args.iterations),
+        config=AnalyzerConfig(expansions=args.expansions),
         seed=args.seed,
         workers=args.workers,
         resamples=args.resamples,

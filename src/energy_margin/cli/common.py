@@ -17,6 +17,7 @@ __all__ = [
     "Parser",
     "ProgressBar",
     "add_engine",
+    "add_old_spelling",
     "add_overwrite",
     "add_seed",
     "add_set",
@@ -203,11 +204,15 @@ class DeprecatedAlias(argparse.Action):
 
     ``parser.add_argument("--object-bodies", "--objects", action=DeprecatedAlias, old="--objects")``:
     the first option string is the name; the old one says so on standard error when used.
+    :func:`add_old_spelling` adds an old spelling as its own option, hidden from the help.
     """
 
-    def __init__(self, option_strings: list[str], dest: str, *, old: str, **kwargs: Any) -> None:
+    def __init__(
+        self, option_strings: list[str], dest: str, *, old: str, new: str | None = None, **kwargs: Any
+    ) -> None:
         super().__init__(option_strings, dest, **kwargs)
         self.old = old
+        self.new = new if new is not None else option_strings[0]
 
     def __call__(
         self,
@@ -218,8 +223,27 @@ class DeprecatedAlias(argparse.Action):
     ) -> None:
         """Store ``values``; say on standard error when the old spelling gave them."""
         if option_string == self.old:
-            print(
-                f"{parser.prog}: {self.old} is now {self.option_strings[0]}; the old name goes in 0.3",
-                file=sys.stderr,
-            )
+            print(f"{parser.prog}: {self.old} is now {self.new}; the old name goes in 0.3", file=sys.stderr)
         setattr(namespace, self.dest, values)
+
+
+def add_old_spelling(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, old: str, action: argparse.Action
+) -> None:
+    """Accept ``old`` for one release as the option of ``action``, hidden from the help, with a warning.
+
+    ``add_old_spelling(parser, "--iterations", parser.add_argument("--expansions", ...))``: the old
+    option takes the same values into the same ``dest``; errors and help name the new one.
+    """
+    typed: dict[str, Any] = {"type": action.type} if action.type is not None else {}
+    parser.add_argument(
+        old,
+        dest=action.dest,
+        nargs=action.nargs,
+        **typed,
+        action=DeprecatedAlias,
+        old=old,
+        new=action.option_strings[0],
+        default=action.default,
+        help=argparse.SUPPRESS,
+    )

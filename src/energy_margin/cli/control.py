@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.cli.common import (
+    add_old_spelling,
     add_seed,
     add_set,
     non_negative_int,
@@ -76,11 +77,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_seed(parser)
     parser.add_argument("--out", required=True, help="run directory: the episodes' dataset and control.json")
     parser.add_argument("--frames", type=positive_int, default=10, help="frames recorded per episode (default 10)")
-    parser.add_argument(
+    add_old_spelling(
+        parser,
         "--score-expansions",
-        type=non_negative_int,
-        default=30,
-        help="expansions of the analysis of each recorded frame, for the mean capture score (0: skip; default 30)",
+        parser.add_argument(
+            "--expansions",
+            type=non_negative_int,
+            default=30,
+            help="expansions of the analysis of each recorded frame, for the mean capture score (0: skip; default 30)",
+        ),
     )
     default = controller_default
     parser.add_argument(
@@ -193,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
         controller=controller,
         weights=CostWeights(margin=args.margin_weight),
         n_frames=args.frames,
-        score_expansions=args.score_expansions,
+        score_expansions=args.expansions,
         model=model,
         model_info=model_info,
         workers=args.workers,

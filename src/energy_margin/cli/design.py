@@ -10,6 +10,7 @@ from typing import Any
 
 from energy_margin.cli.common import (
     add_engine,
+    add_old_spelling,
     add_overwrite,
     add_seed,
     add_set,
@@ -86,7 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--objective",
         choices=("margin", "learned"),
         default="margin",
-        help="margin: the tree at --iterations expansions a frame; learned: the learned margin of --model",
+        help="margin: the tree at --expansions expansions a frame; learned: the learned margin of --model",
     )
     parser.add_argument("--model", help="learned margin file (energy-margin learn), for --objective learned")
     parser.add_argument(
@@ -105,11 +106,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frames", type=positive_int, default=DESIGN_FRAMES, help=f"frames per roll-out (default {DESIGN_FRAMES})"
     )
     parser.add_argument("--objects", type=positive_int, help="objects per scene")
-    parser.add_argument(
+    add_old_spelling(
+        parser,
         "--iterations",
-        type=positive_int,
-        default=DESIGN_EXPANSIONS,
-        help=f"expansions per frame (default {DESIGN_EXPANSIONS})",
+        parser.add_argument(
+            "--expansions",
+            type=positive_int,
+            default=DESIGN_EXPANSIONS,
+            help=f"expansions per frame (default {DESIGN_EXPANSIONS})",
+        ),
     )
     parser.add_argument("--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)}")
     parser.add_argument("--cost", choices=tuple(COST_MODELS), default="wrench", help="incremental cost model")
@@ -200,7 +205,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         if args.model is not None:
             raise EnergyMarginError("--model is only for --objective learned")
-        analyzer = AnalyzerConfig(iterations=args.iterations, cost=args.cost, method=args.method, engine=args.engine)
+        analyzer = AnalyzerConfig(expansions=args.expansions, cost=args.cost, method=args.method, engine=args.engine)
         scorer = TreeScorer(analyzer)
     progress = (
         not args.no_progress

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from energy_margin.cli.common import add_seed, positive_int, print_json
+from energy_margin.cli.common import add_old_spelling, add_seed, positive_int, print_json
 from energy_margin.errors import EnergyMarginError
 from energy_margin.learning.margin_model import KINDS
 from energy_margin.tasks import available_tasks
@@ -56,7 +56,7 @@ PIPELINE_OPTIONS = {
     "frames": "--frames",
     "work": "--work",
     "workers": "--workers",
-    "iterations": "--iterations",
+    "iterations": "--expansions",
     "no_progress": "--no-progress",
 }
 DEFAULT_FRAMES = 10
@@ -100,7 +100,7 @@ def _trajectories(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``learn``."""
-    from energy_margin.cli.analyze import DEFAULT_ITERATIONS
+    from energy_margin.cli.analyze import DEFAULT_EXPANSIONS
 
     tasks = available_tasks()
     parser.add_argument(
@@ -150,11 +150,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--work", metavar="DIR", default=None, help="work directory of the datasets, their scores and the run (resumes)"
     )
     generating.add_argument("--workers", type=positive_int, default=None, help="analysis worker processes (default 1)")
-    generating.add_argument(
+    add_old_spelling(
+        generating,
         "--iterations",
-        type=positive_int,
-        default=None,
-        help=f"analysis expansions per frame (default {DEFAULT_ITERATIONS})",
+        generating.add_argument(
+            "--expansions",
+            type=positive_int,
+            default=None,
+            help=f"analysis expansions per frame (default {DEFAULT_EXPANSIONS})",
+        ),
     )
     generating.add_argument("--no-progress", action="store_true", help="hide the progress bars")
 
@@ -238,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
             frames=args.frames if args.frames is not None else DEFAULT_FRAMES,
             seed=args.seed,
             workers=args.workers if args.workers is not None else 1,
-            iterations=args.iterations,
+            iterations=args.expansions,
             kind=args.kind,
             holdout=args.holdout,
             success_frames=args.success_frames,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from energy_margin.cli.common import add_seed, non_negative_float, positive_int
+from energy_margin.cli.common import add_old_spelling, add_seed, non_negative_float, positive_int
 from energy_margin.planning.methods import METHODS
 
 __all__ = [
@@ -19,7 +19,7 @@ NAME = "study"
 SUMMARY = "AP with bootstrap and paired intervals per task, method and budget, and AP against lambda (resumable)"
 EXAMPLES = (
     "energy-margin study runs/study --workers 2",
-    "energy-margin study runs/small --tasks pushing --trajectories 10 --frames 5 --budgets 10 30 --methods est rrt",
+    "energy-margin study runs/small --tasks pushing --trajectories 10 --frames 5 --expansions 10 30 --methods est rrt",
     "energy-margin study runs/study --lambdas 0.5 5 50 --lambda-budget 300",
 )
 
@@ -38,8 +38,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--trajectories", type=positive_int, default=100, help="trajectories per task (default 100)")
     parser.add_argument("--frames", type=positive_int, default=10, help="frames per trajectory (default 10)")
-    parser.add_argument(
-        "--budgets", type=positive_int, nargs="+", default=list(DEFAULT_BUDGETS), help="expansions per frame"
+    add_old_spelling(
+        parser,
+        "--budgets",
+        parser.add_argument(
+            "--expansions",
+            type=positive_int,
+            nargs="+",
+            default=list(DEFAULT_BUDGETS),
+            help="the budgets to compare: expansions per frame",
+        ),
     )
     parser.add_argument(
         "--methods", nargs="+", choices=METHODS, default=list(METHODS), help=f"tree methods: {', '.join(METHODS)}"
@@ -52,8 +60,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="lambda grid, 1/J, for every task (default: the task's lambda x 10^(k/2), k = -6..6; none: no sweep)",
     )
     parser.add_argument("--lambda-method", choices=METHODS, default="est", help="tree method of the lambda sweep")
-    parser.add_argument(
-        "--lambda-budget", type=positive_int, default=100, help="expansions per frame of the lambda sweep"
+    add_old_spelling(
+        parser,
+        "--lambda-budget",
+        parser.add_argument(
+            "--lambda-expansions", type=positive_int, default=100, help="expansions per frame of the lambda sweep"
+        ),
     )
     parser.add_argument("--workers", type=positive_int, default=1, help="local worker processes")
     add_seed(parser)
@@ -72,13 +84,13 @@ def run(args: argparse.Namespace) -> int:
     result = run_study(
         args.out,
         tasks=args.tasks,
-        trajectories=args.trajectories,
-        frames=args.frames,
-        budgets=args.budgets,
+        n_trajectories=args.trajectories,
+        n_frames=args.frames,
+        expansions=args.expansions,
         methods=args.methods,
         lambdas=args.lambdas,
         lambda_method=args.lambda_method,
-        lambda_budget=args.lambda_budget,
+        lambda_expansions=args.lambda_expansions,
         seed=args.seed,
         workers=args.workers,
         bootstrap=args.bootstrap,

@@ -6,7 +6,15 @@ import argparse
 import os
 import sys
 
-from energy_margin.cli.common import add_engine, add_seed, add_set, analyzer_default, positive_int, task_overrides
+from energy_margin.cli.common import (
+    add_engine,
+    add_old_spelling,
+    add_seed,
+    add_set,
+    analyzer_default,
+    positive_int,
+    task_overrides,
+)
 from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.methods import METHODS
@@ -67,9 +75,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=positive_int, default=1, help="analysis worker processes (default 1)")
     add_engine(parser)
     add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
-    iterations = analyzer_default("iterations")
-    parser.add_argument(
-        "--iterations", type=positive_int, default=iterations, help=f"expansions per frame (default {iterations})"
+    expansions = analyzer_default("expansions")
+    add_old_spelling(
+        parser,
+        "--iterations",
+        parser.add_argument(
+            "--expansions",
+            type=positive_int,
+            default=expansions,
+            help=f"expansions per frame (default {expansions})",
+        ),
     )
     parser.add_argument(
         "--method", choices=METHODS, default=analyzer_default("method"), help=f"tree method: {', '.join(METHODS)}"
@@ -106,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     if repeated:
         raise EnergyMarginError(f"--param {repeated[0]} is given twice; list all its values in one --param")
     analyzer = AnalyzerConfig(
-        iterations=args.iterations,
+        expansions=args.expansions,
         cost=args.cost,
         method=args.method,
         batch=args.batch,

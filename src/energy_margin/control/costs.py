@@ -248,7 +248,7 @@ def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None, ctrl
 
 def margin_scores(predictions: Predictions, context: CostContext, samples: Sequence[int]) -> np.ndarray:
     """Capture plus success score of the predicted end states of ``samples``, shape (len(samples),)."""
-    config = AnalyzerConfig(iterations=context.margin_expansions)
+    config = AnalyzerConfig(expansions=context.margin_expansions)
     n_objects = predictions.object_pos.shape[2]
     seeds = context.seed_sequence.spawn(len(samples))
     totals = np.empty(len(samples))

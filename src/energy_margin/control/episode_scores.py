@@ -25,7 +25,7 @@ def _frame_scores(
     seed: np.random.SeedSequence,
 ) -> tuple[list[float], list[float]]:
     """Capture and success scores of the recorded frames from a short analysis."""
-    config = AnalyzerConfig(iterations=settings.score_expansions)
+    config = AnalyzerConfig(expansions=settings.score_expansions)
     simulator = task.make_simulator(settings.n_objects, friction, drive, "mujoco")
     capture, success = [], []
     for frame, start, child in zip(frames, times, seed.spawn(len(frames)), strict=True):

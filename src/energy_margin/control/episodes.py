@@ -43,6 +43,7 @@ from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.runs import RunSpec, progress_bar, run_directory
 from energy_margin.runs.files import atomic_path, write_json
+from energy_margin.runs.progress import Progress
 from energy_margin.sim import Simulator
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
@@ -291,7 +292,7 @@ def _episodes(
     out: Path,
     *,
     workers: int,
-    progress: bool,
+    progress: Progress,
     on_episode: Callable[[int], None] | None,
 ) -> list[dict[str, Any]]:
     """Every episode of the run in order: the saved ones read back, the others run and saved as they finish."""
@@ -335,7 +336,7 @@ def run_control(
     model_info: dict[str, Any] | None = None,
     workers: int = 1,
     overwrite: bool = False,
-    progress: bool = False,
+    progress: Progress = False,
     on_episode: Callable[[int], None] | None = None,
 ) -> tuple[dict[str, Any], Dataset]:
     """Run (or resume) ``episodes`` episodes of ``policy`` and write them as a dataset at ``out``.

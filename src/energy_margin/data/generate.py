@@ -22,6 +22,7 @@ from energy_margin.data.dataset_files import check_target, write_directory
 from energy_margin.data.physical import LIKELY_FIX, DrawTally, RolloutWatch, count_reasons
 from energy_margin.data.validation import deep_overlaps, describe_overlap, overlap_limits
 from energy_margin.errors import EnergyMarginError, check_positive_int, check_seed
+from energy_margin.runs.progress import Progress, progress_bar
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, resolve_task
@@ -361,7 +362,7 @@ def generate_dataset(
     engine: str = "mujoco",
     task_config: dict[str, Any] | None = None,
     overwrite: bool = False,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
 ) -> Dataset:
     """Generate scripted roll-outs and write them as a dataset directory.
 
@@ -380,7 +381,8 @@ def generate_dataset(
         engine: physics engine.
         task_config: overrides of the task's configuration.
         overwrite: replace an existing ``out``.
-        progress: called with 1 after each trajectory.
+        progress: after each trajectory: ``True`` a bar on standard error, a callable is called
+            with 1 (:data:`~energy_margin.runs.progress.Progress`).
 
     """
     if engine not in ENGINES:
@@ -405,6 +407,7 @@ def generate_dataset(
     records = []
     redrawn: dict[str, dict[str, Any]] = {}
     tally = DrawTally()
+    bar = progress_bar(n_trajectories, desc="generate", unit="traj", enabled=progress)
     for index in range(n_trajectories):
         try:
             record, reasons = draw_trajectory(
@@ -415,8 +418,8 @@ def generate_dataset(
         records.append(record)
         if reasons:
             redrawn[str(index)] = {"draw": len(reasons), "reasons": reasons}
-        if progress is not None:
-            progress(1)
+        bar.update(1)
+    bar.close()
     extra: dict[str, Any] = {"seed": int(seed)}
     if redrawn:
         extra[REDRAWN_KEY] = redrawn

@@ -16,7 +16,7 @@ file and the array.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence, Sized
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +29,7 @@ from energy_margin.data.generate import trajectory_record, write_records
 from energy_margin.data.physical import frame_violations
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_int
 from energy_margin.runs.npz import NpzError, read_npz
+from energy_margin.runs.progress import Progress, progress_bar
 from energy_margin.sim.base import CompiledModel, Simulator, require
 from energy_margin.sim.mujoco_audit import PHYSICS_WARNINGS, WARNINGS_ARRAY
 from energy_margin.tasks import get_task
@@ -218,7 +219,7 @@ def record_dataset(
     n_frames: int,
     out: Path | str,
     overwrite: bool = False,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     file_format: str | None = None,
     drop_unphysical: bool = False,
 ) -> Dataset:
@@ -231,7 +232,8 @@ def record_dataset(
         n_frames: frames K per roll-out, >= 1 (at most the rows of the shortest roll-out).
         out: the dataset directory to create.
         overwrite: replace an existing ``out``.
-        progress: called with 1 after each roll-out.
+        progress: after each roll-out: ``True`` a bar on standard error, a callable is called
+            with 1 (:data:`~energy_margin.runs.progress.Progress`).
         file_format: ``"npz"`` or ``"hdf5"`` for every file; ``None`` decides by each file's suffix.
         drop_unphysical: leave out the roll-outs with a physically impossible frame (listed under
             ``dropped`` in ``dataset.json``) instead of refusing them.
@@ -264,7 +266,7 @@ def rollout_records(
     rollouts: Sequence[tuple[str, dict[str, np.ndarray]]],
     *,
     n_frames: int,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     dropped: list[dict[str, str]] | None = None,
 ) -> list[dict[str, Any]]:
     """The frames and labels of checked roll-outs, one :func:`trajectory_record` each.
@@ -278,7 +280,7 @@ def rollout_records(
         rollouts: ``(name, arrays)`` as :func:`check_rollout` returns them; ``name`` names the
             roll-out in errors.
         n_frames: frames K per roll-out, taken at the rows nearest to K evenly spaced times.
-        progress: called with 1 after each roll-out.
+        progress: after each roll-out (:data:`~energy_margin.runs.progress.Progress`).
         dropped: receives the roll-outs left out (``None``: refuse them).
 
     Raises:
@@ -293,6 +295,8 @@ def rollout_records(
     compiled = require(simulator, CompiledModel, purpose="record")
     box = task.frame_box
     records = []
+    total = len(rollouts) if isinstance(rollouts, Sized) else 0
+    bar = progress_bar(total, desc="record", unit="roll-out", enabled=progress)
     for name, arrays in rollouts:
         time = arrays["time"]
         if time.size < n_frames:
@@ -300,8 +304,8 @@ def rollout_records(
         kept = _rollout_frames(task, simulator, compiled, box, drive, name, arrays, n_frames, dropped)
         if kept is not None:
             records.append(trajectory_record(task, kept[0], kept[1], friction, drive))
-        if progress is not None:
-            progress(1)
+        bar.update(1)
+    bar.close()
     if not records:
         raise EnergyMarginError(
             f"every roll-out has a physically impossible frame (the first: {dropped[0]['rollout'] if dropped else ''}: "

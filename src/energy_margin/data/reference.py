@@ -33,7 +33,7 @@ The mapping to this project's dataset (documented in docs/results/reference.md):
   earlier frames <- their success test applied to the frame.
 * friction: their per-body ``lateral_friction_coef`` mu_b; Bullet multiplies two bodies'
   coefficients, so the stored (effective) coefficient is mu_b^2 (0.4 -> 0.16 for pushing).
-* their scores -> ``scores.csv`` (``nodes`` 301, ``iterations`` = ``plan_iters``, ``runtime_s`` =
+* their scores -> ``scores.csv`` (``nodes`` 301, ``expansions`` = ``plan_iters``, ``runtime_s`` =
   ``runtime``, ``physics_s`` 0.0 (not recorded), ``seed`` 0 (their runs were unseeded)).
 
 This module finds the task and writes the dataset; :mod:`~energy_margin.data.reference_files` reads
@@ -297,7 +297,7 @@ def _write_scores(out: Path, ref: ReferenceSet, n_frames: int) -> None:
             "capture_score": min(1.0, float(row[index["capture_score"]])),
             "success_score": min(1.0, float(row[index["success_score"]])),
             "nodes": int(row[index["plan_iters"]]) + 1,
-            "iterations": int(row[index["plan_iters"]]),
+            "expansions": int(row[index["plan_iters"]]),
             "runtime_s": float(row[index["runtime"]]),
             "physics_s": 0.0,
             "seed": 0,

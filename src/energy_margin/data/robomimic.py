@@ -32,7 +32,7 @@ the file, :mod:`~energy_margin.data.robomimic_assets` rebuilds the models and
 from __future__ import annotations
 
 import shutil
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +66,7 @@ from energy_margin.data.robomimic_scene import (
 )
 from energy_margin.errors import EnergyMarginError, check_positive_float, check_positive_int
 from energy_margin.runs.files import staging_directory
+from energy_margin.runs.progress import Progress
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_model import resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
@@ -93,7 +94,7 @@ def record_robomimic(
     assets: Path | str | None = None,
     dt: float | None = None,
     overwrite: bool = False,
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
     drop_unphysical: bool = False,
 ) -> Dataset:
     """Turn the demonstrations of a robomimic / robosuite HDF5 file into a dataset directory.
@@ -116,7 +117,8 @@ def record_robomimic(
         overwrite: replace an existing ``out``.
         drop_unphysical: leave out the demonstrations with a physically impossible frame (listed
             under ``dropped`` in ``dataset.json``) instead of refusing them.
-        progress: called with 1 after each demonstration.
+        progress: after each demonstration: ``True`` a bar on standard error, a callable is
+            called with 1 (:data:`~energy_margin.runs.progress.Progress`).
 
     Returns:
         The dataset written to ``out``, whose ``source/scene.toml`` and ``source/model.xml`` rebuild its task.
@@ -219,7 +221,7 @@ def _write(
     sources: list[dict[str, Any]],
     *,
     overwrite: bool,
-    progress: Callable[[int], None] | None,
+    progress: Progress,
     drop_unphysical: bool = False,
 ) -> Dataset:
     """Build the dataset in a sibling of ``out`` with its ``source`` scene, then rename it onto ``out``."""

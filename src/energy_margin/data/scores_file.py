@@ -27,6 +27,7 @@ __all__ = [
     "INTEGER_COLUMNS",
     "JOURNAL_FILE",
     "REJECTED_SHARE",
+    "RENAMED_COLUMNS",
     "SCORES_FILE",
     "UNKNOWN_COUNT",
     "file_columns",
@@ -44,20 +45,25 @@ SCORES_FILE = "scores.csv"
 JOURNAL_FILE = "scores.journal.csv"
 CONFIG_FILE = "analysis.json"
 #: Columns of scores.csv written as integers.
-INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "iterations", "seed", "rejected", "diverged")
-#: The columns of scores files written before the trees' rejections were counted (still read).
-EARLIER_COLUMNS = (
+INTEGER_COLUMNS = ("trajectory", "frame", "nodes", "expansions", "seed", "rejected", "diverged")
+#: The columns of scores files (the expansions of a frame's tree are ``expansions``).
+COLUMNS = (
     "trajectory",
     "frame",
     "capture_score",
     "success_score",
     "nodes",
-    "iterations",
+    "expansions",
     "runtime_s",
     "physics_s",
     "seed",
+    "rejected",
+    "diverged",
 )
-COLUMNS = (*EARLIER_COLUMNS, "rejected", "diverged")
+#: The columns of scores files of release 0.2, whose expansions column was ``iterations`` (still read).
+RENAMED_COLUMNS = tuple("iterations" if name == "expansions" else name for name in COLUMNS)
+#: The columns of scores files written before the trees' rejections were counted (still read).
+EARLIER_COLUMNS = RENAMED_COLUMNS[:9]
 #: ``rejected`` and ``diverged`` where unknown.
 UNKNOWN_COUNT = -1
 
@@ -75,8 +81,9 @@ def format_row(row: dict[str, Any]) -> str:
 def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] | None:
     """A journal line as a row, or ``None`` for a torn or foreign line.
 
-    ``columns`` are the file's (:data:`COLUMNS` or :data:`EARLIER_COLUMNS`); the counts an
-    earlier file lacks are :data:`UNKNOWN_COUNT`.
+    ``columns`` are the file's (:data:`COLUMNS`, :data:`RENAMED_COLUMNS` or
+    :data:`EARLIER_COLUMNS`); an earlier file's ``iterations`` is the row's ``expansions``, and
+    the counts it lacks are :data:`UNKNOWN_COUNT`.
     """
     fields = line.rstrip("\n").split(",")
     if len(fields) != len(columns) or not line.endswith("\n"):
@@ -84,7 +91,8 @@ def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] |
     try:
         row: dict[str, Any] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
         for name, text in zip(columns, fields, strict=True):
-            row[name] = int(text) if name in INTEGER_COLUMNS else float(text)
+            key = "expansions" if name == "iterations" else name
+            row[key] = int(text) if key in INTEGER_COLUMNS else float(text)
     except ValueError:
         return None
     return row
@@ -108,7 +116,7 @@ def read_journal(path: Path) -> dict[tuple[int, int], dict[str, Any]]:
 
 def file_columns(first_line: str) -> tuple[str, ...] | None:
     """The columns a scores file's header line declares (current or earlier), or ``None``."""
-    for columns in (COLUMNS, EARLIER_COLUMNS):
+    for columns in (COLUMNS, RENAMED_COLUMNS, EARLIER_COLUMNS):
         if first_line.rstrip("\n") == ",".join(columns):
             return columns
     return None
@@ -160,7 +168,7 @@ def tree_rejections(scores: dict[str, np.ndarray]) -> dict[str, float] | None:
     """
     rejected, diverged = scores["rejected"], scores["diverged"]
     known = (rejected >= 0) & (diverged >= 0)
-    expansions = float(scores["iterations"][known].sum())
+    expansions = float(scores["expansions"][known].sum())
     if not known.any() or expansions <= 0:
         return None
     return {

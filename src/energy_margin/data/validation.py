@@ -123,6 +123,7 @@ def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
     columns = file_columns(lines[0] if lines else "")
     if columns is None:
         return [Problem(SCORES_FILE, "header", "line 1", f"expected {','.join(COLUMNS)}")]
+    columns = tuple("expansions" if name == "iterations" else name for name in columns)  # release 0.2's name
     problems: list[Problem] = []
     seen: dict[tuple[int, int], int] = {}
     for number, line in enumerate(lines[1:], start=2):
@@ -172,8 +173,8 @@ def _row_problems(
     for name in ("runtime_s", "physics_s"):
         if not (math.isfinite(row[name]) and row[name] >= 0):
             problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a non-negative time"))
-    if not (1 <= row["nodes"] < 2**63 and 0 <= row["iterations"] < 2**63 and 0 <= row["seed"] < 2**64):
-        problems.append(Problem(SCORES_FILE, "nodes", where, "nodes, iterations or seed out of range"))
+    if not (1 <= row["nodes"] < 2**63 and 0 <= row["expansions"] < 2**63 and 0 <= row["seed"] < 2**64):
+        problems.append(Problem(SCORES_FILE, "nodes", where, "nodes, expansions or seed out of range"))
     for name in ("rejected", "diverged"):
         if not UNKNOWN_COUNT <= row[name] < 2**63:
             problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a count (-1: unknown)"))

@@ -20,7 +20,7 @@ from energy_margin.tasks import Task
 
 __all__ = ["DESIGN_EXPANSIONS", "DESIGN_FRAMES", "DESIGN_TRAJECTORIES", "Scorer", "TreeScorer", "Verifier"]
 
-#: Expansions per frame of a design's trees by default (``design --iterations``): a search scores
+#: Expansions per frame of a design's trees by default (``design --expansions``): a search scores
 #: many designs, and ranks them as well at 100 as at 300 on the tasks' families (docs/howto/design.md).
 DESIGN_EXPANSIONS = 100
 #: Roll-outs of one evaluation of a design, and frames per roll-out, by default (``design
@@ -63,12 +63,12 @@ class Verifier(Protocol):
 
 @dataclass(frozen=True)
 class TreeScorer:
-    """The energy margin of ``analyze``: a tree of ``analyzer.iterations`` expansions per frame.
+    """The energy margin of ``analyze``: a tree of ``analyzer.expansions`` expansions per frame.
 
     By default :data:`DESIGN_EXPANSIONS`, as on the command line.
     """
 
-    analyzer: AnalyzerConfig = field(default_factory=lambda: AnalyzerConfig(iterations=DESIGN_EXPANSIONS))
+    analyzer: AnalyzerConfig = field(default_factory=lambda: AnalyzerConfig(expansions=DESIGN_EXPANSIONS))
 
     def settings(self) -> dict[str, Any]:
         """``{"kind": "margin", "analyzer": ...}``."""

@@ -75,6 +75,7 @@ from energy_margin.design.space import (
 from energy_margin.design.sweep import task_settings
 from energy_margin.errors import InvalidParameterError, check_choice, check_int, check_seed
 from energy_margin.runs import RunSpec, run_directory
+from energy_margin.runs.progress import Progress
 from energy_margin.runs.tables import write_json
 from energy_margin.tasks import Task, resolve_task
 
@@ -121,7 +122,7 @@ def design_search(
     fixed: dict[str, Any] | None = None,
     workers: int = 1,
     overwrite: bool = False,
-    progress: bool = False,
+    progress: Progress = False,
     log: Callable[[str], None] | None = None,
     picture: Callable[[Path, Path], Path | None] | None = None,
     extra_settings: dict[str, Any] | None = None,

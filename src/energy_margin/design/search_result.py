@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin._renamed import renamed_keys
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.evaluation.statistics import spearman, wilson_interval
 from energy_margin.runs.results import TypedResult, plain_result
@@ -240,5 +241,5 @@ def _p_text(p_value: float) -> str:
 
 def _objective_text(objective: dict[str, Any]) -> str:
     if objective["kind"] == "margin":
-        return f"tree of {objective['analyzer']['iterations']} expansions a frame"
+        return f"tree of {renamed_keys(objective['analyzer'])['expansions']} expansions a frame"
     return "learned margin"

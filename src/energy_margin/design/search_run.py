@@ -37,6 +37,7 @@ from energy_margin.design.search_result import (
 from energy_margin.design.space import default_design, even_grid, point_design, round_value
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs import Journal, progress_bar
+from energy_margin.runs.progress import Progress
 from energy_margin.runs.tables import write_csv, write_json
 from energy_margin.tasks import DesignParameter, Task
 
@@ -104,7 +105,7 @@ class DesignSearchRun:
     scorer: Scorer
     verifier: Verifier | None
     workers: int
-    progress: bool
+    progress: Progress
     say: Callable[[str], None]
     on_evaluation: Callable[[str, int], None] | None
     measured: dict[str, dict[str, Any]] = field(default_factory=dict)

@@ -80,6 +80,7 @@ from energy_margin.design.sweep_results import (
 )
 from energy_margin.errors import EnergyMarginError, check_choice, check_int, check_seed
 from energy_margin.runs import RunSpec, progress_bar, run_directory
+from energy_margin.runs.progress import Progress
 from energy_margin.sim import ENGINES
 from energy_margin.tasks import Task, resolve_task
 
@@ -197,9 +198,9 @@ def _objects(task: Task, n_objects: int | None) -> int:
     return check_int("n_objects", n_objects, minimum=1)
 
 
-def _generate(task: Task, design: Design, directory: Path, settings: dict[str, Any], *, progress: bool) -> Dataset:
+def _generate(task: Task, design: Design, directory: Path, settings: dict[str, Any], *, progress: Progress) -> Dataset:
     pending = not (directory / SCORES_FILE).is_file()
-    bar = progress_bar(settings["n_trajectories"], desc="generate", unit="traj", enabled=progress and pending)
+    bar = progress_bar(settings["n_trajectories"], desc="generate", unit="traj", enabled=progress if pending else False)
     try:
         return generate_dataset(
             task,
@@ -229,7 +230,7 @@ class _Sweep:
     workers: int
     bootstrap: int
     subsets: int
-    progress: bool
+    progress: Progress
     say: Callable[[str], None]
     rows: list[dict[str, Any]] = dataclasses.field(default_factory=list)
     outcomes: list[DesignOutcome] = dataclasses.field(default_factory=list)
@@ -300,7 +301,7 @@ def design_sweep(
     bootstrap: int = 2000,
     subsets: int = 200,
     overwrite: bool = False,
-    progress: bool = False,
+    progress: Progress = False,
     log: Callable[[str], None] | None = None,
 ) -> SweepResult:
     """Generate, analyse and compare every design of the grid; write and return the results.

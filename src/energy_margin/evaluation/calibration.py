@@ -35,6 +35,7 @@ from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs import RunSpec, open_run
 from energy_margin.runs.files import read_json
+from energy_margin.runs.progress import Progress
 
 __all__ = [
     "CALIBRATION_FILE",
@@ -167,7 +168,7 @@ def calibrate(
     success_frames: int = 3,
     wrench_scales: tuple[float, ...] = (1.0,),
     duration_scales: tuple[float, ...] = (1.0,),
-    progress: bool = True,
+    progress: Progress = True,
     overwrite: bool = False,
 ) -> Calibration:
     """Choose lambda for the dataset ``directory`` by nested cross-validated AP; write ``out/calibration.json``.
@@ -269,7 +270,7 @@ def _candidate_scores(
     *,
     seed: int,
     workers: int,
-    progress: bool,
+    progress: Progress,
 ) -> dict[tuple[float, float, float], dict[str, np.ndarray]]:
     """The scores of every (wrench scale, duration scale, lambda): one set of trees per pair of scales."""
     candidates: dict[tuple[float, float, float], dict[str, np.ndarray]] = {}

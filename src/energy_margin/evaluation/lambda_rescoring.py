@@ -29,6 +29,7 @@ from energy_margin.data.scores_file import load_scores, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_float
 from energy_margin.runs import progress_bar
+from energy_margin.runs.progress import Progress
 
 __all__ = [
     "LambdaRescorer",
@@ -76,7 +77,7 @@ def rescore_lambdas(
     config: AnalyzerConfig,
     seed: int = 0,
     workers: int = 1,
-    progress: bool = True,
+    progress: Progress = True,
     directories: dict[float, Path] | None = None,
 ) -> dict[float, dict[str, np.ndarray]]:
     """Grow every frame's tree of the dataset ``directory`` once and score it with each of ``lambdas``.
@@ -108,7 +109,7 @@ def rescore_lambdas(
     if config.converge is not None:
         raise EnergyMarginError("re-scoring lambda needs trees that do not depend on it: converge must be off")
     source, root = Path(directory), Path(root)
-    dirs = {lam: lambda_directory(root, config.method, int(config.iterations or 0), lam) for lam in values}
+    dirs = {lam: lambda_directory(root, config.method, int(config.expansions or 0), lam) for lam in values}
     dirs.update({float(lam): Path(path) for lam, path in (directories or {}).items() if float(lam) in dirs})
     with contextlib.ExitStack() as stack:
         dataset, open_rows = _open_lambda_runs(stack, source, dirs, config, seed)
@@ -150,7 +151,7 @@ def _rescore_pending(
     seed: int,
     *,
     workers: int,
-    progress: bool,
+    progress: Progress,
 ) -> None:
     """Grow the trees of the frames some lambda still misses; journal each lambda's new rows."""
     n_frames = dataset.n_frames

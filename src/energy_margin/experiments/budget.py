@@ -45,6 +45,7 @@ from energy_margin.evaluation.metrics import score_grid
 from energy_margin.experiments.budget_display import BudgetDisplay
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import RunSpec, run_directory, tables
+from energy_margin.runs.progress import Progress
 from energy_margin.runs.tables import Column, fmt, write_csv, write_json
 
 __all__ = [
@@ -291,7 +292,7 @@ def analyze_configuration(
     budget: int,
     seed: int,
     workers: int,
-    progress: bool = False,
+    progress: Progress = False,
 ) -> dict[str, np.ndarray]:
     """Analyse the dataset ``directory`` with ``method`` at ``budget`` iterations in its own ``work`` directory.
 
@@ -303,7 +304,7 @@ def analyze_configuration(
 
     """
     copy_dataset(directory, work)
-    fields = {**base.to_dict(), "iterations": budget, "nodes": None, "method": method}
+    fields = {**base.to_dict(), "expansions": budget, "nodes": None, "method": method}
     try:
         config = AnalyzerConfig(**fields)
     except ValueError as error:

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from energy_margin._renamed import renamed_keyword
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.errors import (
     EnergyMarginError,
@@ -77,6 +78,7 @@ from energy_margin.experiments.study_state import TaskState
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import RunDirectory, RunSpec, open_run
 from energy_margin.runs.files import read_json
+from energy_margin.runs.progress import Progress
 from energy_margin.runs.tables import fmt
 from energy_margin.tasks import PushingTask, ScoopingTask
 
@@ -193,23 +195,26 @@ def study_settings(
     return {"tasks": entries, "trajectories": trajectories, "frames": frames, "seed": seed, **others}
 
 
+@renamed_keyword(
+    trajectories="n_trajectories", frames="n_frames", budgets="expansions", lambda_budget="lambda_expansions"
+)
 def run_study(
     out: Path | str,
     *,
     tasks: Sequence[str] = tuple(TASKS),
-    trajectories: int = 100,
-    frames: int = 10,
-    budgets: Sequence[int] = DEFAULT_BUDGETS,
+    n_trajectories: int = 100,
+    n_frames: int = 10,
+    expansions: Sequence[int] = DEFAULT_BUDGETS,
     methods: Sequence[str] = METHODS,
     lambdas: Sequence[float] | None = None,
     lambda_method: str = "est",
-    lambda_budget: int = 100,
+    lambda_expansions: int = 100,
     seed: int = 0,
     workers: int = 1,
     bootstrap: int = 1000,
     task_specs: dict[str, StudyTask] | None = None,
     overwrite: bool = False,
-    progress: bool = True,
+    progress: Progress = True,
     log: Callable[[str], None] | None = None,
 ) -> StudyResult:
     """Run (or resume) the study under ``out`` and write its tables and figures.
@@ -218,14 +223,14 @@ def run_study(
         out: output directory (created), opened as a run: locked while the study runs, its
             settings (``study_settings.json``) written first.
         tasks: tasks to study, keys of ``task_specs``.
-        trajectories: trajectories per dataset, >= 2.
-        frames: frames per trajectory, >= 1.
-        budgets: expansions per frame, each >= 1.
+        n_trajectories: trajectories per dataset, >= 2.
+        n_frames: frames per trajectory, >= 1.
+        expansions: the budgets to compare, expansions per frame, each >= 1.
         methods: tree methods.
         lambdas: the lambda grid, 1/J, for every task (``None``: the task's lambda times
             :data:`LAMBDA_FACTORS`); an empty sequence skips the sweep.
         lambda_method: tree method of the lambda sweep.
-        lambda_budget: expansions per frame of the lambda sweep, >= 1.
+        lambda_expansions: expansions per frame of the lambda sweep, >= 1.
         seed: analysis seed (the same per-frame seeds for every configuration) and bootstrap seed.
         workers: local worker processes of every analysis.
         bootstrap: trajectory resamples of every interval, >= 1.
@@ -240,13 +245,16 @@ def run_study(
 
     """
     specs = task_specs if task_specs is not None else TASKS
-    _check_arguments(specs, tasks, trajectories, frames, budgets, methods, lambda_method, lambda_budget, seed)
+    _check_arguments(
+        specs, tasks, n_trajectories, n_frames, expansions, methods, lambda_method, lambda_expansions, seed
+    )
     check_int("bootstrap", bootstrap, minimum=1)
     check_int("workers", workers, minimum=1)
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
-    others = {"budgets": list(budgets), "methods": list(methods), "bootstrap": bootstrap, "workers": workers}
+    others = {"budgets": list(expansions), "methods": list(methods), "bootstrap": bootstrap, "workers": workers}
     others.update(lambdas=None if lambdas is None else list(lambdas), lambda_method=lambda_method)
-    settings = study_settings(specs, tasks, trajectories, frames, seed, lambda_budget=lambda_budget, **others)
+    # The settings file keeps its keys: "budgets" and "lambda_budget" are the expansions per frame.
+    settings = study_settings(specs, tasks, n_trajectories, n_frames, seed, lambda_budget=lambda_expansions, **others)
     out_path = Path(out)
     with _open_study(out_path, settings, specs, overwrite=overwrite):
         study = _Study.open(out_path, specs, settings, lambdas, say=say, progress=progress)
@@ -265,7 +273,7 @@ class _Study:
     states: dict[str, TaskState]
     result: StudyResult
     say: Callable[[str], None]
-    progress: bool
+    progress: Progress
     base: AnalyzerConfig = dataclasses.field(default_factory=AnalyzerConfig)
 
     @classmethod
@@ -277,7 +285,7 @@ class _Study:
         lambdas: Sequence[float] | None,
         *,
         say: Callable[[str], None],
-        progress: bool,
+        progress: Progress,
     ) -> _Study:
         """Open every task (its dataset generated or checked) and answer its baselines."""
         keys = ("trajectories", "frames", "budgets", "methods", "seed", "bootstrap", "workers")
@@ -367,7 +375,7 @@ class _Study:
             state.directory,
             result_root(state.directory),
             values,
-            config=dataclasses.replace(self.base, method=method, iterations=budget, nodes=None),
+            config=dataclasses.replace(self.base, method=method, expansions=budget, nodes=None),
             seed=meta["seed"],
             workers=meta["workers"],
             progress=self.progress,
@@ -419,14 +427,14 @@ def _check_arguments(
     _distinct("tasks", tasks, f"names among {', '.join(specs)}")
     for task in tasks:
         check_choice("tasks", task, specs)
-    check_int("trajectories", trajectories, minimum=2)
-    check_int("frames", frames, minimum=1)
+    check_int("n_trajectories", trajectories, minimum=2)
+    check_int("n_frames", frames, minimum=1)
     for budget in budgets:
-        check_int("budgets", budget, minimum=1)
-    _distinct("budgets", budgets, "integers >= 1")
+        check_int("expansions", budget, minimum=1)
+    _distinct("expansions", budgets, "integers >= 1")
     for method in methods:
         check_choice("methods", method, METHODS)
     _distinct("methods", methods, f"names among {', '.join(METHODS)}")
     check_choice("lambda_method", lambda_method, METHODS)
-    check_int("lambda_budget", lambda_budget, minimum=1)
+    check_int("lambda_expansions", lambda_budget, minimum=1)
     check_seed(seed)

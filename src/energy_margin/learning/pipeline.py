@@ -54,6 +54,7 @@ from energy_margin.learning.margin_model import KINDS, fit_margin_model, load_tr
 from energy_margin.learning.pipeline_results import LearnResult, LearnSet
 from energy_margin.runs import RunDirectory, RunLockedError, RunSpec, open_run, progress_bar
 from energy_margin.runs.files import atomic_path
+from energy_margin.runs.progress import Progress
 from energy_margin.tasks import Task, get_task
 
 __all__ = [
@@ -171,7 +172,7 @@ def learn_pipeline(
     holdout: float = 0.25,
     success_frames: int = 3,
     overwrite: bool = False,
-    progress: bool = False,
+    progress: Progress = False,
     log: Callable[[str], None] | None = None,
     **options: Any,
 ) -> LearnResult:
@@ -268,7 +269,7 @@ class _Plan:
     holdout: float
     success_frames: int
     options: dict[str, Any]
-    progress: bool
+    progress: Progress
 
     def settings(self) -> dict[str, Any]:
         """The run's settings (``learn.json``)."""
@@ -303,7 +304,7 @@ def _plan(
     kind: str,
     holdout: float,
     options: dict[str, Any],
-    progress: bool,
+    progress: Progress,
 ) -> _Plan:
     """Check the arguments, resolve the task and its sets, derive the seeds (:func:`learn_pipeline`).
 
@@ -320,7 +321,7 @@ def _plan(
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
     check_int("success_frames", success_frames, minimum=1)
     resolved, config, sets = _task_and_sets(task, scene, objects)
-    analyzer = AnalyzerConfig() if iterations is None else AnalyzerConfig(iterations=iterations)
+    analyzer = AnalyzerConfig() if iterations is None else AnalyzerConfig(expansions=iterations)
     check_engine(resolved, analyzer.engine)
     fit_seed, seeds = pipeline_seeds(seed, len(sets))
     return _Plan(
@@ -364,11 +365,13 @@ def _generate(
     trajectories: int,
     frames: int,
     seed: int,
-    progress: bool,
+    progress: Progress,
 ) -> bool:
     """Generate the set in ``directory`` unless it is there; whether it was generated now."""
     there = (directory / METADATA_FILE).is_file()
-    bar = progress_bar(trajectories, desc=f"generate {directory.name}", unit="traj", enabled=progress and not there)
+    bar = progress_bar(
+        trajectories, desc=f"generate {directory.name}", unit="traj", enabled=False if there else progress
+    )
     try:
         generate_dataset(
             task,

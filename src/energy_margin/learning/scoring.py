@@ -34,6 +34,7 @@ from energy_margin.errors import EnergyMarginError, check_positive_int, check_se
 from energy_margin.learning.margin_file import MarginModel, load_margin_model
 from energy_margin.runs import RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
+from energy_margin.runs.progress import Progress
 
 __all__ = [
     "FRAMES_PER_CALL",
@@ -129,7 +130,7 @@ def learned_description(
 
 
 def predict_rows(
-    model: MarginModel, dataset: Dataset, *, frames_per_call: int = FRAMES_PER_CALL, progress: bool = False
+    model: MarginModel, dataset: Dataset, *, frames_per_call: int = FRAMES_PER_CALL, progress: Progress = False
 ) -> dict[tuple[int, int], dict[str, Any]]:
     """The ``scores.csv`` rows of every frame of ``dataset``, by (trajectory, frame).
 
@@ -137,7 +138,7 @@ def predict_rows(
     :meth:`MarginModel.predict` call. Each row holds ``capture_score`` and ``success_score`` in
     [0, 1]; ``runtime_s``, the wall time of its call divided by the frames of the call (s per
     frame, the features and the regressor, not reading the frames); ``nodes``
-    :data:`LEARNED_NODES`, and ``iterations``, ``physics_s`` and ``seed`` 0 (no tree, no physics,
+    :data:`LEARNED_NODES`, and ``expansions``, ``physics_s`` and ``seed`` 0 (no tree, no physics,
     nothing drawn).
 
     Args:
@@ -183,7 +184,7 @@ def predict_rows(
                     "capture_score": float(capture_score),
                     "success_score": float(success_score),
                     "nodes": LEARNED_NODES,
-                    "iterations": 0,
+                    "expansions": 0,
                     "runtime_s": float(seconds),
                     "physics_s": 0.0,
                     "seed": 0,
@@ -201,7 +202,7 @@ def score_dataset(
     model_path: Path | str,
     *,
     overwrite: bool = False,
-    progress: bool = True,
+    progress: Progress = True,
     seed: int = 0,
 ) -> Path:
     """Score every frame of a dataset with a learned margin and write ``scores.csv`` beside it.

@@ -58,14 +58,14 @@ def grow_tree(
         root: the frame state z_init.
         drive: the trajectory's drive parameters, shape (n_drive,).
         rng: the analysis' random generator (consumed in a fixed order).
-        budget: iterations and/or nodes.
+        budget: expansions and/or nodes.
         cost_model: incremental cost Q.
         features: density features; every object's position by default.
         n_projections: number of density projections.
         cell_size: density grid cell, feature units (m).
         start_time: time of the frame within its roll-out, s (the end-effector's script clock).
         method: ``"est"``, ``"montecarlo"`` or ``"rrt"`` (:mod:`energy_margin.planning.methods`).
-        batch: iterations propagated together through ``mujoco.rollout`` (1: one at a time).
+        batch: expansions propagated together through ``mujoco.rollout`` (1: one at a time).
         threads: ``mujoco.rollout`` threads when ``batch`` > 1.
         rollout_length: Monte Carlo propagations per roll-out.
         rrt_extent: RRT target box half width, m.
@@ -114,7 +114,7 @@ def _expansion(
     rrt_extent: float,
 ) -> Callable[[np.random.Generator, np.ndarray, Features], Expansion]:
     """The ``make_expansion`` of ``method`` for a tree of ``budget`` (:func:`grow_tree`'s arguments)."""
-    total = budget.iterations if budget.iterations is not None else budget.node_capacity - 1
+    total = budget.expansions if budget.expansions is not None else budget.node_capacity - 1
     return expansion_factory(
         method,
         n_objects=root.n_objects,

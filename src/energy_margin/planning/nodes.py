@@ -31,7 +31,7 @@ class CostField:
         parents: parent index of every node (-1 for the root), shape (M,); a parent always
             precedes its children.
         times: simulated time of every node, shape (M,), s.
-        iterations: expansions (propagations) performed, accepted and rejected.
+        expansions: expansions (propagations) performed, accepted and rejected.
         physics_s: wall time spent inside the simulator, s.
         total_s: wall time of the whole growth, s.
         object_quat: object orientations of every node, shape (M, n_objects, 4), ``(w, x, y, z)``
@@ -50,7 +50,7 @@ class CostField:
     object_vel: np.ndarray
     parents: np.ndarray
     times: np.ndarray
-    iterations: int
+    expansions: int
     physics_s: float
     total_s: float
     object_quat: np.ndarray | None = None
@@ -184,7 +184,7 @@ class _Tree:
             costs[node] = costs[parent] + increment
         self.costed = count
 
-    def view(self, iterations: int) -> CostField:
+    def view(self, expansions: int) -> CostField:
         """The nodes so far, without copies or timings (valid until the next ``offer``)."""
         self._cost_new_nodes()
         count = self.count
@@ -195,7 +195,7 @@ class _Tree:
             object_quat=self.quaternions[:count],
             parents=self.parents[:count],
             times=self.times[:count],
-            iterations=iterations,
+            expansions=expansions,
             physics_s=0.0,
             total_s=0.0,
             robot_q=self._robot_q(count, copy=False),
@@ -203,7 +203,7 @@ class _Tree:
             diverged=self.diverged,
         )
 
-    def field(self, iterations: int, physics_s: float, started: float) -> CostField:
+    def field(self, expansions: int, physics_s: float, started: float) -> CostField:
         self._cost_new_nodes()
         count = self.count
         return CostField(
@@ -213,7 +213,7 @@ class _Tree:
             object_quat=self.quaternions[:count].copy(),
             parents=self.parents[:count].copy(),
             times=self.times[:count].copy(),
-            iterations=iterations,
+            expansions=expansions,
             physics_s=physics_s,
             total_s=time.perf_counter() - started,
             robot_q=self._robot_q(count, copy=True),

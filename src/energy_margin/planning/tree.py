@@ -33,6 +33,7 @@ from typing import Protocol
 
 import numpy as np
 
+from energy_margin._renamed import renamed_fields
 from energy_margin.errors import InvalidParameterError, check_int, check_positive_int
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
@@ -51,38 +52,39 @@ __all__ = [
 ]
 
 
+@renamed_fields(iterations="expansions", max_iterations="max_expansions")
 @dataclass(frozen=True)
 class TreeBudget:
     """When tree growth stops.
 
     Attributes:
-        iterations: number of expansions (accepted or rejected), or ``None``.
+        expansions: number of expansions (accepted or rejected), or ``None``.
         nodes: number of accepted children of the root, or ``None``.
-        max_iterations: hard cap on expansions when only ``nodes`` is given.
+        max_expansions: hard cap on expansions when only ``nodes`` is given.
 
     """
 
-    iterations: int | None = 300
+    expansions: int | None = 300
     nodes: int | None = None
-    max_iterations: int = 100_000
+    max_expansions: int = 100_000
 
     def __post_init__(self) -> None:
-        if self.iterations is None and self.nodes is None:
-            raise InvalidParameterError("iterations", "and nodes cannot both be None: give iterations, nodes or both")
-        for name in ("iterations", "nodes"):
+        if self.expansions is None and self.nodes is None:
+            raise InvalidParameterError("expansions", "and nodes cannot both be None: give expansions, nodes or both")
+        for name in ("expansions", "nodes"):
             value = getattr(self, name)
             if value is not None:
                 check_int(name, value, minimum=0)
 
     @property
-    def iteration_limit(self) -> int:
+    def expansion_limit(self) -> int:
         """Largest number of expansions."""
-        return int(self.iterations) if self.iterations is not None else self.max_iterations
+        return int(self.expansions) if self.expansions is not None else self.max_expansions
 
     @property
     def node_capacity(self) -> int:
         """Largest number of nodes including the root."""
-        limit = self.iteration_limit if self.nodes is None else min(self.nodes, self.iteration_limit)
+        limit = self.expansion_limit if self.nodes is None else min(self.nodes, self.expansion_limit)
         return int(limit) + 1
 
 
@@ -189,7 +191,7 @@ def grow(
         rng: the analysis' random generator (consumed in a fixed order).
         make_expansion: builds the method from ``(rng, root_features, features)``; it may draw from
             ``rng`` (before any control is drawn).
-        budget: iterations and/or nodes.
+        budget: expansions and/or nodes.
         cost_model: incremental cost Q.
         features: features of a node's object positions (density, nearest neighbour); every
             object's displacement from the root by default.
@@ -224,11 +226,11 @@ def grow(
     root_pos = tree.positions[0].copy()
     expansion = make_expansion(rng, root_pos, features)
     expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
-    limit = budget.iteration_limit
+    limit = budget.expansion_limit
     controls = _Controls(rng, expansion.uniforms, bounds.max_wrench, bounds.max_duration, bounds.dt, limit)
     growth = _Growth(simulator, task, drive, tree, expansion, controls, features, root_pos, propagator, bounds)
-    iterations, physics_s = growth.run(limit, batch, start_time, stop, check_every)
-    return tree.field(iterations, physics_s, started)
+    expansions, physics_s = growth.run(limit, batch, start_time, stop, check_every)
+    return tree.field(expansions, physics_s, started)
 
 
 @dataclass(frozen=True)
@@ -324,25 +326,25 @@ class _Growth:
     def run(
         self, limit: int, batch: int, start_time: float, stop: Callable[[CostField], bool] | None, check_every: int
     ) -> tuple[int, float]:
-        """Expand until the budget, the capacity or ``stop`` ends growth: (iterations, physics wall time in s)."""
+        """Expand until the budget, the capacity or ``stop`` ends growth: (expansions, physics wall time in s)."""
         tree = self.tree
-        iterations = 0
+        expansions = 0
         physics_s = 0.0
         next_check = check_every
-        while iterations < limit and tree.count < tree.capacity:
+        while expansions < limit and tree.count < tree.capacity:
             round_ = _next_round(
-                self.expansion, self.controls, tree, iterations, min(batch, limit - iterations), self.bounds.max_wrench
+                self.expansion, self.controls, tree, expansions, min(batch, limit - expansions), self.bounds.max_wrench
             )
             tick = time.perf_counter()
             outcomes = self._propagate(round_, start_time)
             physics_s += time.perf_counter() - tick
             self._offer(round_, outcomes)
-            iterations += len(round_)
-            if stop is not None and iterations >= next_check:
+            expansions += len(round_)
+            if stop is not None and expansions >= next_check:
                 next_check += check_every
-                if stop(tree.view(iterations)):
+                if stop(tree.view(expansions)):
                     break
-        return iterations, physics_s
+        return expansions, physics_s
 
     def _propagate(self, round_: list[_Expansion], start_time: float) -> list[Outcome]:
         """The outcomes of a round, one at a time or batched."""

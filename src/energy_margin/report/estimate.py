@@ -1,7 +1,7 @@
 """How long ``reproduce`` will take on this machine: a short calibration and the work left to do.
 
 The calibration records one roll-out of each task, grows the trees of its middle and last frames
-with the run's iterations (at most 300), perturbs its three frames once and draws one picture; the estimate multiplies
+with the run's expansions (at most 300), perturbs its three frames once and draws one picture; the estimate multiplies
 those wall times by the frames not yet in a ``scores.csv`` or journal (pushing scaled by the number
 of objects, which the runtime grows with linearly), the roll-outs not yet generated, the frames of
 the valid-protocol perturbed copies not yet written (the paper protocol's draw checks nothing and
@@ -22,7 +22,7 @@ import numpy as np
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 
 __all__ = [
-    "CALIBRATION_ITERATIONS",
+    "CALIBRATION_EXPANSIONS",
     "PlannedAnalysis",
     "StepTimes",
     "calibration_objects",
@@ -33,10 +33,10 @@ __all__ = [
     "work_left",
 ]
 
-#: Most iterations a calibration tree grows (its time is scaled to the run's iterations). A tree's
-#: later iterations cost more than its first (more nodes, more contacts), so the calibration grows
+#: Most expansions a calibration tree grows (its time is scaled to the run's expansions). A tree's
+#: later expansions cost more than its first (more nodes, more contacts), so the calibration grows
 #: the run's own number up to this.
-CALIBRATION_ITERATIONS = 300
+CALIBRATION_EXPANSIONS = 300
 #: Pictures the report draws per task besides its video (rendered frames, perturbed examples).
 _REPORT_STILLS = 11
 #: Pictures per second of the report's videos.
@@ -90,17 +90,17 @@ def planned_analyses(config: ReproduceConfig, table_objects: dict[str, int]) -> 
     plan = []
     for task, n_objects in table_objects.items():
         name = f"{task}-{n_objects}"
-        plan.append(PlannedAnalysis(f"data/{name}", task, n_objects, config.trajectories, config.frames, True))
+        plan.append(PlannedAnalysis(f"data/{name}", task, n_objects, config.n_trajectories, config.n_frames, True))
         plan.extend(
             PlannedAnalysis(
-                f"data/{name}-{suffix}/{r}", task, n_objects, config.trajectories, config.frames, False, protocol
+                f"data/{name}-{suffix}/{r}", task, n_objects, config.n_trajectories, config.n_frames, False, protocol
             )
             for protocol, suffix in TABLE_ONE_PROTOCOLS.items()
             for r in range(1, config.repeats + 1)
         )
     plan.extend(
         PlannedAnalysis(
-            f"data/ablation-pushing-{n}", "pushing", n, config.ablation_trajectories, config.ablation_frames, True
+            f"data/ablation-pushing-{n}", "pushing", n, config.ablation_n_trajectories, config.ablation_n_frames, True
         )
         for n in config.ablation_objects
     )
@@ -122,7 +122,7 @@ class StepTimes:
 
     Attributes:
         frame_s: seconds per analysed frame of each task at the calibration size, at the run's
-            iterations.
+            expansions.
         rollout_s: seconds per generated roll-out of each task at the calibration size.
         perturb_s: seconds per perturbed frame of each task at the calibration size.
         picture_s: seconds per drawn picture of the report.
@@ -150,7 +150,7 @@ def measure_step_times(config: ReproduceConfig, tasks: list[str]) -> StepTimes:
     started = time.perf_counter()
     frame_s, rollout_s, perturb_s = {}, {}, {}
     picture_s = 0.05
-    iterations = max(1, min(config.iterations, CALIBRATION_ITERATIONS))
+    expansions = max(1, min(config.expansions, CALIBRATION_EXPANSIONS))
     for name in tasks:
         task = get_task(name)
         n_objects = calibration_objects(name)
@@ -169,11 +169,11 @@ def measure_step_times(config: ReproduceConfig, tasks: list[str]) -> StepTimes:
                 friction=friction,
                 drive=drive,
                 seed=config.seed,
-                config=AnalyzerConfig(iterations=iterations, engine=config.engine),
+                config=AnalyzerConfig(expansions=expansions, engine=config.engine),
                 start_time=float(record["frame_time"][index]),
                 simulator=simulator,
             )
-        frame_s[name] = (time.perf_counter() - tick) / 2.0 * config.iterations / iterations
+        frame_s[name] = (time.perf_counter() - tick) / 2.0 * config.expansions / expansions
         scene = simulator.scene
         tick = time.perf_counter()
         # Perturbing costs little for a spread pile and much for a packed one: all three frames.

@@ -113,7 +113,7 @@ def differences(table_one: dict[str, dict[str, Any]], ablation: list[dict[str, A
         )
     if sentences and quick:
         sentences.insert(
-            0, "This is the quick variant (small sets, fewer iterations): its numbers are not the paper's."
+            0, "This is the quick variant (small sets, fewer expansions): its numbers are not the paper's."
         )
     return sentences
 
@@ -290,8 +290,8 @@ def _page(body: dict[str, str], config: ReproduceConfig, described: dict[str, An
         ".grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(320px,1fr));gap:0.8em}"
         ".cell{margin:0}code{font-size:90%}</style></head><body>"
         f"<h1>energy-margin: reproduction of the paper ({mode})</h1>"
-        f"<p>{config.trajectories} trajectories × {config.frames} frames per task, {config.iterations} EST "
-        f"iterations per frame, engine {html.escape(config.engine)}, seed {config.seed}. "
+        f"<p>{config.n_trajectories} trajectories × {config.n_frames} frames per task, {config.expansions} EST "
+        f"expansions per frame, engine {html.escape(config.engine)}, seed {config.seed}. "
         "Tables as Markdown and JSON beside this page's folder: table1.md, ablation.md.</p>"
         f"{_provenance_html(described)}"
         f"<nav><ul>{navigation}</ul></nav>"

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from energy_margin._renamed import renamed_keys
 from energy_margin.errors import check_int
 from energy_margin.report.config import TABLE_ONE_PROTOCOLS, ReproduceConfig
 from energy_margin.report.html import protocol_rows, write_report
@@ -65,7 +66,7 @@ def _analyze(path: Path, config: ReproduceConfig) -> None:
 
     analyze(
         path,
-        AnalyzerConfig(iterations=config.iterations, engine=config.engine),
+        AnalyzerConfig(expansions=config.expansions, engine=config.engine),
         seed=config.seed,
         workers=config.workers,
         progress=sys.stderr.isatty(),
@@ -93,7 +94,7 @@ def _table_one_row(
 
     name = f"{task}-{n_objects}"
     step(f"generate {name}")
-    path = _dataset(out, name, task, n_objects, config.trajectories, config.frames, config)
+    path = _dataset(out, name, task, n_objects, config.n_trajectories, config.n_frames, config)
     step(f"analyze {name} (true states)")
     _analyze(path, config)
     results = {}
@@ -127,7 +128,7 @@ def _ablation_row(out: Path, n_objects: int, config: ReproduceConfig, step: Call
 
     name = f"ablation-pushing-{n_objects}"
     step(f"generate {name}")
-    path = _dataset(out, name, "pushing", n_objects, config.ablation_trajectories, config.ablation_frames, config)
+    path = _dataset(out, name, "pushing", n_objects, config.ablation_n_trajectories, config.ablation_n_frames, config)
     step(f"analyze {name}")
     _analyze(path, config)
     result = evaluate(path)
@@ -294,6 +295,7 @@ REPRODUCE_RUN = RunSpec(
     settings_file="reproduce.json",
     outputs=("data", "report", "table1.json", "table1.md", "ablation.json", "ablation.md", "stages.json"),
     may_differ=("workers",),
+    normalize=lambda settings, earlier: renamed_keys(settings),
 )
 
 

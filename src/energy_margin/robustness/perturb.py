@@ -67,6 +67,7 @@ from energy_margin.robustness.resample import (
     perturb_frame,
 )
 from energy_margin.runs import RunSpec, progress_bar, run_directory
+from energy_margin.runs.progress import Progress
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 
 __all__ = [
@@ -87,7 +88,7 @@ def perturb_dataset(
     min_thickness: float | None = None,
     overwrite: bool = False,
     workers: int = 1,
-    progress: bool = False,
+    progress: Progress = False,
 ) -> list[Path]:
     """Write ``repeats`` perturbed copies of the dataset at ``path`` as ``out/1`` ... ``out/R``.
 
@@ -213,7 +214,7 @@ def _perturb_copies(
     *,
     seed: int,
     workers: int,
-    progress: bool,
+    progress: Progress,
     write: Callable[[int, Path, dict[int, list[FramePerturbation]]], None],
 ) -> None:
     """Perturb the copies ``pending`` (trajectories on workers); each is written as soon as it is complete."""

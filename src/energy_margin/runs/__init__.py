@@ -11,10 +11,11 @@ the append-only journal (:mod:`~energy_margin.runs.journal`); the progress bar
 from energy_margin.runs.directory import RunDirectory, RunSpec, open_run, run_directory
 from energy_margin.runs.journal import Journal
 from energy_margin.runs.lock import RunLock, RunLockedError
-from energy_margin.runs.progress import progress_bar
+from energy_margin.runs.progress import Progress, progress_bar
 
 __all__ = [
     "Journal",
+    "Progress",
     "RunDirectory",
     "RunLock",
     "RunLockedError",
