@@ -29,7 +29,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     config = ReproduceConfig()
-    sets = [("pushing", 10, config.n_trajectories, config.n_frames), ("scooping", 5, config.n_trajectories, config.n_frames)]
+    sets = [
+        ("pushing", 10, config.n_trajectories, config.n_frames),
+        ("scooping", 5, config.n_trajectories, config.n_frames),
+    ]
     sets += [("pushing", n, config.ablation_n_trajectories, config.ablation_n_frames) for n in config.ablation_objects]
     result = {}
     with tempfile.TemporaryDirectory() as folder:
