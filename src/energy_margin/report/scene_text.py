@@ -11,8 +11,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import mujoco
-import numpy as np
 
+from energy_margin.tasks.scene_layout import start_separation
 from energy_margin.tasks.scene_spec import SceneSpec
 from energy_margin.tasks.scene_task import SceneTask
 
@@ -64,7 +64,8 @@ def _start_text(task: SceneTask) -> str:
     if start.min_separation is not None:
         separation = f"{start.min_separation:g} m"
     else:
-        separation = f"{2.0 * float(np.max(task.loaded.object_radius)):.3g} m, twice the largest bounding radius"
+        rule = start_separation(task.loaded)
+        separation = f"{rule.distance:.3g} m, {rule.source}"
     return f"{where}, min separation " + _given(spec, "randomize.start.min_separation", separation)
 
 
