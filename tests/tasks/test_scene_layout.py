@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from energy_margin.cli import main
 from energy_margin.errors import InvalidDataError
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_layout import Separation, start_separation
@@ -14,10 +15,8 @@ from energy_margin.tasks.scene_objects import object_footprints
 BOX_A = '<body name="box_a" pos="-0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>'
 BOX_B = '<body name="box_b" pos="0.06 0 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/></body>'
 # Two 12 cm cans of radius 3.3 cm standing upright: footprint radius 0.033 m, bounding radius 0.0685 m.
-CANS = {
-    BOX_A: '<body name="box_a" pos="-0.1 0 0.06"><freejoint/><geom type="cylinder" size="0.033 0.06" mass="0.1"/></body>',
-    BOX_B: '<body name="box_b" pos="0.1 0 0.06"><freejoint/><geom type="cylinder" size="0.033 0.06" mass="0.1"/></body>',
-}
+CAN = '<freejoint/><geom type="cylinder" size="0.033 0.06" mass="0.1"/></body>'
+CANS = {BOX_A: '<body name="box_a" pos="-0.1 0 0.06">' + CAN, BOX_B: '<body name="box_b" pos="0.1 0 0.06">' + CAN}
 START = "[randomize.start]\nx = [-0.12, 0.12]\ny = [-0.02, 0.08]\nyaw = [-0.3, 0.3]\n"
 # A strip 0.1 m long: two cans fit 0.066 m apart, never 0.137 m apart.
 STRIP = "[randomize.start]\nx = [-0.05, 0.05]\ny = [0.02, 0.02]\nyaw = [-0.3, 0.3]\n"
@@ -76,5 +75,28 @@ def test_cans_fit_a_strip_the_bounding_radius_refused(make_scene) -> None:
         assert initial.object_pos[:, 2] == pytest.approx([0.06, 0.06])
     # The same strip with the bounding radius's separation finds no room.
     wide = make_scene(model_replace=CANS, replace={START: STRIP + f"min_separation = {2 * CAN_BOUND}\n"})
-    with pytest.raises(InvalidDataError, match="cannot place 2 objects 0.137 m apart"):
+    with pytest.raises(InvalidDataError, match=r"cannot place 2 objects 0\.137 m apart"):
         get_task("scene", {"scene_file": str(wide)}).sample_trajectory(np.random.default_rng(0), 2)
+
+
+def test_a_left_out_axis_comes_from_the_initial_keyframe(make_scene, capsys: pytest.CaptureFixture[str]) -> None:
+    # box_b sits at y = 0 in the model and at y = 0.05 in the keyframe: a start that draws x only
+    # keeps the keyframe's y and z, not the model's.
+    keyframe = (
+        '  <keyframe><key name="start" qpos="-0.06 0 0.03 1 0 0 0 0.06 0.05 0.04 1 0 0 0" '
+        'mpos="0 -0.15 0.03" mquat="1 0 0 0"/></keyframe>\n</mujoco>'
+    )
+    only_x = "[randomize.start]\nx = [-0.12, 0.12]\n"
+    scene = make_scene(
+        model_replace={"</mujoco>": keyframe},
+        replace={START: only_x, "duration = 1.5\n": 'duration = 1.5\ninitial_keyframe = "start"\n'},
+    )
+    task = get_task("scene", {"scene_file": str(scene)})
+    initial = task.sample_trajectory(np.random.default_rng(0), 2).initial
+    assert initial.object_pos[:, 1:] == pytest.approx(np.array([[0.0, 0.03], [0.05, 0.04]]))
+    assert main(["scene", str(scene), "--no-picture"]) == 0
+    assert "y the initial keyframe's (default), z the initial keyframe's (default)" in capsys.readouterr().out
+    # Without the keyframe the same start keeps the model's y and z.
+    plain = get_task("scene", {"scene_file": str(make_scene(replace={START: only_x}))})
+    initial = plain.sample_trajectory(np.random.default_rng(0), 2).initial
+    assert initial.object_pos[:, 1:] == pytest.approx(np.array([[0.0, 0.03], [0.0, 0.03]]))

@@ -53,12 +53,12 @@ def _start_text(task: SceneTask) -> str:
         where = f"pile, low {_fmt(start.low)} m, high {_fmt(start.high)} m"
     else:
         axes = []
+        # A left-out axis keeps the start configuration's position: the initial keyframe's, else the model's.
+        kept = "the initial keyframe's" if spec.motion.initial_keyframe is not None else "the model's"
         for axis in ("x", "y", "z", "yaw"):
             unit = "rad" if axis == "yaw" else "m"
             value = start.ranges.get(axis)
-            shown = (
-                f"[{value[0]:g}, {value[1]:g}] {unit}" if value is not None else "0" if axis == "yaw" else "the model's"
-            )
+            shown = f"[{value[0]:g}, {value[1]:g}] {unit}" if value is not None else "0" if axis == "yaw" else kept
             axes.append(f"{axis} " + _given(spec, f"randomize.start.{axis}", shown))
         where = _given(spec, "randomize.start.mode", "ranges") + " " + ", ".join(axes)
     if start.min_separation is not None:
