@@ -30,9 +30,19 @@ from energy_margin.tasks.region_sets import AtLeast
 from energy_margin.tasks.region_types import Region
 from energy_margin.world.state import FrameState
 
-__all__ = ["FailureExplanation", "ObjectEvent", "explain_failures", "format_explanations", "object_membership"]
+__all__ = [
+    "LEFT_CAPTURE",
+    "MISSED_SUCCESS",
+    "FailureExplanation",
+    "ObjectEvent",
+    "explain_failures",
+    "format_explanations",
+    "object_membership",
+]
 
+#: The kind of an object's first frame outside the capture region.
 LEFT_CAPTURE = "left_capture"
+#: The kind of an object outside the success region at the last frame.
 MISSED_SUCCESS = "missed_success"
 
 
