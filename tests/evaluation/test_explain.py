@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.evaluation.explain import (
     FailureExplanation,
@@ -16,6 +17,7 @@ from energy_margin.evaluation.explain import (
     object_membership,
 )
 from energy_margin.tasks.region_sets import AtLeast
+from tiny_scene import TINY_SCENE
 
 # Where object 1 of trajectory 0 is moved from frame 1 on: far from the pusher and the goal.
 AWAY = np.array([3.0, 3.0, 0.0])
@@ -94,3 +96,23 @@ def test_an_at_least_set_is_tested_object_by_object(wandering: Path) -> None:
     assert bool(np.all(AtLeast(1, region).contains(frame.object_pos, frame.object_vel)))
     inside, needed = object_membership(AtLeast(1, region), frame)
     assert list(inside) == [True, False] and needed == 1
+
+
+def test_a_scene_files_at_least_set_is_explained_object_by_object(make_scene, tmp_path: Path) -> None:
+    # Success needs one box of two within 1 mm of a goal no box reaches: every trajectory fails,
+    # and each box is named at the last frame though the set needs only one.
+    success = '[success]\nat_least = 1\nregion = { type = "distance", site = "goal", max = 0.001 }\n'
+    old = TINY_SCENE[TINY_SCENE.index("[success]") :]
+    scene = make_scene(replace={old: success})
+    out = tmp_path / "set"
+    assert main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "3", "--out", str(out)]) == 0
+    dataset = load_dataset(out)
+    explanations = explain_failures(dataset)
+    assert [item.trajectory for item in explanations] == [0, 1]
+    for item in explanations:
+        assert item.success_needed == 1 and item.capture_needed == 2
+        missed = [(e.name, e.frame) for e in item.events if e.kind == "missed_success"]
+        assert missed == [("box_a", 2), ("box_b", 2)]
+    text = format_explanations(explanations, 2)
+    assert "success at least 1 of 2 objects" in text
+    assert "  box_a (object 0) missed the success region at frame 2" in text
