@@ -116,3 +116,17 @@ def test_a_scene_files_at_least_set_is_explained_object_by_object(make_scene, tm
     text = format_explanations(explanations, 2)
     assert "success at least 1 of 2 objects" in text
     assert "  box_a (object 0) missed the success region at frame 2" in text
+
+
+def test_an_object_outside_at_the_first_frame_started_outside(
+    wandering: Path, rewrite_frames: Callable[..., None]
+) -> None:
+    dataset = load_dataset(wandering)
+    positions = dataset.arrays["object_pos"].copy()
+    positions[0, 0, 1] = AWAY
+    rewrite_frames(wandering, object_pos=positions)
+    first = explain_failures(load_dataset(wandering))[0]
+    event = first.events[0]
+    assert (event.kind, event.object, event.frame) == ("left_capture", 1, 0)
+    text = format_explanations((first,), 2)
+    assert "  object 1 started outside the capture region at frame 0 (t = 0.000 s) at (3.000, 3.000, 0.000) m" in text

@@ -5,7 +5,8 @@ set's ``at_least``, in the success region at the last frame). For each failed tr
 :func:`explain_failures` tests every object of every recorded frame against the regions the labels
 were computed with (the capture region built from that frame, the success region at it) and reports
 
-* each object's first frame outside the capture region (``left_capture``), and
+* each object's first frame outside the capture region (``left_capture``; at frame 0 the object
+  started outside), and
 * each object outside the success region at the last frame (``missed_success``),
 
 with the frame's time (s) and the object's position (m, world frame) there. A set that needs only
@@ -35,6 +36,7 @@ __all__ = [
     "MISSED_SUCCESS",
     "FailureExplanation",
     "ObjectEvent",
+    "event_words",
     "explain_failures",
     "format_explanations",
     "object_membership",
@@ -186,6 +188,13 @@ def explain_failures(dataset: Dataset) -> tuple[FailureExplanation, ...]:
     return tuple(_explain(dataset, int(trajectory), names) for trajectory in failed)
 
 
+def event_words(event: ObjectEvent) -> str:
+    """What happened, in words: ``left the capture region`` (``started outside ...`` at frame 0) or ``missed ...``."""
+    if event.kind != LEFT_CAPTURE:
+        return "missed the success region"
+    return "started outside the capture region" if event.frame == 0 else "left the capture region"
+
+
 def _needs(needed: int, n_objects: int) -> str:
     return "every object" if needed >= n_objects else f"at least {needed} of {n_objects} objects"
 
@@ -207,7 +216,7 @@ def format_explanations(explanations: tuple[FailureExplanation, ...] | list[dict
             f"success {_needs(item.success_needed, n_objects)}"
         )
         for event in item.events:
-            what = "left the capture region" if event.kind == LEFT_CAPTURE else "missed the success region"
+            what = event_words(event)
             x, y, z = event.position
             who = f"object {event.object}"
             if event.name != f"object{event.object}":

@@ -9,7 +9,7 @@ from __future__ import annotations
 import html
 
 from energy_margin.data.dataset import Dataset
-from energy_margin.evaluation.explain import LEFT_CAPTURE, explain_failures
+from energy_margin.evaluation.explain import event_words, explain_failures
 from energy_margin.report.html_parts import _table
 
 __all__ = ["failures_html"]
@@ -34,7 +34,7 @@ def failures_html(task: str, dataset: Dataset, *, max_rows: int = MAX_ROWS) -> s
     rows = []
     for item in explanations:
         for event in item.events:
-            what = "left the capture region" if event.kind == LEFT_CAPTURE else "missed the success region"
+            what = event_words(event)
             x, y, z = event.position
             rows.append(
                 [item.trajectory, event.name, what, event.frame, f"{event.time_s:.3f}", f"({x:.3f}, {y:.3f}, {z:.3f})"]
