@@ -32,6 +32,14 @@ def test_an_upright_can_has_its_radius_as_footprint(make_scene) -> None:
     assert rule.source == "twice the largest footprint radius, in the x-y plane"
 
 
+def test_scene_prints_each_objects_footprint(make_scene, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["scene", str(make_scene(model_replace=CANS)), "--no-picture"]) == 0
+    out = capsys.readouterr().out
+    assert "  box_a: mass 0.1 kg," in out
+    assert "bounding radius 0.0685 m, footprint radius in x-y 0.033 m" in out
+    assert "min separation 0.066 m, twice the largest footprint radius, in the x-y plane (default)" in out
+
+
 def test_a_box_reaches_its_corner_and_a_lying_can_its_bound(make_scene) -> None:
     # A 6 cm box: its x-y corner, 0.03 sqrt(2) m, below its 3-D corner 0.03 sqrt(3) m.
     loaded = load_scene(make_scene())

@@ -90,7 +90,7 @@ def describe_scene(task: SceneTask) -> list[str]:
 
 
 def _object_lines(task: SceneTask) -> list[str]:
-    """The scene file, its model, and every object's mass, inertia and bounding radius."""
+    """The scene file, its model, and every object's mass, inertia, bounding radius and x-y footprint radius."""
     loaded = task.loaded
     spec = loaded.spec
     lines = [f"scene file {spec.path} (schema_version 1), model {spec.mjcf.name} (sha256 {loaded.model_sha256[:12]})"]
@@ -101,7 +101,8 @@ def _object_lines(task: SceneTask) -> list[str]:
         inertia = ", ".join(f"{v:.3g}" for v in inertias[index])
         lines.append(
             f"  {name}: mass {mass[index]:.4g} kg, inertia ({inertia}) kg m^2, "
-            f"bounding radius {loaded.object_radius[index]:.3g} m"
+            f"bounding radius {loaded.object_radius[index]:.3g} m, footprint radius in x-y "
+            f"{loaded.object_footprint[index]:.3g} m"
         )
     return lines
 
