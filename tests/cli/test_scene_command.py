@@ -110,7 +110,8 @@ def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -
     assert "robot during analysis declared (default)" in out
     assert "friction 0.3-0.6, mass scale 1 (default), time scale 1 (default), start ranges (default) " in out
     assert "x [-0.12, 0.12] m, y [-0.02, 0.08] m, z the model's (default), yaw [-0.3, 0.3] rad" in out
-    assert "min separation 0.104 m, twice the largest bounding radius (default)" in out
+    # Two 6 cm boxes: 2 x 0.0424 m (a corner in x-y), not 2 x 0.052 m (a corner in 3-D).
+    assert "min separation 0.0849 m, twice the largest footprint radius, in the x-y plane (default)" in out
     assert "built at the analysed frame (default)" in out
     bounds = next(line for line in out.splitlines() if line.startswith("bounds: "))
     assert re.fullmatch(

@@ -38,7 +38,8 @@ def test_tiny_scene_parses_and_builds_a_task(tiny_scene: Path) -> None:
     trajectory = task.sample_trajectory(np.random.default_rng(3), 2)
     pos = trajectory.initial.object_pos
     assert np.all((pos[:, 0] >= -0.12) & (pos[:, 0] <= 0.12))
-    assert np.linalg.norm(pos[0] - pos[1]) > 2 * 0.03 * np.sqrt(3)
+    # Apart in x-y by twice the boxes' footprint radius (their x-y corner, 0.03 sqrt(2) m).
+    assert np.linalg.norm(pos[0, :2] - pos[1, :2]) > 2 * 0.03 * np.sqrt(2)
     assert 0.3 <= trajectory.friction <= 0.6
 
 

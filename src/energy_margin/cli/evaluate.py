@@ -19,6 +19,7 @@ SUMMARY = "Average Precision of a scored dataset against its labels; with --comp
 EXAMPLES = (
     "energy-margin evaluate runs/push10",
     "energy-margin evaluate runs/push10 --capture-window 2 --json",
+    "energy-margin evaluate runs/push10 --explain",
     "energy-margin evaluate runs/push10 --compare runs/push10-perturbed",
 )
 
@@ -41,6 +42,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_seed(parser)
     parser.add_argument(
+        "--explain",
+        action="store_true",
+        help="for each failed trajectory, list the objects that left the capture region or missed the success "
+        "region, with the frame, its time and the object's position (JSON: explanations)",
+    )
+    parser.add_argument(
         "--compare",
         nargs="+",
         default=None,
@@ -62,9 +69,14 @@ def run(args: argparse.Namespace) -> int:
         from energy_margin.robustness.compare import compare_perturbed, format_robustness_table
 
         result = compare_perturbed(args.dataset, args.compare, **options, **verdict).to_dict()
+        if args.explain:
+            from energy_margin.data.dataset import load_dataset
+            from energy_margin.evaluation.explain import explain_failures
+
+            result["explanations"] = [item.to_dict() for item in explain_failures(load_dataset(args.dataset))]
         text = format_table(result) + "\n\n" + format_robustness_table(result)
     else:
-        result = evaluate(args.dataset, **options, **verdict).to_dict()
+        result = evaluate(args.dataset, **options, **verdict, explain=args.explain).to_dict()
         text = format_table(result)
     from energy_margin.data.scores_file import load_scores, tree_rejections
 

@@ -35,6 +35,7 @@ from energy_margin.errors import (
 )
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import evaluate_capture_windows
+from energy_margin.evaluation.explain import explain_failures, format_explanations
 from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs.results import TypedResult, plain_result
 
@@ -84,6 +85,8 @@ class Evaluation(TypedResult):
         runtime_per_frame_s: mean wall time of a frame's analysis, s.
         runtime_per_frame_std_s: its standard deviation, s.
         physics_per_frame_s: mean time of a frame spent in the physics engine, s.
+        explanations: with ``explain``, each failed trajectory's account
+            (:meth:`energy_margin.evaluation.explain.FailureExplanation.to_dict`); absent without.
 
     """
 
@@ -108,10 +111,13 @@ class Evaluation(TypedResult):
     runtime_per_frame_s: float
     runtime_per_frame_std_s: float
     physics_per_frame_s: float
+    explanations: list[dict[str, Any]] | None = None
 
     def absent(self) -> set[str]:
-        """The k-hat 2 fields when ``capture_window`` is 2, the verdict's without one."""
+        """The k-hat 2 fields when ``capture_window`` is 2, the verdict's without one, explanations without them."""
         left_out = set()
+        if self.explanations is None:
+            left_out.add("explanations")
         if self.capture_window == 2:
             left_out |= {"capture_ap_window2", "capture_positive_rate_window2"}
         if self.verdict is None:
@@ -191,6 +197,7 @@ def evaluate(
     weights: str = "linear",
     resamples: int = 1000,
     seed: int = 0,
+    explain: bool = False,
 ) -> Evaluation:
     """AP of a scored dataset, its baselines' and the verdict of the margin against the best of them.
 
@@ -202,6 +209,9 @@ def evaluate(
         resamples: bootstrap resamples of the trajectories behind the verdict's paired intervals
             (:mod:`energy_margin.evaluation.verdict`), >= 0; 0 gives no verdict.
         seed: seeds the resamples.
+        explain: also account for each failed trajectory: which object left the capture region
+            or missed the success region, at which frame, time and position
+            (:func:`energy_margin.evaluation.explain.explain_failures`).
 
     Returns:
         The :class:`Evaluation`; ``.to_dict()`` is the JSON of ``evaluate --json`` (keys in
@@ -255,6 +265,8 @@ def evaluate(
             "physics_per_frame_s": float(physics.mean()),
         }
     )
+    if explain:
+        result["explanations"] = [item.to_dict() for item in explain_failures(dataset)]
     return Evaluation.from_dict(result)
 
 
@@ -321,4 +333,6 @@ def format_table(result: Evaluation | dict[str, Any]) -> str:
         f"runtime per frame: {result['runtime_per_frame_s']:.3f} +- {result['runtime_per_frame_std_s']:.3f} s "
         f"(physics {result['physics_per_frame_s']:.3f} s)"
     )
+    if result.get("explanations") is not None:
+        lines.append(format_explanations(result["explanations"], int(result["n_objects"])))
     return "\n".join(lines)

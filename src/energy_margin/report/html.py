@@ -39,6 +39,7 @@ SECTIONS = (
     ("cost-field", "Energy-cost field and likelihood"),
     ("trajectories", "Scores along every trajectory"),
     ("precision-recall", "Precision-recall curves"),
+    ("failures", "Failed trajectories: which object left which region, when and where"),
 )
 
 #: Where a reproduced number that differs from the paper's is explained.
@@ -190,6 +191,7 @@ def write_report(
         "cost-field": "".join(per_task[task]["cost_field"] for task in per_task),
         "trajectories": "".join(per_task[task]["trajectories"] for task in per_task),
         "precision-recall": "".join(per_task[task]["precision_recall"] for task in per_task),
+        "failures": "".join(per_task[task]["failures"] for task in per_task),
     }
     page = _page(body, config, described)
     index = report / "index.html"

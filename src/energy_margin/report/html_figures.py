@@ -57,6 +57,7 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
     from energy_margin.evaluation.metrics import score_grid
     from energy_margin.report import plots
     from energy_margin.report.frame_tree import analysed_tree
+    from energy_margin.report.html_failures import failures_html
     from energy_margin.report.render import warn_once
 
     figures = report / "figures"
@@ -94,6 +95,7 @@ def _task_figures(out: Path, report: Path, task: str, row: dict[str, Any], confi
 
     parts["perturbed"] = _perturbed_figures(figures, out, task, row, dataset, tree_trajectory)
     parts.update(_score_figures(figures, task, dataset, capture, success))
+    parts["failures"] = failures_html(task, dataset)
     return parts
 
 

@@ -11,8 +11,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import mujoco
-import numpy as np
 
+from energy_margin.tasks.scene_layout import start_separation
 from energy_margin.tasks.scene_spec import SceneSpec
 from energy_margin.tasks.scene_task import SceneTask
 
@@ -53,18 +53,19 @@ def _start_text(task: SceneTask) -> str:
         where = f"pile, low {_fmt(start.low)} m, high {_fmt(start.high)} m"
     else:
         axes = []
+        # A left-out axis keeps the start configuration's position: the initial keyframe's, else the model's.
+        kept = "the initial keyframe's" if spec.motion.initial_keyframe is not None else "the model's"
         for axis in ("x", "y", "z", "yaw"):
             unit = "rad" if axis == "yaw" else "m"
             value = start.ranges.get(axis)
-            shown = (
-                f"[{value[0]:g}, {value[1]:g}] {unit}" if value is not None else "0" if axis == "yaw" else "the model's"
-            )
+            shown = f"[{value[0]:g}, {value[1]:g}] {unit}" if value is not None else "0" if axis == "yaw" else kept
             axes.append(f"{axis} " + _given(spec, f"randomize.start.{axis}", shown))
         where = _given(spec, "randomize.start.mode", "ranges") + " " + ", ".join(axes)
     if start.min_separation is not None:
         separation = f"{start.min_separation:g} m"
     else:
-        separation = f"{2.0 * float(np.max(task.loaded.object_radius)):.3g} m, twice the largest bounding radius"
+        rule = start_separation(task.loaded)
+        separation = f"{rule.distance:.3g} m, {rule.source}"
     return f"{where}, min separation " + _given(spec, "randomize.start.min_separation", separation)
 
 
@@ -89,7 +90,7 @@ def describe_scene(task: SceneTask) -> list[str]:
 
 
 def _object_lines(task: SceneTask) -> list[str]:
-    """The scene file, its model, and every object's mass, inertia and bounding radius."""
+    """The scene file, its model, and every object's mass, inertia, bounding radius and x-y footprint radius."""
     loaded = task.loaded
     spec = loaded.spec
     lines = [f"scene file {spec.path} (schema_version 1), model {spec.mjcf.name} (sha256 {loaded.model_sha256[:12]})"]
@@ -100,7 +101,8 @@ def _object_lines(task: SceneTask) -> list[str]:
         inertia = ", ".join(f"{v:.3g}" for v in inertias[index])
         lines.append(
             f"  {name}: mass {mass[index]:.4g} kg, inertia ({inertia}) kg m^2, "
-            f"bounding radius {loaded.object_radius[index]:.3g} m"
+            f"bounding radius {loaded.object_radius[index]:.3g} m, footprint radius in x-y "
+            f"{loaded.object_footprint[index]:.3g} m"
         )
     return lines
 

@@ -1,10 +1,16 @@
 """Start layouts of a scene's objects: origins drawn apart by the separation, orientations drawn after each.
 
 :meth:`~energy_margin.tasks.scene_task.SceneTask.sample_trajectory` draws layouts here until one
-places no object into the robot or an obstacle.
+places no object into the robot or an obstacle. The separation is ``randomize.start.min_separation``
+(between origins, in 3-D) when the file gives it; else :func:`start_separation` chooses it from the
+objects' shapes: for ``ranges`` starts under gravity along world z, twice the largest footprint
+radius in the x-y plane, measured in that plane; otherwise (a pile, or gravity with an x or y
+component or none) twice the largest bounding radius, in 3-D.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -13,12 +19,55 @@ from energy_margin.errors import InvalidDataError
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.tasks.scene_model import LoadedScene
 
-__all__ = ["draw_layout"]
+__all__ = ["Separation", "draw_layout", "start_separation"]
 
 #: Draws of one object's origin before the layout starts again (the objects before took its room).
 _DRAWS_PER_OBJECT = 2_000
 #: Fresh layouts before the separation is declared impossible in the start ranges.
 _LAYOUT_RESTARTS = 50
+
+
+@dataclass(frozen=True)
+class Separation:
+    """How far apart the start layout keeps object origins.
+
+    Attributes:
+        distance: the smallest distance between two origins, m.
+        planar: whether it is measured in the world x-y plane (else in 3-D).
+        source: where it comes from, for messages (e.g. ``twice the largest footprint radius in x-y``).
+    """
+
+    distance: float
+    planar: bool
+    source: str
+
+    def apart(self, placed: np.ndarray, candidate: np.ndarray) -> bool:
+        """Whether ``candidate`` (3,) lies farther than :attr:`distance` from every origin of ``placed`` (k, 3)."""
+        if placed.shape[0] == 0:
+            return True
+        offsets = placed - candidate
+        if self.planar:
+            offsets = offsets[:, :2]
+        return bool(np.min(np.linalg.norm(offsets, axis=1)) > self.distance)
+
+
+def start_separation(loaded: LoadedScene) -> Separation:
+    """The separation of ``loaded``'s start layouts: the file's ``min_separation``, else from the objects' shapes.
+
+    Objects drawn by ``ranges`` turn only about world z; under gravity along z they stand on what
+    holds them, so two of them cannot overlap when their origins lie farther apart in x-y than twice
+    the largest footprint radius (:attr:`LoadedScene.object_footprint`). A pile turns objects
+    every way, and other gravity leaves no plane they rest in: twice the largest bounding radius, in 3-D.
+    """
+    start = loaded.spec.start
+    if start.min_separation is not None:
+        return Separation(float(start.min_separation), planar=False, source="randomize.start.min_separation")
+    gravity = np.asarray(loaded.model.opt.gravity, dtype=float)
+    if start.mode != "pile" and gravity[2] != 0.0 and not np.any(gravity[:2]):
+        footprint = 2.0 * float(np.max(loaded.object_footprint))
+        return Separation(footprint, planar=True, source="twice the largest footprint radius, in the x-y plane")
+    radius = 2.0 * float(np.max(loaded.object_radius))
+    return Separation(radius, planar=False, source="twice the largest bounding radius")
 
 
 def draw_layout(
@@ -35,7 +84,7 @@ def draw_layout(
             the separation and how many origins a grid of that spacing fits in the ranges.
     """
     n = loaded.n_objects
-    separation = _separation(loaded)
+    separation = start_separation(loaded)
     most_placed = 0
     for _restart in range(_LAYOUT_RESTARTS):
         pos = np.empty((n, 3))
@@ -44,7 +93,7 @@ def draw_layout(
         for index in range(n):
             for _attempt in range(_DRAWS_PER_OBJECT):
                 candidate = _draw_origin(loaded, model_index, rng, index)
-                if index == 0 or np.min(np.linalg.norm(pos[:index] - candidate, axis=1)) > separation:
+                if separation.apart(pos[:index], candidate):
                     pos[index] = candidate
                     # Drawn right after its origin: the order of draws of every layout that fits.
                     quat[index] = _draw_orientation(loaded, rng, index)
@@ -56,13 +105,6 @@ def draw_layout(
         if placed == n:
             return pos, quat
     raise InvalidDataError(_placement_failure(loaded, most_placed, separation))
-
-
-def _separation(loaded: LoadedScene) -> float:
-    start = loaded.spec.start
-    if start.min_separation is not None:
-        return float(start.min_separation)
-    return 2.0 * float(np.max(loaded.object_radius))
 
 
 def _draw_origin(loaded: LoadedScene, model_index: ModelIndex, rng: np.random.Generator, index: int) -> np.ndarray:
@@ -85,7 +127,7 @@ def _draw_orientation(loaded: LoadedScene, rng: np.random.Generator, index: int)
     return _quat_multiply(_quat_yaw(yaw), _base_quat(loaded, index))
 
 
-def _placement_failure(loaded: LoadedScene, most_placed: int, separation: float) -> str:
+def _placement_failure(loaded: LoadedScene, most_placed: int, rule: Separation) -> str:
     """Why no layout fits: the object that found no room, the ranges and a grid's capacity."""
     start = loaded.spec.start
     n = loaded.n_objects
@@ -95,15 +137,19 @@ def _placement_failure(loaded: LoadedScene, most_placed: int, separation: float)
         spans = {axis: start.ranges[axis] for axis in "xyz" if axis in start.ranges}
     described = ", ".join(f"{axis} in [{lo:.3g}, {hi:.3g}] m" for axis, (lo, hi) in spans.items())
     stuck = loaded.object_names[min(most_placed, n - 1)]
+    separation = rule.distance
     grid = ""
     if separation > 0.0:
         capacity = 1
-        for lo, hi in spans.values():
+        for axis, (lo, hi) in spans.items():
+            if rule.planar and axis == "z":
+                continue
             capacity *= int(np.floor((hi - lo) / separation + 1e-9)) + 1
         # An upper bound: objects drawn one at a time jam well before a grid is full.
         grid = f"; a grid of {separation:.3g} m spacing holds at most {capacity} origins there"
     return (
-        f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart "
+        f"{loaded.spec.path}: randomize.start: cannot place {n} objects {separation:.3g} m apart"
+        f"{' in x-y' if rule.planar else ''} "
         f"({described or 'at their model positions'}): at most {most_placed} fit in {_LAYOUT_RESTARTS} layouts, "
         f"then {stuck} found no room in {_DRAWS_PER_OBJECT} draws{grid}; widen the start ranges or lower "
         "min_separation"

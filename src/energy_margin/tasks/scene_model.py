@@ -43,6 +43,7 @@ from energy_margin.tasks.scene_objects import (
     element_name,
     object_bodies,
     object_bounds,
+    object_footprints,
     object_joint,
     object_joint_kind,
 )
@@ -109,6 +110,15 @@ class LoadedScene:
     def object_geoms(self) -> list[np.ndarray]:
         """The geom ids of each object's rigid subtree (its body and the bodies welded to it)."""
         return object_geoms(self.model, self.object_bodies)
+
+    @cached_property
+    def object_footprint(self) -> np.ndarray:
+        """Footprint radius of each object in the world x-y plane at :attr:`initial_qpos`, (n,), m.
+
+        See :func:`~energy_margin.tasks.scene_objects.object_footprints`; never above the bounding radius.
+        """
+        footprint = object_footprints(self.model, self.object_bodies, self.initial_qpos)
+        return np.minimum(footprint, self.object_radius)
 
     @cached_property
     def object_inertials(self) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,8 @@ An object is named by a body (or a template's copies); it is the body that carri
 welded to it (:func:`~energy_margin.sim.mujoco_index.object_owners`). :func:`object_joint_kind`
 reads the kind of the objects' joints from the model where the scene file does not say it;
 :func:`object_joint` checks each object's joints against that kind; :func:`object_bounds` bounds
-each object's geoms in its body frame. Each problem is one ``spec.error`` line naming the key.
+each object's geoms in its body frame, :func:`object_footprints` in the world x-y plane. Each
+problem is one ``spec.error`` line naming the key.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ __all__ = [
     "moving_body",
     "object_bodies",
     "object_bounds",
+    "object_footprints",
     "object_joint",
     "object_joint_kind",
 ]
@@ -172,3 +174,49 @@ def object_bounds(spec: SceneSpec, model: mujoco.MjModel, bodies: list[int]) -> 
         radius[index] = float(np.max(np.linalg.norm(np.array(positions), axis=1) + model.geom_rbound[geoms]))
         extents[index] = np.max(np.abs(np.concatenate(corners)), axis=0)
     return radius, extents
+
+
+def _horizontal_reach(model: mujoco.MjModel, geom: int, centre: np.ndarray, rotation: np.ndarray) -> float:
+    """How far geom ``geom`` reaches from the body's vertical axis, m: its largest x-y distance from it.
+
+    ``centre`` (3,) is the geom's centre relative to the body origin and ``rotation`` (3, 3) its
+    orientation, both in world axes. Exact for boxes, spheres and a capsule or cylinder standing
+    upright; an upper bound otherwise (a tilted capsule or cylinder: its axis' ends plus the
+    radius; an ellipsoid: its box; a mesh or any other geom: the box of its bounding box).
+    """
+    kind = int(model.geom_type[geom])
+    size = model.geom_size[geom]
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    if kind == int(mujoco.mjtGeom.mjGEOM_SPHERE):
+        return float(np.linalg.norm(centre[:2]) + size[0])
+    if kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
+        ends = centre + np.outer((-size[1], size[1]), rotation[:, 2])
+        return float(np.max(np.linalg.norm(ends[:, :2], axis=1)) + size[0])
+    if kind in (int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_ELLIPSOID)):
+        corners = centre + (signs * size[:3]) @ rotation.T
+    else:
+        box_centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+        corners = centre + (box_centre + signs * half) @ rotation.T
+    return float(np.max(np.linalg.norm(corners[:, :2], axis=1)))
+
+
+def object_footprints(model: mujoco.MjModel, bodies: np.ndarray, qpos: np.ndarray) -> np.ndarray:
+    """Footprint radius of each object in the world x-y plane at configuration ``qpos``, shape (n,), m.
+
+    The largest x-y distance of the object's geoms from the vertical line through its body origin,
+    in the orientation ``qpos`` gives it: a rotation about world z (a start's yaw) keeps it, and two
+    objects whose origins lie farther apart in x-y than the sum of their footprints cannot overlap,
+    whatever their heights. A 12 cm can of radius 3.3 cm standing upright has 0.033 m; its bounding
+    radius is 0.069 m.
+    """
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    result = np.zeros(len(bodies))
+    for index, (body, geoms) in enumerate(zip(bodies, object_geoms(model, bodies), strict=True)):
+        origin = data.xpos[body]
+        result[index] = max(
+            _horizontal_reach(model, int(geom), data.geom_xpos[geom] - origin, data.geom_xmat[geom].reshape(3, 3))
+            for geom in geoms
+        )
+    return result

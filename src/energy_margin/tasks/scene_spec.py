@@ -107,11 +107,12 @@ class StartSpec:
     Attributes:
         mode: ``"ranges"`` (per-axis ranges and yaw) or ``"pile"`` (uniform in a box, any orientation).
         ranges: for ``"ranges"``: ``x``, ``y``, ``z`` (m) and ``yaw`` (rad) -> (low, high); a
-            missing axis keeps the body's model position (yaw: 0).
+            missing axis keeps the object's position in the start configuration: the
+            ``motion.initial_keyframe``'s when the file names one, else the model's (yaw: 0).
         low: for ``"pile"``: lower corner (3,), m.
         high: for ``"pile"``: upper corner (3,), m.
-        min_separation: smallest distance between object origins, m; ``None``: twice the largest
-            bounding radius of an object.
+        min_separation: smallest distance between object origins, m; ``None``: chosen from the
+            objects' shapes (:func:`energy_margin.tasks.scene_layout.start_separation`).
 
     """
 
