@@ -11,6 +11,20 @@ A quoted figure is written between two markers that name its source::
 * after `` :`` an optional Python format spec (``.3f``, ``.2f``, ``,.0f``); without it the value as
   written in the file.
 
+A table of a results file is a block whose rows are generated from a template row, one per
+record of the file::
+
+    <!-- table docs/figures/budget_pushing.csv where method=est
+    | {method} | {budget:.0f|–} | {capture_ap:.3f} [{capture_ap_low:.3f}, {capture_ap_high:.3f}] |
+    -->
+    | est | 10 | 1.000 [1.000, 1.000] |
+    <!-- /table -->
+
+* the records: a CSV file's rows, or the list a JSON file holds at ``#/pointer``; ``where
+  COLUMN=VALUE,...`` keeps the matching ones;
+* ``{column:spec}`` formats a cell as a figure marker does; ``{column:spec|X}`` writes ``X``
+  when the cell is empty or zero (``–`` for a baseline's budget).
+
 ``python tools/figures.py`` lists every quoted figure that disagrees with its file, or whose file
 or key is missing (exit status 1); ``--write`` rewrites each quoted figure from its file.
 ``tests/test_figures.py`` runs the check.
@@ -32,6 +46,12 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The pages whose markers are checked and refreshed.
 PAGES = ("README.md", "docs/**/*.md", "examples/**/*.md")
 MARKER = re.compile(r"<!-- fig (?P<path>[^#\s]+)#(?P<key>.*?)(?: :(?P<spec>[^\s>]*))? -->(?P<value>[^<]*)<!-- /fig -->")
+TABLE = re.compile(
+    r"<!-- table (?P<path>[^#\s]+)(?:#(?P<key>\S*))?(?: where (?P<where>\S+))?\n(?P<template>.*?)\n-->\n"
+    r"(?P<rows>.*?)<!-- /table -->",
+    re.S,
+)
+CELL = re.compile(r"\{(?P<column>[^{}:|]+)(?::(?P<spec>[^{}|]*))?(?:\|(?P<blank>[^{}]*))?\}")
 
 
 class FigureError(Exception):
@@ -120,6 +140,55 @@ def render(value: Any, spec: str | None) -> str:
         raise FigureError(f"cannot format {value!r} with {spec!r}") from error
 
 
+def records(path: str, key: str | None, where: str | None, root: Path = ROOT) -> list[dict[str, Any]]:
+    """The records a table block lists: a CSV file's rows or a JSON list, those matching ``where``."""
+    file = root / path
+    if not file.is_file():
+        raise FigureError("no such file")
+    text = file.read_text(encoding="utf-8")
+    if file.suffix == ".csv":
+        found: Any = list(csv.DictReader(text.splitlines()))
+    elif file.suffix == ".json":
+        found = _json_value(json.loads(text), key or "")
+    else:
+        raise FigureError("a table lists the records of a CSV or JSON file")
+    if not isinstance(found, list) or not all(isinstance(row, dict) for row in found):
+        raise FigureError(f"{key or 'the file'} is not a list of records")
+    wanted = dict(pair.split("=", 1) for pair in where.split(",")) if where else {}
+    return [row for row in found if all(str(row.get(k)) == v for k, v in wanted.items())]
+
+
+def table_rows(template: str, rows: list[dict[str, Any]]) -> str:
+    """One line per record: the template's cells filled in (``{column:spec|blank}``)."""
+
+    def line(row: dict[str, Any]) -> str:
+        def cell(match: re.Match[str]) -> str:
+            column = match.group("column")
+            if column not in row:
+                raise FigureError(f"no column {column!r}")
+            value, blank = row[column], match.group("blank")
+            if blank is not None and (value in ("", None) or _is_zero(value)):
+                return blank
+            return render(value, match.group("spec")) if value not in ("", None) else ""
+
+        return CELL.sub(cell, template)
+
+    return "".join(line(row) + "\n" for row in rows)
+
+
+def _is_zero(value: Any) -> bool:
+    try:
+        return float(value) == 0.0
+    except (TypeError, ValueError):
+        return False
+
+
+def _table(match: re.Match[str], root: Path) -> str:
+    """A table block's rows as its file gives them."""
+    found = records(match.group("path"), match.group("key"), match.group("where"), root)
+    return table_rows(match.group("template"), found)
+
+
 def quotes(page: Path, root: Path = ROOT) -> Iterator[Quote]:
     """Every quoted figure of a page, with the value its file gives (or why there is none)."""
     text = page.read_text(encoding="utf-8")
@@ -132,6 +201,15 @@ def quotes(page: Path, root: Path = ROOT) -> Iterator[Quote]:
         except FigureError as problem:
             expected, error = None, str(problem)
         yield Quote(page, line, source, match.group("value"), expected, error)
+    for match in TABLE.finditer(text):
+        source = f"table {match.group('path')}"
+        line = text.count("\n", 0, match.start()) + 1
+        try:
+            expected = _table(match, root)
+            error = None
+        except FigureError as problem:
+            expected, error = None, str(problem)
+        yield Quote(page, line, source, match.group("rows"), expected, error)
 
 
 def pages(root: Path = ROOT) -> list[Path]:
@@ -162,7 +240,15 @@ def write(page: Path, root: Path = ROOT) -> int:
         spec = f" :{match.group('spec')}" if match.group("spec") else ""
         return f"<!-- fig {match.group('path')}#{match.group('key')}{spec} -->{value}<!-- /fig -->"
 
-    new = MARKER.sub(refresh, text)
+    def refresh_table(match: re.Match[str]) -> str:
+        nonlocal changed
+        rows = _table(match, root)
+        if rows == match.group("rows"):
+            return match.group(0)
+        changed += 1
+        return match.group(0)[: match.start("rows") - match.start()] + rows + "<!-- /table -->"
+
+    new = TABLE.sub(refresh_table, MARKER.sub(refresh, text))
     if changed:
         page.write_text(new, encoding="utf-8")
     return changed

@@ -1,0 +1,80 @@
+"""Figures in the README and docs: how many come from a results file, how many are copied by hand.
+
+Reads a checkout (this one by default, or ``--root`` another) and counts, per page, the decimal
+numbers (``0.895``, ``1.20``) a reader sees: inside a ``<!-- fig ... -->`` marker or a generated
+``<!-- table ... -->`` block (inserted from a results file by ``tools/figures.py``), or written by
+hand. Code blocks are left out (commands and their settings, not figures).
+
+    python benchmarks/docs_figures.py --out docs/figures/docs_figures_after.json
+    python benchmarks/docs_figures.py --root /tmp/before --out docs/figures/docs_figures_before.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+from pathlib import Path
+from typing import Any
+
+DECIMAL = re.compile(r"(?<![\w.])\d+\.\d+(?![\w.])")
+FENCE = re.compile(r"```.*?```", re.S)
+QUOTED = re.compile(r"<!-- fig .*?<!-- /fig -->|<!-- table .*?<!-- /table -->", re.S)
+PAGES = ("README.md", "docs/**/*.md")
+#: Results files themselves (written by the commands that measured them), not pages that quote them.
+RESULTS = "docs/figures/"
+
+
+def page_counts(text: str) -> dict[str, int]:
+    """Decimals of one page: from results files (markers, tables) and by hand."""
+    text = FENCE.sub("", text)
+    quoted = sum(len(DECIMAL.findall(_shown(block))) for block in QUOTED.findall(text))
+    by_hand = len(DECIMAL.findall(QUOTED.sub("", text)))
+    return {"from_files": quoted, "by_hand": by_hand}
+
+
+def _shown(block: str) -> str:
+    """What a reader sees of a marker or table block: its value or rows, not its source."""
+    return block[block.index("-->") + 3 : block.rindex("<!--")]
+
+
+def measure(root: Path) -> dict[str, Any]:
+    """Counts per page and in all, for the checkout ``root``."""
+    found: set[Path] = set()
+    for pattern in PAGES:
+        found.update(root.glob(pattern))
+    pages = {
+        str(path.relative_to(root)): page_counts(path.read_text(encoding="utf-8"))
+        for path in sorted(found)
+        if ".venv" not in path.parts and not str(path.relative_to(root)).startswith(RESULTS)
+    }
+    return {
+        "pages": pages,
+        "from_files": sum(entry["from_files"] for entry in pages.values()),
+        "by_hand": sum(entry["by_hand"] for entry in pages.values()),
+        "readme_by_hand": pages.get("README.md", {}).get("by_hand", 0),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1], help="the checkout")
+    parser.add_argument("--out", type=Path, help="write the figures as JSON here")
+    args = parser.parse_args()
+    root = args.root.resolve()
+    commit = subprocess.run(
+        ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
+    ).stdout.strip()
+    figures = {"commit": commit, **measure(root)}
+    print(f"checkout {root} at {commit}")
+    for page, entry in sorted(figures["pages"].items(), key=lambda item: -item[1]["by_hand"]):
+        if entry["by_hand"] or entry["from_files"]:
+            print(f"  {page:<40} {entry['from_files']:>5} from files {entry['by_hand']:>5} by hand")
+    print(f"  {'all pages':<40} {figures['from_files']:>5} from files {figures['by_hand']:>5} by hand")
+    if args.out is not None:
+        args.out.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
