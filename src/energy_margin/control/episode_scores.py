@@ -51,7 +51,7 @@ class ControlResult(TypedResult):
     """What :func:`~energy_margin.control.episodes.run_control` measured over a run's episodes.
 
     ``to_dict()`` is the ``summary`` of ``control.json`` (and of the dataset's ``control``
-    metadata), and what ``control --json`` prints.
+    metadata), and the JSON ``control`` prints.
 
     Attributes:
         task: the task's registered name.
