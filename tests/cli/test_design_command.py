@@ -194,7 +194,7 @@ def test_verification_episodes_are_those_of_control(tmp_path: Path) -> None:
         score_expansions=0,
     )
     assert [found[i] for i in range(3)] == dataset.success_labels().astype(bool).tolist()
-    assert summary["successes"] == sum(found.values())
+    assert summary.successes == sum(found.values())
 
 
 def test_a_scene_the_episodes_cannot_control_is_refused_before_the_search(tmp_path: Path, capsys) -> None:

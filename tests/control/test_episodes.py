@@ -9,11 +9,14 @@ import numpy as np
 import pytest
 
 from energy_margin.control.costs import CostWeights
+from energy_margin.control.episode_draws import ControlSettings
+from energy_margin.control.episode_scores import ControlResult, summarize
 from energy_margin.control.episodes import CONTROL_FILE, run_control
 from energy_margin.control.mppi import ControllerConfig
-from energy_margin.data.dataset import load_dataset
+from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.statistics import wilson_interval
+from energy_margin.runs.files import write_json
 
 # One cylinder 0.1-0.15 m short of the wall band, the pusher 0.2-0.3 m behind it, and a script
 # that pushes with no force: only a controller that pushes reaches the band in 1.5 s.
@@ -37,13 +40,13 @@ def test_controller_reaches_an_easy_goal_the_script_misses(tmp_path: Path) -> No
     task, dataset = run_control(
         "pushing", policy="task", out=tmp_path / "t", task_overrides=EASY, controller=SMALL, **options
     )
-    assert scripted["successes"] == 0
-    assert task["successes"] == 3
-    assert task["decisions"] == 3 * 15 and task["seconds_per_decision"] > 0
+    assert scripted.successes == 0
+    assert task.successes == 3
+    assert task.decisions == 3 * 15 and task.seconds_per_decision > 0
     assert dataset.arrays["in_success"][:, -1].all()
 
 
-def _run(out: Path, **options: object) -> tuple[dict, object]:
+def _run(out: Path, **options: object) -> tuple[ControlResult, Dataset]:
     values: dict[str, object] = {
         "n_objects": 2,
         "episodes": 3,
@@ -63,7 +66,7 @@ def test_same_seed_same_episodes_with_one_or_two_workers(tmp_path: Path) -> None
     one, first = _run(tmp_path / "one")
     two, second = _run(tmp_path / "two", workers=2)
     for key in ("successes", "captured_fraction", "mean_capture_score", "decisions"):
-        assert one[key] == two[key]
+        assert getattr(one, key) == getattr(two, key)
     for name, array in first.arrays.items():  # type: ignore[attr-defined]
         np.testing.assert_array_equal(array, second.arrays[name], err_msg=name)  # type: ignore[attr-defined]
     _, third = _run(tmp_path / "other", seed=4)
@@ -94,7 +97,9 @@ def test_an_interrupted_run_resumes_without_recomputing(tmp_path: Path, monkeypa
     resumed, resumed_set = _run(tmp_path / "run")
     assert len(calls) == 2
     timing = "seconds_per_decision"
-    assert {k: v for k, v in resumed.items() if k != timing} == {k: v for k, v in reference.items() if k != timing}
+    assert {k: v for k, v in resumed.to_dict().items() if k != timing} == {
+        k: v for k, v in reference.to_dict().items() if k != timing
+    }
     np.testing.assert_array_equal(resumed_set.arrays["object_pos"], reference_set.arrays["object_pos"])  # type: ignore[attr-defined]
 
 
@@ -107,10 +112,10 @@ def test_a_run_is_a_dataset_with_its_settings(tmp_path: Path) -> None:
     assert control["settings"]["weights"]["margin"] == 3.0
     assert control["settings"]["disturbance"]["name"] == "hard"
     stored = json.loads((tmp_path / "run" / CONTROL_FILE).read_text())
-    assert stored["summary"] == summary
-    assert 0.0 <= summary["mean_capture_score"] <= 1.0
-    low, high = summary["success_interval"]
-    assert low <= summary["success_rate"] <= high
+    assert stored["summary"] == summary.to_dict()
+    assert 0.0 <= summary.mean_capture_score <= 1.0
+    low, high = summary.success_interval
+    assert low <= summary.success_rate <= high
 
 
 def test_a_run_grows_to_more_episodes_without_recomputing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -129,7 +134,7 @@ def test_a_run_grows_to_more_episodes_without_recomputing(tmp_path: Path, monkey
     grown, grown_set = _run(tmp_path / "run")
     assert len(calls) == 1
     np.testing.assert_array_equal(grown_set.arrays["object_pos"], reference_set.arrays["object_pos"])  # type: ignore[attr-defined]
-    assert grown["successes"] == reference["successes"] and grown["episodes"] == 3
+    assert grown.successes == reference.successes and grown.episodes == 3
 
 
 def test_other_settings_in_the_same_directory_are_refused(tmp_path: Path) -> None:
@@ -137,7 +142,49 @@ def test_other_settings_in_the_same_directory_are_refused(tmp_path: Path) -> Non
     with pytest.raises(EnergyMarginError, match="holds episodes of other settings"):
         _run(tmp_path / "run", policy="heuristic")
     summary, _ = _run(tmp_path / "run", policy="heuristic", overwrite=True)
-    assert summary["policy"] == "heuristic"
+    assert summary.policy == "heuristic"
+
+
+def test_the_summary_is_typed_and_its_dictionary_is_the_json(tmp_path: Path) -> None:
+    import warnings
+
+    settings = ControlSettings(
+        task="pushing", task_config={}, n_objects=2, episodes=2, policy="task", disturbance={"name": "mild"}, seed=0
+    )
+    infos = [
+        {"success": True, "decisions": 4, "decision_seconds": 0.5, "captured_fraction": 1.0, "capture_scores": [0.5]},
+        {"success": False, "decisions": 6, "decision_seconds": 1.5, "captured_fraction": 0.5},
+    ]
+    result = summarize(settings, infos)
+    assert isinstance(result, ControlResult)
+    assert result.successes == 1 and result.success_rate == 0.5 and result.seconds_per_decision == 0.2
+    assert result.mean_capture_score == 0.5 and result.captured_fraction == 0.75
+    # The JSON written (control.json's summary) is that of the dictionary earlier releases returned.
+    low, high = wilson_interval(1, 2)
+    earlier = {
+        "task": "pushing",
+        "n_objects": 2,
+        "policy": "task",
+        "disturbance": "mild",
+        "episodes": 2,
+        "successes": 1,
+        "success_rate": 0.5,
+        "success_interval": [low, high],
+        "captured_fraction": 0.75,
+        "mean_capture_score": 0.5,
+        "decisions": 10,
+        "seconds_per_decision": 0.2,
+    }
+    write_json(tmp_path / "typed.json", {"summary": result.to_dict()})
+    write_json(tmp_path / "earlier.json", {"summary": earlier})
+    assert (tmp_path / "typed.json").read_bytes() == (tmp_path / "earlier.json").read_bytes()
+    assert ControlResult.from_dict(earlier) == result
+    # Reading it as the dictionary of earlier releases still works, with a warning naming the attribute.
+    with pytest.warns(DeprecationWarning, match=r"use \.success_rate"):
+        assert result["success_rate"] == 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "successes" in result and len(result) == len(earlier) and list(result) == list(earlier)
 
 
 @pytest.mark.parametrize(
@@ -180,7 +227,7 @@ def test_a_scooping_episode_closes_and_lifts_on_the_script_timeline(tmp_path: Pa
         score_expansions=0,
     )
     task = get_task("scooping")
-    assert summary["decisions"] == 23
+    assert summary.decisions == 23
     final = dataset.arrays["robot_q"][0, -1]  # type: ignore[attr-defined]
     # Fingers (coordinates 1 and 3) closed, base lifted most of lift_height above contact.
     assert final[1] == pytest.approx(task.closed_travel, abs=2e-3)

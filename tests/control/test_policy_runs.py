@@ -19,6 +19,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.cli import main
 from energy_margin.control.costs import CostWeights
+from energy_margin.control.episode_scores import ControlResult
 from energy_margin.control.episodes import CONTROL_FILE, EPISODES_DIR, run_control
 from energy_margin.control.mppi import ControllerConfig
 from energy_margin.data.dataset import Dataset, load_dataset
@@ -26,6 +27,7 @@ from energy_margin.data.generate import generate_dataset
 from energy_margin.data.validation import check_dataset
 from energy_margin.evaluation.statistics import wilson_interval
 from energy_margin.learning.margin_model import fit_margin_model
+from energy_margin.runs.results import plain_result
 from energy_margin.tasks import get_task
 
 # Three objects under the hard disturbance for 0.5 s: 10 decisions of 4 samples per episode.
@@ -54,8 +56,11 @@ def _episode_infos(out: Path, episodes: int) -> list[dict[str, Any]]:
     return infos
 
 
-def _check_run(out: Path, summary: dict[str, Any], dataset: Dataset, *, policy: str) -> list[dict[str, Any]]:
+def _check_run(
+    out: Path, result: ControlResult | dict[str, Any], dataset: Dataset, *, policy: str
+) -> list[dict[str, Any]]:
     """The run's dataset is valid and its summary is what its episodes say; returns the episodes' info."""
+    summary = plain_result(result)
     assert check_dataset(out) == []
     episodes = OPTIONS["episodes"]
     assert dataset.n_trajectories == episodes and dataset.n_frames == OPTIONS["n_frames"]
@@ -89,8 +94,8 @@ def _check_run(out: Path, summary: dict[str, Any], dataset: Dataset, *, policy: 
     return infos
 
 
-def _without_timing(summary: dict[str, Any]) -> dict[str, Any]:
-    return {key: value for key, value in summary.items() if key != "seconds_per_decision"}
+def _without_timing(summary: ControlResult | dict[str, Any]) -> dict[str, Any]:
+    return {key: value for key, value in plain_result(summary).items() if key != "seconds_per_decision"}
 
 
 def _assert_same_runs(first: Dataset, second: Dataset) -> None:
@@ -104,13 +109,13 @@ def _differs(first: Dataset, second: Dataset) -> bool:
 
 
 @pytest.fixture(scope="module")
-def task_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], Dataset]:
+def task_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[ControlResult, Dataset]:
     """The ``task`` policy on the same episodes."""
     out = tmp_path_factory.mktemp("control") / "task"
     return run_control("pushing", policy="task", out=out, **OPTIONS)
 
 
-def test_margin_policy_run(tmp_path: Path, task_run: tuple[dict[str, Any], Dataset]) -> None:
+def test_margin_policy_run(tmp_path: Path, task_run: tuple[ControlResult, Dataset]) -> None:
     summary, dataset = run_control("pushing", policy="margin", out=tmp_path / "margin", **OPTIONS)
     infos = _check_run(tmp_path / "margin", summary, dataset, policy="margin")
     # Every decision analysed its margin_samples lowest-cost samples.
@@ -182,7 +187,7 @@ def _control_cli(out: Path, policy: str, *extra: str) -> None:
 def test_learned_policy_run(
     tmp_path: Path,
     model_file: Path,
-    task_run: tuple[dict[str, Any], Dataset],
+    task_run: tuple[ControlResult, Dataset],
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     out = tmp_path / "learned"

@@ -100,8 +100,8 @@ def test_controller_pushes_a_scene_box_the_declared_motion_leaves(tmp_path: Path
         controller=ControllerConfig(samples=8, horizon=6),
         **options,  # type: ignore[arg-type]
     )
-    assert scripted["successes"] == 0
-    assert controlled["successes"] == 2
+    assert scripted.successes == 0
+    assert controlled.successes == 2
 
 
 def test_a_scene_moving_mocap_bodies_is_refused(tiny_scene: Path) -> None:

@@ -16,11 +16,13 @@ from energy_margin.experiments.budget import (
     QUESTION_LABELS,
     QUESTIONS,
     SETTINGS_FILE,
+    BudgetSweepResult,
     average_precision,
     budget_sweep,
     plot,
 )
 from energy_margin.experiments.budget_display import BudgetDisplay
+from energy_margin.runs.tables import write_json
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -59,7 +61,43 @@ def test_budget_sweep_writes_tables_and_resumes(tiny_dataset: Path, capsys: pyte
     assert len(lines) == len(rows) + 1
     # A second run finds every analysis finished and gives the same rows.
     again = budget_sweep(tiny_dataset, budgets=[5, 10], bootstrap=50, seed=3, log=lambda line: None)
-    assert [r["capture_ap"] for r in again] == [r["capture_ap"] for r in rows]
+    assert [r["capture_ap"] for r in again.rows] == [r["capture_ap"] for r in rows]
+
+
+def test_the_sweep_is_typed_and_its_dictionary_is_the_json(tiny_dataset: Path, tmp_path: Path) -> None:
+    import warnings
+
+    result = budget_sweep(tiny_dataset, budgets=[3], methods=["est"], bootstrap=5, seed=2, log=lambda line: None)
+    assert isinstance(result, BudgetSweepResult)
+    assert result.dataset == str(tiny_dataset) and result.seed == 2 and result.bootstrap == 5 and result.workers == 1
+    assert [(row["method"], row["budget"]) for row in result.rows][-1] == ("est", 3)
+    # The JSON written is the dictionary of the dataset, the settings and the rows, as before.
+    written = tiny_dataset / "budget" / "budget.json"
+    earlier = {
+        "dataset": str(tiny_dataset),
+        "task": result.task,
+        "n_trajectories": result.n_trajectories,
+        "n_frames": result.n_frames,
+        "n_objects": result.n_objects,
+        "seed": 2,
+        "bootstrap": 5,
+        "workers": 1,
+        "analyzer": result.analyzer,
+        "title": result.title,
+        "rows": result.rows,
+    }
+    assert result.to_dict() == json.loads(written.read_text()) == json.loads(json.dumps(earlier))
+    write_json(tmp_path / "typed.json", result.to_dict())
+    write_json(tmp_path / "earlier.json", earlier)
+    assert written.read_bytes() == (tmp_path / "typed.json").read_bytes() == (tmp_path / "earlier.json").read_bytes()
+    # Reading it as the dictionary, or as the list of rows, of earlier releases still works, with a warning.
+    with pytest.warns(DeprecationWarning, match=r"use \.seed"):
+        assert result["seed"] == 2
+    with pytest.warns(DeprecationWarning, match=r"use \.rows\[-1\]"):
+        assert result[-1] == result.rows[-1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "rows" in result and list(result) == list(earlier)
 
 
 def test_budget_bad_input_is_one_line(tiny_dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -87,10 +87,10 @@ def test_split_and_full_pool_fit_are_fit_margin_models(dataset: Dataset, curves:
     assert held_out_trajectories([dataset], seed=0, holdout=0.25) == list(curve.held_out)
     _, report = fit_margin_model([dataset], seed=0, kind="boosting", **TINY)
     reference = curve.reference
-    assert reference is not None and reference.frames == report["n_frames"]["train"] == 36
-    assert (reference.r2_capture, reference.r2_success) == (report["r2"]["capture"], report["r2"]["success"])
+    assert reference is not None and reference.frames == report.n_frames["train"] == 36
+    assert (reference.r2_capture, reference.r2_success) == (report.r2["capture"], report.r2["success"])
     for question in QUESTIONS:
-        assert reference.ap[question] == QuestionAp(**report["ap"][question])
+        assert reference.ap[question] == QuestionAp(**report.ap[question])
     # The last point uses the whole pool too, so it is the same fit.
     assert curve.points[-1].ap == reference.ap
 

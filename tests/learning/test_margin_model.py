@@ -16,6 +16,7 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.margin_model import (
     MarginModel,
+    MarginModelReport,
     fit_margin_model,
     load_margin_model,
     load_training_datasets,
@@ -43,7 +44,7 @@ def dataset(analysed: Path) -> Dataset:
 
 
 @pytest.fixture(scope="module", params=["mlp", "boosting", "set"])
-def fitted(request: pytest.FixtureRequest, dataset: Dataset) -> tuple[MarginModel, dict]:
+def fitted(request: pytest.FixtureRequest, dataset: Dataset) -> tuple[MarginModel, MarginModelReport]:
     return fit_margin_model([dataset], seed=0, kind=request.param, **SMALL[request.param])
 
 
@@ -51,7 +52,7 @@ def frames_of(dataset: Dataset) -> list[FrameState]:
     return [dataset.frame(t, k) for t in range(dataset.n_trajectories) for k in range(dataset.n_frames)]
 
 
-def test_predict_shapes_range_and_batching(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+def test_predict_shapes_range_and_batching(fitted: tuple[MarginModel, MarginModelReport], dataset: Dataset) -> None:
     model, _ = fitted
     frames = frames_of(dataset)
     capture, success = model.predict(dataset.task, frames)
@@ -67,20 +68,20 @@ def test_predict_shapes_range_and_batching(fitted: tuple[MarginModel, dict], dat
     assert live.stopped_by == "learned" and live.expansions == 0 and live.seconds > 0
 
 
-def test_report_splits_by_trajectory(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+def test_report_splits_by_trajectory(fitted: tuple[MarginModel, MarginModelReport], dataset: Dataset) -> None:
     _, report = fitted
-    assert report["n_trajectories"] == {"train": 4, "held_out": 2}
-    assert report["n_frames"] == {"train": 4 * dataset.n_frames, "held_out": 2 * dataset.n_frames}
-    assert set(report["r2"]) == {"capture", "success"}
+    assert report.n_trajectories == {"train": 4, "held_out": 2}
+    assert report.n_frames == {"train": 4 * dataset.n_frames, "held_out": 2 * dataset.n_frames}
+    assert set(report.r2) == {"capture", "success"}
     for question in ("capture", "capture_window2", "success", "success_first_half"):
-        assert set(report["ap"][question]) == {"learned", "tree"}
-    assert report["seconds_per_query"] > 0 and report["tree_seconds_per_frame"] > 0
-    assert report["speedup"] == pytest.approx(report["tree_seconds_per_frame"] / report["seconds_per_query"])
-    assert report["feature_set"] == ("object-sets/1" if report["kind"] == "set" else "frame-statistics/1")
+        assert set(report.ap[question]) == {"learned", "tree"}
+    assert report.seconds_per_query > 0 and report.tree_seconds_per_frame > 0
+    assert report.speedup == pytest.approx(report.tree_seconds_per_frame / report.seconds_per_query)
+    assert report.feature_set == ("object-sets/1" if report.kind == "set" else "frame-statistics/1")
 
 
 def test_save_load_round_trip_predicts_identically(
-    fitted: tuple[MarginModel, dict], dataset: Dataset, tmp_path: Path
+    fitted: tuple[MarginModel, MarginModelReport], dataset: Dataset, tmp_path: Path
 ) -> None:
     model, report = fitted
     path = tmp_path / "model"  # no .npz suffix: the file keeps the given name
@@ -92,7 +93,58 @@ def test_save_load_round_trip_predicts_identically(
         np.testing.assert_array_equal(ours, theirs)
     assert (loaded.task_name, loaded.kind, loaded.package_version) == ("pushing", model.kind, __version__)
     assert loaded.task.config == dataset.task.config
-    assert loaded.report["r2"] == json.loads(json.dumps(report["r2"]))
+    assert loaded.report["r2"] == json.loads(json.dumps(report.r2))
+
+
+#: The report's keys, in the order of the dictionary earlier releases returned and saved.
+REPORT_KEYS = [
+    "r2",
+    "ap",
+    "success_frames",
+    "capture_positive_rate",
+    "success_positive_rate",
+    "seconds_per_query",
+    "seconds_single_query",
+    "cpu_seconds_per_query",
+    "cpu_seconds_single_query",
+    "tree_seconds_per_frame",
+    "speedup",
+    "speedup_single_query",
+    "task",
+    "kind",
+    "seed",
+    "holdout",
+    "feature_set",
+    "n_features",
+    "n_trajectories",
+    "n_frames",
+    "fit_seconds",
+    "fit",
+    "datasets",
+]
+
+
+def test_the_report_is_typed_and_its_dictionary_is_the_saved_json(
+    fitted: tuple[MarginModel, MarginModelReport], tmp_path: Path
+) -> None:
+    import warnings
+
+    model, report = fitted
+    assert isinstance(report, MarginModelReport)
+    assert report.task == "pushing" and report.seed == 0 and report.holdout == 0.25 and report.success_frames == 3
+    assert list(report.to_dict()) == REPORT_KEYS
+    # The model keeps (and saves) the dictionary: the file's report is the one written before.
+    assert model.report == report.to_dict() and isinstance(model.report, dict)
+    model.save(tmp_path / "model.npz")
+    loaded = load_margin_model(tmp_path / "model.npz", task_name="pushing")
+    assert loaded.report == json.loads(json.dumps(report.to_dict()))
+    assert MarginModelReport.from_dict(report.to_dict()) == report
+    # Reading it as the dictionary of earlier releases still works, with a warning naming the attribute.
+    with pytest.warns(DeprecationWarning, match=r"use \.n_frames"):
+        assert report["n_frames"] == report.n_frames
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert "ap" in report and list(report) == REPORT_KEYS and len(report) == len(REPORT_KEYS)
 
 
 def rewrite_header(path: Path, **changes: object) -> None:
@@ -105,7 +157,7 @@ def rewrite_header(path: Path, **changes: object) -> None:
         np.savez(stream, **arrays)
 
 
-def test_refuses_foreign_task_version_and_files(fitted: tuple[MarginModel, dict], tmp_path: Path) -> None:
+def test_refuses_foreign_task_version_and_files(fitted: tuple[MarginModel, MarginModelReport], tmp_path: Path) -> None:
     model, _ = fitted
     path = tmp_path / "model.npz"
     model.save(path)
@@ -229,13 +281,13 @@ def test_load_training_datasets_checks_scores(analysed: Path) -> None:
     assert [d.path for d in load_training_datasets([analysed])] == [analysed]
 
 
-def test_same_seed_same_model(fitted: tuple[MarginModel, dict], dataset: Dataset) -> None:
+def test_same_seed_same_model(fitted: tuple[MarginModel, MarginModelReport], dataset: Dataset) -> None:
     model, report = fitted
     again, report_again = fit_margin_model([dataset], seed=0, kind=model.kind, **SMALL[model.kind])
     frames = frames_of(dataset)
     for ours, theirs in zip(model.predict(dataset.task, frames), again.predict(dataset.task, frames), strict=True):
         np.testing.assert_array_equal(ours, theirs)
-    assert report_again["r2"] == report["r2"] and report_again["ap"] == report["ap"]
+    assert report_again.r2 == report.r2 and report_again.ap == report.ap
 
 
 def _read_scores_csv(path: Path, n_trajectories: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -284,8 +336,8 @@ def test_held_out_r2_and_ap_match_an_independent_computation(tmp_path: Path, mon
         inside = [row.tobytes() in fitted_rows for row in rows]
         assert all(inside) or not any(inside), f"trajectory {t} is split"
         (kept if all(inside) else held).append(t)
-    assert len(held) == report["n_trajectories"]["held_out"] == 4 and len(kept) == 4
-    assert train_x.shape[0] == len(kept) * n_frames == report["n_frames"]["train"]
+    assert len(held) == report.n_trajectories["held_out"] == 4 and len(kept) == 4
+    assert train_x.shape[0] == len(kept) * n_frames == report.n_frames["train"]
     # The fit's targets are the kept trajectories' scores, frame by frame.
     np.testing.assert_array_equal(train_y, np.stack([capture[kept].ravel(), success[kept].ravel()], axis=1))
     # Held-out predictions of the saved model, and the report's figures computed from them.
@@ -297,12 +349,8 @@ def test_held_out_r2_and_ap_match_an_independent_computation(tmp_path: Path, mon
         predicted_success.reshape(len(held), n_frames),
     )
     assert np.ptp(predicted_capture) > 0.01  # the predictions rank the frames (not one constant)
-    assert report["r2"]["capture"] == pytest.approx(
-        r2_score(capture[held].ravel(), predicted_capture.ravel()), abs=1e-9
-    )
-    assert report["r2"]["success"] == pytest.approx(
-        r2_score(success[held].ravel(), predicted_success.ravel()), abs=1e-9
-    )
+    assert report.r2["capture"] == pytest.approx(r2_score(capture[held].ravel(), predicted_capture.ravel()), abs=1e-9)
+    assert report.r2["success"] == pytest.approx(r2_score(success[held].ravel(), predicted_success.ravel()), abs=1e-9)
     captured = dataset.arrays["captured"][held].astype(bool)
     stays = captured.copy()  # captured at k, k+1 and k+2 (the frames that exist)
     stays[:, :-1] &= captured[:, 1:]
@@ -318,5 +366,5 @@ def test_held_out_r2_and_ap_match_an_independent_computation(tmp_path: Path, mon
     }
     for question, (labels, learned, tree) in expected.items():
         assert 0 < labels.sum() < labels.size, question  # both classes: the AP is defined
-        assert report["ap"][question]["learned"] == pytest.approx(average_precision_score(labels, learned), abs=1e-9)
-        assert report["ap"][question]["tree"] == pytest.approx(average_precision_score(labels, tree), abs=1e-9)
+        assert report.ap[question]["learned"] == pytest.approx(average_precision_score(labels, learned), abs=1e-9)
+        assert report.ap[question]["tree"] == pytest.approx(average_precision_score(labels, tree), abs=1e-9)

@@ -123,9 +123,9 @@ def test_pipeline_writes_a_model_that_loads(baseline: LearnResult) -> None:
         analysis = json.loads((item.directory / "analysis.json").read_text())
         assert analysis["seed"] == item.analysis_seed and analysis["analyzer"]["expansions"] == 10
     settings = json.loads((work / SETTINGS_FILE).read_text())
-    assert settings["objects"] == [2, 3] and settings["fit_seed"] == baseline.fit_seed == baseline.report["seed"]
+    assert settings["objects"] == [2, 3] and settings["fit_seed"] == baseline.fit_seed == baseline.report.seed
     assert not baseline.resumed and not (work / LOCK_FILE).exists()
-    assert baseline.report["n_trajectories"] == {"train": 4, "held_out": 2}
+    assert baseline.report.n_trajectories == {"train": 4, "held_out": 2}
 
 
 def test_seeds_come_from_seed_sequence_spawn() -> None:

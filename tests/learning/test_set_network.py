@@ -178,10 +178,7 @@ def two_sizes(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
 def test_one_set_model_scores_every_trained_count_and_refuses_others(two_sizes: list[Path], tmp_path: Path) -> None:
     datasets = [load_dataset(path) for path in two_sizes]
     model, report = fit_margin_model(datasets, seed=0, kind="set", hidden=8, epochs=4)
-    assert (
-        model.n_objects_range == (2, 4)
-        and report["n_trajectories"]["train"] + report["n_trajectories"]["held_out"] == 8
-    )
+    assert model.n_objects_range == (2, 4) and report.n_trajectories["train"] + report.n_trajectories["held_out"] == 8
     model.save(tmp_path / "m.npz")
     loaded = load_margin_model(tmp_path / "m.npz", task_name="pushing")
     assert loaded.kind == "set" and loaded.n_objects_range == (2, 4)

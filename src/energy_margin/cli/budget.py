@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.experiments.budget import budget_sweep, format_table
 
     base = AnalyzerConfig(batch=args.batch, threads=args.threads)
-    rows = budget_sweep(
+    result = budget_sweep(
         args.dataset,
         budgets=args.expansions,
         methods=args.methods,
@@ -71,5 +71,5 @@ def run(args: argparse.Namespace) -> int:
         base=base,
         overwrite=args.overwrite,
     )
-    print(format_table(rows))
+    print(format_table(result.rows))
     return 0

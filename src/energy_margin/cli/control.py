@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
         if args.policy != "learned":
             raise EnergyMarginError("--model is only for --policy learned")
         model, model_info = _load_model(args.model, task_name)
-    summary, _ = run_control(
+    result, _ = run_control(
         task_name,
         n_objects=n_objects,
         episodes=args.episodes,
@@ -205,6 +205,7 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=not args.no_progress and not args.json,
     )
+    summary = result.to_dict()
     if args.json:
         print_json(summary)
     else:

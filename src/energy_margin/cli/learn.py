@@ -249,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             progress=progress,
         )
-        report = result.report
+        report = result.report.to_dict()
         extra = {
             "work": str(result.work),
             "fit_seed": result.fit_seed,
@@ -277,4 +277,4 @@ def _fit_datasets(args: argparse.Namespace, out: Path) -> dict[str, Any]:
         datasets, seed=args.seed, kind=args.kind, holdout=args.holdout, success_frames=args.success_frames
     )
     model.save(out)
-    return report
+    return report.to_dict()

@@ -9,6 +9,7 @@ the controller, and :mod:`~energy_margin.control.episodes` runs episodes and wri
 from energy_margin.control.commands import CommandSpace, command_space, register_command_space
 from energy_margin.control.costs import COSTS, CostWeights
 from energy_margin.control.disturbances import DISTURBANCES, Disturbance
+from energy_margin.control.episode_scores import ControlResult
 from energy_margin.control.episodes import POLICIES, run_control, run_episode
 from energy_margin.control.mppi import Controller, ControllerConfig
 
@@ -17,6 +18,7 @@ __all__ = [
     "DISTURBANCES",
     "POLICIES",
     "CommandSpace",
+    "ControlResult",
     "Controller",
     "ControllerConfig",
     "CostWeights",

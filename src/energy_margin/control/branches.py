@@ -257,17 +257,37 @@ def branch_episode(
             (truth, time, held_then, commands, scripted),
             model,
         )
-        first_after = step // period_steps + config.horizon
-        outcomes = np.zeros(len(commands), dtype=bool)
-        for branch, sequence in enumerate(commands):
-            plant.set_state(state)
-            if held_then is not None:
-                plant.set_robot_targets(held_then)
-            schedule = np.concatenate([sequence, nominal[first_after:]])
-            play(schedule, held=held_then, start_step=step)
-            outcomes[branch] = task.is_successful(plant.frame_state())
+        tail = nominal[step // period_steps + config.horizon :]
+        outcomes = _branch_outcomes(task, plant, play, state, held_then, step, commands, tail)
         states.append(BranchState(index, round(time, 9), nominal_success, outcomes, values))
     return nominal_success, states
+
+
+def _branch_outcomes(
+    task: Task,
+    plant: Simulator,
+    play: Callable[..., object],
+    state: np.ndarray,
+    held: np.ndarray | None,
+    step: int,
+    commands: np.ndarray,
+    tail: np.ndarray,
+) -> np.ndarray:
+    """Whether each branch succeeds: the plant from ``state`` at ``step`` under one sampled sequence, then ``tail``.
+
+    ``commands`` holds the sampled sequences (one per branch), ``tail`` the nominal commands after
+    the controller's horizon, ``held`` the robot targets held at ``step``; ``play`` runs the plant
+    to the end under the pushes. Returns one bool per branch.
+    """
+    outcomes = np.zeros(len(commands), dtype=bool)
+    for branch, sequence in enumerate(commands):
+        plant.set_state(state)
+        if held is not None:
+            plant.set_robot_targets(held)
+        schedule = np.concatenate([sequence, tail])
+        play(schedule, held=held, start_step=step)
+        outcomes[branch] = task.is_successful(plant.frame_state())
+    return outcomes
 
 
 def _cost_context(

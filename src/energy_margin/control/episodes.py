@@ -36,7 +36,7 @@ from energy_margin.control.episode_draws import (
     episode_seeds,
     observed_frame,
 )
-from energy_margin.control.episode_scores import _frame_scores, summarize
+from energy_margin.control.episode_scores import ControlResult, _frame_scores, summarize
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
@@ -55,6 +55,7 @@ __all__ = [
     "EPISODES_DIR",
     "EPISODE_STREAMS",
     "POLICIES",
+    "ControlResult",
     "ControlSettings",
     "apply_inputs",
     "draw_episode",
@@ -338,7 +339,7 @@ def run_control(
     overwrite: bool = False,
     progress: Progress = False,
     on_episode: Callable[[int], None] | None = None,
-) -> tuple[dict[str, Any], Dataset]:
+) -> tuple[ControlResult, Dataset]:
     """Run (or resume) ``episodes`` episodes of ``policy`` and write them as a dataset at ``out``.
 
     Args:
@@ -362,7 +363,7 @@ def run_control(
         on_episode: called with each episode's index as it is saved (tests use it to interrupt).
 
     Returns:
-        The summary (:func:`summarize`) and the dataset.
+        The summary (:class:`~energy_margin.control.episode_scores.ControlResult`) and the dataset.
 
     """
     _check_arguments(n_objects, episodes, seed, n_frames, score_expansions, workers, policy, model)
@@ -388,7 +389,7 @@ def run_control(
         ordered = _episodes(task, settings, model, out, workers=workers, progress=progress, on_episode=on_episode)
         summary = summarize(settings, [result["info"] for result in ordered])
         _write_dataset(task, settings, summary, ordered, out)
-        run.write_settings({"summary": summary, "package_version": __version__})
+        run.write_settings({"summary": summary.to_dict(), "package_version": __version__})
     return summary, load_dataset(out)
 
 
@@ -434,7 +435,7 @@ def _control_task(
 
 
 def _write_dataset(
-    task: Task, settings: ControlSettings, summary: dict[str, Any], ordered: list[dict[str, Any]], out: Path
+    task: Task, settings: ControlSettings, summary: ControlResult, ordered: list[dict[str, Any]], out: Path
 ) -> None:
     """Write the episodes' records as a dataset at ``out``, with the settings and the summary."""
     dataset = records_dataset(
@@ -442,7 +443,7 @@ def _write_dataset(
         [result["record"] for result in ordered],
         out,
         engine="mujoco",
-        extra={"control": {"settings": settings.to_dict(), "summary": summary}},
+        extra={"control": {"settings": settings.to_dict(), "summary": summary.to_dict()}},
     )
     with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
         save_npz(stream, dataset.arrays, compressed=True)

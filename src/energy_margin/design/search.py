@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -74,10 +75,10 @@ from energy_margin.design.space import (
 )
 from energy_margin.design.sweep import task_settings
 from energy_margin.errors import InvalidParameterError, check_choice, check_int, check_seed
-from energy_margin.runs import RunSpec, run_directory
+from energy_margin.runs import RunDirectory, RunSpec, run_directory
 from energy_margin.runs.progress import Progress
 from energy_margin.runs.tables import write_json
-from energy_margin.tasks import Task, resolve_task
+from energy_margin.tasks import DesignParameter, Task, resolve_task
 
 #: A design search's run directory. Every setting decides the results but the learned model's
 #: path (its contents, by SHA-256, do).
@@ -166,14 +167,25 @@ def design_search(
         on_evaluation: called with ``(phase, index)`` after each new evaluation is journalled.
 
     Returns:
-        The :class:`~energy_margin.design.search_result.DesignSearchResult`, whose ``to_dict()``
-        is ``result.json``.
+        The :class:`~energy_margin.design.search_result.DesignSearchResult`; its ``to_dict()`` is ``result.json``.
 
     Raises:
         EnergyMarginError: a bad argument, parameter, range, value or design (one line each),
             an optimiser whose library is missing, ``out`` holding something else.
-
     """
+    _check_counts(evaluations, verify, n_trajectories, n_frames, seed, workers, score)
+    prepared = _prepare(
+        task, params, fixed, disturbances, optimizer, scorer, verifier, n_objects, engine, seed, n_trajectories
+    )
+    settings = prepared.settings(n_frames, optimizer, evaluations, score, verifier, verify, verify_all, extra_settings)
+    with run_directory(out, DESIGN_RUN, settings, overwrite=overwrite, engine=engine) as run:
+        return _run_search(run, prepared, verifier, workers, progress, log, on_evaluation, picture)
+
+
+def _check_counts(
+    evaluations: int, verify: int, n_trajectories: int, n_frames: int, seed: int, workers: int, score: str
+) -> None:
+    """Refuse a count out of range, a bad seed or an unknown score column (before the task is resolved)."""
     check_int("evaluations", evaluations, minimum=1)
     check_int("verify", verify, minimum=1)
     check_int("n_trajectories", n_trajectories, minimum=1)
@@ -181,6 +193,71 @@ def design_search(
     check_seed(seed)
     check_int("workers", workers, minimum=1)
     check_choice("score", score, MARGINS)
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """A search's resolved task, space and scorer, checked (:func:`_prepare`), before its run directory opens.
+
+    The other fields are :func:`design_search`'s arguments of the same names.
+    """
+
+    task: Task
+    space: list[DesignParameter]
+    fixed: dict[str, Any]
+    levels: list[str]
+    scorer: Scorer
+    n_objects: int
+    engine: str
+    seed: int
+    n_trajectories: int
+
+    def settings(
+        self,
+        n_frames: int,
+        optimizer: str,
+        evaluations: int,
+        score: str,
+        verifier: Verifier | None,
+        verify: int,
+        verify_all: bool,
+        extra_settings: dict[str, Any] | None,
+    ) -> dict[str, Any]:
+        """The contents of ``design.json`` (:func:`design_search`'s arguments of the same names)."""
+        space = self.space
+        used = evaluations if optimizer != "grid" else min(evaluations, math.prod(grid_counts(space, evaluations)))
+        return {
+            "task": self.task.name,
+            "fixed": self.fixed,
+            "n_objects": self.n_objects,
+            "n_trajectories": self.n_trajectories,
+            "n_frames": n_frames,
+            "seed": self.seed,
+            "engine": self.engine,
+            "space": [parameter_dict(parameter) for parameter in space],
+            "optimizer": optimizer,
+            "evaluations": evaluations,
+            "objective": {**self.scorer.settings(), "score": score},
+            "grid": {"counts": grid_counts(space, used), "size": math.prod(grid_counts(space, used))},
+            "verify": _verify_settings(verifier, verify, self.levels, verify_all=verify_all),
+            **(extra_settings or {}),
+        }
+
+
+def _prepare(
+    task: str | Task,
+    params: Sequence[tuple[str, tuple[float, float] | list[Any]]],
+    fixed: dict[str, Any] | None,
+    disturbances: Sequence[str],
+    optimizer: str,
+    scorer: Scorer | None,
+    verifier: Verifier | None,
+    n_objects: int | None,
+    engine: str,
+    seed: int,
+    n_trajectories: int,
+) -> _Prepared:
+    """Resolve the task and its space, check the optimiser, the verifier and the models of the corners."""
     levels = list(dict.fromkeys(disturbances))
     if not levels:
         raise InvalidParameterError("disturbances", "must name at least one disturbance level")
@@ -199,32 +276,48 @@ def design_search(
     compile_design(
         task, default_design(task, space, fixed), n_objects=n_objects, seed=seed, n_trajectories=n_trajectories
     )
-    used = evaluations if optimizer != "grid" else min(evaluations, math.prod(grid_counts(space, evaluations)))
-    settings: dict[str, Any] = {
-        "task": task.name,
-        "fixed": fixed,
-        "n_objects": n_objects,
-        "n_trajectories": n_trajectories,
-        "n_frames": n_frames,
-        "seed": seed,
-        "engine": engine,
-        "space": [parameter_dict(parameter) for parameter in space],
-        "optimizer": optimizer,
-        "evaluations": evaluations,
-        "objective": {**scorer.settings(), "score": score},
-        "grid": {"counts": grid_counts(space, used), "size": math.prod(grid_counts(space, used))},
-        "verify": _verify_settings(verifier, verify, levels, verify_all=verify_all),
-        **(extra_settings or {}),
-    }
+    return _Prepared(
+        task=task,
+        space=space,
+        fixed=fixed,
+        levels=levels,
+        scorer=scorer,
+        n_objects=n_objects,
+        engine=engine,
+        seed=seed,
+        n_trajectories=n_trajectories,
+    )
+
+
+def _run_search(
+    run: RunDirectory,
+    prepared: _Prepared,
+    verifier: Verifier | None,
+    workers: int,
+    progress: Progress,
+    log: Callable[[str], None] | None,
+    on_evaluation: Callable[[str, int], None] | None,
+    picture: Callable[[Path, Path], Path | None] | None,
+) -> DesignSearchResult:
+    """Run the search in the open run directory ``run``, draw the chosen design; the result."""
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
-    with run_directory(out, DESIGN_RUN, settings, overwrite=overwrite, engine=engine) as run:
-        search = DesignSearchRun(
-            run.path, task, space, fixed, run.settings, scorer, verifier, workers, progress, say, on_evaluation
-        )
-        result = search.run()
-        if picture is not None and result["chosen"] is not None:
-            _draw_chosen(run.path, result, picture)
-        return DesignSearchResult.from_dict(result)
+    search = DesignSearchRun(
+        run.path,
+        prepared.task,
+        prepared.space,
+        prepared.fixed,
+        run.settings,
+        prepared.scorer,
+        verifier,
+        workers,
+        progress,
+        say,
+        on_evaluation,
+    )
+    result = search.run()
+    if picture is not None and result["chosen"] is not None:
+        _draw_chosen(run.path, result, picture)
+    return DesignSearchResult.from_dict(result)
 
 
 def _verify_settings(

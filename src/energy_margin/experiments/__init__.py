@@ -18,6 +18,7 @@ from energy_margin._lazy import lazy_getattr
 #: Public name -> the module that defines it.
 _HOMES = {
     "budget_sweep": "energy_margin.experiments.budget",
+    "BudgetSweepResult": "energy_margin.experiments.budget",
     "BudgetDisplay": "energy_margin.experiments.budget_display",
     "run_study": "energy_margin.experiments.study",
     "StudyResult": "energy_margin.experiments.study_result",

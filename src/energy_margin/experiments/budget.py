@@ -21,7 +21,9 @@ from __future__ import annotations
 import re
 import sys
 import time
+import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +48,7 @@ from energy_margin.experiments.budget_display import BudgetDisplay
 from energy_margin.planning.methods import METHODS
 from energy_margin.runs import RunSpec, run_directory, tables
 from energy_margin.runs.progress import Progress
+from energy_margin.runs.results import TypedResult
 from energy_margin.runs.tables import Column, fmt, write_csv, write_json
 
 __all__ = [
@@ -53,6 +56,7 @@ __all__ = [
     "FIELDS",
     "QUESTIONS",
     "QUESTION_LABELS",
+    "BudgetSweepResult",
     "Questions",
     "analyze_configuration",
     "average_precision",
@@ -92,6 +96,55 @@ QUESTION_LABELS = {
 #: The settings file of a sweep, written first in its work directory.
 SETTINGS_FILE = "budget_settings.json"
 _CONFIGURATION = re.compile(rf"^(?:{'|'.join(map(re.escape, METHODS))})-[0-9]+$")
+
+
+@dataclass(frozen=True, kw_only=True)
+class BudgetSweepResult(TypedResult):
+    """What :func:`budget_sweep` measured; ``to_dict()`` is the summary JSON beside its CSV.
+
+    Releases before 0.2 returned the list of rows: for one release ``result[i]`` still reads row
+    ``i``, with a :class:`DeprecationWarning` (use ``result.rows[i]``).
+
+    Attributes:
+        dataset: the dataset's directory.
+        task: its task's registered name.
+        n_trajectories: its trajectories.
+        n_frames: its frames per trajectory.
+        n_objects: its objects per scene.
+        seed: the analyses' and the bootstrap's seed.
+        bootstrap: trajectory resamples of the 95 % intervals (0: none).
+        workers: worker processes of each analysis.
+        analyzer: the analyses' other settings (``AnalyzerConfig.to_dict()``).
+        title: the figure's title.
+        rows: the baselines' rows (``budget`` 0), then one row per (method, budget): each
+            question of :data:`QUESTIONS` with its ``_low`` and ``_high`` interval bounds (AP in
+            [0, 1], ``None`` with one class of labels), ``runtime_per_frame_s`` (s),
+            ``nodes_per_frame`` and ``frames`` (the columns :data:`FIELDS`).
+
+    """
+
+    dataset: str
+    task: str
+    n_trajectories: int
+    n_frames: int
+    n_objects: int
+    seed: int
+    bootstrap: int
+    workers: int
+    analyzer: dict[str, Any]
+    title: str
+    rows: list[dict[str, Any]]
+
+    def __getitem__(self, key: str | int | slice) -> Any:
+        if isinstance(key, str):
+            return super().__getitem__(key)
+        warnings.warn(
+            f"BudgetSweepResult[{key!r}] reads the result as the list of rows of earlier releases, which goes "
+            f"in 0.3; use .rows[{key!r}]",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.rows[key]
 
 
 def budget_run(work: Path, out: Path) -> RunSpec:
@@ -192,8 +245,8 @@ def budget_sweep(
     base: AnalyzerConfig | None = None,
     overwrite: bool = False,
     log: Callable[[str], None] | None = None,
-) -> list[dict[str, Any]]:
-    """Analyse the dataset at every (method, budget), write the summary and return its rows.
+) -> BudgetSweepResult:
+    """Analyse the dataset at every (method, budget), write the summary and return it.
 
     The work directory (``DIR/budget/``, or the folder of ``out``) is opened as a run
     (:func:`energy_margin.runs.open_run`): ``budget_settings.json`` is written first and the
@@ -212,6 +265,9 @@ def budget_sweep(
         overwrite: replace a sweep of another dataset, seed or analyzer settings in the work
             directory (its summary and analyses) instead of refusing.
         log: receives one progress line per configuration (standard error by default).
+
+    Returns:
+        The summary: the dataset, the settings and the rows (:class:`BudgetSweepResult`).
 
     """
     _check_sweep(budgets, methods, workers, seed, bootstrap)
@@ -241,7 +297,7 @@ def budget_sweep(
         rows = _sweep_rows(directory, dataset, out_path, meta, base, budgets, methods, say)
         _write_tables(rows, out_path, meta)
         plot(rows, out_path.with_suffix(".png"), title=meta["title"])
-    return rows
+    return BudgetSweepResult(**meta, rows=rows)
 
 
 def _sweep_rows(

@@ -62,6 +62,7 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -187,41 +188,13 @@ def learning_curve(
     success_frames = check_positive_int("success_frames", success_frames)
     check_same_task(datasets)
     held = held_out_trajectories(datasets, seed=seed, holdout=holdout)
-    held_set = set(held)
-    pool_frames = sum(
-        dataset.n_frames for d, dataset in enumerate(datasets) for t in range(dataset.n_trajectories)
-    ) - sum(datasets[d].n_frames for d, _ in held)
-    checked_sizes = _check_sizes(sizes, pool_frames)
-    active = strategy == "uncertainty"
-    if active:
-        initial = max(1, checked_sizes[0] // 2) if initial is None else initial
-        initial = check_int("initial", initial, minimum=1, maximum=checked_sizes[0])
-        ensemble = check_int("ensemble", ensemble, minimum=2)
-        ensemble_rounds = check_positive_int("ensemble_rounds", ensemble_rounds)
-        random_fraction = check_float("random_fraction", random_fraction, minimum=0.0, maximum=1.0)
-        if batch is not None:
-            batch = check_positive_int("batch", batch)
-
-    pool = _pool(datasets, held_set, kind)
-    order_seed, ensemble_seeds = np.random.SeedSequence(seed).spawn(2)
-    order = np.random.default_rng(order_seed).permutation(len(pool.ids))
+    checked_sizes = _check_sizes(sizes, _pool_frames(datasets, held))
+    selection = None
+    if strategy == "uncertainty":
+        selection = _check_selection(checked_sizes[0], initial, ensemble, ensemble_rounds, random_fraction, batch)
+    pool = _pool(datasets, set(held), kind)
     point = _point_fitter(pool, kind=kind, seed=seed, success_frames=success_frames, options=options)
-    if not active:
-        points = [point(order[:size], 0.0) for size in checked_sizes]
-    else:
-        assert initial is not None
-        points = _uncertainty_points(
-            pool,
-            order,
-            checked_sizes,
-            point,
-            initial=initial,
-            ensemble=ensemble,
-            ensemble_rounds=ensemble_rounds,
-            random_fraction=random_fraction,
-            batch=batch,
-            seeds=ensemble_seeds,
-        )
+    points = _fit_points(pool, checked_sizes, selection, point, seed)
     full = point(np.arange(len(pool.ids)), 0.0) if reference else None
     return LearningCurve(
         kind=kind,
@@ -230,11 +203,7 @@ def learning_curve(
         holdout=holdout,
         success_frames=success_frames,
         sizes=checked_sizes,
-        initial=initial if active else None,
-        ensemble=ensemble if active else None,
-        ensemble_rounds=ensemble_rounds if active else None,
-        random_fraction=random_fraction if active else None,
-        batch=batch if active else None,
+        **_selection_fields(selection),
         options=dict(options),
         pool_frames=len(pool.ids),
         pool_trajectories=int(pool.groups.max()) + 1,
@@ -243,6 +212,60 @@ def learning_curve(
         points=tuple(points),
         reference=full,
     )
+
+
+def _pool_frames(datasets: Sequence[Dataset], held: Sequence[tuple[int, int]]) -> int:
+    """Frames of the training pool: every trajectory's frames but the held-out ones'."""
+    return sum(dataset.n_frames for d, dataset in enumerate(datasets) for t in range(dataset.n_trajectories)) - sum(
+        datasets[d].n_frames for d, _ in held
+    )
+
+
+@dataclass(frozen=True)
+class _Selection:
+    """The uncertainty strategy's settings, checked (:func:`learning_curve`'s arguments of the same names)."""
+
+    initial: int
+    ensemble: int
+    ensemble_rounds: int
+    random_fraction: float
+    batch: int | None
+
+
+def _check_selection(
+    first_size: int, initial: int | None, ensemble: int, ensemble_rounds: int, random_fraction: float, batch: int | None
+) -> _Selection:
+    """The uncertainty strategy's settings, checked (``initial`` at most the first size, ``first_size``)."""
+    initial = max(1, first_size // 2) if initial is None else initial
+    return _Selection(
+        initial=check_int("initial", initial, minimum=1, maximum=first_size),
+        ensemble=check_int("ensemble", ensemble, minimum=2),
+        ensemble_rounds=check_positive_int("ensemble_rounds", ensemble_rounds),
+        random_fraction=check_float("random_fraction", random_fraction, minimum=0.0, maximum=1.0),
+        batch=check_positive_int("batch", batch) if batch is not None else None,
+    )
+
+
+def _selection_fields(selection: _Selection | None) -> dict[str, Any]:
+    """The uncertainty strategy's fields of a :class:`LearningCurve` (each ``None`` for ``random``)."""
+    if selection is None:
+        return dict.fromkeys(field.name for field in fields(_Selection))
+    return asdict(selection)
+
+
+def _fit_points(
+    pool: _Pool,
+    sizes: tuple[int, ...],
+    selection: _Selection | None,
+    point: Callable[[np.ndarray, float], CurvePoint],
+    seed: int,
+) -> list[CurvePoint]:
+    """The curve's points: ``random`` without a ``selection``, else ``uncertainty``; ``point`` fits one."""
+    order_seed, ensemble_seeds = np.random.SeedSequence(seed).spawn(2)
+    order = np.random.default_rng(order_seed).permutation(len(pool.ids))
+    if selection is None:
+        return [point(order[:size], 0.0) for size in sizes]
+    return _uncertainty_points(pool, order, sizes, point, **asdict(selection), seeds=ensemble_seeds)
 
 
 def _point_fitter(

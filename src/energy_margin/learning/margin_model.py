@@ -24,6 +24,7 @@ import numpy as np
 from energy_margin._version import __version__
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import EnergyMarginError, check_choice, check_float, check_positive_int
+from energy_margin.learning.features import FrameFeatures
 from energy_margin.learning.margin_file import (
     FEATURES_OF_KIND,
     FORMAT,
@@ -40,6 +41,7 @@ from energy_margin.learning.margin_frames import (
     training_frames,
 )
 from energy_margin.learning.margin_report import (
+    MarginModelReport,
     _held_out_report,
 )
 from energy_margin.learning.regressors import KINDS, fit_regressor
@@ -50,6 +52,7 @@ __all__ = [
     "KINDS",
     "SCHEMA_VERSION",
     "MarginModel",
+    "MarginModelReport",
     "check_same_task",
     "fit_margin_model",
     "load_margin_model",
@@ -66,7 +69,7 @@ def fit_margin_model(
     holdout: float = 0.25,
     success_frames: int = 3,
     **options: Any,
-) -> tuple[MarginModel, dict[str, Any]]:
+) -> tuple[MarginModel, MarginModelReport]:
     """Fit a learned margin to analysed datasets of one task and measure it on held-out trajectories.
 
     Args:
@@ -81,18 +84,10 @@ def fit_margin_model(
         options: regressor settings (:func:`energy_margin.learning.regressors.fit_regressor`).
 
     Returns:
-        The model (fitted on the kept trajectories) and its report: ``r2`` of ``capture`` and
-        ``success`` on the held-out frames; ``ap``: ``capture`` (per frame, labels at k-hat 0),
-        ``capture_window2`` (labels at k-hat 2: the objects stay captured two more frames),
-        ``success`` (per trajectory, from the last ``success_frames`` frames) and
-        ``success_first_half`` (from the first half of the frames only), each ``learned`` beside
-        ``tree`` (the analysed scores of the same frames), as ``evaluate`` asks them;
-        ``n_trajectories`` and ``n_frames`` (``train``, ``held_out``); ``seconds_per_query`` (one batched predict over
-        the held-out frames, per frame, wall time), ``seconds_single_query`` (one frame per call),
-        ``cpu_seconds_per_query`` and ``cpu_seconds_single_query`` (the same in CPU time),
-        ``tree_seconds_per_frame`` (the analysis' mean wall time of the held-out frames, from
-        ``scores.csv``), ``speedup`` and ``speedup_single_query`` (tree over learned wall time);
-        ``fit_seconds``.
+        The model (fitted on the kept trajectories) and its
+        :class:`~energy_margin.learning.margin_report.MarginModelReport` on the held-out
+        trajectories: R² of both scores, the learned AP beside the tree's AP of the questions
+        ``evaluate`` asks, the time per query beside the tree's time per frame, the split's sizes.
 
     Raises:
         EnergyMarginError: datasets of different tasks, without scores, or too few trajectories.
@@ -115,7 +110,29 @@ def fit_margin_model(
     fit_seconds = time.perf_counter() - started
     task = frames[0].dataset.task
     definition = FEATURES_OF_KIND[kind](task)
-    model = MarginModel(
+    model = _margin_model(frames, kind, regressor, definition)
+    report = MarginModelReport(
+        **_held_out_report(model, frames, held, test_x, test_y, success_frames=success_frames),
+        task=task.name,
+        kind=kind,
+        seed=seed,
+        holdout=float(holdout),
+        feature_set=definition.identifier,
+        n_features=definition.dimension,
+        n_trajectories={"train": len(groups) - n_held, "held_out": n_held},
+        n_frames={"train": len(train_x), "held_out": len(test_x)},
+        fit_seconds=fit_seconds,
+        fit={key: value for key, value in getattr(regressor, "fit_info", {}).items() if key != "fit_seconds"},
+        datasets=[str(item.dataset.path) for item in frames],
+    )
+    model.report = report.to_dict()
+    return model, report
+
+
+def _margin_model(frames: list[_Frames], kind: str, regressor: Any, definition: FrameFeatures) -> MarginModel:
+    """The model of a ``regressor`` of ``kind`` fitted to the ``definition`` features of ``frames``."""
+    task = frames[0].dataset.task
+    return MarginModel(
         task_name=task.name,
         task_config=task.config.to_dict(),
         feature_set=definition.identifier,
@@ -128,24 +145,6 @@ def fit_margin_model(
             max(item.dataset.n_objects for item in frames),
         ),
     )
-    report = _held_out_report(model, frames, held, test_x, test_y, success_frames=success_frames)
-    report.update(
-        {
-            "task": task.name,
-            "kind": kind,
-            "seed": seed,
-            "holdout": float(holdout),
-            "feature_set": definition.identifier,
-            "n_features": definition.dimension,
-            "n_trajectories": {"train": len(groups) - n_held, "held_out": n_held},
-            "n_frames": {"train": len(train_x), "held_out": len(test_x)},
-            "fit_seconds": fit_seconds,
-            "fit": {key: value for key, value in getattr(regressor, "fit_info", {}).items() if key != "fit_seconds"},
-            "datasets": [str(item.dataset.path) for item in frames],
-        }
-    )
-    model.report = report
-    return model, report
 
 
 def _held_out_split(

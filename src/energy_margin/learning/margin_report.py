@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -15,9 +16,76 @@ from energy_margin.learning.margin_file import (
 from energy_margin.learning.margin_frames import (
     _Frames,
 )
+from energy_margin.runs.results import TypedResult
 from energy_margin.world.state import FrameState
 
-__all__ = []
+__all__ = ["MarginModelReport"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarginModelReport(TypedResult):
+    """How a learned margin does on held-out trajectories: the report of ``fit_margin_model``.
+
+    :func:`~energy_margin.learning.margin_model.fit_margin_model` returns it; ``to_dict()`` is the
+    report saved in the model file (``MarginModel.report``) and the JSON ``learn`` prints (the
+    command's own keys after it).
+
+    Attributes:
+        r2: R² of the held-out frames' ``capture`` and ``success`` scores, learned against the
+            tree's (``None`` where the tree's scores are constant).
+        ap: per question (``capture``: per frame, labels at k-hat 0; ``capture_window2``: labels
+            at k-hat 2; ``success``: per trajectory, from the last ``success_frames`` frames;
+            ``success_first_half``: from the first half of the frames), the Average Precision of
+            the ``learned`` scores beside the ``tree``'s on the same frames, in [0, 1] (``None``
+            with one class of labels).
+        success_frames: k-bar of the trajectory success AP.
+        capture_positive_rate: fraction of held-out frames captured (k-hat 0), in [0, 1].
+        success_positive_rate: fraction of held-out trajectories that succeed, in [0, 1].
+        seconds_per_query: one batched predict over the held-out frames, per frame, wall time, s.
+        seconds_single_query: one predict of a single frame, wall time, s.
+        cpu_seconds_per_query: ``seconds_per_query`` in CPU time, s.
+        cpu_seconds_single_query: ``seconds_single_query`` in CPU time, s.
+        tree_seconds_per_frame: the analysis' mean wall time of the held-out frames
+            (``scores.csv``), s.
+        speedup: ``tree_seconds_per_frame / seconds_per_query`` (``None`` at zero query time).
+        speedup_single_query: ``tree_seconds_per_frame / seconds_single_query`` (likewise).
+        task: the task's registered name.
+        kind: the regressor kind (``mlp``, ``boosting``, ``set``).
+        seed: seed of the split and of the regressor.
+        holdout: fraction of the trajectories held out, in (0, 1).
+        feature_set: the features' identifier (``frame-statistics/1``, ``object-sets/1``).
+        n_features: features per frame (channels per object for ``set``).
+        n_trajectories: trajectories ``train`` and ``held_out``.
+        n_frames: frames ``train`` and ``held_out``.
+        fit_seconds: wall time of the regressor's fit, s.
+        fit: what the regressor reports of its fit (iterations, losses; kind-specific).
+        datasets: the datasets' directories, in the order given.
+
+    """
+
+    r2: dict[str, float | None]
+    ap: dict[str, dict[str, float | None]]
+    success_frames: int
+    capture_positive_rate: float
+    success_positive_rate: float
+    seconds_per_query: float
+    seconds_single_query: float
+    cpu_seconds_per_query: float
+    cpu_seconds_single_query: float
+    tree_seconds_per_frame: float
+    speedup: float | None
+    speedup_single_query: float | None
+    task: str
+    kind: str
+    seed: int
+    holdout: float
+    feature_set: str
+    n_features: int
+    n_trajectories: dict[str, int]
+    n_frames: dict[str, int]
+    fit_seconds: float
+    fit: dict[str, Any]
+    datasets: list[str]
 
 
 def _r2(truth: np.ndarray, predicted: np.ndarray) -> float | None:

@@ -50,7 +50,13 @@ from energy_margin.data.dataset import METADATA_FILE
 from energy_margin.data.generate import check_engine, generate_dataset
 from energy_margin.data.scores_file import SCORES_FILE
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_float, check_int
-from energy_margin.learning.margin_model import KINDS, fit_margin_model, load_training_datasets
+from energy_margin.learning.margin_model import (
+    KINDS,
+    MarginModel,
+    MarginModelReport,
+    fit_margin_model,
+    load_training_datasets,
+)
 from energy_margin.learning.pipeline_results import LearnResult, LearnSet
 from energy_margin.runs import RunDirectory, RunLockedError, RunSpec, open_run, progress_bar
 from energy_margin.runs.files import atomic_path
@@ -211,16 +217,8 @@ def learn_pipeline(
 
     """
     started = time.perf_counter()
-    plan = _plan(
-        task,
-        scene,
-        objects,
-        (trajectories, frames, seed, workers, iterations, success_frames),
-        kind=kind,
-        holdout=holdout,
-        options=options,
-        progress=progress,
-    )
+    counts = (trajectories, frames, seed, workers, iterations, success_frames)
+    plan = _plan(task, scene, objects, counts, kind=kind, holdout=holdout, options=options, progress=progress)
     work, out = Path(work), Path(out)
     _check_out(out, work, overwrite=overwrite)
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
@@ -229,13 +227,7 @@ def learn_pipeline(
             say(f"learn: resuming {work} (what is generated and analysed there is kept)")
         (work / SETS_DIR).mkdir(exist_ok=True)
         done = [_prepare_set(plan, work, index, say) for index in range(len(plan.sets))]
-        say(f"learn: fitting a {kind} margin on {len(done)} set{'s' if len(done) > 1 else ''}")
-        datasets = load_training_datasets([item.directory for item in done])
-        model, report = fit_margin_model(
-            datasets, seed=plan.fit_seed, kind=kind, holdout=holdout, success_frames=success_frames, **options
-        )
-        model.save(work / MODEL_FILE)
-        _copy(work / MODEL_FILE, out)
+        model, report = _fit(plan, done, work, out, say)
     return LearnResult(
         model=model,
         report=report,
@@ -355,6 +347,25 @@ def _prepare_set(plan: _Plan, work: Path, index: int, say: Callable[[str], None]
     analyze(directory, plan.analyzer, seed=analysis, workers=plan.workers, progress=plan.progress)
     say(f"{prefix}: " + (f"analysed ({time.perf_counter() - tick:.0f} s)" if scored else "already analysed"))
     return LearnSet(name, count, directory, generation, analysis, made, scored)
+
+
+def _fit(
+    plan: _Plan, done: list[LearnSet], work: Path, out: Path, say: Callable[[str], None]
+) -> tuple[MarginModel, MarginModelReport]:
+    """Fit the plan's model on the sets ``done``, save it in ``work`` and copy it to ``out``; it and its report."""
+    say(f"learn: fitting a {plan.kind} margin on {len(done)} set{'s' if len(done) > 1 else ''}")
+    datasets = load_training_datasets([item.directory for item in done])
+    model, report = fit_margin_model(
+        datasets,
+        seed=plan.fit_seed,
+        kind=plan.kind,
+        holdout=plan.holdout,
+        success_frames=plan.success_frames,
+        **plan.options,
+    )
+    model.save(work / MODEL_FILE)
+    _copy(work / MODEL_FILE, out)
+    return model, report
 
 
 def _generate(

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from energy_margin.learning.margin_model import MarginModel
+from energy_margin.learning.margin_model import MarginModel, MarginModelReport
 
 __all__ = ["LearnResult", "LearnSet"]
 
@@ -53,7 +53,7 @@ class LearnResult:
 
     Attributes:
         model: the fitted model (also written to ``out`` and ``WORK/model.npz``).
-        report: :func:`~energy_margin.learning.margin_model.fit_margin_model`'s report.
+        report: :func:`~energy_margin.learning.margin_model.fit_margin_model`'s held-out report.
         out: the model file written.
         work: the work directory.
         sets: the datasets, in the order of ``objects``.
@@ -64,7 +64,7 @@ class LearnResult:
     """
 
     model: MarginModel
-    report: dict[str, Any]
+    report: MarginModelReport
     out: Path
     work: Path
     sets: tuple[LearnSet, ...]

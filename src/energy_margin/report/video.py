@@ -11,6 +11,7 @@ the output ends in ``.gif`` or no encoder is found (one warning line).
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ from energy_margin.errors import EnergyMarginError, InvalidParameterError, check
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
+    from energy_margin.report.render import FrameRenderer
+    from energy_margin.world.state import FrameState
 
 __all__ = [
     "VideoResult",
@@ -245,72 +248,99 @@ def render_video(
         progress: called with 1 after each picture.
 
     """
-    from energy_margin.data.generate import replay_trajectory
     from energy_margin.evaluation.metrics import score_grid
-    from energy_margin.report.render import check_trajectory, dataset_renderer, scene_view, warn_once
-    from energy_margin.runs.files import atomic_path
+    from energy_margin.report.render import check_trajectory, dataset_renderer
 
     started = time.perf_counter()
     check_trajectory(dataset, trajectory)
     path = output_path(Path(path))
     _check_size(path, width=width, height=height, strip_height=strip_height)
-    task = dataset.task
     times = np.asarray(dataset.arrays["frame_time"][trajectory], dtype=float)
     capture = success = None
     if scores is not None:
         capture = score_grid(dataset, scores, "capture_score")[trajectory]
         success = score_grid(dataset, scores, "success_score")[trajectory]
+    strip = functools.partial(
+        score_strip,
+        width,
+        strip_height,
+        duration=dataset.task.config.duration,
+        times=times,
+        capture=capture,
+        success=success,
+    )
     renderer = dataset_renderer(dataset, trajectory, width=width, height=height - strip_height, backend=backend)
-    rendered = 0.0
-    count = 0
-    poster = None
     try:
-        # One camera for the whole roll-out: it holds every recorded frame.
-        recorded = [dataset.frame(trajectory, k) for k in range(dataset.n_frames)]
-        view = scene_view(renderer.simulator.scene, np.concatenate([renderer.view_points(f) for f in recorded]))
-        steps = video_steps(task.config.duration, task.config.timestep, fps)
-        recorded_steps = {round(float(t) / task.config.timestep): k for k, t in enumerate(times)}
-        wanted = np.union1d(steps, list(recorded_steps))
-        drawn = set(int(s) for s in steps)
-        with atomic_path(path) as temporary:
-            writer = _Writer(temporary, fps)
-            try:
-                # The roll-out runs on its own simulator of the dataset's engine: drawing resets the
-                # renderer's, which would disturb the roll-out's warm starts and servo targets.
-                for step, state in replay_trajectory(dataset, trajectory, wanted):
-                    if step in recorded_steps:
-                        stored = recorded[recorded_steps[step]]
-                        if not np.allclose(state.object_pos, stored.object_pos, atol=1e-6):
-                            warn_once(
-                                f"the roll-out of trajectory {trajectory} differs from its recorded frame "
-                                f"{recorded_steps[step]} (another engine version?); the video shows the roll-out"
-                            )
-                    if step not in drawn:
-                        continue
-                    now = step * task.config.timestep
-                    tick = time.perf_counter()
-                    picture = renderer.render(state, view=view)
-                    rendered += time.perf_counter() - tick
-                    strip = score_strip(
-                        width,
-                        strip_height,
-                        duration=task.config.duration,
-                        times=times,
-                        capture=capture,
-                        success=success,
-                        now=now,
-                    )
-                    composed = np.concatenate([picture, strip], axis=0)
-                    writer.append(composed)
-                    if count == len(steps) // 2:
-                        poster = composed
-                    count += 1
-                    if progress is not None:
-                        progress(1)
-            finally:
-                writer.close()
+        count, rendered, poster = _draw_roll_out(dataset, trajectory, renderer, path, fps, times, strip, progress)
     finally:
         backend_used = renderer.backend
         renderer.close()
     total = time.perf_counter() - started
     return VideoResult(path, count, width, height, fps, rendered, total, backend_used, poster)
+
+
+def _draw_roll_out(
+    dataset: Dataset,
+    trajectory: int,
+    renderer: FrameRenderer,
+    path: Path,
+    fps: float,
+    times: np.ndarray,
+    strip: Callable[..., np.ndarray],
+    progress: Callable[[int], None] | None,
+) -> tuple[int, float, np.ndarray | None]:
+    """Replay the roll-out and write its pictures at ``fps`` above their ``strip(now=...)`` to ``path``.
+
+    ``times`` are the recorded frames' times (s). Returns the pictures written, the wall time of
+    drawing them (s) and the middle one (the poster).
+    """
+    from energy_margin.data.generate import replay_trajectory
+    from energy_margin.report.render import scene_view
+    from energy_margin.runs.files import atomic_path
+
+    task = dataset.task
+    rendered = 0.0
+    count = 0
+    poster = None
+    # One camera for the whole roll-out: it holds every recorded frame.
+    recorded = [dataset.frame(trajectory, k) for k in range(dataset.n_frames)]
+    view = scene_view(renderer.simulator.scene, np.concatenate([renderer.view_points(f) for f in recorded]))
+    steps = video_steps(task.config.duration, task.config.timestep, fps)
+    recorded_steps = {round(float(t) / task.config.timestep): k for k, t in enumerate(times)}
+    wanted = np.union1d(steps, list(recorded_steps))
+    drawn = set(int(s) for s in steps)
+    with atomic_path(path) as temporary:
+        writer = _Writer(temporary, fps)
+        try:
+            # The roll-out runs on its own simulator of the dataset's engine: drawing resets the
+            # renderer's, which would disturb the roll-out's warm starts and servo targets.
+            for step, state in replay_trajectory(dataset, trajectory, wanted):
+                if step in recorded_steps:
+                    _check_replayed(state, recorded[recorded_steps[step]], trajectory, recorded_steps[step])
+                if step not in drawn:
+                    continue
+                now = step * task.config.timestep
+                tick = time.perf_counter()
+                picture = renderer.render(state, view=view)
+                rendered += time.perf_counter() - tick
+                composed = np.concatenate([picture, strip(now=now)], axis=0)
+                writer.append(composed)
+                if count == len(steps) // 2:
+                    poster = composed
+                count += 1
+                if progress is not None:
+                    progress(1)
+        finally:
+            writer.close()
+    return count, rendered, poster
+
+
+def _check_replayed(state: FrameState, stored: FrameState, trajectory: int, frame: int) -> None:
+    """Warn once when the replayed ``state`` is not the recorded ``frame`` (objects 1e-6 m apart)."""
+    from energy_margin.report.render import warn_once
+
+    if not np.allclose(state.object_pos, stored.object_pos, atol=1e-6):
+        warn_once(
+            f"the roll-out of trajectory {trajectory} differs from its recorded frame "
+            f"{frame} (another engine version?); the video shows the roll-out"
+        )

@@ -217,68 +217,23 @@ class ScoopingTask(Task):
             name="table",
         )
         stiffness = self.finger_stiffness(drive)
-        moving_mass = cfg.finger_mass + cfg.tip_mass
-        fingers = []
-        for side, sign in _SIDES:
-            tip = Link(
-                name=f"{side}_tip",
-                geoms=(
-                    Geom(
-                        "box",
-                        (cfg.tip_half_thickness, cfg.tip_half_width, cfg.tip_length / 2.0),
-                        pos=(0.0, 0.0, -cfg.tip_length / 2.0),
-                        name=f"{side}_tip",
-                        rgba=_GRIPPER_RGBA,
-                    ),
-                    *self._lips(side, sign),
-                ),
-                mass=cfg.tip_mass,
-                pos=(0.0, 0.0, -2.0 * cfg.finger_half_extents[2]),
-                joints=(
-                    Joint(
-                        f"{side}_tip",
-                        "hinge",
-                        (0.0, sign, 0.0),
-                        limits=cfg.tip_limits,
-                        servo_stiffness=cfg.tip_stiffness,
-                        servo_damping=cfg.tip_damping,
-                    ),
-                ),
-                gravity_compensation=True,
-                collides_with_statics=False,
-            )
-            finger = Link(
-                name=f"{side}_finger",
-                geoms=(
-                    Geom(
-                        "box",
-                        cfg.finger_half_extents,
-                        pos=(0.0, 0.0, -cfg.finger_half_extents[2]),
-                        name=f"{side}_finger",
-                        rgba=_GRIPPER_RGBA,
-                    ),
-                ),
-                mass=cfg.finger_mass,
-                pos=(sign * self.hinge_open_x, 0.0, -cfg.base_half_extents[2]),
-                joints=(
-                    Joint(
-                        f"{side}_finger",
-                        "slide",
-                        (-sign, 0.0, 0.0),
-                        limits=(0.0, cfg.finger_stroke),
-                        stiffness=cfg.finger_return_stiffness,
-                        servo_stiffness=stiffness,
-                        # Critically damped drive on the finger and blade.
-                        servo_damping=2.0 * float(np.sqrt(stiffness * moving_mass)),
-                        force_limit=cfg.finger_force_limit,
-                    ),
-                ),
-                children=(tip,),
-                gravity_compensation=True,
-            )
-            fingers.append(finger)
-        total_mass = cfg.base_mass + 2.0 * moving_mass
-        base = Link(
+        fingers = tuple(self._finger(side, sign, stiffness) for side, sign in _SIDES)
+        return Scene(
+            objects=boxes,
+            robot=self._base(fingers),
+            statics=(table,),
+            friction=friction,
+            timestep=cfg.timestep,
+            object_motion="free",
+            integrator="implicitfast",
+            contact_time_constant=cfg.contact_time_constant,
+        )
+
+    def _base(self, fingers: tuple[Link, ...]) -> Link:
+        """The gripper's base on its vertical slide, carrying ``fingers``."""
+        cfg = self.config
+        total_mass = cfg.base_mass + 2.0 * (cfg.finger_mass + cfg.tip_mass)
+        return Link(
             name="base",
             geoms=(Geom("box", cfg.base_half_extents, name="base", rgba=_GRIPPER_RGBA),),
             mass=cfg.base_mass,
@@ -291,18 +246,73 @@ class ScoopingTask(Task):
                     servo_damping=2.0 * float(np.sqrt(cfg.base_stiffness * total_mass)),
                 ),
             ),
-            children=tuple(fingers),
+            children=fingers,
             gravity_compensation=True,
         )
-        return Scene(
-            objects=boxes,
-            robot=base,
-            statics=(table,),
-            friction=friction,
-            timestep=cfg.timestep,
-            object_motion="free",
-            integrator="implicitfast",
-            contact_time_constant=cfg.contact_time_constant,
+
+    def _finger(self, side: str, sign: float, stiffness: float) -> Link:
+        """One finger on its slide (servo ``stiffness``, N/m), carrying its blade (:meth:`_tip`)."""
+        cfg = self.config
+        moving_mass = cfg.finger_mass + cfg.tip_mass
+        return Link(
+            name=f"{side}_finger",
+            geoms=(
+                Geom(
+                    "box",
+                    cfg.finger_half_extents,
+                    pos=(0.0, 0.0, -cfg.finger_half_extents[2]),
+                    name=f"{side}_finger",
+                    rgba=_GRIPPER_RGBA,
+                ),
+            ),
+            mass=cfg.finger_mass,
+            pos=(sign * self.hinge_open_x, 0.0, -cfg.base_half_extents[2]),
+            joints=(
+                Joint(
+                    f"{side}_finger",
+                    "slide",
+                    (-sign, 0.0, 0.0),
+                    limits=(0.0, cfg.finger_stroke),
+                    stiffness=cfg.finger_return_stiffness,
+                    servo_stiffness=stiffness,
+                    # Critically damped drive on the finger and blade.
+                    servo_damping=2.0 * float(np.sqrt(stiffness * moving_mass)),
+                    force_limit=cfg.finger_force_limit,
+                ),
+            ),
+            children=(self._tip(side, sign),),
+            gravity_compensation=True,
+        )
+
+    def _tip(self, side: str, sign: float) -> Link:
+        """One blade on its hinge at the finger's lower end, with its lips (:meth:`_lips`)."""
+        cfg = self.config
+        return Link(
+            name=f"{side}_tip",
+            geoms=(
+                Geom(
+                    "box",
+                    (cfg.tip_half_thickness, cfg.tip_half_width, cfg.tip_length / 2.0),
+                    pos=(0.0, 0.0, -cfg.tip_length / 2.0),
+                    name=f"{side}_tip",
+                    rgba=_GRIPPER_RGBA,
+                ),
+                *self._lips(side, sign),
+            ),
+            mass=cfg.tip_mass,
+            pos=(0.0, 0.0, -2.0 * cfg.finger_half_extents[2]),
+            joints=(
+                Joint(
+                    f"{side}_tip",
+                    "hinge",
+                    (0.0, sign, 0.0),
+                    limits=cfg.tip_limits,
+                    servo_stiffness=cfg.tip_stiffness,
+                    servo_damping=cfg.tip_damping,
+                ),
+            ),
+            gravity_compensation=True,
+            collides_with_statics=False,
         )
 
     def _lips(self, side: str, sign: float) -> tuple[Geom, ...]:
