@@ -44,6 +44,15 @@ CONCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
     "frames per trajectory": {"cli": ("--frames",), "python": ("frames", "n_frames")},
 }
 
+#: Names that share a word with a concept but say something else: Khachiyan's iterations of the
+#: minimum-volume ellipsoid, the pictures of a video, the frames and trajectories a learning-curve fit used.
+OTHER_CONCEPTS = {
+    ("Ellipsoid", "iterations"),
+    ("VideoResult", "frames"),
+    ("CurvePoint", "frames"),
+    ("CurvePoint", "trajectories"),
+}
+
 #: Run in the measured checkout's interpreter path: every visible option string of every command.
 _CLI_OPTIONS = """
 import argparse, json
@@ -99,7 +108,9 @@ def _python_names(package: Path) -> tuple[dict[str, set[str]], dict[str, set[str
                 annotated = [
                     (item.target.id, item.annotation)
                     for item in node.body
-                    if isinstance(item, ast.AnnAssign) and isinstance(item.target, ast.Name)
+                    if isinstance(item, ast.AnnAssign)
+                    and isinstance(item.target, ast.Name)
+                    and (node.name, item.target.id) not in OTHER_CONCEPTS
                 ]
             for name, annotation in annotated:
                 text = ast.unparse(annotation) if annotation is not None else ""
@@ -154,7 +165,14 @@ def measure(root: Path) -> dict[str, Any]:
                 python.append(name)
         # A qualified spelling (--lambda-expansions: the lambda sweep's expansions) is its base name.
         bases = sorted({_base(name) for name in [*cli, *python]})
-        concepts[concept] = {"cli": cli, "python": python, "bases": bases, "names": len(bases)}
+        python_bases = {_base(name) for name in python}
+        concepts[concept] = {
+            "cli": cli,
+            "python": python,
+            "bases": bases,
+            "names": len(bases),
+            "python_names": len(python_bases),
+        }
     concepts["progress"] = {"python": sorted(progress), "names": len(progress)}
     settings = _settings_files(package)
     concepts["settings file"] = {"files": settings, "names": len(settings)}

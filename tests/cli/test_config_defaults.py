@@ -72,3 +72,17 @@ def test_control_takes_the_controller_defaults() -> None:
         assert parser.get_default(field.name) == field.default, field.name
     for field in dataclasses.fields(ControllerConfig):
         assert isinstance(field_constraint(ControllerConfig, field.name), Constraint), field.name
+
+
+def test_learn_fits_the_same_kind_by_default_in_python_and_on_the_command_line() -> None:
+    import inspect
+
+    from energy_margin.cli import learn
+    from energy_margin.learning.margin_model import DEFAULT_KIND, fit_margin_model
+    from energy_margin.learning.pipeline import learn_pipeline
+
+    parser = argparse.ArgumentParser()
+    learn.add_arguments(parser)
+    assert parser.get_default("kind") == DEFAULT_KIND
+    assert inspect.signature(fit_margin_model).parameters["kind"].default == DEFAULT_KIND
+    assert inspect.signature(learn_pipeline).parameters["kind"].default == DEFAULT_KIND

@@ -60,14 +60,14 @@ def test_budget_sweep_writes_tables_and_resumes(tiny_dataset: Path, capsys: pyte
     assert lines[0].startswith("method,budget,capture_ap,capture_ap_low")
     assert len(lines) == len(rows) + 1
     # A second run finds every analysis finished and gives the same rows.
-    again = budget_sweep(tiny_dataset, budgets=[5, 10], bootstrap=50, seed=3, log=lambda line: None)
+    again = budget_sweep(tiny_dataset, expansions=[5, 10], bootstrap=50, seed=3, log=lambda line: None)
     assert [r["capture_ap"] for r in again.rows] == [r["capture_ap"] for r in rows]
 
 
 def test_the_sweep_is_typed_and_its_dictionary_is_the_json(tiny_dataset: Path, tmp_path: Path) -> None:
     import warnings
 
-    result = budget_sweep(tiny_dataset, budgets=[3], methods=["est"], bootstrap=5, seed=2, log=lambda line: None)
+    result = budget_sweep(tiny_dataset, expansions=[3], methods=["est"], bootstrap=5, seed=2, log=lambda line: None)
     assert isinstance(result, BudgetSweepResult)
     assert result.dataset == str(tiny_dataset) and result.seed == 2 and result.bootstrap == 5 and result.workers == 1
     assert [(row["method"], row["budget"]) for row in result.rows][-1] == ("est", 3)
@@ -115,11 +115,11 @@ def test_budget_bad_input_is_one_line(tiny_dataset: Path, tmp_path: Path, capsys
 
 def test_budget_overwrite_replaces_only_the_sweep(tiny_dataset: Path) -> None:
     work = tiny_dataset / "budget"
-    quick = {"budgets": [3], "methods": ["est"], "bootstrap": 5, "log": lambda line: None}
+    quick = {"expansions": [3], "methods": ["est"], "bootstrap": 5, "log": lambda line: None}
     budget_sweep(tiny_dataset, seed=0, **quick)
     assert json.loads((work / SETTINGS_FILE).read_text())["seed"] == 0
     (work / "notes.txt").write_text("mine")
-    budget_sweep(tiny_dataset, seed=0, **{**quick, "budgets": [2], "bootstrap": 3})  # the same sweep: resumes
+    budget_sweep(tiny_dataset, seed=0, **{**quick, "expansions": [2], "bootstrap": 3})  # the same sweep: resumes
     assert (work / "est-2").is_dir() and (work / "est-3").is_dir()
     with pytest.raises(EnergyMarginError, match=r"holds a budget sweep of other settings \(seed: 0 there, 1 now\)"):
         budget_sweep(tiny_dataset, seed=1, **quick)
@@ -140,7 +140,7 @@ def test_a_second_writer_is_refused_while_a_sweep_runs(tiny_dataset: Path) -> No
         )
         seen.append(other.stderr.strip().splitlines()[-1])
 
-    budget_sweep(tiny_dataset, budgets=[3], methods=["est"], bootstrap=5, log=log)
+    budget_sweep(tiny_dataset, expansions=[3], methods=["est"], bootstrap=5, log=log)
     assert "RunLockedError" in seen[0] and f"is being written by process {os.getpid()}" in seen[0]
 
 

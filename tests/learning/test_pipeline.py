@@ -37,9 +37,9 @@ pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceW
 TINY: dict[str, Any] = {
     "task": "pushing",
     "objects": [2, 3],
-    "trajectories": 3,
-    "frames": 3,
-    "iterations": 10,
+    "n_trajectories": 3,
+    "n_frames": 3,
+    "expansions": 10,
     "seed": 0,
     "hidden": (8,),
     "max_iter": 40,
@@ -197,12 +197,12 @@ def test_changed_settings_are_refused(baseline: LearnResult, tmp_path: Path) -> 
     before = file_stamps(work)
     out = tmp_path / "other.npz"
     with pytest.raises(EnergyMarginError, match=r"trajectories: 3 there, 4 now.*`overwrite=True`.*`work`") as error:
-        run_tiny(work, out, trajectories=4)
+        run_tiny(work, out, n_trajectories=4)
     assert "\n" not in str(error.value)
     with pytest.raises(EnergyMarginError, match=r"objects: \[2, 3\] there, \[3, 2\] now"):
         run_tiny(work, out, objects=[3, 2])
     with pytest.raises(EnergyMarginError, match=r"analyzer.expansions: 10 there, 20 now"):
-        run_tiny(work, out, iterations=20)
+        run_tiny(work, out, expansions=20)
     with pytest.raises(EnergyMarginError, match=r"seed: 0 there, 1 now"):
         run_tiny(work, out, seed=1)
     assert (work / SETTINGS_FILE).read_text() == settings and file_stamps(work) == before
@@ -219,7 +219,7 @@ def test_fit_settings_reuse_the_sets_and_overwrite_starts_afresh(baseline: Learn
     assert result.resumed and file_stamps(work) == before
     assert load_margin_model(tmp_path / "boosting.npz").kind == "boosting"
     # --overwrite replaces a run of other settings: the sets are generated again.
-    result = run_tiny(work, tmp_path / "four.npz", trajectories=4, overwrite=True)
+    result = run_tiny(work, tmp_path / "four.npz", n_trajectories=4, overwrite=True)
     assert not result.resumed and all(item.generated and item.analysed for item in result.sets)
     assert load_dataset(work / SETS_DIR / "objects-2").n_trajectories == 4
 
@@ -337,7 +337,7 @@ def test_bad_input_is_one_line_and_writes_nothing(
 def test_library_refuses_bad_arguments_before_writing(tmp_path: Path) -> None:
     work, out = tmp_path / "work", tmp_path / "model.npz"
     with pytest.raises(InvalidParameterError, match="trajectories must be an integer >= 2, got 1"):
-        run_tiny(work, out, trajectories=1)
+        run_tiny(work, out, n_trajectories=1)
     with pytest.raises(InvalidParameterError, match="kind must be one of"):
         run_tiny(work, out, kind="forest")
     with pytest.raises(InvalidParameterError, match="objects must be distinct"):

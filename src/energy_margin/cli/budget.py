@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     base = AnalyzerConfig(batch=args.batch, threads=args.threads)
     result = budget_sweep(
         args.dataset,
-        budgets=args.expansions,
+        expansions=args.expansions,
         methods=args.methods,
         workers=args.workers,
         seed=args.seed,

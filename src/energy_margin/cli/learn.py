@@ -16,7 +16,7 @@ from typing import Any
 
 from energy_margin.cli.common import add_old_spelling, add_seed, positive_int, print_json
 from energy_margin.errors import EnergyMarginError
-from energy_margin.learning.margin_model import KINDS
+from energy_margin.learning.margin_model import DEFAULT_KIND, KINDS
 from energy_margin.tasks import available_tasks
 
 __all__ = [
@@ -56,7 +56,7 @@ PIPELINE_OPTIONS = {
     "frames": "--frames",
     "work": "--work",
     "workers": "--workers",
-    "iterations": "--expansions",
+    "expansions": "--expansions",
     "no_progress": "--no-progress",
 }
 DEFAULT_FRAMES = 10
@@ -115,9 +115,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--kind",
         choices=KINDS,
-        default="set",
-        help=f"regressor: {', '.join(KINDS)} (default set: the network over the objects, fitted with PyTorch, "
-        "the learn extra)",
+        default=DEFAULT_KIND,
+        help=f"regressor: {', '.join(KINDS)} (default {DEFAULT_KIND}: the network over the objects, fitted "
+        "with PyTorch, the learn extra)",
     )
     add_seed(parser)
     parser.add_argument(
@@ -238,11 +238,11 @@ def run(args: argparse.Namespace) -> int:
             task=args.task,
             scene=args.scene,
             objects=args.objects,
-            trajectories=args.trajectories,
-            frames=args.frames if args.frames is not None else DEFAULT_FRAMES,
+            n_trajectories=args.trajectories,
+            n_frames=args.frames if args.frames is not None else DEFAULT_FRAMES,
             seed=args.seed,
             workers=args.workers if args.workers is not None else 1,
-            iterations=args.expansions,
+            expansions=args.expansions,
             kind=args.kind,
             holdout=args.holdout,
             success_frames=args.success_frames,

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin._renamed import renamed_keyword
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import Dataset, load_dataset
@@ -170,19 +171,19 @@ def budget_run(work: Path, out: Path) -> RunSpec:
 def sweep_settings(
     dataset: Dataset,
     *,
-    budgets: Sequence[int],
+    expansions: Sequence[int],
     methods: Sequence[str],
     seed: int,
     bootstrap: int,
     workers: int,
     base: AnalyzerConfig,
 ) -> dict[str, Any]:
-    """What ``budget_settings.json`` records of a sweep."""
+    """What ``budget_settings.json`` records of a sweep (its ``budgets``: ``expansions``, as in 0.2)."""
     return {
         "dataset": dataset.identity(),
         "seed": seed,
         "analyzer": base.to_dict(),
-        "budgets": list(budgets),
+        "budgets": list(expansions),
         "methods": list(methods),
         "bootstrap": bootstrap,
         "workers": workers,
@@ -221,9 +222,9 @@ def plot(
 
 def _check_sweep(budgets: Sequence[int], methods: Sequence[str], workers: int, seed: int, bootstrap: int) -> None:
     if not budgets:
-        raise InvalidParameterError("budgets", f"must be integers >= 1, got {list(budgets)!r}")
+        raise InvalidParameterError("expansions", f"must be integers >= 1, got {list(budgets)!r}")
     for budget in budgets:
-        check_int("budgets", budget, minimum=1)
+        check_int("expansions", budget, minimum=1)
     if not methods:
         raise InvalidParameterError("methods", f"must be among {', '.join(METHODS)}, got {list(methods)!r}")
     for method in methods:
@@ -233,10 +234,11 @@ def _check_sweep(budgets: Sequence[int], methods: Sequence[str], workers: int, s
     check_seed(seed)
 
 
+@renamed_keyword(budgets="expansions")
 def budget_sweep(
     path: Path | str,
     *,
-    budgets: Sequence[int] = DEFAULT_BUDGETS,
+    expansions: Sequence[int] = DEFAULT_BUDGETS,
     methods: Sequence[str] = METHODS,
     workers: int = 1,
     seed: int = 0,
@@ -255,13 +257,13 @@ def budget_sweep(
 
     Args:
         path: dataset directory.
-        budgets: iterations per frame, each >= 1.
+        expansions: the budgets to compare, expansions per frame, each >= 1.
         methods: tree methods.
         workers: worker processes of each analysis.
         seed: analysis seed (the same per-frame seeds for every configuration) and bootstrap seed.
         bootstrap: trajectory resamples for the confidence intervals (0: none).
         out: summary CSV (JSON and PNG beside it); ``DIR/budget/budget.csv`` by default.
-        base: other analysis settings (cost, lambda, batch, ...); its iterations are replaced.
+        base: other analysis settings (cost, lambda, batch, ...); its expansions are replaced.
         overwrite: replace a sweep of another dataset, seed or analyzer settings in the work
             directory (its summary and analyses) instead of refusing.
         log: receives one progress line per configuration (standard error by default).
@@ -270,14 +272,14 @@ def budget_sweep(
         The summary: the dataset, the settings and the rows (:class:`BudgetSweepResult`).
 
     """
-    _check_sweep(budgets, methods, workers, seed, bootstrap)
+    _check_sweep(expansions, methods, workers, seed, bootstrap)
     say = log if log is not None else (lambda line: print(line, file=sys.stderr, flush=True))
     directory = Path(path)
     dataset = load_dataset(directory)
     out_path = Path(out) if out is not None else directory / WORK_DIR / "budget.csv"
     base = base if base is not None else AnalyzerConfig()
     settings = sweep_settings(
-        dataset, budgets=budgets, methods=methods, seed=seed, bootstrap=bootstrap, workers=workers, base=base
+        dataset, expansions=expansions, methods=methods, seed=seed, bootstrap=bootstrap, workers=workers, base=base
     )
     work = out_path.parent
     with run_directory(work, budget_run(work, out_path), settings, overwrite=overwrite, engine=base.engine):
@@ -294,7 +296,7 @@ def budget_sweep(
             "title": f"{dataset.metadata['task']}, n_o = {dataset.n_objects}, "
             f"{dataset.n_trajectories} x {dataset.n_frames} frames",
         }
-        rows = _sweep_rows(directory, dataset, out_path, meta, base, budgets, methods, say)
+        rows = _sweep_rows(directory, dataset, out_path, meta, base, expansions, methods, say)
         _write_tables(rows, out_path, meta)
         plot(rows, out_path.with_suffix(".png"), title=meta["title"])
     return BudgetSweepResult(**meta, rows=rows)

@@ -179,20 +179,24 @@ def _open_study(out: Path, settings: dict[str, Any], known: Iterable[str], *, ov
 
 
 def study_settings(
-    specs: dict[str, StudyTask], tasks: Sequence[str], trajectories: int, frames: int, seed: int, **others: Any
+    specs: dict[str, StudyTask], tasks: Sequence[str], n_trajectories: int, n_frames: int, seed: int, **others: Any
 ) -> dict[str, Any]:
-    """What ``study_settings.json`` records: each task's dataset and analysis seed, and the other settings."""
+    """What ``study_settings.json`` records: each task's dataset and analysis seed, and the other settings.
+
+    The file keeps the keys of release 0.2 (``trajectories``, ``frames``, ``budgets``,
+    ``lambda_budget``), so a study written then resumes.
+    """
     entries = {
         task: {
             "objects": specs[task].objects,
             "dataset_seed": specs[task].seed,
-            "trajectories": trajectories,
-            "frames": frames,
+            "trajectories": n_trajectories,
+            "frames": n_frames,
             "seed": seed,
         }
         for task in tasks
     }
-    return {"tasks": entries, "trajectories": trajectories, "frames": frames, "seed": seed, **others}
+    return {"tasks": entries, "trajectories": n_trajectories, "frames": n_frames, "seed": seed, **others}
 
 
 @renamed_keyword(
@@ -416,25 +420,25 @@ def _distinct(name: str, values: Sequence[Any], wanted: str) -> None:
 def _check_arguments(
     specs: dict[str, StudyTask],
     tasks: Sequence[str],
-    trajectories: int,
-    frames: int,
-    budgets: Sequence[int],
+    n_trajectories: int,
+    n_frames: int,
+    expansions: Sequence[int],
     methods: Sequence[str],
     lambda_method: str,
-    lambda_budget: int,
+    lambda_expansions: int,
     seed: int,
 ) -> None:
     _distinct("tasks", tasks, f"names among {', '.join(specs)}")
     for task in tasks:
         check_choice("tasks", task, specs)
-    check_int("n_trajectories", trajectories, minimum=2)
-    check_int("n_frames", frames, minimum=1)
-    for budget in budgets:
+    check_int("n_trajectories", n_trajectories, minimum=2)
+    check_int("n_frames", n_frames, minimum=1)
+    for budget in expansions:
         check_int("expansions", budget, minimum=1)
-    _distinct("expansions", budgets, "integers >= 1")
+    _distinct("expansions", expansions, "integers >= 1")
     for method in methods:
         check_choice("methods", method, METHODS)
     _distinct("methods", methods, f"names among {', '.join(METHODS)}")
     check_choice("lambda_method", lambda_method, METHODS)
-    check_int("lambda_expansions", lambda_budget, minimum=1)
+    check_int("lambda_expansions", lambda_expansions, minimum=1)
     check_seed(seed)

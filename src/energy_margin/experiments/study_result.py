@@ -81,13 +81,13 @@ def positive_rates(dataset: Dataset) -> dict[str, float]:
 
 
 def method_differences(
-    task: str, scored: dict[tuple[str, int], Scored], methods: Sequence[str], budgets: Sequence[int]
+    task: str, scored: dict[tuple[str, int], Scored], methods: Sequence[str], expansions: Sequence[int]
 ) -> list[dict[str, Any]]:
     """EST minus every other tree method at each budget and minus ``distance``, paired, as rows."""
     rows: list[dict[str, Any]] = []
     if "est" not in methods:
         return rows
-    for budget in budgets:
+    for budget in expansions:
         if ("est", budget) not in scored:
             continue
         est = scored[("est", budget)]

@@ -52,13 +52,13 @@ class TaskState:
 
     @classmethod
     def open(
-        cls, out: Path, task: str, spec: Any, trajectories: int, frames: int, seed: int, bootstrap: int
+        cls, out: Path, task: str, spec: Any, n_trajectories: int, n_frames: int, seed: int, bootstrap: int
     ) -> TaskState:
         """Generate (or check) the dataset of ``task`` under ``out`` and answer its baselines.
 
         ``spec``: the task's objects per scene and generation seed (``objects``, ``seed``).
         """
-        dataset = study_dataset(out, task, spec.objects, spec.seed, trajectories=trajectories, frames=frames)
+        dataset = study_dataset(out, task, spec.objects, spec.seed, n_trajectories=n_trajectories, n_frames=n_frames)
         rates = positive_rates(dataset)
         meta = {
             "objects": dataset.n_objects,
@@ -67,7 +67,7 @@ class TaskState:
             "likelihood_lambda": dataset.task.config.likelihood_lambda,
         }
         questions = study_questions(dataset)
-        resamples = np.random.default_rng(seed).integers(0, trajectories, (bootstrap, trajectories))
+        resamples = np.random.default_rng(seed).integers(0, n_trajectories, (bootstrap, n_trajectories))
         state = cls(task, out / task / "dataset", dataset, questions, resamples, rates, meta, {})
         grids = dict(baseline_grids(dataset))
         constant = np.full(dataset.arrays["captured"].shape, 0.5)
@@ -84,13 +84,13 @@ class TaskState:
         return score_questions(self.questions, capture, success, self.resamples)
 
 
-def study_dataset(out: Path, task: str, objects: int, seed: int, *, trajectories: int, frames: int) -> Dataset:
+def study_dataset(out: Path, task: str, objects: int, seed: int, *, n_trajectories: int, n_frames: int) -> Dataset:
     """The dataset of ``task`` in ``OUT/<task>/dataset``: generated, or checked to be the one asked for."""
     directory = out / task / "dataset"
     if directory.exists():
         dataset = load_dataset(directory)
         found = (dataset.metadata["task"], dataset.n_objects, dataset.n_trajectories, dataset.n_frames)
-        expected = (task, objects, trajectories, frames)
+        expected = (task, objects, n_trajectories, n_frames)
         if found != expected or dataset.metadata.get("seed") != seed:
             raise EnergyMarginError(
                 f"{directory} holds another dataset (task, objects, trajectories, frames = {found}, "
@@ -99,5 +99,5 @@ def study_dataset(out: Path, task: str, objects: int, seed: int, *, trajectories
             )
         return dataset
     return generate_dataset(
-        task, n_objects=objects, n_trajectories=trajectories, n_frames=frames, seed=seed, out=directory
+        task, n_objects=objects, n_trajectories=n_trajectories, n_frames=n_frames, seed=seed, out=directory
     )

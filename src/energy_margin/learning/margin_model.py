@@ -44,9 +44,10 @@ from energy_margin.learning.margin_report import (
     MarginModelReport,
     _held_out_report,
 )
-from energy_margin.learning.regressors import KINDS, fit_regressor
+from energy_margin.learning.regressors import DEFAULT_KIND, KINDS, fit_regressor
 
 __all__ = [
+    "DEFAULT_KIND",
     "FEATURES_OF_KIND",
     "FORMAT",
     "KINDS",
@@ -65,7 +66,7 @@ def fit_margin_model(
     datasets: Sequence[Dataset],
     *,
     seed: int,
-    kind: str = "mlp",
+    kind: str = DEFAULT_KIND,
     holdout: float = 0.25,
     success_frames: int = 3,
     **options: Any,
@@ -77,7 +78,8 @@ def fit_margin_model(
             task and one task configuration; their numbers of objects may differ.
         seed: seed of the split and of the regressor.
         kind: ``"mlp"`` (a ReLU perceptron), ``"boosting"`` (gradient-boosted trees) or ``"set"``
-            (the network over the objects, :mod:`energy_margin.learning.set_network`; needs PyTorch).
+            (the network over the objects, :mod:`energy_margin.learning.set_network`; needs PyTorch),
+            by default :data:`DEFAULT_KIND` (``"set"``, as ``learn`` on the command line).
         holdout: fraction of the trajectories (whole trajectories, never single frames) held out
             for the report, in (0, 1); at least one trajectory is held out and one kept.
         success_frames: k-bar of the trajectory success AP (as in ``evaluate``), >= 1.

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin._renamed import renamed_keyword
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.dataset import METADATA_FILE
@@ -51,6 +52,7 @@ from energy_margin.data.generate import check_engine, generate_dataset
 from energy_margin.data.scores_file import SCORES_FILE
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_float, check_int
 from energy_margin.learning.margin_model import (
+    DEFAULT_KIND,
     KINDS,
     MarginModel,
     MarginModelReport,
@@ -162,6 +164,7 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+@renamed_keyword(trajectories="n_trajectories", frames="n_frames", iterations="expansions")
 def learn_pipeline(
     work: Path | str,
     out: Path | str,
@@ -169,12 +172,12 @@ def learn_pipeline(
     task: str | None = None,
     scene: str | os.PathLike[str] | None = None,
     objects: Sequence[int] | None = None,
-    trajectories: int,
-    frames: int = 10,
+    n_trajectories: int,
+    n_frames: int = 10,
     seed: int = 0,
     workers: int = 1,
-    iterations: int | None = None,
-    kind: str = "set",
+    expansions: int | None = None,
+    kind: str = DEFAULT_KIND,
     holdout: float = 0.25,
     success_frames: int = 3,
     overwrite: bool = False,
@@ -193,11 +196,11 @@ def learn_pipeline(
         scene: a scene file (docs/howto/scenes.md): one set of its objects.
         objects: objects per scene, one set per entry, distinct, each >= 1 (``task`` only;
             default the task's typical number).
-        trajectories: trajectories per set, >= 2 (the fit holds some out).
-        frames: frames per trajectory, >= 1.
+        n_trajectories: trajectories per set, >= 2 (the fit holds some out).
+        n_frames: frames per trajectory, >= 1.
         seed: the seed every other seed is derived from (module docstring).
         workers: analysis worker processes, >= 1; the results do not depend on it.
-        iterations: expansions per frame of the analysis (default the analyzer's, 300).
+        expansions: expansions per frame of the analysis (default the analyzer's, 300).
         kind: regressor, one of :data:`~energy_margin.learning.margin_model.KINDS`.
         holdout: fraction of the trajectories held out for the report, in (0, 1).
         success_frames: k-bar of the report's trajectory success AP, >= 1.
@@ -217,7 +220,7 @@ def learn_pipeline(
 
     """
     started = time.perf_counter()
-    counts = (trajectories, frames, seed, workers, iterations, success_frames)
+    counts = (n_trajectories, n_frames, seed, workers, expansions, success_frames)
     plan = _plan(task, scene, objects, counts, kind=kind, holdout=holdout, options=options, progress=progress)
     work, out = Path(work), Path(out)
     _check_out(out, work, overwrite=overwrite)
@@ -300,20 +303,20 @@ def _plan(
 ) -> _Plan:
     """Check the arguments, resolve the task and its sets, derive the seeds (:func:`learn_pipeline`).
 
-    ``counts`` holds ``(trajectories, frames, seed, workers, iterations, success_frames)``.
+    ``counts`` holds ``(n_trajectories, n_frames, seed, workers, expansions, success_frames)``.
     """
-    trajectories, frames, seed, workers, iterations, success_frames = counts
-    check_int("trajectories", trajectories, minimum=2)
-    check_int("frames", frames, minimum=1)
+    trajectories, frames, seed, workers, expansions, success_frames = counts
+    check_int("n_trajectories", trajectories, minimum=2)
+    check_int("n_frames", frames, minimum=1)
     check_int("seed", seed, minimum=0)
     check_int("workers", workers, minimum=1)
-    if iterations is not None:
-        check_int("iterations", iterations, minimum=1)
+    if expansions is not None:
+        check_int("expansions", expansions, minimum=1)
     check_choice("kind", kind, KINDS)
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
     check_int("success_frames", success_frames, minimum=1)
     resolved, config, sets = _task_and_sets(task, scene, objects)
-    analyzer = AnalyzerConfig() if iterations is None else AnalyzerConfig(expansions=iterations)
+    analyzer = AnalyzerConfig() if expansions is None else AnalyzerConfig(expansions=expansions)
     check_engine(resolved, analyzer.engine)
     fit_seed, seeds = pipeline_seeds(seed, len(sets))
     return _Plan(

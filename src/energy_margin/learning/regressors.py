@@ -21,6 +21,7 @@ import numpy as np
 from energy_margin.errors import InvalidDataError, InvalidParameterError, check_choice
 
 __all__ = [
+    "DEFAULT_KIND",
     "KINDS",
     "N_OUTPUTS",
     "BoostingRegressor",
@@ -34,6 +35,8 @@ __all__ = [
 N_OUTPUTS = 2
 #: Regressor kinds: a perceptron and boosted trees over frame statistics, the set network over objects.
 KINDS = ("mlp", "boosting", "set")
+#: The kind fitted when none is asked for, in Python and on the command line: the set network.
+DEFAULT_KIND = "set"
 
 
 class Regressor(Protocol):

@@ -69,8 +69,8 @@ class PlannedAnalysis:
         path: the dataset directory relative to the output directory.
         task: task name.
         n_objects: objects per scene.
-        trajectories: roll-outs.
-        frames: frames per roll-out.
+        n_trajectories: roll-outs.
+        n_frames: frames per roll-out.
         generated: whether ``reproduce`` generates it (perturbed copies are not rolled out).
         protocol: the perturbation protocol of a perturbed copy (``None`` for a generated set).
 
@@ -79,8 +79,8 @@ class PlannedAnalysis:
     path: str
     task: str
     n_objects: int
-    trajectories: int
-    frames: int
+    n_trajectories: int
+    n_frames: int
     generated: bool
     protocol: str | None = None
 
@@ -208,7 +208,7 @@ def work_left(out: Path, plan: list[PlannedAnalysis]) -> tuple[dict[PlannedAnaly
     """Frames left to analyse per planned dataset, and the datasets still to write (generate or perturb)."""
     from energy_margin.data.dataset import METADATA_FILE
 
-    frames = {entry: frames_left(out / entry.path, entry.trajectories * entry.frames) for entry in plan}
+    frames = {entry: frames_left(out / entry.path, entry.n_trajectories * entry.n_frames) for entry in plan}
     to_write = [entry for entry in plan if not (out / entry.path / METADATA_FILE).is_file()]
     return frames, to_write
 
@@ -231,9 +231,9 @@ def estimate_seconds(
 
     analysis = sum(count * per_object(calibration.frame_s, entry) for entry, count in frames.items())
     generation = sum(
-        entry.trajectories * per_object(calibration.rollout_s, entry)
+        entry.n_trajectories * per_object(calibration.rollout_s, entry)
         if entry.generated
-        else entry.trajectories * entry.frames * per_object(calibration.perturb_s, entry)
+        else entry.n_trajectories * entry.n_frames * per_object(calibration.perturb_s, entry)
         for entry in to_write
         if entry.generated or entry.protocol != "paper"
     )

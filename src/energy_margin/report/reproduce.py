@@ -224,7 +224,7 @@ def _announce(out: Path, config: ReproduceConfig) -> None:
     rates = ", ".join(
         f"{task} {calibration.frame_s[task]:.2f} s/frame ({n} objects)" for task, n in table_objects.items()
     )
-    resumed = "" if left == sum(e.trajectories * e.frames for e in plan) else f"{left} frames left; "
+    resumed = "" if left == sum(e.n_trajectories * e.n_frames for e in plan) else f"{left} frames left; "
     _say(
         f"reproduce ({'quick' if config.quick else 'full'}): {resumed}expected about {_duration(seconds)} with "
         f"{config.workers} worker(s) on this machine (calibrated in {calibration.measured_s:.1f} s: {rates}); "

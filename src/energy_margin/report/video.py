@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_positive_float
+from energy_margin.runs.progress import Progress, progress_bar
 
 if TYPE_CHECKING:
     from energy_margin.data.dataset import Dataset
@@ -231,7 +232,7 @@ def render_video(
     height: int = 480,
     strip_height: int = 96,
     backend: str = "auto",
-    progress: Callable[[int], None] | None = None,
+    progress: Progress = None,
 ) -> VideoResult:
     """Draw trajectory ``trajectory``'s roll-out at ``fps`` with its frame scores; write MP4 or GIF.
 
@@ -245,7 +246,8 @@ def render_video(
         height: picture height including the strip, pixels (a multiple of 16 for MP4).
         strip_height: height of the score strip, pixels.
         backend: the :class:`~energy_margin.report.render.FrameRenderer` backend.
-        progress: called with 1 after each picture.
+        progress: after each picture (:data:`~energy_margin.runs.progress.Progress`): ``True`` a
+            bar on standard error, a callable is called with 1.
 
     """
     from energy_margin.evaluation.metrics import score_grid
@@ -271,7 +273,9 @@ def render_video(
     )
     renderer = dataset_renderer(dataset, trajectory, width=width, height=height - strip_height, backend=backend)
     try:
-        count, rendered, poster = _draw_roll_out(dataset, trajectory, renderer, path, fps, times, strip, progress)
+        bar = progress_bar(0, desc="render", unit="picture", enabled=progress)
+        count, rendered, poster = _draw_roll_out(dataset, trajectory, renderer, path, fps, times, strip, bar.update)
+        bar.close()
     finally:
         backend_used = renderer.backend
         renderer.close()
