@@ -20,7 +20,7 @@ from energy_margin._renamed import renamed_keys
 from energy_margin.design.rank import MARGIN_LABELS
 from energy_margin.evaluation.statistics import spearman, wilson_interval
 from energy_margin.runs.results import TypedResult, plain_result
-from energy_margin.runs.tables import Column, fmt
+from energy_margin.runs.tables import Column, field, fmt
 from energy_margin.runs.tables import format_table as text_table
 
 __all__ = [
@@ -197,7 +197,7 @@ def format_result(result: DesignSearchResult | dict[str, Any]) -> str:
     columns = [
         Column("design", _role, 8, "<"),
         *(Column(name, _value_cell(name), 8) for name in names),
-        Column("objective", lambda e: fmt(e["objective"], 4), 9),
+        field("objective", digits=4, width=9),
         Column("roll-outs", _rollouts, 9),
         *(Column(f"{level} [95 % Wilson]", _level_cell(level), 22) for level in levels),
         Column("all levels", lambda e: _rate_text(_pooled(e)), 22),
