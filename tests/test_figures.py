@@ -69,3 +69,32 @@ def test_a_disagreeing_figure_fails_and_write_fixes_it(tmp_path: Path) -> None:
     assert figures.write(page, tmp_path) == 1
     assert page.read_text(encoding="utf-8") == "AP <!-- fig results.json#/a/b :.3f -->0.895<!-- /fig -->.\n"
     assert figures.write(page, tmp_path) == 0
+
+
+TABLE = """<!-- table table.csv where method=est
+| budget | AP |
+|---:|---:|
+| {budget:.0f|–} | {ap:.3f} |
+-->
+ROWS<!-- /table -->
+"""
+
+
+def test_a_table_block_lists_every_matching_record_and_write_fills_it(tmp_path: Path) -> None:
+    page = _page(tmp_path, TABLE.replace("ROWS", ""))
+    (stale,) = figures.quotes(page, tmp_path)
+    assert stale.quoted != stale.expected
+    assert "lines, the file gives 6" in str(stale)
+    assert figures.write(page, tmp_path) == 1
+    (fresh,) = figures.quotes(page, tmp_path)
+    assert fresh.quoted == fresh.expected == "\n| budget | AP |\n|---:|---:|\n| 300 | 0.895 |\n| 1000 | 0.895 |\n\n"
+    page.write_text(page.read_text(encoding="utf-8").replace("| 1000 | 0.895 |", "| 1000 | 0.900 |"))
+    (edited,) = figures.quotes(page, tmp_path)
+    assert "'| 1000 | 0.900 |'" in str(edited)
+
+
+def test_a_table_cell_may_stand_for_an_empty_or_zero_value() -> None:
+    rows = [{"budget": "0", "s": ""}, {"budget": "10", "s": "0.5"}]
+    assert figures.table_rows("| {budget:.0f|–} | {s:.1f|} |", rows) == "\n| – |  |\n| 10 | 0.5 |\n\n"
+    with pytest.raises(figures.FigureError, match="no column 'x'"):
+        figures.table_rows("| {x} |", rows)

@@ -11,13 +11,19 @@ A quoted figure is written between two markers that name its source::
 * after `` :`` an optional Python format spec (``.3f``, ``.2f``, ``,.0f``); without it the value as
   written in the file.
 
-A table of a results file is a block whose rows are generated from a template row, one per
-record of the file::
+A table of a results file is a block generated from a template: its lines without a ``{cell}``
+(the header and the separator) as they are, then its row line once per record of the file::
 
     <!-- table docs/figures/budget_pushing.csv where method=est
+    | method | budget | capture AP |
+    |---|---:|---:|
     | {method} | {budget:.0f|–} | {capture_ap:.3f} [{capture_ap_low:.3f}, {capture_ap_high:.3f}] |
     -->
+
+    | method | budget | capture AP |
+    |---|---:|---:|
     | est | 10 | 1.000 [1.000, 1.000] |
+
     <!-- /table -->
 
 * the records: a CSV file's rows, or the list a JSON file holds at ``#/pointer``; ``where
@@ -73,6 +79,13 @@ class Quote:
         where = f"{self.page.relative_to(ROOT) if self.page.is_relative_to(ROOT) else self.page}:{self.line}"
         if self.error:
             return f"{where}: {self.source}: {self.error}"
+        if self.source.startswith("table "):
+            quoted, expected = self.quoted.splitlines(), (self.expected or "").splitlines()
+            line = next((n for n, (q, e) in enumerate(zip(quoted, expected, strict=False)) if q != e), None)
+            if line is None:
+                return f"{where}: {self.source}: {len(quoted)} lines, the file gives {len(expected)}"
+            found, given = quoted[line], expected[line]
+            return f"{where}: {self.source}: line {line + 1} of the table is {found!r}, the file gives {given!r}"
         return f"{where}: {self.source}: quoted {self.quoted!r}, the file says {self.expected!r}"
 
 
@@ -159,9 +172,9 @@ def records(path: str, key: str | None, where: str | None, root: Path = ROOT) ->
 
 
 def table_rows(template: str, rows: list[dict[str, Any]]) -> str:
-    """One line per record: the template's cells filled in (``{column:spec|blank}``)."""
+    """The template's lines without cells as they are, then each line with cells once per record."""
 
-    def line(row: dict[str, Any]) -> str:
+    def line(row: dict[str, Any], text: str) -> str:
         def cell(match: re.Match[str]) -> str:
             column = match.group("column")
             if column not in row:
@@ -171,9 +184,13 @@ def table_rows(template: str, rows: list[dict[str, Any]]) -> str:
                 return blank
             return render(value, match.group("spec")) if value not in ("", None) else ""
 
-        return CELL.sub(cell, template)
+        return CELL.sub(cell, text)
 
-    return "".join(line(row) + "\n" for row in rows)
+    fixed = [text for text in template.splitlines() if not CELL.search(text)]
+    varying = [text for text in template.splitlines() if CELL.search(text)]
+    body = "".join(text + "\n" for text in fixed) + "".join(line(row, text) + "\n" for row in rows for text in varying)
+    # Blank lines around the rows: Markdown reads each comment as a block of its own, the rows as a table.
+    return "\n" + body + "\n"
 
 
 def _is_zero(value: Any) -> bool:
