@@ -87,10 +87,10 @@ class _RegionsOnly:
         return self._region()
 
     def is_captured(self, frame: FrameState) -> bool:
-        return False
+        return bool(np.all(self._region().contains(frame.object_pos, frame.object_vel)))
 
     def is_successful(self, frame: FrameState) -> bool:
-        return False
+        return self.is_captured(frame)
 
     def capture_region_shape(self, root: FrameState) -> str:
         return "box"
@@ -117,6 +117,38 @@ def test_a_regions_only_object_is_accepted_where_regions_suffice() -> None:
     np.testing.assert_array_equal(successful, [True, False])
     capture, success = score_field(fake, root, field, 0.0)
     assert capture == success == pytest.approx(0.5)
+
+
+def test_a_regions_only_object_labels_a_recorded_trajectory() -> None:
+    from energy_margin.data.generate import trajectory_record
+
+    fake = _RegionsOnly()
+    inside = FrameState(
+        np.array([[-1.0, 0.0, 0.0]]), np.array([[1.0, 0.0, 0.0, 0.0]]), np.zeros((1, 6)), np.zeros(0), np.zeros(0)
+    )
+    outside = FrameState(
+        np.array([[1.0, 0.0, 0.0]]), np.array([[1.0, 0.0, 0.0, 0.0]]), np.zeros((1, 6)), np.zeros(0), np.zeros(0)
+    )
+    record = trajectory_record(fake, [inside, outside], [0.0, 0.5], 0.3, np.zeros(1))
+    np.testing.assert_array_equal(record["captured"], [True, False])
+    np.testing.assert_array_equal(record["in_success"], [True, False])
+
+
+class _DesignOnly:
+    """A design space and nothing else: a configuration and no aliases."""
+
+    config = PushingTask().config
+
+    def design_aliases(self) -> tuple[()]:
+        return ()
+
+
+def test_a_design_only_object_gives_its_fields() -> None:
+    from energy_margin.design.grid import config_fields
+
+    fake = _DesignOnly()
+    assert config_fields(fake) == config_fields(PushingTask())  # type: ignore[arg-type]
+    assert config_fields(fake)["object_radius"] == PushingTask().config.object_radius  # type: ignore[arg-type]
 
 
 def _legacy_class() -> type[PushingTask]:

@@ -32,6 +32,7 @@ from energy_margin.planning.methods import METHODS
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, TaskRegions, all_inside, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
+from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -337,7 +338,7 @@ def analyze_frame(
 
 
 def _frame_simulator(
-    recorded_task: Task,
+    recorded_task: PhysicsReadout,
     task: Task,
     frame: FrameState,
     friction: float,

@@ -34,6 +34,7 @@ from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task, Trajectory
+from energy_margin.tasks.protocols import TaskRegions
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -264,7 +265,7 @@ def branch_episode(
 
 
 def _branch_outcomes(
-    task: Task,
+    task: TaskRegions,
     plant: Simulator,
     play: Callable[..., object],
     state: np.ndarray,

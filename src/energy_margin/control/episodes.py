@@ -47,6 +47,7 @@ from energy_margin.runs.progress import Progress
 from energy_margin.sim import Simulator
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import Task, Trajectory, command_robot, get_task
+from energy_margin.tasks.protocols import ScriptedMotion
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -153,7 +154,7 @@ def _controller(
 
 
 def _closed_loop(
-    task: Task,
+    task: ScriptedMotion,
     settings: ControlSettings,
     plant: Simulator,
     space: CommandSpace,

@@ -26,6 +26,7 @@ from energy_margin.runs.progress import Progress, progress_bar
 from energy_margin.runs.versions import VERSIONS_KEY, engine_versions
 from energy_margin.sim import ENGINES, Simulator
 from energy_margin.tasks import Task, Trajectory, command_robot, resolve_task
+from energy_margin.tasks.protocols import TaskRegions
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -218,7 +219,7 @@ def draw_trajectory(
 
 
 def trajectory_record(
-    task: Task, frames: list[FrameState], times: list[float], friction: float, drive: np.ndarray
+    task: TaskRegions, frames: list[FrameState], times: list[float], friction: float, drive: np.ndarray
 ) -> dict[str, Any]:
     """One trajectory's arrays as ``frames.npz`` lays them out (without the trajectory axis), with labels.
 

@@ -21,6 +21,7 @@ from typing import Any
 from energy_margin.design.params import is_range
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import Task, available_tasks, get_task
+from energy_margin.tasks.protocols import DesignSpace
 
 __all__ = [
     "Design",
@@ -51,7 +52,7 @@ class Design:
         return design_label(self.values)
 
 
-def config_fields(task: Task) -> dict[str, Any]:
+def config_fields(task: DesignSpace) -> dict[str, Any]:
     """Every configuration field of ``task`` with its value."""
     return {field.name: getattr(task.config, field.name) for field in dataclasses.fields(task.config)}
 

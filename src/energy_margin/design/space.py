@@ -29,6 +29,7 @@ from energy_margin.data.generate import trajectory_rng
 from energy_margin.design.grid import Design, config_fields, design_grid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import DesignParameter, Task, available_tasks, get_task
+from energy_margin.tasks.protocols import DesignSpace
 
 __all__ = [
     "DIGITS",
@@ -56,7 +57,7 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-def known_names(task: Task) -> list[str]:
+def known_names(task: DesignSpace) -> list[str]:
     """Every design parameter of ``task``: its tool family's axes, its aliases, then its configuration fields."""
     names = [parameter.name for parameter in task.design_space()]
     names += [alias.name for alias in task.design_aliases() if alias.name not in names]
@@ -201,7 +202,7 @@ def point_design(task: Task, space: Sequence[DesignParameter], values: Sequence[
     return design_grid(task, params, fixed=fixed)[0]
 
 
-def default_design(task: Task, space: Sequence[DesignParameter], fixed: dict[str, Any]) -> Design:
+def default_design(task: DesignSpace, space: Sequence[DesignParameter], fixed: dict[str, Any]) -> Design:
     """The task's own design (its configuration with ``fixed``), labelled by its values on the searched axes.
 
     An axis that is an alias has no inverse from the configuration; it is labelled ``"default"``.

@@ -31,6 +31,7 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks.base import MeasurableRegion, Region, Task
+from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -303,7 +304,7 @@ def _signed_distance(region: Region, positions: np.ndarray) -> np.ndarray:
     return np.zeros(positions.shape[:-1])
 
 
-def _end_effector_anchor(task: Task, n_robot_dofs: int) -> tuple[np.ndarray, np.ndarray]:
+def _end_effector_anchor(task: PhysicsReadout, n_robot_dofs: int) -> tuple[np.ndarray, np.ndarray]:
     """The anchor ``origin + robot_q @ axes``: origin (3,) m and axes (r, 3) of the root link's slides."""
     axes = np.zeros((n_robot_dofs, 3))
     scene = task.build_scene(task.fixed_objects or 1, 0.5)
