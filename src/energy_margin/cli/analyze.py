@@ -83,8 +83,15 @@ TREE_ONLY = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Arguments of ``analyze``."""
+    """Arguments of ``analyze``: the dataset, the tree's budget and scoring, the run, the tree's growth."""
     parser.add_argument("dataset", help="dataset directory")
+    _add_budget_and_scoring(parser)
+    _add_run(parser)
+    _add_growth(parser)
+
+
+def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
+    """How far each frame's tree grows and how its states are scored."""
     add_old_spelling(
         parser,
         "--iterations",
@@ -127,6 +134,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="calibration.json of energy-margin calibrate: analyse at the lambda it chose (not with --lambda)",
     )
+
+
+def _add_run(parser: argparse.ArgumentParser) -> None:
+    """Where and how the frames are analysed, and the learned margin instead of trees."""
     parser.add_argument("--workers", type=positive_int, default=1, help="parallel workers (default 1)")
     parser.add_argument("--executor", choices=EXECUTORS, default="local", help="local process pool (default) or Ray")
     parser.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
@@ -141,6 +152,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="learned margin file (energy-margin learn): predict every frame's scores with it instead of "
         "growing trees (takes none of the tree options)",
     )
+
+
+def _add_growth(parser: argparse.ArgumentParser) -> None:
+    """How each tree grows: its method, batches, adaptive budget, contacts and density features."""
     parser.add_argument(
         "--method",
         choices=METHODS,

@@ -58,13 +58,15 @@ SCORES = {"success": "success_score", "early": "early_success_score", "capture":
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Arguments of ``design``."""
-    from energy_margin.control.disturbances import DISTURBANCES
+    """Arguments of ``design``: what is searched and how, how a design is scored, verified, and the run."""
+    _add_search(parser)
+    _add_scoring(parser)
+    _add_verification_and_run(parser)
+
+
+def _add_search(parser: argparse.ArgumentParser) -> None:
+    """The task or scene, the axes of the search, the optimiser and its objective."""
     from energy_margin.design.optimizers import OPTIMIZERS
-    from energy_margin.design.scorers import DESIGN_EXPANSIONS, DESIGN_FRAMES, DESIGN_TRAJECTORIES
-    from energy_margin.design.verification import VERIFY_POLICIES
-    from energy_margin.planning.costs import COST_MODELS
-    from energy_margin.planning.methods import METHODS
     from energy_margin.tasks import available_tasks
 
     tasks = available_tasks()
@@ -96,6 +98,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="success",
         help="the score averaged over the roll-outs: success (all frames, default), early (first half) or capture",
     )
+
+
+def _add_scoring(parser: argparse.ArgumentParser) -> None:
+    """The roll-outs of one evaluation and the trees that score them."""
+    from energy_margin.design.scorers import DESIGN_EXPANSIONS, DESIGN_FRAMES, DESIGN_TRAJECTORIES
+    from energy_margin.planning.costs import COST_MODELS
+    from energy_margin.planning.methods import METHODS
+
     parser.add_argument(
         "--trajectories",
         type=positive_int,
@@ -118,6 +128,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--method", choices=METHODS, default="est", help=f"tree method: {', '.join(METHODS)}")
     parser.add_argument("--cost", choices=tuple(COST_MODELS), default="wrench", help="incremental cost model")
+
+
+def _add_verification_and_run(parser: argparse.ArgumentParser) -> None:
+    """The closed-loop verification of the chosen design, and the run directory."""
+    from energy_margin.control.disturbances import DISTURBANCES
+    from energy_margin.design.verification import VERIFY_POLICIES
+
     parser.add_argument(
         "--verify", type=non_negative_int, default=20, help="verification episodes per design and level (default 20)"
     )
