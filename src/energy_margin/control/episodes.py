@@ -41,13 +41,11 @@ from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
 from energy_margin.data.generate import records_dataset, trajectory_record
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
-from energy_margin.runs import RunSpec, progress_bar, run_directory
+from energy_margin.runs import Progress, RunSpec, progress_bar, run_directory
 from energy_margin.runs.files import atomic_path, write_json
-from energy_margin.runs.progress import Progress
 from energy_margin.sim import Simulator
 from energy_margin.sim.base import ModelCommand
-from energy_margin.tasks import Task, Trajectory, command_robot, get_task
-from energy_margin.tasks.protocols import ScriptedMotion
+from energy_margin.tasks import ScriptedMotion, Task, Trajectory, command_robot, get_task
 from energy_margin.world.state import FrameState
 
 __all__ = [
