@@ -207,3 +207,29 @@ def test_a_numbers_constraint_refuses(constraint: Constraint, value: object, mes
         constraint.check("x", value)
     assert str(caught.value).startswith(message)
     assert caught.value.parameter == "x"
+
+
+@dataclasses.dataclass(frozen=True)
+class _OwnConfig(TaskConfig):
+    """A user's task configuration that checks its settings by hand in ``check``."""
+
+    mass: float = 1.0
+    extents: tuple[float, float] = (0.1, 0.1)
+    speed: float = 0.0
+    gap: tuple[float, float] = (0.0, 1.0)
+
+
+def test_the_check_helpers_still_refuse_and_warn_that_constraints_replace_them() -> None:
+    from energy_margin.tasks.config import require_non_negative, require_positive, require_ranges
+
+    with pytest.warns(DeprecationWarning, match=r"constrained\(default, POSITIVE\)"):
+        require_positive(_OwnConfig(), "mass", "extents")
+    for helper, name, changes, reason in [
+        (require_positive, "extents", {"extents": (0.1, 0.0)}, "must be > 0, got (0.1, 0.0)"),
+        (require_non_negative, "speed", {"speed": -1.0}, "must be >= 0, got -1.0"),
+        (require_ranges, "gap", {"gap": (1.0, 0.0)}, "must be (low, high) with low <= high"),
+    ]:
+        config = _OwnConfig(**changes)  # type: ignore[arg-type]
+        with pytest.warns(DeprecationWarning, match="goes in 0.3"), pytest.raises(InvalidParameterError) as caught:
+            helper(config, name)
+        assert caught.value.parameter == name and reason in caught.value.reason

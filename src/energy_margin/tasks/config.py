@@ -12,6 +12,7 @@ again), then the checks between fields of :meth:`TaskConfig.check`. The shorthan
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -120,12 +121,21 @@ def _finite(name: str, value: Any) -> float:
     return float(value)
 
 
-def require_positive(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is > 0.
+def _deprecated(helper: str, constraint: str) -> None:
+    warnings.warn(
+        f"{helper} is deprecated: declare the setting as constrained(default, {constraint}) "
+        "(energy_margin.tasks.config); the helper goes in 0.3",
+        DeprecationWarning,
+        stacklevel=3,
+    )
 
-    :func:`require_positive`, :func:`require_non_negative` and :func:`require_ranges` serve a
-    configuration that checks its settings in ``check``; the package's own declare constraints.
+
+def require_positive(config: TaskConfig, *names: str) -> None:
+    """Deprecated (goes in 0.3): declare the settings with :data:`POSITIVE` or :data:`EXTENTS`.
+
+    Raises ``InvalidParameterError`` unless every named setting (or every entry of a tuple) is > 0.
     """
+    _deprecated("require_positive", "POSITIVE")
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values <= 0):
@@ -133,7 +143,11 @@ def require_positive(config: TaskConfig, *names: str) -> None:
 
 
 def require_non_negative(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is >= 0."""
+    """Deprecated (goes in 0.3): declare the settings with :data:`NON_NEGATIVE`.
+
+    Raises ``InvalidParameterError`` unless every named setting (or every entry of a tuple) is >= 0.
+    """
+    _deprecated("require_non_negative", "NON_NEGATIVE")
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values < 0):
@@ -141,7 +155,11 @@ def require_non_negative(config: TaskConfig, *names: str) -> None:
 
 
 def require_ranges(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named ``(low, high)`` setting has low <= high."""
+    """Deprecated (goes in 0.3): declare the settings with :data:`RANGE`.
+
+    Raises ``InvalidParameterError`` unless every named ``(low, high)`` setting has low <= high.
+    """
+    _deprecated("require_ranges", "RANGE")
     for name in names:
         low, high = getattr(config, name)
         if low > high:
