@@ -213,6 +213,7 @@ def test_a_numbers_constraint_refuses(constraint: Constraint, value: object, mes
 class _OwnConfig(TaskConfig):
     """A user's task configuration that checks its settings by hand in ``check``."""
 
+    timestep: float = 0.01
     mass: float = 1.0
     extents: tuple[float, float] = (0.1, 0.1)
     speed: float = 0.0
@@ -233,3 +234,10 @@ def test_the_check_helpers_still_refuse_and_warn_that_constraints_replace_them()
         with pytest.warns(DeprecationWarning, match="goes in 0.3"), pytest.raises(InvalidParameterError) as caught:
             helper(config, name)
         assert caught.value.parameter == name and reason in caught.value.reason
+
+
+def test_a_subclass_that_changes_a_default_without_its_constraint_keeps_the_base_check() -> None:
+    assert field_constraint(_OwnConfig, "timestep") is None
+    assert _OwnConfig(timestep=0.02).timestep == 0.02
+    with pytest.raises(InvalidParameterError, match=r"^timestep must be a finite number > 0, got 0\.0$"):
+        _OwnConfig(timestep=0.0)

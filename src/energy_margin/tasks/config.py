@@ -3,10 +3,11 @@
 Every task's configuration is a frozen dataclass derived from :class:`TaskConfig`; its fields are
 checked on construction: the type and length of the default, then each field's own
 :class:`~energy_margin.errors.Constraint`, declared beside its default with
-:func:`~energy_margin.errors.constrained` (a subclass that changes a default declares the constraint
-again), then the checks between fields of :meth:`TaskConfig.check`. The shorthands
-:data:`POSITIVE`, :data:`NON_NEGATIVE`, :data:`NUMBER`, :data:`RANGE` (and its variants) and
-:data:`EXTENTS` are the constraints most settings take.
+:func:`~energy_margin.errors.constrained` (a subclass that changes a default declares the
+constraint again; one that does not keeps :class:`TaskConfig`'s), then the checks between fields
+of :meth:`TaskConfig.check`. The shorthands :data:`POSITIVE`, :data:`NON_NEGATIVE`,
+:data:`NUMBER`, :data:`RANGE` (and its variants) and :data:`EXTENTS` are the constraints most
+settings take.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from energy_margin.errors import Constraint, InvalidParameterError, check_fields, constrained
+from energy_margin.errors import Constraint, InvalidParameterError, check_fields, constrained, field_constraint
 
 __all__ = [
     "CONTACT_MODELS",
@@ -95,6 +96,10 @@ class TaskConfig:
             elif isinstance(default, int | float) and not isinstance(default, bool):
                 object.__setattr__(self, field.name, _finite(field.name, value))
         check_fields(self)
+        # A subclass that changes a default here without declaring the constraint again keeps this one.
+        for field in dataclasses.fields(TaskConfig):
+            if field_constraint(type(self), field.name) is None:
+                field.metadata["constraint"].check(field.name, getattr(self, field.name))
         self.check()
 
     def check(self) -> None:
