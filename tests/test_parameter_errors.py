@@ -26,11 +26,11 @@ SOURCE = Path(__file__).resolve().parents[1] / "src" / "energy_margin"
         (lambda: AnalyzerConfig(batch=2, cost="energy"), "cost", "does not integrate friction work"),
         (lambda: AnalyzerConfig(contacts="fast", engine="pybullet"), "contacts", "'fast' is a MuJoCo contact model"),
         (lambda: AnalyzerConfig(expansions=-1), "expansions", "must be a non-negative integer, got -1"),
-        (lambda: PushingConfig(tine_count=1), "tine_count", "must be at least 2, got 1"),
+        (lambda: PushingConfig(tine_count=1), "tine_count", "must be an integer >= 2, got 1"),
         (lambda: PushingConfig(timestep=2.0, duration=1.0), "timestep", "must not exceed duration"),
         (lambda: ScoopingConfig(recorded_waypoints=1), "recorded_waypoints", "must be 0 or at least 2, got 1"),
         (lambda: StateBox(low=(0.0, 0.0, 1.0), high=(1.0, 1.0, 1.0), max_speed=1.0), "low", "must be below high"),
-        (lambda: StateBox(low=(0.0, 0.0, 0.0), high=(1.0, 1.0, 1.0), max_speed=0.0), "max_speed", "must be > 0"),
+        (lambda: StateBox(low=(0.0,) * 3, high=(1.0,) * 3, max_speed=0.0), "max_speed", "must be a finite number > 0"),
         (lambda: min_volume_ellipsoid(np.array([[np.nan, 0.0]])), "points", "must be finite"),
     ],
 )

@@ -35,6 +35,7 @@ __all__ = [
     "check_positive_int",
     "check_seed",
     "constrained",
+    "constrained_required",
     "field_constraint",
     "field_default",
 ]
@@ -137,10 +138,7 @@ def check_float(
         InvalidParameterError: ``value`` is not a finite number or out of bounds.
 
     """
-    lower = None if minimum is None else f"{'>' if exclusive_minimum else '>='} {minimum:g}"
-    upper = None if maximum is None else f"{'<' if exclusive_maximum else '<='} {maximum:g}"
-    phrase = " and ".join(part for part in (lower, upper) if part)
-    wanted = f"a finite number {phrase}".rstrip() if phrase else "a finite number"
+    wanted = "a finite number" + _bounds_phrase(minimum, maximum, exclusive_minimum, exclusive_maximum)
     if isinstance(value, bool | str | bytes):
         raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
     try:
@@ -154,6 +152,16 @@ def check_float(
     if too_low or too_high:
         raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
     return number
+
+
+def _bounds_phrase(
+    minimum: float | None, maximum: float | None, exclusive_minimum: bool, exclusive_maximum: bool
+) -> str:
+    """The bounds in words after a noun: ``" > 0 and < 1"``, ``" >= 0"``; ``""`` for none."""
+    lower = None if minimum is None else f"{'>' if exclusive_minimum else '>='} {minimum:g}"
+    upper = None if maximum is None else f"{'<' if exclusive_maximum else '<='} {maximum:g}"
+    phrase = " and ".join(part for part in (lower, upper) if part)
+    return f" {phrase}" if phrase else ""
 
 
 def check_positive_int(name: str, value: Any, *, minimum: int = 1) -> int:
@@ -179,15 +187,19 @@ class Constraint:
     """The values a keyword argument or configuration field takes, declared once beside its default.
 
     Attributes:
-        kind: ``"int"`` (:func:`check_int`), ``"float"`` (:func:`check_float`) or ``"choice"``
-            (:func:`check_choice`).
-        minimum: lower bound of an ``int`` or ``float``; ``None`` for none.
+        kind: ``"int"`` (:func:`check_int`), ``"float"`` (:func:`check_float`), ``"choice"``
+            (:func:`check_choice`), ``"floats"`` (a list or tuple of ``length`` numbers, each
+            within the bounds: half extents, a gravity vector) or ``"range"`` (a ``(low, high)``
+            pair of numbers within the bounds with ``low <= high``).
+        minimum: lower bound of an ``int`` or ``float`` (of each number of ``floats`` and
+            ``range``); ``None`` for none.
         maximum: upper bound; ``None`` for none.
         exclusive: a ``float``'s bounds themselves are refused (``> minimum``, ``< maximum``).
         exclusive_minimum: the lower bound itself is refused (``> minimum``) even without ``exclusive``.
         exclusive_maximum: the upper bound itself is refused (``< maximum``) even without ``exclusive``.
         choices: the values of a ``choice``.
         optional: ``None`` is allowed too.
+        length: how many numbers a ``floats`` holds.
     """
 
     kind: str
@@ -198,9 +210,10 @@ class Constraint:
     exclusive_maximum: bool = False
     choices: tuple[str, ...] = ()
     optional: bool = False
+    length: int = 0
 
     def check(self, name: str, value: Any) -> Any:
-        """Return ``value`` (as an ``int`` or ``float`` for those kinds) or raise naming ``name``.
+        """Return ``value`` (as an ``int``, a ``float`` or a tuple of floats for those kinds) or raise naming ``name``.
 
         Raises:
             InvalidParameterError: ``value`` is outside the constraint.
@@ -213,20 +226,51 @@ class Constraint:
             high = None if self.maximum is None else int(self.maximum)
             return check_int(name, value, minimum=low, maximum=high)
         if self.kind == "float":
-            return check_float(
-                name,
-                value,
-                minimum=self.minimum,
-                maximum=self.maximum,
-                exclusive_minimum=self.exclusive or self.exclusive_minimum,
-                exclusive_maximum=self.exclusive or self.exclusive_maximum,
-            )
+            return self._number(name, value)
+        if self.kind in ("floats", "range"):
+            return self._numbers(name, value)
         return check_choice(name, value, self.choices)
+
+    def _number(self, name: str, value: Any) -> float:
+        return check_float(
+            name,
+            value,
+            minimum=self.minimum,
+            maximum=self.maximum,
+            exclusive_minimum=self.exclusive or self.exclusive_minimum,
+            exclusive_maximum=self.exclusive or self.exclusive_maximum,
+        )
+
+    def _numbers(self, name: str, value: Any) -> tuple[float, ...]:
+        bounds = _bounds_phrase(
+            self.minimum,
+            self.maximum,
+            self.exclusive or self.exclusive_minimum,
+            self.exclusive or self.exclusive_maximum,
+        )
+        if self.kind == "range":
+            count, wanted = 2, f"a (low, high) pair of finite numbers{bounds} with low <= high"
+        else:
+            count, wanted = self.length, f"{self.length} finite numbers{bounds}"
+        if not isinstance(value, tuple | list) or len(value) != count:
+            raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
+        try:
+            numbers = tuple(self._number(name, item) for item in value)
+        except InvalidParameterError:
+            raise InvalidParameterError(name, f"must be {wanted}, got {value!r}") from None
+        if self.kind == "range" and numbers[0] > numbers[1]:
+            raise InvalidParameterError(name, f"must be {wanted}, got {value!r}")
+        return numbers
 
 
 def constrained(default: _T, constraint: Constraint) -> _T:
     """A dataclass field with ``default`` whose values :func:`check_fields` checks against ``constraint``."""
     return dataclasses.field(default=default, metadata={"constraint": constraint})
+
+
+def constrained_required(constraint: Constraint) -> Any:
+    """A dataclass field without a default whose values :func:`check_fields` checks against ``constraint``."""
+    return dataclasses.field(metadata={"constraint": constraint})
 
 
 def field_constraint(cls: type, name: str) -> Constraint | None:

@@ -88,7 +88,12 @@ def test_design_grid_is_the_product_with_aliases() -> None:
         ("pushing", [("scoop_angle", [1.0])], {}, "is a setting of task 'scooping', not of 'pushing'"),
         ("scooping", [("pusher_width", [0.5])], {}, "is a setting of task 'pushing', not of 'scooping'"),
         ("scooping", [("tip_angle", [1.0])], {}, "tip_angle: unknown scooping parameter"),
-        ("scooping", [("finger_stiffness", [0, 100])], {}, "design finger_stiffness=0: .*stiffness_range must be > 0"),
+        (
+            "scooping",
+            [("finger_stiffness", [0, 100])],
+            {},
+            "design finger_stiffness=0: .*stiffness_range must be a \\(low, high\\) pair of finite numbers > 0",
+        ),
         ("scooping", [("open_gap", ["wide"])], {}, 'design open_gap="wide": .*open_gap must be a number'),
         (
             "pushing",

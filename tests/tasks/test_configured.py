@@ -32,7 +32,9 @@ def test_configured_refuses_a_bad_setting_naming_the_task() -> None:
         InvalidParameterError, match=r"unknown scooping configuration keys: no_such_setting \(task 'scooping'\)"
     ):
         task.configured({"no_such_setting": 1})
-    with pytest.raises(InvalidParameterError, match=r"must be > 0, got \(-1.0, 2.0\) \(task 'scooping'\)") as raised:
+    with pytest.raises(
+        InvalidParameterError, match=r"with low <= high, got \(-1.0, 2.0\) \(task 'scooping'\)"
+    ) as raised:
         task.configured({"stiffness_range": [-1.0, 2.0]})
     assert raised.value.parameter == "stiffness_range"
 

@@ -243,7 +243,7 @@ def test_generated_trajectories_record_the_script_as_waypoints() -> None:
 
 
 @pytest.mark.parametrize(
-    ("value", "message"), [(1, "0 or at least 2"), (-2, "0 or at least 2"), (2.5, "must be an integer")]
+    ("value", "message"), [(1, "0 or at least 2"), (-2, "must be a non-negative integer"), (2.5, "must be an integer")]
 )
 def test_recorded_waypoints_must_be_a_count(value: float, message: str) -> None:
     with pytest.raises(EnergyMarginError, match=message):

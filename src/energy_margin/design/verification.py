@@ -21,7 +21,7 @@ from energy_margin.analysis.executors import pool_results
 from energy_margin.control.commands import command_space, controllable_tasks
 from energy_margin.control.disturbances import get_disturbance
 from energy_margin.control.episodes import ControlSettings, run_episode
-from energy_margin.errors import EnergyMarginError, check_choice
+from energy_margin.errors import Constraint, EnergyMarginError, check_fields, constrained
 from energy_margin.tasks import Task
 
 __all__ = [
@@ -45,10 +45,10 @@ class EpisodeVerifier:
 
     """
 
-    policy: str = "scripted"
+    policy: str = constrained("scripted", Constraint("choice", choices=VERIFY_POLICIES))
 
     def __post_init__(self) -> None:
-        check_choice("policy", self.policy, VERIFY_POLICIES)
+        check_fields(self)
 
     def settings(self) -> dict[str, Any]:
         """What decides the episodes besides the design, the level and the seeds (saved with the run)."""

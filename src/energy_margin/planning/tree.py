@@ -34,7 +34,7 @@ from typing import Protocol
 import numpy as np
 
 from energy_margin._renamed import renamed_fields
-from energy_margin.errors import InvalidParameterError, check_int, check_positive_int
+from energy_margin.errors import Constraint, InvalidParameterError, check_fields, check_positive_int, constrained
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.planning.nodes import CostField, Outcome, _Tree
@@ -64,17 +64,14 @@ class TreeBudget:
 
     """
 
-    expansions: int | None = 300
-    nodes: int | None = None
-    max_expansions: int = 100_000
+    expansions: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
+    nodes: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
+    max_expansions: int = constrained(100_000, Constraint("int", minimum=0))
 
     def __post_init__(self) -> None:
         if self.expansions is None and self.nodes is None:
             raise InvalidParameterError("expansions", "and nodes cannot both be None: give expansions, nodes or both")
-        for name in ("expansions", "nodes"):
-            value = getattr(self, name)
-            if value is not None:
-                check_int(name, value, minimum=0)
+        check_fields(self)
 
     @property
     def expansion_limit(self) -> int:

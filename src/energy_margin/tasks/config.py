@@ -1,26 +1,56 @@
 """Settings of a task: :class:`TaskConfig`, the checks of its fields, and the names of its contact models.
 
 Every task's configuration is a frozen dataclass derived from :class:`TaskConfig`; its fields are
-checked on construction (type and length of the default, then the ranges of :meth:`TaskConfig.check`).
+checked on construction: the type and length of the default, then each field's own
+:class:`~energy_margin.errors.Constraint`, declared beside its default with
+:func:`~energy_margin.errors.constrained` (a subclass that changes a default declares the
+constraint again; one that does not keeps :class:`TaskConfig`'s), then the checks between fields
+of :meth:`TaskConfig.check`. The shorthands :data:`POSITIVE`, :data:`NON_NEGATIVE`,
+:data:`NUMBER`, :data:`RANGE` (and its variants) and :data:`EXTENTS` are the constraints most
+settings take.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from energy_margin.errors import InvalidParameterError
+from energy_margin.errors import Constraint, InvalidParameterError, check_fields, constrained, field_constraint
 
 __all__ = [
     "CONTACT_MODELS",
+    "EXTENTS",
+    "NON_NEGATIVE",
+    "NON_NEGATIVE_RANGE",
+    "NUMBER",
+    "POSITIVE",
+    "POSITIVE_RANGE",
+    "RANGE",
     "TaskConfig",
     "require_non_negative",
     "require_positive",
     "require_ranges",
 ]
+
+
+#: A finite number > 0.
+POSITIVE = Constraint("float", minimum=0.0, exclusive_minimum=True)
+#: A finite number >= 0.
+NON_NEGATIVE = Constraint("float", minimum=0.0)
+#: Any finite number (a position, or a setting only checked against another in ``check``).
+NUMBER = Constraint("float")
+#: A ``(low, high)`` pair of finite numbers with low <= high.
+RANGE = Constraint("range")
+#: A ``(low, high)`` pair of finite numbers >= 0 with low <= high (friction coefficients).
+NON_NEGATIVE_RANGE = Constraint("range", minimum=0.0)
+#: A ``(low, high)`` pair of finite numbers > 0 with low <= high (a log-uniform range).
+POSITIVE_RANGE = Constraint("range", minimum=0.0, exclusive_minimum=True)
+#: Three finite numbers > 0 (a box's half extents).
+EXTENTS = Constraint("floats", length=3, minimum=0.0, exclusive_minimum=True)
 
 
 @dataclass(frozen=True)
@@ -42,10 +72,10 @@ class TaskConfig:
     #: pairs (``AnalyzerConfig(contacts="fast")``, ``analyze --contacts fast``); empty: none.
     fast_contacts: ClassVar[dict[str, Any]] = {}
 
-    duration: float = 2.0
-    timestep: float = 1.0 / 240.0
-    likelihood_lambda: float = 5.0
-    max_duration: float = 0.1
+    duration: float = constrained(2.0, POSITIVE)
+    timestep: float = constrained(1.0 / 240.0, POSITIVE)
+    likelihood_lambda: float = constrained(5.0, NON_NEGATIVE)
+    max_duration: float = constrained(0.1, POSITIVE)
 
     def __post_init__(self) -> None:
         # Every setting must have the type and length of its default: a number stays a finite
@@ -65,12 +95,18 @@ class TaskConfig:
                 object.__setattr__(self, field.name, int(number))
             elif isinstance(default, int | float) and not isinstance(default, bool):
                 object.__setattr__(self, field.name, _finite(field.name, value))
+        check_fields(self)
+        # A subclass that changes a default here without declaring the constraint again keeps this one.
+        for field in dataclasses.fields(TaskConfig):
+            if field_constraint(type(self), field.name) is None:
+                field.metadata["constraint"].check(field.name, getattr(self, field.name))
         self.check()
 
     def check(self) -> None:
-        """Raise ``ValueError`` naming the first setting outside its valid range."""
-        require_positive(self, "duration", "timestep", "max_duration")
-        require_non_negative(self, "likelihood_lambda")
+        """Raise ``InvalidParameterError`` naming the first setting that contradicts another.
+
+        Each setting's own range is its declared constraint, checked before this.
+        """
         if self.timestep > self.duration:
             raise InvalidParameterError("timestep", f"({self.timestep}) must not exceed duration ({self.duration})")
 
@@ -90,8 +126,21 @@ def _finite(name: str, value: Any) -> float:
     return float(value)
 
 
+def _deprecated(helper: str, constraint: str) -> None:
+    warnings.warn(
+        f"{helper} is deprecated: declare the setting as constrained(default, {constraint}) "
+        "(energy_margin.tasks.config); the helper goes in 0.3",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+
+
 def require_positive(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is > 0."""
+    """Deprecated (goes in 0.3): declare the settings with :data:`POSITIVE` or :data:`EXTENTS`.
+
+    Raises ``InvalidParameterError`` unless every named setting (or every entry of a tuple) is > 0.
+    """
+    _deprecated("require_positive", "POSITIVE")
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values <= 0):
@@ -99,7 +148,11 @@ def require_positive(config: TaskConfig, *names: str) -> None:
 
 
 def require_non_negative(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named setting (or every entry of a tuple) is >= 0."""
+    """Deprecated (goes in 0.3): declare the settings with :data:`NON_NEGATIVE`.
+
+    Raises ``InvalidParameterError`` unless every named setting (or every entry of a tuple) is >= 0.
+    """
+    _deprecated("require_non_negative", "NON_NEGATIVE")
     for name in names:
         values = np.atleast_1d(getattr(config, name))
         if np.any(values < 0):
@@ -107,7 +160,11 @@ def require_non_negative(config: TaskConfig, *names: str) -> None:
 
 
 def require_ranges(config: TaskConfig, *names: str) -> None:
-    """Raise ``ValueError`` unless every named ``(low, high)`` setting has low <= high."""
+    """Deprecated (goes in 0.3): declare the settings with :data:`RANGE`.
+
+    Raises ``InvalidParameterError`` unless every named ``(low, high)`` setting has low <= high.
+    """
+    _deprecated("require_ranges", "RANGE")
     for name in names:
         low, high = getattr(config, name)
         if low > high:

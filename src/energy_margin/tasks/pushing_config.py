@@ -5,8 +5,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from energy_margin.errors import InvalidParameterError, check_choice
-from energy_margin.tasks.config import TaskConfig, require_non_negative, require_positive, require_ranges
+from energy_margin.errors import Constraint, InvalidParameterError, constrained
+from energy_margin.tasks.config import (
+    EXTENTS,
+    NON_NEGATIVE,
+    NON_NEGATIVE_RANGE,
+    NUMBER,
+    POSITIVE,
+    RANGE,
+    TaskConfig,
+)
 
 __all__ = ["PUSHER_FACES", "PushingConfig"]
 
@@ -82,54 +90,48 @@ class PushingConfig(TaskConfig):
     # One base contact per cylinder and spheres for the lateral pairs (docs/results/performance.md).
     fast_contacts: ClassVar[dict[str, Any]] = {"ground_contact": "footprint", "lateral_contact": "sphere"}
 
-    timestep: float = 1.0 / 120.0
-    object_radius: float = 0.05
-    object_half_height: float = 0.015
-    object_mass: float = 0.2
-    pusher_half_extents: tuple[float, float, float] = (0.4, 0.1, 0.015)
-    pusher_mass: float = 4.0
-    pusher_face: str = "flat"
-    face_depth: float = 0.05
-    tine_count: int = 4
-    tine_width: float = 0.02
-    wall_y: float = 1.6
-    ground_z: float = -0.015
-    friction_range: tuple[float, float] = (0.1, 0.3)
-    spawn_x: tuple[float, float] = (0.7, 1.3)
-    spawn_y_top: float = 1.0
-    spawn_depth_per_object: float = 0.04
-    min_separation: float = 0.1
-    object_speed: float = 0.05
-    pusher_gap: tuple[float, float] = (0.2, 0.3)
-    pusher_heading: tuple[float, float] = (-0.05, 0.05)
-    pusher_speed_x: tuple[float, float] = (-0.1, 0.1)
-    pusher_speed_y: tuple[float, float] = (0.02, 0.06)
-    drive_factor: tuple[float, float] = (1.1, 1.6)
-    drive_jitter: float = 0.2
-    lateral_force: float = 0.4
-    capture_speed_threshold: float = 0.3
-    capture_disc_radius: float = 0.6
-    capture_half_width: float = 0.4
-    capture_behind: float = 0.06
-    capture_horizon: float = 1.0
-    max_turn_radius: float = 1000.0
-    success_half_width: float = 0.1
-    workspace: tuple[float, float] = (-0.1, 2.1)
-    max_linear_acceleration: float = 2.0
-    max_angular_acceleration: float = 0.667
-    max_speed: float = 100.0
-    ground_contact: str = "geometry"
-    lateral_contact: str = "geometry"
+    timestep: float = constrained(1.0 / 120.0, POSITIVE)
+    object_radius: float = constrained(0.05, POSITIVE)
+    object_half_height: float = constrained(0.015, POSITIVE)
+    object_mass: float = constrained(0.2, POSITIVE)
+    pusher_half_extents: tuple[float, float, float] = constrained((0.4, 0.1, 0.015), EXTENTS)
+    pusher_mass: float = constrained(4.0, POSITIVE)
+    pusher_face: str = constrained("flat", Constraint("choice", choices=PUSHER_FACES))
+    face_depth: float = constrained(0.05, POSITIVE)
+    tine_count: int = constrained(4, Constraint("int", minimum=2))
+    tine_width: float = constrained(0.02, POSITIVE)
+    wall_y: float = constrained(1.6, NUMBER)
+    ground_z: float = constrained(-0.015, NUMBER)
+    friction_range: tuple[float, float] = constrained((0.1, 0.3), NON_NEGATIVE_RANGE)
+    spawn_x: tuple[float, float] = constrained((0.7, 1.3), RANGE)
+    spawn_y_top: float = constrained(1.0, NUMBER)
+    spawn_depth_per_object: float = constrained(0.04, POSITIVE)
+    min_separation: float = constrained(0.1, POSITIVE)
+    object_speed: float = constrained(0.05, NON_NEGATIVE)
+    pusher_gap: tuple[float, float] = constrained((0.2, 0.3), RANGE)
+    pusher_heading: tuple[float, float] = constrained((-0.05, 0.05), RANGE)
+    pusher_speed_x: tuple[float, float] = constrained((-0.1, 0.1), RANGE)
+    pusher_speed_y: tuple[float, float] = constrained((0.02, 0.06), RANGE)
+    drive_factor: tuple[float, float] = constrained((1.1, 1.6), NON_NEGATIVE_RANGE)
+    drive_jitter: float = constrained(0.2, NON_NEGATIVE)
+    lateral_force: float = constrained(0.4, NON_NEGATIVE)
+    capture_speed_threshold: float = constrained(0.3, POSITIVE)
+    capture_disc_radius: float = constrained(0.6, POSITIVE)
+    capture_half_width: float = constrained(0.4, POSITIVE)
+    capture_behind: float = constrained(0.06, NON_NEGATIVE)
+    capture_horizon: float = constrained(1.0, POSITIVE)
+    max_turn_radius: float = constrained(1000.0, POSITIVE)
+    success_half_width: float = constrained(0.1, POSITIVE)
+    workspace: tuple[float, float] = constrained((-0.1, 2.1), RANGE)
+    max_linear_acceleration: float = constrained(2.0, NON_NEGATIVE)
+    max_angular_acceleration: float = constrained(0.667, NON_NEGATIVE)
+    max_speed: float = constrained(100.0, POSITIVE)
+    ground_contact: str = constrained("geometry", Constraint("choice", choices=("geometry", "footprint")))
+    lateral_contact: str = constrained("geometry", Constraint("choice", choices=("geometry", "sphere")))
 
     def check(self) -> None:
-        """Raise ``ValueError`` naming the first setting outside its valid range."""
+        """Raise ``InvalidParameterError`` naming the first setting that contradicts another."""
         super().check()
-        check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
-        check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
-        check_choice("pusher_face", self.pusher_face, PUSHER_FACES)
-        require_positive(self, "face_depth", "tine_width")
-        if self.tine_count < 2:
-            raise InvalidParameterError("tine_count", f"must be at least 2, got {self.tine_count}")
         half_x, half_y, _ = self.pusher_half_extents
         if self.pusher_face != "flat" and self.face_depth >= 2.0 * half_y:
             raise InvalidParameterError(
@@ -143,42 +145,3 @@ class PushingConfig(TaskConfig):
                 f"must leave gaps between the {self.tine_count} tines of the {2.0 * half_x:g} m wide "
                 f"pusher (tine_count x tine_width < the width), got {self.tine_width!r}",
             )
-        require_positive(
-            self,
-            "object_radius",
-            "object_half_height",
-            "object_mass",
-            "pusher_half_extents",
-            "pusher_mass",
-            "min_separation",
-            "capture_speed_threshold",
-            "capture_disc_radius",
-            "capture_half_width",
-            "capture_horizon",
-            "max_turn_radius",
-            "success_half_width",
-            "max_speed",
-            "spawn_depth_per_object",
-        )
-        require_non_negative(
-            self,
-            "friction_range",
-            "object_speed",
-            "drive_jitter",
-            "lateral_force",
-            "capture_behind",
-            "max_linear_acceleration",
-            "max_angular_acceleration",
-            "drive_factor",
-        )
-        require_ranges(
-            self,
-            "friction_range",
-            "spawn_x",
-            "pusher_gap",
-            "pusher_heading",
-            "pusher_speed_x",
-            "pusher_speed_y",
-            "drive_factor",
-            "workspace",
-        )

@@ -12,7 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from energy_margin.tasks.config import TaskConfig
+from energy_margin.errors import constrained
+from energy_margin.tasks.config import NUMBER, TaskConfig
 
 __all__ = ["BASE_FIELDS", "SceneTaskConfig", "design_config_class", "design_overrides"]
 
@@ -47,7 +48,7 @@ def design_config_class(values: Mapping[str, float]) -> type[SceneTaskConfig]:
         return SceneTaskConfig
     key = tuple(values.items())
     if key not in _DESIGN_CONFIGS:
-        fields = [(name, float, dataclasses.field(default=float(value))) for name, value in values.items()]
+        fields = [(name, float, constrained(float(value), NUMBER)) for name, value in values.items()]
         _DESIGN_CONFIGS[key] = dataclasses.make_dataclass(
             "SceneDesignConfig", fields, bases=(SceneTaskConfig,), frozen=True
         )

@@ -6,8 +6,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from energy_margin.errors import InvalidParameterError
-from energy_margin.tasks.config import TaskConfig, require_non_negative, require_positive, require_ranges
+from energy_margin.errors import Constraint, InvalidParameterError, constrained
+from energy_margin.tasks.config import (
+    EXTENTS,
+    NON_NEGATIVE,
+    NON_NEGATIVE_RANGE,
+    NUMBER,
+    POSITIVE,
+    POSITIVE_RANGE,
+    RANGE,
+    TaskConfig,
+)
 
 __all__ = ["ScoopingConfig"]
 
@@ -76,105 +85,67 @@ class ScoopingConfig(TaskConfig):
 
     """
 
-    duration: float = 2.3
-    timestep: float = 0.002
-    likelihood_lambda: float = 10000.0
-    contact_time_constant: float = 0.01
-    table_top: float = 0.0
-    table_half_extents: tuple[float, float, float] = (0.15, 0.15, 0.02)
-    box_half_edge: float = 0.005
-    box_mass: float = 0.002
-    base_half_extents: tuple[float, float, float] = (0.095, 0.025, 0.01)
-    base_mass: float = 0.4
-    finger_half_extents: tuple[float, float, float] = (0.003, 0.02, 0.03)
-    finger_mass: float = 0.03
-    finger_stroke: float = 0.0575
-    tip_length: float = 0.035
-    tip_half_width: float = 0.02
-    tip_half_thickness: float = 0.0005
-    tip_mass: float = 0.005
-    lip_height: float = 0.0
-    tip_limits: tuple[float, float] = (0.0, 1.75)
-    scoop_angle: float = 1.31
-    open_gap: float = 0.09
-    closed_gap: float = 0.002
-    approach_height: float = 0.02
-    lift_height: float = 0.08
-    approach_end: float = 0.3
-    close_end: float = 1.1
-    lift_start: float = 1.3
-    lift_end: float = 2.0
-    record_start: float = 0.5
-    base_stiffness: float = 3000.0
-    tip_stiffness: float = 1.0
-    tip_damping: float = 0.01
-    finger_return_stiffness: float = 20.0
-    finger_force_limit: float = 10.0
-    stiffness_range: tuple[float, float] = (100.0, 2000.0)
-    friction_range: tuple[float, float] = (0.1, 0.8)
-    spawn_x: tuple[float, float] = (-0.03, 0.03)
-    spawn_y: tuple[float, float] = (-0.01, 0.01)
-    max_yaw: float = np.pi / 4
-    min_separation: float = 0.0145
-    capture_margin: float = 0.0005
-    fall_speed: float = 0.05
-    success_height: float = 0.05
-    workspace_xy: float = 0.15
-    workspace_z: tuple[float, float] = (-0.005, 0.5)
-    max_linear_acceleration: float = 2.0
-    max_angular_acceleration: float = 3.0
-    max_speed: float = 5.0
-    recorded_waypoints: int = 0
+    duration: float = constrained(2.3, POSITIVE)
+    timestep: float = constrained(0.002, POSITIVE)
+    likelihood_lambda: float = constrained(10000.0, NON_NEGATIVE)
+    contact_time_constant: float = constrained(0.01, POSITIVE)
+    table_top: float = constrained(0.0, NUMBER)
+    table_half_extents: tuple[float, float, float] = constrained((0.15, 0.15, 0.02), EXTENTS)
+    box_half_edge: float = constrained(0.005, POSITIVE)
+    box_mass: float = constrained(0.002, POSITIVE)
+    base_half_extents: tuple[float, float, float] = constrained((0.095, 0.025, 0.01), EXTENTS)
+    base_mass: float = constrained(0.4, POSITIVE)
+    finger_half_extents: tuple[float, float, float] = constrained((0.003, 0.02, 0.03), EXTENTS)
+    finger_mass: float = constrained(0.03, POSITIVE)
+    finger_stroke: float = constrained(0.0575, POSITIVE)
+    tip_length: float = constrained(0.035, POSITIVE)
+    tip_half_width: float = constrained(0.02, POSITIVE)
+    tip_half_thickness: float = constrained(0.0005, POSITIVE)
+    tip_mass: float = constrained(0.005, POSITIVE)
+    lip_height: float = constrained(0.0, NON_NEGATIVE)
+    tip_limits: tuple[float, float] = constrained((0.0, 1.75), RANGE)
+    scoop_angle: float = constrained(1.31, NUMBER)
+    open_gap: float = constrained(0.09, NUMBER)
+    closed_gap: float = constrained(0.002, NUMBER)
+    approach_height: float = constrained(0.02, NUMBER)
+    lift_height: float = constrained(0.08, NUMBER)
+    approach_end: float = constrained(0.3, NON_NEGATIVE)
+    close_end: float = constrained(1.1, NUMBER)
+    lift_start: float = constrained(1.3, NUMBER)
+    lift_end: float = constrained(2.0, NUMBER)
+    record_start: float = constrained(0.5, NON_NEGATIVE)
+    base_stiffness: float = constrained(3000.0, POSITIVE)
+    tip_stiffness: float = constrained(1.0, POSITIVE)
+    tip_damping: float = constrained(0.01, NON_NEGATIVE)
+    finger_return_stiffness: float = constrained(20.0, NON_NEGATIVE)
+    finger_force_limit: float = constrained(10.0, POSITIVE)
+    stiffness_range: tuple[float, float] = constrained((100.0, 2000.0), POSITIVE_RANGE)
+    friction_range: tuple[float, float] = constrained((0.1, 0.8), NON_NEGATIVE_RANGE)
+    spawn_x: tuple[float, float] = constrained((-0.03, 0.03), RANGE)
+    spawn_y: tuple[float, float] = constrained((-0.01, 0.01), RANGE)
+    max_yaw: float = constrained(np.pi / 4, NON_NEGATIVE)
+    min_separation: float = constrained(0.0145, POSITIVE)
+    capture_margin: float = constrained(0.0005, NON_NEGATIVE)
+    fall_speed: float = constrained(0.05, POSITIVE)
+    success_height: float = constrained(0.05, NON_NEGATIVE)
+    workspace_xy: float = constrained(0.15, POSITIVE)
+    workspace_z: tuple[float, float] = constrained((-0.005, 0.5), RANGE)
+    max_linear_acceleration: float = constrained(2.0, NON_NEGATIVE)
+    max_angular_acceleration: float = constrained(3.0, NON_NEGATIVE)
+    max_speed: float = constrained(5.0, POSITIVE)
+    recorded_waypoints: int = constrained(0, Constraint("int", minimum=0))
 
     def check(self) -> None:
-        """Raise ``ValueError`` naming the first setting outside its valid range."""
+        """Raise ``InvalidParameterError`` naming the first setting that contradicts another."""
         super().check()
-        require_positive(
-            self,
-            "contact_time_constant",
-            "table_half_extents",
-            "box_half_edge",
-            "box_mass",
-            "base_half_extents",
-            "base_mass",
-            "finger_half_extents",
-            "finger_mass",
-            "finger_stroke",
-            "tip_length",
-            "tip_half_width",
-            "tip_half_thickness",
-            "tip_mass",
-            "base_stiffness",
-            "tip_stiffness",
-            "finger_force_limit",
-            "stiffness_range",
-            "min_separation",
-            "fall_speed",
-            "workspace_xy",
-            "max_speed",
-        )
-        require_non_negative(
-            self,
-            "friction_range",
-            "tip_damping",
-            "finger_return_stiffness",
-            "lip_height",
-            "max_yaw",
-            "capture_margin",
-            "success_height",
-            "max_linear_acceleration",
-            "max_angular_acceleration",
-            "approach_end",
-            "record_start",
-        )
-        require_ranges(self, "tip_limits", "stiffness_range", "friction_range", "spawn_x", "spawn_y", "workspace_z")
         if not self.approach_end <= self.close_end <= self.lift_start <= self.lift_end <= self.duration:
             raise InvalidParameterError(
                 "approach_end",
                 "and the script times after it must satisfy "
                 "approach_end <= close_end <= lift_start <= lift_end <= duration",
             )
-        if self.recorded_waypoints < 0 or self.recorded_waypoints == 1:
+        if self.recorded_waypoints == 1:
+            # One waypoint has no segment to follow (the constraint refuses fewer than 0).
             raise InvalidParameterError("recorded_waypoints", f"must be 0 or at least 2, got {self.recorded_waypoints}")
         if self.contact_time_constant < 2.0 * self.timestep:
             raise InvalidParameterError("contact_time_constant", "must be at least two time steps")

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from energy_margin.errors import InvalidParameterError
+from energy_margin.errors import Constraint, InvalidParameterError, check_fields, constrained_required
 
 if TYPE_CHECKING:
     import mujoco
@@ -53,9 +53,10 @@ class StateBox:
         source: where the bounds come from, in words (e.g. "the scene file's [bounds]").
     """
 
+    # low and high are checked together (three bounds each, low < high; an infinite bound is none).
     low: tuple[float, float, float]
     high: tuple[float, float, float]
-    max_speed: float
+    max_speed: float = constrained_required(Constraint("float", minimum=0.0, exclusive_minimum=True))
     source: str = ""
 
     def __post_init__(self) -> None:
@@ -64,8 +65,7 @@ class StateBox:
             raise InvalidParameterError("low", f"and high must hold three bounds each, got {self.low} and {self.high}")
         if any(not a < b for a, b in zip(self.low, self.high, strict=True)):
             raise InvalidParameterError("low", f"must be below high on every axis, got {self.low} and {self.high}")
-        if not self.max_speed > 0:
-            raise InvalidParameterError("max_speed", f"must be > 0, got {self.max_speed!r}")
+        check_fields(self)
         object.__setattr__(self, "_low", np.asarray(self.low, dtype=float))
         object.__setattr__(self, "_high", np.asarray(self.high, dtype=float))
 

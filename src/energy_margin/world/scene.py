@@ -16,7 +16,14 @@ from typing import Literal
 
 import numpy as np
 
-from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_float
+from energy_margin.errors import (
+    Constraint,
+    InvalidParameterError,
+    check_choice,
+    check_fields,
+    constrained,
+    constrained_required,
+)
 
 __all__ = [
     "Geom",
@@ -258,34 +265,27 @@ class Scene:
     objects: tuple[RigidObject, ...]
     robot: Link | None
     statics: tuple[Geom, ...]
-    friction: float
-    timestep: float = 1.0 / 240.0
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    object_motion: ObjectMotion = "free"
-    integrator: Integrator = "Euler"
-    contact_time_constant: float | None = None
-    ground_contact: GroundContact = "geometry"
-    lateral_contact: LateralContact = "geometry"
+    friction: float = constrained_required(Constraint("float", minimum=0.0))
+    timestep: float = constrained(1.0 / 240.0, Constraint("float", minimum=0.0, exclusive_minimum=True))
+    gravity: tuple[float, float, float] = constrained((0.0, 0.0, -9.81), Constraint("floats", length=3))
+    object_motion: ObjectMotion = constrained("free", Constraint("choice", choices=("free", "upright")))
+    integrator: Integrator = constrained("Euler", Constraint("choice", choices=("Euler", "implicitfast")))
+    contact_time_constant: float | None = constrained(None, Constraint("float", optional=True))
+    ground_contact: GroundContact = constrained("geometry", Constraint("choice", choices=("geometry", "footprint")))
+    lateral_contact: LateralContact = constrained("geometry", Constraint("choice", choices=("geometry", "sphere")))
     robot_joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
         if not self.objects:
             raise InvalidParameterError("objects", "must hold at least one object")
-        check_float("friction", self.friction, minimum=0.0)
-        check_positive_float("timestep", self.timestep)
-        check_choice("object_motion", self.object_motion, ("free", "upright"))
-        check_choice("integrator", self.integrator, ("Euler", "implicitfast"))
-        if self.contact_time_constant is not None and not (
-            np.isfinite(self.contact_time_constant) and self.contact_time_constant >= 2.0 * self.timestep
-        ):
+        check_fields(self)
+        if self.contact_time_constant is not None and not self.contact_time_constant >= 2.0 * self.timestep:
             raise InvalidParameterError(
                 "contact_time_constant",
                 f"must be at least two time steps ({2.0 * self.timestep} s), got {self.contact_time_constant}",
             )
-        check_choice("ground_contact", self.ground_contact, ("geometry", "footprint"))
         if self.ground_contact == "footprint" and self.object_motion != "upright":
             raise InvalidParameterError("ground_contact", "'footprint' needs object_motion 'upright'")
-        check_choice("lateral_contact", self.lateral_contact, ("geometry", "sphere"))
         if self.lateral_contact == "sphere" and self.object_motion != "upright":
             raise InvalidParameterError("lateral_contact", "'sphere' needs object_motion 'upright'")
         names = [joint.name for link in self.robot_links for joint in link.joints]
