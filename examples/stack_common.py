@@ -184,7 +184,7 @@ def write_live_scores(directory: Path, episodes: list[dict[str, Any]]) -> None:
                 "capture_score": float(score["capture_score"]),
                 "success_score": float(score["success_score"]),
                 "nodes": int(score["nodes"]),
-                "iterations": int(score["expansions"]),
+                "expansions": int(score["expansions"]),
                 "runtime_s": float(score["ms"]) / 1000.0,
                 "physics_s": 0.0,
                 "seed": int(score["seed"]),

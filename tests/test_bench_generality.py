@@ -18,7 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.slow
 def test_the_row_compares_the_files_derived_and_calibrated_settings(make_scene, tmp_path: Path) -> None:
     # A goal close enough that some trajectories fail (success and capture labels of both classes).
-    scene = make_scene(replace={"max = 0.16": "max = 0.1"})
+    # The starts' separation as written before it defaulted to the footprint: labels of both kinds.
+    scene = make_scene(
+        replace={"max = 0.16": "max = 0.1", "yaw = [-0.3, 0.3]": "yaw = [-0.3, 0.3]\nmin_separation = 0.104"}
+    )
     derived_toml = tmp_path / "elsewhere" / "derived.toml"
     subprocess.run(
         [

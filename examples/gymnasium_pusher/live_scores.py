@@ -23,7 +23,7 @@
    10, 20, ..., 100), each episode saved as ``OUT/episodes/episode_NNN.npz``.
 4. Builds ``OUT/dataset`` from the roll-outs with ``record_dataset(..., n_frames=11)`` (its
    frames fall on the scored steps; checked), writes the live scores as ``OUT/dataset/scores.csv``
-   (``iterations`` holds the tree's expansions, ``runtime_s`` the call's wall time; ``physics_s``
+   (``expansions`` holds the tree's expansions, ``runtime_s`` the call's wall time; ``physics_s``
    is not measured by a live call and is written as 0), and prints the Average Precision of the
    energy margin, the current state, the distance to the region and chance for capture (k-hat 0
    and 2) and trajectory success from the first 3 and the first 5 scored states, with the
@@ -256,7 +256,7 @@ def write_scores(directory: Path, episodes: list[dict[str, Any]]) -> None:
                 "capture_score": float(score["capture_score"]),
                 "success_score": float(score["success_score"]),
                 "nodes": int(score["nodes"]),
-                "iterations": int(score["expansions"]),
+                "expansions": int(score["expansions"]),
                 "runtime_s": float(score["ms"]) / 1000.0,
                 "physics_s": 0.0,
                 "seed": int(score["seed"]),

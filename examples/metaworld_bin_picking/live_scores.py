@@ -226,7 +226,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "same_model": same_model,
         "episodes": args.episodes,
         "budget_s": args.budget,
-        "iterations": args.expansions,
+        "expansions": args.expansions,
         "seed": args.seed,
         "noises": noises.tolist(),
         "success_rate": float(np.mean([episode["success"] for episode in episodes])),

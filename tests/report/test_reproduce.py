@@ -199,7 +199,7 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
     assert len(plan) == 2 * (1 + 2 * quick.repeats) + len(quick.ablation_objects)
     assert {e.protocol for e in plan if not e.generated} == {"valid", "paper"}
     frames, to_write = work_left(tmp_path, plan)
-    assert sum(frames.values()) == sum(e.trajectories * e.frames for e in plan)
+    assert sum(frames.values()) == sum(e.n_trajectories * e.n_frames for e in plan)
     assert len(to_write) == len(plan)
     calibration = StepTimes(
         {"pushing": 0.2, "scooping": 0.5},
@@ -215,9 +215,9 @@ def test_expected_duration_comes_from_work_left_and_calibration(tmp_path: Path) 
 
     expected = sum(count * (0.2 if e.task == "pushing" else 0.5) * scale(e) for e, count in frames.items())
     expected += sum(
-        e.trajectories * (0.1 if e.task == "pushing" else 0.3) * scale(e)
+        e.n_trajectories * (0.1 if e.task == "pushing" else 0.3) * scale(e)
         if e.generated
-        else e.trajectories * e.frames * (0.05 if e.task == "pushing" else 0.04) * scale(e)
+        else e.n_trajectories * e.n_frames * (0.05 if e.task == "pushing" else 0.04) * scale(e)
         for e in to_write
         # The paper protocol's draw checks nothing: its copies cost next to nothing to write.
         if e.generated or e.protocol != "paper"
