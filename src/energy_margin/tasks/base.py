@@ -106,7 +106,7 @@ class Task(ABC):
       :meth:`model_command`, :meth:`drive_size`, :meth:`robot_dofs`, :attr:`n_steps`,
       :meth:`frame_steps`, :attr:`control_period`.
     * ``TaskRegions``: :meth:`capture_region`, :meth:`capture_regions`, :meth:`capture_inside`,
-      :meth:`success_region`, :meth:`success_region_at`, :meth:`is_captured`,
+      :meth:`success_region`, :meth:`success_region_at`, :meth:`success_inside`, :meth:`is_captured`,
       :meth:`is_successful`, :meth:`capture_region_shape`, :attr:`region_caption`.
     * ``DesignSpace``: :attr:`config`, :meth:`design_aliases`, :meth:`design_fields`,
       :meth:`design_space`, :meth:`configured`.
@@ -363,6 +363,23 @@ class Task(ABC):
         """
         del root
         return self.success_region()
+
+    def success_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which of M reached states of ``root``'s tree have every object successful, shape (M,), bool.
+
+        By default the success region is the one of ``root`` (:meth:`success_region_at`); a task
+        whose success region moves with the robot may build it at each state's own robot
+        configuration ``robot_q`` (M, n_robot), as :meth:`capture_inside`.
+        """
+        del robot_q
+        return all_inside(self.success_region_at(root), object_pos, object_vel, object_quat)
 
     @abstractmethod
     def wrench_limits(self, scene: Scene) -> WrenchLimits:

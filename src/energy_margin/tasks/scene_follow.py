@@ -1,0 +1,138 @@
+"""Whether a scene's capture and success regions follow the robot: from the model's kinematic tree.
+
+A region table names bodies, sites and geoms (``body = "paddle"``, ``site = "tip"``). A region
+attached to an element whose body is moved by the robot (the body, or one of its ancestors, has a
+robot joint, or is a mocap body) moves on with the robot in every state of a tree; by default it
+then *follows* it: it is built at each state's own robot configuration. A region attached to
+nothing, or only to bodies the robot does not move, is fixed in the world (or at the analysed
+frame, for an object's body) as before. ``capture.follow`` and ``success.follow`` in the file
+decide instead (``follow = false`` freezes a moving region at the analysed frame).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+
+from energy_margin.tasks.scene_sections import region_names
+
+__all__ = ["Anchor", "RegionFollow", "region_follow", "robot_mover"]
+
+_KINDS = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE, "geom": mujoco.mjtObj.mjOBJ_GEOM}
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """A model element a region table names, and what moves it.
+
+    Attributes:
+        kind: ``"body"``, ``"site"`` or ``"geom"``.
+        name: the element's name.
+        key: its key in the scene file, e.g. ``"capture.region.of[0].site"``.
+        body: the name of the body the element belongs to.
+        mover: what moves that body with the robot, e.g. ``"joint 'wrist'"`` or ``"mocap body
+            'pusher'"``, or ``None`` when the robot does not move it.
+        static: the body is fixed to the world (no joint up its kinematic tree, not a mocap body).
+
+    """
+
+    kind: str
+    name: str
+    key: str
+    body: str
+    mover: str | None
+    static: bool = False
+
+
+@dataclass(frozen=True)
+class RegionFollow:
+    """Whether a set's region follows the robot, whether the file says so, and why.
+
+    Attributes:
+        name: ``"capture"`` or ``"success"``.
+        follows: the region is built at every tree state's own robot configuration.
+        stated: the file writes ``NAME.follow`` (else ``follows`` is the default of its anchors).
+        anchors: the elements the region is attached to.
+
+    """
+
+    name: str
+    follows: bool
+    stated: bool
+    anchors: tuple[Anchor, ...]
+
+    @property
+    def moving(self) -> tuple[Anchor, ...]:
+        """The anchors the robot moves."""
+        return tuple(anchor for anchor in self.anchors if anchor.mover is not None)
+
+    def describe(self) -> str:
+        """``follows the robot (attached to body 'paddle', moved by joint 'wrist')``, marked ``(default)``."""
+        moving = self.moving
+        attached = "; ".join(f"attached to body {a.body!r}, moved by {a.mover}" for a in moving)
+        if self.follows:
+            why = attached if moving else "follow = true; attached to no body the robot moves"
+            text = f"follows the robot ({why})"
+        elif moving:
+            text = f"fixed at the analysed frame (follow = false; {attached})"
+        elif any(not anchor.static for anchor in self.anchors):
+            bodies = ", ".join(sorted({repr(a.body) for a in self.anchors if not a.static}))
+            text = f"fixed at the analysed frame (attached to body {bodies}, which the robot does not move)"
+        else:
+            text = "fixed in the world"
+        return text if self.stated else f"{text} (default)"
+
+
+def robot_mover(model: mujoco.MjModel, body: int, robot_joints: Sequence[int]) -> str | None:
+    """What moves ``body`` with the robot: the nearest robot joint or mocap body up its kinematic tree.
+
+    Returns:
+        ``"joint 'NAME'"``, ``"mocap body 'NAME'"`` or ``None`` (a body fixed to the world, or moved
+        by no robot joint: an object's).
+    """
+    robot = set(int(joint) for joint in robot_joints)
+    while body > 0:
+        if int(model.body_mocapid[body]) >= 0:
+            return f"mocap body {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r}"
+        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+        for joint in range(first, first + count):
+            if joint in robot:
+                return f"joint {_name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)!r}"
+        body = int(model.body_parentid[body])
+    return None
+
+
+def region_follow(
+    name: str, table: Mapping[str, Any], stated: bool | None, model: mujoco.MjModel, robot_joints: Sequence[int]
+) -> RegionFollow:
+    """Whether the region ``table`` of set ``name`` follows the robot (``stated``: the file's ``follow``).
+
+    Left out (``stated`` is ``None``), it follows when one of the elements it names is moved by the
+    robot (:func:`robot_mover`).
+    """
+    anchors = []
+    for kind, element, key in region_names(table, f"{name}.region"):
+        index = int(mujoco.mj_name2id(model, _KINDS[kind], element))
+        owners = {"body": None, "site": model.site_bodyid, "geom": model.geom_bodyid}[kind]
+        body = index if owners is None else int(owners[index])
+        mover = robot_mover(model, body, robot_joints)
+        static = mover is None and _static(model, body)
+        anchors.append(Anchor(kind, element, key, _name(model, mujoco.mjtObj.mjOBJ_BODY, body), mover, static))
+    follows = stated if stated is not None else any(anchor.mover is not None for anchor in anchors)
+    return RegionFollow(name=name, follows=bool(follows), stated=stated is not None, anchors=tuple(anchors))
+
+
+def _static(model: mujoco.MjModel, body: int) -> bool:
+    """Whether ``body`` is fixed to the world: no joint on it or up its kinematic tree, not a mocap body."""
+    while body > 0:
+        if int(model.body_jntnum[body]) > 0 or int(model.body_mocapid[body]) >= 0:
+            return False
+        body = int(model.body_parentid[body])
+    return True
+
+
+def _name(model: mujoco.MjModel, kind: mujoco.mjtObj, index: int) -> str:
+    return mujoco.mj_id2name(model, kind, index) or f"#{index}"
