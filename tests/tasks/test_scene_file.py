@@ -613,7 +613,7 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
 
     assert scores.capture_score == region_score(field.costs, expected, task.config.likelihood_lambda)
     # A batched expansion of a model with mocap bodies keeps them too (the mocap poses of each node's command).
-    batched, batched_field = analyze_frame(
+    _, batched_field = analyze_frame(
         task,
         trajectory.initial,
         friction=trajectory.friction,

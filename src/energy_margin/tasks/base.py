@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -27,6 +26,7 @@ from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.tasks.command import command_robot
 from energy_margin.tasks.config import (
     CONTACT_MODELS,
+    ReferenceLayout,
     TaskConfig,
     require_non_negative,
     require_positive,
@@ -69,28 +69,6 @@ __all__ = [
     "sample_separated",
     "with_contacts",
 ]
-
-
-@dataclass(frozen=True)
-class ReferenceLayout:
-    """How the authors' published CSV files of a task read (:mod:`energy_margin.data.reference`).
-
-    Attributes:
-        suffix: their task name, the suffix of their file names (e.g. ``"PlanePushMulti"``); it
-            selects the mapping of their columns onto this project's frames.
-        object_columns: frame-state columns per object.
-        robot_columns: frame-state columns of the end-effector, after the objects'.
-        drives: the ``import-reference --drive`` values the task accepts.
-        replays_recorded: whether analysis of the imported frames replays the end-effector's
-            recorded motion whatever the drive (recorded as ``imported_drive = "recorded"``).
-
-    """
-
-    suffix: str
-    object_columns: int
-    robot_columns: int
-    drives: tuple[str, ...] = ("nominal",)
-    replays_recorded: bool = False
 
 
 class Task(ABC):
@@ -372,12 +350,7 @@ class Task(ABC):
         object_quat: np.ndarray | None = None,
         robot_q: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Which of M reached states of ``root``'s tree have every object successful, shape (M,), bool.
-
-        By default the success region is the one of ``root`` (:meth:`success_region_at`); a task
-        whose success region moves with the robot may build it at each state's own robot
-        configuration ``robot_q`` (M, n_robot), as :meth:`capture_inside`.
-        """
+        """As :meth:`capture_inside`, for success: by default in the region of :meth:`success_region_at` ``root``."""
         del robot_q
         return all_inside(self.success_region_at(root), object_pos, object_vel, object_quat)
 

@@ -16,10 +16,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from energy_margin.tasks.scene_sections import region_names
+from energy_margin.world.state import FrameState
 
-__all__ = ["Anchor", "RegionFollow", "region_follow", "robot_mover"]
+__all__ = ["Anchor", "RegionFollow", "node_frames", "region_follow", "robot_mover"]
 
 _KINDS = {"body": mujoco.mjtObj.mjOBJ_BODY, "site": mujoco.mjtObj.mjOBJ_SITE, "geom": mujoco.mjtObj.mjOBJ_GEOM}
 
@@ -123,6 +125,32 @@ def region_follow(
         anchors.append(Anchor(kind, element, key, _name(model, mujoco.mjtObj.mjOBJ_BODY, body), mover, static))
     follows = stated if stated is not None else any(anchor.mover is not None for anchor in anchors)
     return RegionFollow(name=name, follows=bool(follows), stated=stated is not None, anchors=tuple(anchors))
+
+
+def node_frames(
+    root: FrameState,
+    object_pos: np.ndarray,
+    object_vel: np.ndarray,
+    object_quat: np.ndarray | None,
+    robot_q: np.ndarray,
+) -> list[FrameState]:
+    """A tree's M reached states as frames with their own robot coordinates ``robot_q`` (M, n_robot).
+
+    Their robot velocities are zero (a region is located by poses only); without ``object_quat``
+    every state keeps ``root``'s object orientations.
+    """
+    object_pos = np.asarray(object_pos, dtype=float)
+    robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))
+    return [
+        FrameState(
+            object_pos=object_pos[node],
+            object_quat=np.asarray(root.object_quat if object_quat is None else object_quat[node], dtype=float),
+            object_vel=np.asarray(object_vel[node], dtype=float),
+            robot_q=np.asarray(robot_q[node], dtype=float),
+            robot_v=robot_v,
+        )
+        for node in range(object_pos.shape[0])
+    ]
 
 
 def _static(model: mujoco.MjModel, body: int) -> bool:

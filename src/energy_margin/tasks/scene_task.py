@@ -23,6 +23,7 @@ from energy_margin.tasks.motion import RobotState, Trajectory
 from energy_margin.tasks.region_types import FrameRegions
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_defaults import object_armature
+from energy_margin.tasks.scene_follow import node_frames
 from energy_margin.tasks.scene_layout import draw_layout
 from energy_margin.tasks.scene_lookup import SceneFrameLookup, lookup_frame
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
@@ -348,18 +349,15 @@ class SceneTask(Task):
     ) -> np.ndarray:
         """Which reached states have every object captured; a region that follows, in each state's own.
 
-        A region in a body's or a site's frame (a paddle's band) moves on with the robot in the
-        tree's states for up to a second, so an object that stays in the moving band would leave
-        one frozen at the analysed frame. A region attached to a body the robot moves therefore
-        follows it unless the file says ``capture.follow = false``
-        (:func:`~energy_margin.tasks.scene_follow.region_follow`): it is built at every state's own
-        robot configuration (``robot_q``).
+        A region in the frame of a body the robot moves (a paddle's band) moves on with it in the
+        tree's states, so an object that stays in the moving band would leave one frozen at the
+        analysed frame: such a region follows unless the file says ``capture.follow = false``
+        (:mod:`~energy_margin.tasks.scene_follow`), built at every state's own ``robot_q``.
 
         Raises:
             InvalidParameterError: a following region and no robot configuration per state.
         """
-        spec = self.loaded.spec
-        if not spec.capture_follows:
+        if not self.loaded.spec.capture_follows:
             return super().capture_inside(root, object_pos, object_vel, object_quat)
         states = self._node_states("capture", root, object_pos, object_vel, object_quat, robot_q)
         # One region per state, measured row by row: the mechanism of capture_regions.
@@ -373,16 +371,8 @@ class SceneTask(Task):
         object_quat: np.ndarray | None = None,
         robot_q: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Which reached states have every object successful; a region that follows, in each state's own.
-
-        As :meth:`capture_inside`, for the success region and ``success.follow`` (a tray the robot
-        carries); a region fixed in the world is the one of :meth:`success_region_at`.
-
-        Raises:
-            InvalidParameterError: a following region and no robot configuration per state.
-        """
-        spec = self.loaded.spec
-        if not spec.success_follows:
+        """As :meth:`capture_inside`, for the success region and ``success.follow`` (a tray the robot carries)."""
+        if not self.loaded.spec.success_follows:
             return super().success_inside(root, object_pos, object_vel, object_quat)
         states = self._node_states("success", root, object_pos, object_vel, object_quat, robot_q)
         regions = FrameRegions([self.success_region_at(state) for state in states])
@@ -397,7 +387,6 @@ class SceneTask(Task):
         object_quat: np.ndarray | None,
         robot_q: np.ndarray | None,
     ) -> list[FrameState]:
-        """The reached states as frames with their own robot coordinates (at rest: frames locate only)."""
         if robot_q is None:
             raise InvalidParameterError(
                 "robot_q",
@@ -406,18 +395,7 @@ class SceneTask(Task):
                 f"pass them, or write {name}.follow = false in the scene file to freeze the region at the "
                 "analysed frame",
             )
-        object_pos = np.asarray(object_pos, dtype=float)
-        robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))
-        return [
-            FrameState(
-                object_pos=object_pos[node],
-                object_quat=np.asarray(root.object_quat if object_quat is None else object_quat[node], dtype=float),
-                object_vel=np.asarray(object_vel[node], dtype=float),
-                robot_q=np.asarray(robot_q[node], dtype=float),
-                robot_v=robot_v,
-            )
-            for node in range(object_pos.shape[0])
-        ]
+        return node_frames(root, object_pos, object_vel, object_quat, robot_q)
 
     def success_region(self) -> Region:
         """The success set with body and site frames at the model's start configuration."""
