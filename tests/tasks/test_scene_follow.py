@@ -20,13 +20,16 @@ from energy_margin.world.state import FrameState
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
-#: A two-link arm on hinges (the second link carries the site "tip") beside the tiny scene's boxes,
-#: a shelf fixed to the world and a lid on a free box.
+#: A two-link arm on actuated hinges (the second link carries the site "tip") beside the tiny scene's
+#: boxes, a shelf fixed to the world, a goal marker on a slide no actuator drives and a lid on a free box.
 ARM_MODEL = """<mujoco model="arm">
   <option timestep="0.01"/>
   <worldbody>
     <geom name="ground" type="plane" size="2 2 0.1"/>
     <body name="shelf" pos="0 0.5 0.1"><geom type="box" size="0.1 0.1 0.01"/><site name="shelf_top"/></body>
+    <body name="marker" pos="0.3 0.5 0.01">
+      <joint name="marker_x" type="slide" axis="1 0 0"/><geom type="sphere" size="0.01" contype="0" conaffinity="0"/>
+    </body>
     <body name="upper" pos="0 -0.4 0.05">
       <joint name="shoulder" type="hinge" axis="0 0 1"/>
       <geom type="capsule" fromto="0 0 0 0 0.2 0" size="0.02"/>
@@ -97,6 +100,12 @@ def test_a_region_on_a_hinged_link_follows_and_names_its_nearest_joint(tmp_path:
             False,
             "fixed in the world (default)",
         ),
+        # A marker on a slide joint that no actuator drives: the robot does not move it.
+        (
+            'region = { type = "distance", body = "marker", max = 0.1 }\n',
+            False,
+            "fixed at the analysed frame (attached to body 'marker', which the robot does not move) (default)",
+        ),
         # A body that rides on an object (its free joint is no robot joint): frozen at the analysed frame.
         (
             'region = { type = "height", body = "lid", max = 0.1 }\n',
@@ -129,6 +138,55 @@ def test_a_success_region_follows_where_it_is_attached_unless_the_file_says(
     loaded = load_scene(_arm(tmp_path, success=success))
     assert loaded.follow["success"].follows is follows and loaded.spec.success_follows is follows
     assert loaded.follow["success"].describe() == text
+
+
+#: A hand welded to a mocap body at the end of an arm whose hinges no actuator drives (as Fetch's), and
+#: a second arm driven through a tendon.
+WELDED_MODEL = """<mujoco model="welded">
+  <worldbody>
+    <body name="hand_target" mocap="true" pos="0 0.3 0.1"/>
+    <body name="upper" pos="0 0 0.1">
+      <joint name="shoulder" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0.15 0" size="0.02"/>
+      <body name="hand" pos="0 0.15 0">
+        <joint name="wrist" type="hinge" axis="0 0 1"/>
+        <geom type="box" size="0.03 0.03 0.03"/><site name="palm"/>
+      </body>
+    </body>
+    <body name="other" pos="0.5 0 0.1">
+      <joint name="other_hinge" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0.15 0" size="0.02"/><site name="other_tip" pos="0 0.15 0"/>
+    </body>
+  </worldbody>
+  <equality><weld body1="hand_target" body2="hand"/></equality>
+  <tendon><fixed name="drive"><joint joint="other_hinge" coef="1"/></fixed></tendon>
+  <actuator><motor tendon="drive"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(
+    ("element", "mover"),
+    [
+        ('site = "palm"', "mocap body 'hand_target' (welded to body 'hand')"),
+        ('body = "upper"', "joint 'shoulder'"),  # pulled along by the welded hand
+        ('site = "other_tip"', "joint 'other_hinge'"),  # a motor on a tendon over the hinge
+    ],
+)
+def test_welds_to_mocap_bodies_and_tendons_move_bodies_with_the_robot(element: str, mover: str) -> None:
+    import mujoco
+
+    from energy_margin.tasks.scene_follow import region_follow
+
+    model = mujoco.MjModel.from_xml_string(WELDED_MODEL)
+    robot = [joint for joint in range(model.njnt)]
+    follow = region_follow("capture", {"type": "distance", **_table(element), "max": 0.1}, None, model, robot)
+    assert follow.follows and follow.moving[0].mover == mover
+
+
+def _table(element: str) -> dict[str, str]:
+    key, value = element.split(" = ")
+    return {key: value.strip('"')}
 
 
 def test_the_scene_command_says_which_region_follows_and_why(

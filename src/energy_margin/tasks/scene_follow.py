@@ -2,11 +2,12 @@
 
 A region table names bodies, sites and geoms (``body = "paddle"``, ``site = "tip"``). A region
 attached to an element whose body is moved by the robot (the body, or one of its ancestors, has a
-robot joint, or is a mocap body) moves on with the robot in every state of a tree; by default it
-then *follows* it: it is built at each state's own robot configuration. A region attached to
-nothing, or only to bodies the robot does not move, is fixed in the world (or at the analysed
-frame, for an object's body) as before. ``capture.follow`` and ``success.follow`` in the file
-decide instead (``follow = false`` freezes a moving region at the analysed frame).
+robot joint an actuator drives, is a mocap body or is welded to one, :func:`robot_mover`) moves on
+with the robot in every state of a tree; by default it then *follows* it: it is built at each
+state's own robot configuration. A region attached to nothing, or only to bodies the robot does
+not move, is fixed in the world (or at the analysed frame, for an object's body) as before.
+``capture.follow`` and ``success.follow`` in the file decide instead (``follow = false`` freezes a
+moving region at the analysed frame).
 """
 
 from __future__ import annotations
@@ -89,22 +90,78 @@ class RegionFollow:
 
 
 def robot_mover(model: mujoco.MjModel, body: int, robot_joints: Sequence[int]) -> str | None:
-    """What moves ``body`` with the robot: the nearest robot joint or mocap body up its kinematic tree.
+    """What moves ``body`` with the robot: the nearest driver up its kinematic tree, or ``None``.
+
+    Walking from ``body`` to the world, the first of: a mocap body; a body welded (or connected) to
+    a mocap body by an equality constraint; a body an actuator's site is on; a body with a robot
+    joint (of ``robot_joints``) that an actuator drives, directly or through a tendon, or below
+    which a body is welded to a mocap body (an arm that a mocap body pulls along by its hand).
+    Joints nothing drives (a goal marker's slides, an object's joints) move nothing with the robot.
 
     Returns:
-        ``"joint 'NAME'"``, ``"mocap body 'NAME'"`` or ``None`` (a body fixed to the world, or moved
-        by no robot joint: an object's).
+        ``"joint 'NAME'"``, ``"mocap body 'NAME'"`` (``... (welded to body 'B')``),
+        ``"actuator 'NAME'"`` or ``None``.
     """
-    robot = set(int(joint) for joint in robot_joints)
+    welded = _mocap_welds(model)
+    driven = _driven_joints(model, robot_joints, welded)
+    sites = {
+        int(model.site_bodyid[int(model.actuator_trnid[actuator, 0])]): actuator
+        for actuator in range(model.nu)
+        if int(model.actuator_trntype[actuator]) == int(mujoco.mjtTrn.mjTRN_SITE)
+    }
     while body > 0:
         if int(model.body_mocapid[body]) >= 0:
             return f"mocap body {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r}"
+        if body in welded:
+            mocap = _name(model, mujoco.mjtObj.mjOBJ_BODY, welded[body])
+            return f"mocap body {mocap!r} (welded to body {_name(model, mujoco.mjtObj.mjOBJ_BODY, body)!r})"
+        if body in sites:
+            return f"actuator {_name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, sites[body])!r}"
         first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
         for joint in range(first, first + count):
-            if joint in robot:
+            if joint in driven:
                 return f"joint {_name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)!r}"
         body = int(model.body_parentid[body])
     return None
+
+
+def _mocap_welds(model: mujoco.MjModel) -> dict[int, int]:
+    """Body -> the mocap body an equality weld or connect constraint ties it to."""
+    welds: dict[int, int] = {}
+    kinds = (int(mujoco.mjtEq.mjEQ_WELD), int(mujoco.mjtEq.mjEQ_CONNECT))
+    for eq in range(model.neq):
+        if int(model.eq_type[eq]) not in kinds:
+            continue
+        ends = [int(model.eq_obj1id[eq]), int(model.eq_obj2id[eq])]
+        if hasattr(model, "eq_objtype") and int(model.eq_objtype[eq]) == int(mujoco.mjtObj.mjOBJ_SITE):
+            ends = [int(model.site_bodyid[end]) for end in ends]
+        for this, other in (ends, ends[::-1]):
+            if int(model.body_mocapid[other]) >= 0 and int(model.body_mocapid[this]) < 0:
+                welds[this] = other
+    return welds
+
+
+def _driven_joints(model: mujoco.MjModel, robot_joints: Sequence[int], welded: Mapping[int, int]) -> set[int]:
+    """The robot joints an actuator drives (directly or through a tendon), or above a body welded to a mocap body."""
+    robot = {int(joint) for joint in robot_joints}
+    driven = set()
+    for actuator in range(model.nu):
+        kind, target = int(model.actuator_trntype[actuator]), int(model.actuator_trnid[actuator, 0])
+        if kind in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
+            driven.add(target)
+        elif kind == int(mujoco.mjtTrn.mjTRN_TENDON):
+            first, count = int(model.tendon_adr[target]), int(model.tendon_num[target])
+            driven.update(
+                int(model.wrap_objid[wrap])
+                for wrap in range(first, first + count)
+                if int(model.wrap_type[wrap]) == int(mujoco.mjtWrap.mjWRAP_JOINT)
+            )
+    for body in welded:
+        while body > 0:
+            first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+            driven.update(range(first, first + count))
+            body = int(model.body_parentid[body])
+    return driven & robot
 
 
 def region_follow(
