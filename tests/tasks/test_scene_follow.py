@@ -276,12 +276,9 @@ def test_the_default_analyses_as_follow_true_and_not_as_follow_false(make_scene)
     assert scores[""] != scores["follow = false\n"]
 
 
-def test_batched_and_one_at_a_time_propagation_give_the_same_robot_and_membership(make_scene) -> None:
-    task = get_task("scene", {"scene_file": str(make_scene())})
-    assert task.loaded.spec.capture_follows  # by default: the band is in the mocap pusher's frame
-    trajectory = task.sample_trajectory(np.random.default_rng(1), 2)
-    root, drive = trajectory.initial, trajectory.drive
-    simulator = task.make_simulator(2, trajectory.friction, drive)
+def _both_paths(task, root: FrameState, friction: float, drive: np.ndarray):  # type: ignore[no-untyped-def]
+    """Six expansions of ``root`` batched and one at a time: the outcomes of each path."""
+    simulator = task.make_simulator(2, friction, drive)
     simulator.reset(root)
     propagator = require(simulator, BatchedRollout, purpose="the test").rollout_propagator(1)
     rng = np.random.default_rng(5)
@@ -298,6 +295,16 @@ def test_batched_and_one_at_a_time_propagation_give_the_same_robot_and_membershi
         _propagate_one(simulator, task, drive, one_tree, j, wrenches[j], int(n_steps[j]), 0.0, 2, False)
         for j in range(k)
     ]
+    return batched, single
+
+
+def test_batched_and_one_at_a_time_propagation_give_the_same_robot_and_membership(make_scene) -> None:
+    task = get_task("scene", {"scene_file": str(make_scene())})
+    assert task.loaded.spec.capture_follows  # by default: the band is in the mocap pusher's frame
+    trajectory = task.sample_trajectory(np.random.default_rng(1), 2)
+    root = trajectory.initial
+    batched, single = _both_paths(task, root, trajectory.friction, trajectory.drive)
+    k = len(batched)
     robots = np.stack([outcome.robot for outcome in batched])
     expected = np.stack([outcome.robot for outcome in single])
     assert robots.shape == (k, 7)
@@ -316,6 +323,32 @@ def test_batched_and_one_at_a_time_propagation_give_the_same_robot_and_membershi
     assert membership.tolist() == one_membership.tolist()
     # Frozen at the root the membership differs: following is what the batched path now allows.
     assert membership.tolist() != task.capture_regions([root] * k).contains(pos).all(axis=-1).tolist()
+
+
+def test_a_mocap_body_without_declared_poses_stays_where_the_frame_has_it_in_both_paths(make_scene) -> None:
+    # The motion drives a slide by its actuator only; the mocap pusher has no keyframes.
+    pad = '<body name="pad" pos="0.5 0 0.03"><joint name="pad_x" type="slide" axis="1 0 0"/>'
+    pad += '<geom type="box" size="0.02 0.02 0.02"/></body>\n  </worldbody>'
+    scene = make_scene(
+        replace={
+            "mocap.pusher.pos = [0.0, -0.15, 0.03]": "ctrl = [0.0]",
+            "mocap.pusher.pos = [0.0, 0.3, 0.03]": "ctrl = [0.1]",
+        },
+        model_replace={
+            "  </worldbody>": "  " + pad,
+            "</mujoco>": '<actuator><position joint="pad_x" kp="10"/></actuator>\n</mujoco>',
+        },
+    )
+    task = get_task("scene", {"scene_file": str(scene)})
+    trajectory = task.sample_trajectory(np.random.default_rng(1), 2)
+    root = trajectory.initial
+    robot_q = root.robot_q.copy()
+    robot_q[1 + 1] = 0.1  # the pusher's y (after the pad's joint) where this frame has it, not the model's
+    root = FrameState(root.object_pos, root.object_quat, root.object_vel, robot_q, root.robot_v)
+    batched, single = _both_paths(task, root, trajectory.friction, trajectory.drive)
+    robots = np.stack([outcome.robot for outcome in batched])
+    np.testing.assert_allclose(robots[:, 1:], np.stack([outcome.robot for outcome in single])[:, 1:], atol=1e-12)
+    np.testing.assert_allclose(robots[:, 2], 0.1)
 
 
 def _before(path: Path) -> tuple[bool, bool]:

@@ -12,7 +12,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.errors import check_int
+from energy_margin.errors import InvalidParameterError, check_int
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command
 from energy_margin.world.state import RobotState
@@ -176,7 +176,7 @@ class RolloutPropagator:
         """
         joints = self.object_states(states)[3]
         if self._end_mocap.shape != (states.shape[0], 7 * int(self.model.nmocap)):
-            raise ValueError(f"no propagation of {states.shape[0]} states to read the mocap poses of")
+            raise InvalidParameterError("states", f"are not the end states of the last propagation ({states.shape[0]})")
         return np.concatenate([joints, self._end_mocap], axis=1)
 
     def propagate(
