@@ -112,7 +112,11 @@ def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -
     assert "x [-0.12, 0.12] m, y [-0.02, 0.08] m, z the model's (default), yaw [-0.3, 0.3] rad" in out
     # Two 6 cm boxes: 2 x 0.0424 m (a corner in x-y), not 2 x 0.052 m (a corner in 3-D).
     assert "min separation 0.0849 m, twice the largest footprint radius, in the x-y plane (default)" in out
-    assert "built at the analysed frame (default)" in out
+    # The band is in the mocap pusher's frame: it follows the robot unless the file says otherwise.
+    assert (
+        "capture region follows the robot (attached to body 'pusher', moved by mocap body 'pusher') (default)\n" in out
+    )
+    assert "success region fixed in the world (default)\n" in out
     bounds = next(line for line in out.splitlines() if line.startswith("bounds: "))
     assert re.fullmatch(
         r"bounds: low \(\S+, \S+, \S+\) m \(default: 1 m around the model's geoms\), high \(\S+, \S+, \S+\) m "
@@ -138,5 +142,9 @@ def test_scene_marks_every_value_that_comes_from_a_default(make_scene, capsys) -
         "longest propagation 0.1 s, lambda 7 1/J\n" in out
     )
     assert "the default bounds" not in out
-    assert "capture: at least 1 objects in box[" in out and ", built at the analysed frame\n" in out
+    assert "capture: at least 1 objects in box[" in out
+    assert (
+        "; capture region fixed at the analysed frame (follow = false; attached to body 'pusher', moved by mocap "
+        "body 'pusher')\n" in out
+    )
     assert "bounds: low (-1, -1, -1) m, high (1, 1, 1) m, max speed 5 m/s;" in out

@@ -135,6 +135,9 @@ def test_recorded_mocap_arrays_override_the_declared_motion(tiny_scene: Path, tm
     from energy_margin.data.record import record_dataset
     from energy_margin.data.validation import check_dataset
 
+    # The capture region taken at the analysed (recorded) frame: a region that follows the pusher would
+    # be taken where the declared motion moves it in each tree state (a mocap pose is commanded).
+    tiny_scene.write_text(tiny_scene.read_text().replace("[capture]\n", "[capture]\nfollow = false\n"))
     arrays = _log_turned_pusher(tiny_scene, tmp_path / "turned.npz")
     _log_turned_pusher(tiny_scene, tmp_path / "declared.npz", mocap=False)
     turned = record_dataset(tiny_scene, [tmp_path / "turned.npz"], n_frames=4, out=tmp_path / "with_mocap")

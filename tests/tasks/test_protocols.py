@@ -86,6 +86,16 @@ class _RegionsOnly:
     def success_region_at(self, root: FrameState) -> Region:
         return self._region()
 
+    def success_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        return np.all(self._region().contains(object_pos, object_vel), axis=-1)
+
     def is_captured(self, frame: FrameState) -> bool:
         return bool(np.all(self._region().contains(frame.object_pos, frame.object_vel)))
 

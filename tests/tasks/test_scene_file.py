@@ -127,7 +127,8 @@ BAD_INPUTS = [
     ),
     ({"[randomize]\n": "[randomize]\ncolour = 1\n"}, {}, "randomize.colour:", "unknown key"),
     ({"[capture]\n": "[capture]\nfollow = 1\n"}, {}, "capture.follow:", "must be true or false"),
-    ({"[success]\n": "[success]\nfollow = true\n"}, {}, "success.follow:", "unknown key"),
+    ({"[success]\n": "[success]\nfollow = 1\n"}, {}, "success.follow:", "must be true or false"),
+    ({"[success]\n": '[success]\nfollow = "yes"\n'}, {}, "success.follow:", "must be true or false"),
     ({"x = [-0.12, 0.12]\ny = [-0.02, 0.08]": "x = [0.0, 0.0]\ny = [0.0, 0.0]"}, {}, "randomize.start", "cannot place"),
     ({"schema_version = 1": "schema_version = 7"}, {}, ":1: schema_version:", "not supported"),
     ({"time = 1.5\n": "time = 0.0\n"}, {}, "motion.keyframes[1].time:", "must increase"),
@@ -550,7 +551,7 @@ def test_a_start_on_the_robot_names_the_deepest_overlap(make_scene) -> None:
 
 
 def _follow_task(make_scene, follow: bool):  # type: ignore[no-untyped-def]
-    replace = {"[capture]\n": "[capture]\nfollow = true\n"} if follow else {}
+    replace = {"[capture]\n": f"[capture]\nfollow = {str(follow).lower()}\n"}
     return get_task("scene", {"scene_file": str(make_scene(replace=replace))})
 
 
@@ -561,8 +562,10 @@ def test_a_following_capture_region_is_built_at_every_states_own_robot_pose(make
     assert follow_task.loaded.spec.capture_follows and not frozen_task.loaded.spec.capture_follows
     from energy_margin.report.scene_view import describe_scene
 
-    assert any("capture.follow" in line for line in describe_scene(follow_task))
-    assert not any("capture.follow" in line for line in describe_scene(frozen_task))
+    assert any("capture region follows the robot (attached" in line for line in describe_scene(follow_task))
+    assert any(
+        "capture region fixed at the analysed frame (follow = false" in line for line in describe_scene(frozen_task)
+    )
     # The pusher (a mocap body: robot_q holds its position, then its quaternion) at y = -0.15 with
     # both boxes in its band (y from -0.13 to 0.07), then a state where the pusher went on to
     # y = 0.15 and took the boxes along to y = 0.27, inside the band it carries but not the first one.
@@ -582,9 +585,7 @@ def test_a_following_capture_region_is_built_at_every_states_own_robot_pose(make
     follow = follow_task.capture_inside(root, object_pos, object_vel, object_quat, robot_q)
     assert frozen.tolist() == [True, False]
     assert follow.tolist() == [True, True]
-    with pytest.raises(
-        InvalidParameterError, match=r"capture\.follow needs the robot's coordinates at every tree node"
-    ):
+    with pytest.raises(InvalidParameterError, match=r"capture region follows the robot .*capture\.follow = false"):
         follow_task.capture_inside(root, object_pos, object_vel, object_quat, None)
 
 
@@ -611,29 +612,28 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
     from energy_margin.analysis.scores import region_score
 
     assert scores.capture_score == region_score(field.costs, expected, task.config.likelihood_lambda)
-    # A batched expansion of a model with mocap bodies keeps no robot coordinates: one clear error.
-    with pytest.raises(InvalidParameterError, match="use batch 1"):
-        analyze_frame(
-            task,
-            trajectory.initial,
-            friction=trajectory.friction,
-            drive=trajectory.drive,
-            seed=1,
-            config=AnalyzerConfig(expansions=8, batch=2),
-        )
+    # A batched expansion of a model with mocap bodies keeps them too (the mocap poses of each node's command).
+    _, batched_field = analyze_frame(
+        task,
+        trajectory.initial,
+        friction=trajectory.friction,
+        drive=trajectory.drive,
+        seed=1,
+        config=AnalyzerConfig(expansions=8, batch=2),
+    )
+    assert batched_field.robot_q is not None and batched_field.robot_q.shape == (batched_field.nodes, 7)
+    assert np.max(batched_field.robot_q[:, 1]) > trajectory.initial.robot_q[1]
 
 
-def test_follow_with_batched_expansion_of_a_mocap_model_is_refused_before_any_tree(
+def test_follow_with_batched_expansion_of_a_mocap_model_is_analysed(
     make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     scene = make_scene(replace={"[capture]\n": "[capture]\nfollow = true\n"})
     out = tmp_path / "d"
     assert main(["generate", "--scene", str(scene), "--trajectories", "1", "--frames", "2", "--out", str(out)]) == 0
     capsys.readouterr()
-    assert main(["analyze", str(out), "--expansions", "8", "--batch", "2", "--no-progress"]) == 2
-    error = capsys.readouterr().err
-    assert error.count("\n") == 1 and "capture.follow needs the robot's coordinates" in error
-    assert not (out / "scores.csv").exists() and not (out / "analysis.json").exists()
+    assert main(["analyze", str(out), "--expansions", "8", "--batch", "2", "--no-progress"]) == 0
+    assert (out / "scores.csv").exists()
 
 
 def test_a_zero_separation_layout_failure_is_still_one_line(make_scene) -> None:

@@ -30,7 +30,7 @@ from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
 from energy_margin.sim import ENGINES, Simulator
-from energy_margin.tasks import Task, TaskRegions, all_inside, with_contacts
+from energy_margin.tasks import Task, TaskRegions, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
@@ -177,7 +177,7 @@ def frame_seeds(seed: int, count: int) -> list[int]:
 def field_membership(task: TaskRegions, root: FrameState, field: CostField) -> tuple[np.ndarray, np.ndarray]:
     """Which nodes of a cost field are captured and which successful, each shape (M,), bool."""
     captured = task.capture_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
-    successful = all_inside(task.success_region_at(root), field.object_pos, field.object_vel, field.object_quat)
+    successful = task.success_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
     return captured, successful
 
 

@@ -51,7 +51,7 @@ def _propagate_round(
         np.array([n_steps for _, _, _, n_steps in round_]),
         control_steps,
     )
-    robots = propagator.object_states(states)[3]  # joint coordinates (a model's mocap poses are not among them)
+    robots = propagator.end_robot_positions(states)  # joint coordinates, then a model's mocap poses
     return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
 
 

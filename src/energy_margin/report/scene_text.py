@@ -197,8 +197,9 @@ def _perturbation_lines(task: SceneTask) -> list[str]:
 
 
 def _set_lines(task: SceneTask) -> list[str]:
-    """The capture and success sets: how many objects, in which region, built where."""
-    spec = task.loaded.spec
+    """The capture and success sets: how many objects, in which region, and whether it follows the robot."""
+    loaded = task.loaded
+    spec = loaded.spec
     lines = []
     for name, table, at_least in (
         ("capture", spec.capture, spec.capture_at_least),
@@ -207,12 +208,9 @@ def _set_lines(task: SceneTask) -> list[str]:
         who = _given(
             spec, f"{name}.at_least", f"at least {at_least} objects" if at_least is not None else "every object"
         )
-        if name == "success":
-            where = ""
-        elif spec.capture_follows:
-            where = " (built at every tree node's own robot pose: capture.follow)"
-        else:
-            where = ", " + _given(spec, "capture.follow", "built at the analysed frame")
+        # Whether the region is built at every tree state's own robot pose, why, and whether by default.
+        follow = loaded.follow.get(name)
+        where = f"; {name} region {follow.describe()}" if follow is not None else ""
         lines.append(f"{name}: {who} in {_region_text(table)}{where}")
     return lines
 

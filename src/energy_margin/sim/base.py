@@ -238,6 +238,10 @@ class Propagator(Protocol):
         """Object positions, quaternions, velocities, robot positions and velocities of states (k, state_size)."""
         ...
 
+    def end_robot_positions(self, states: np.ndarray) -> np.ndarray:
+        """The robot's coordinates (as :meth:`Simulator.robot_positions`) at the end states of the last propagate."""
+        ...
+
 
 @runtime_checkable
 class BatchedRollout(Protocol):

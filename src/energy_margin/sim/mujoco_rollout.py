@@ -12,7 +12,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.errors import check_int
+from energy_margin.errors import InvalidParameterError, check_int
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import ModelIndex, apply_model_command
 from energy_margin.world.state import RobotState
@@ -64,6 +64,16 @@ class RolloutPropagator:
         self.control_size = int(mujoco.mj_stateSize(model, _CONTROL_SPEC))
         self._nq, self._nv = int(model.nq), int(model.nv)
         self._warmstart = np.zeros((0, self._nv))
+        # The mocap poses in a control vector: after the controls, applied forces and wrenches.
+        self._mocap_at = int(
+            mujoco.mj_stateSize(
+                model,
+                mujoco.mjtState.mjSTATE_CTRL
+                | mujoco.mjtState.mjSTATE_QFRC_APPLIED
+                | mujoco.mjtState.mjSTATE_XFRC_APPLIED,
+            )
+        )
+        self._end_mocap = np.zeros((0, 7 * int(model.nmocap)))
 
     def close(self) -> None:
         """Stop the thread pool."""
@@ -156,6 +166,19 @@ class RolloutPropagator:
         pos, quat, vel = index.objects_of(qpos, qvel)
         return pos, quat, vel, qpos[:, index.robot_qpos], qvel[:, index.robot_qvel]
 
+    def end_robot_positions(self, states: np.ndarray) -> np.ndarray:
+        """The robot's coordinates at the end states (k, state_size) of the last :meth:`propagate`.
+
+        Robot joint positions, then every mocap body's position (3) and quaternion (4) as the last
+        control of each propagation set them (``mjSTATE_FULLPHYSICS`` holds no mocap pose), the
+        layout of :meth:`~energy_margin.sim.mujoco_model.MujocoModelSimulator.robot_positions`
+        (a model without mocap bodies: the joints only).
+        """
+        joints = self.object_states(states)[3]
+        if self._end_mocap.shape != (states.shape[0], 7 * int(self.model.nmocap)):
+            raise InvalidParameterError("states", f"are not the end states of the last propagation ({states.shape[0]})")
+        return np.concatenate([joints, self._end_mocap], axis=1)
+
     def propagate(
         self,
         task: Any,
@@ -189,6 +212,10 @@ class RolloutPropagator:
         dt = float(self.model.opt.timestep)
         qpos, qvel = self.qpos_qvel(states)
         controls = np.empty((k, longest, self.control_size))
+        # A command without mocap poses holds those of the simulator's state (the tree's root), as
+        # the one-at-a-time path restores them with each node's state.
+        self._scratch.mocap_pos[:] = self.data.mocap_pos
+        self._scratch.mocap_quat[:] = self.data.mocap_quat
         for j in range(k):
             robot_q, robot_v = qpos[j, index.robot_qpos], qvel[j, index.robot_qvel]
             done, steps = 0, int(n_steps[j])
@@ -215,5 +242,7 @@ class RolloutPropagator:
             initial_warmstart=self._warmstart,
         )
         final = out[np.arange(k), n_steps - 1]
+        nmocap = int(self.model.nmocap)
+        self._end_mocap = controls[np.arange(k), n_steps - 1, self._mocap_at : self._mocap_at + 7 * nmocap]
         pos, quat, vel = index.objects_of(*self.qpos_qvel(final))
         return pos, vel, quat, final

@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -27,6 +26,7 @@ from energy_margin.sim.base import ModelCommand, Simulator
 from energy_margin.tasks.command import command_robot
 from energy_margin.tasks.config import (
     CONTACT_MODELS,
+    ReferenceLayout,
     TaskConfig,
     require_non_negative,
     require_positive,
@@ -71,28 +71,6 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class ReferenceLayout:
-    """How the authors' published CSV files of a task read (:mod:`energy_margin.data.reference`).
-
-    Attributes:
-        suffix: their task name, the suffix of their file names (e.g. ``"PlanePushMulti"``); it
-            selects the mapping of their columns onto this project's frames.
-        object_columns: frame-state columns per object.
-        robot_columns: frame-state columns of the end-effector, after the objects'.
-        drives: the ``import-reference --drive`` values the task accepts.
-        replays_recorded: whether analysis of the imported frames replays the end-effector's
-            recorded motion whatever the drive (recorded as ``imported_drive = "recorded"``).
-
-    """
-
-    suffix: str
-    object_columns: int
-    robot_columns: int
-    drives: tuple[str, ...] = ("nominal",)
-    replays_recorded: bool = False
-
-
 class Task(ABC):
     """Base class of a manipulation task: it implements every protocol of :mod:`energy_margin.tasks.protocols`.
 
@@ -106,7 +84,7 @@ class Task(ABC):
       :meth:`model_command`, :meth:`drive_size`, :meth:`robot_dofs`, :attr:`n_steps`,
       :meth:`frame_steps`, :attr:`control_period`.
     * ``TaskRegions``: :meth:`capture_region`, :meth:`capture_regions`, :meth:`capture_inside`,
-      :meth:`success_region`, :meth:`success_region_at`, :meth:`is_captured`,
+      :meth:`success_region`, :meth:`success_region_at`, :meth:`success_inside`, :meth:`is_captured`,
       :meth:`is_successful`, :meth:`capture_region_shape`, :attr:`region_caption`.
     * ``DesignSpace``: :attr:`config`, :meth:`design_aliases`, :meth:`design_fields`,
       :meth:`design_space`, :meth:`configured`.
@@ -363,6 +341,18 @@ class Task(ABC):
         """
         del root
         return self.success_region()
+
+    def success_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """As :meth:`capture_inside`, for success: by default in the region of :meth:`success_region_at` ``root``."""
+        del robot_q
+        return all_inside(self.success_region_at(root), object_pos, object_vel, object_quat)
 
     @abstractmethod
     def wrench_limits(self, scene: Scene) -> WrenchLimits:

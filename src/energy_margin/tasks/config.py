@@ -1,4 +1,4 @@
-"""Settings of a task: :class:`TaskConfig`, the checks of its fields, and the names of its contact models.
+"""Settings of a task: :class:`TaskConfig`, the checks of its fields, its contact models and reference layout.
 
 Every task's configuration is a frozen dataclass derived from :class:`TaskConfig`; its fields are
 checked on construction: the type and length of the default, then each field's own
@@ -30,6 +30,7 @@ __all__ = [
     "POSITIVE",
     "POSITIVE_RANGE",
     "RANGE",
+    "ReferenceLayout",
     "TaskConfig",
     "require_non_negative",
     "require_positive",
@@ -169,3 +170,25 @@ def require_ranges(config: TaskConfig, *names: str) -> None:
         low, high = getattr(config, name)
         if low > high:
             raise InvalidParameterError(name, f"must be (low, high) with low <= high, got {getattr(config, name)!r}")
+
+
+@dataclass(frozen=True)
+class ReferenceLayout:
+    """How the authors' published CSV files of a task read (:mod:`energy_margin.data.reference`).
+
+    Attributes:
+        suffix: their task name, the suffix of their file names (e.g. ``"PlanePushMulti"``); it
+            selects the mapping of their columns onto this project's frames.
+        object_columns: frame-state columns per object.
+        robot_columns: frame-state columns of the end-effector, after the objects'.
+        drives: the ``import-reference --drive`` values the task accepts.
+        replays_recorded: whether analysis of the imported frames replays the end-effector's
+            recorded motion whatever the drive (recorded as ``imported_drive = "recorded"``).
+
+    """
+
+    suffix: str
+    object_columns: int
+    robot_columns: int
+    drives: tuple[str, ...] = ("nominal",)
+    replays_recorded: bool = False

@@ -172,6 +172,17 @@ class TaskRegions(Protocol):
         """The success region for the frame ``root``."""
         ...
 
+    def success_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Which of M reached states of ``root``'s tree have every object successful, shape (M,)."""
+        ...
+
     def is_captured(self, frame: FrameState) -> bool:
         """Whether every object of ``frame`` lies in the capture region built from ``frame``."""
         ...

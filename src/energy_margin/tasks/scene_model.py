@@ -33,6 +33,7 @@ from energy_margin.tasks.scene_design import (
     apply_design,
 )
 from energy_margin.tasks.scene_file import read_scene_file
+from energy_margin.tasks.scene_follow import RegionFollow, region_follow
 from energy_margin.tasks.scene_motion import (
     Motion,
     _check_file,
@@ -84,6 +85,8 @@ class LoadedScene:
         perturbation: the perturbation settings, the file's or derived from the scene where it has none.
         design_values: the value of every ``[design]`` parameter the model was compiled with
             (overrides, else each one's default, else the model's own value).
+        follow: ``"capture"`` and ``"success"`` -> whether that region follows the robot and why
+            (``spec.capture_follows`` and ``spec.success_follows`` hold the resolved values).
 
     """
 
@@ -100,6 +103,7 @@ class LoadedScene:
     initial_qpos: np.ndarray
     perturbation: PerturbationSettings
     design_values: dict[str, float] = field(default_factory=dict)
+    follow: dict[str, RegionFollow] = field(default_factory=dict)
 
     @property
     def n_objects(self) -> int:
@@ -245,6 +249,15 @@ def resolve_scene(
             )
         robot.append(joint)
     _check_region_names(spec, model)
+    # A follow the file leaves out is resolved here: true where the region rides on a body the robot moves.
+    follow = {
+        name: region_follow(name, table, None if f"{name}.follow" in spec.defaulted else stated, model, robot)
+        for name, table, stated in (
+            ("capture", spec.capture, spec.capture_follows),
+            ("success", spec.success, spec.success_follows),
+        )
+    }
+    spec = replace(spec, capture_follows=follow["capture"].follows, success_follows=follow["success"].follows)
     motion = _motion(spec, model)
     initial: np.ndarray = np.array(model.qpos0, dtype=float)
     if spec.motion.initial_keyframe is not None:
@@ -270,6 +283,7 @@ def resolve_scene(
         initial_qpos=initial,
         perturbation=resolve_perturbation(spec, model, np.array(bodies, dtype=int)),
         design_values=dict(design_values or {}),
+        follow=follow,
     )
 
 

@@ -113,18 +113,23 @@ def _read_perturbation(
     return derive, linear, angular, max_duration, lam
 
 
-def _read_sets(read: _Reader, document: Mapping[str, Any]) -> tuple[dict[str, tuple[dict[str, Any], int | None]], bool]:
-    """The ``[capture]`` and ``[success]`` tables: name -> (region, at_least), and ``capture.follow``."""
+def _read_sets(
+    read: _Reader, document: Mapping[str, Any]
+) -> tuple[dict[str, tuple[dict[str, Any], int | None]], dict[str, bool | None]]:
+    """The ``[capture]`` and ``[success]`` tables: name -> (region, at_least), and each ``follow``.
+
+    A ``follow`` the file leaves out is ``None``: it is resolved against the model (a region on a
+    body the robot moves follows it, :mod:`~energy_margin.tasks.scene_follow`).
+    """
     sets = {}
-    follows = False
+    follows: dict[str, bool | None] = {}
     for name in ("capture", "success"):
-        table = read.table(
-            document, name, "", {"region", "at_least", "follow"} if name == "capture" else {"region", "at_least"}
-        )
+        table = read.table(document, name, "", {"region", "at_least", "follow"})
+        follows[name] = None
         if "follow" in table:
             if not isinstance(table["follow"], bool):
                 raise read.fail(f"{name}.follow", f"must be true or false, got {table['follow']!r}")
-            follows = table["follow"]
+            follows[name] = table["follow"]
         if "region" not in table:
             raise read.fail(name, f"is missing {name}.region, the region table of the {name} set")
         region = _check_region(read, table["region"], f"{name}.region")

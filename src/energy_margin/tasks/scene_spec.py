@@ -198,7 +198,11 @@ class SceneSpec:
         capture: the capture region table (built at the analysed frame).
         capture_at_least: capture needs at least this many objects inside, or ``None`` for every object.
         capture_follows: the capture region's body and site frames are taken at every tree node's
-            own robot configuration (``capture.follow = true``), not frozen at the analysed frame.
+            own robot configuration (``capture.follow = true``), not frozen at the analysed frame;
+            ``None`` where the file leaves it out, until the scene is resolved against its model:
+            then true where the region is attached to a body the robot moves
+            (:func:`~energy_margin.tasks.scene_follow.region_follow`).
+        success_follows: the same for the success region (``success.follow``).
         derive_perturbation: ``[perturbation] derive = true``: keys left out are derived from the
             scene (tasks/scene_defaults.py) instead of taking the fixed defaults.
         success: the success region table.
@@ -242,7 +246,8 @@ class SceneSpec:
     bounds_high: tuple[float, ...] | None
     max_speed: float
     locator: Locator = field(repr=False, compare=False)
-    capture_follows: bool = False
+    capture_follows: bool | None = None
+    success_follows: bool | None = None
     derive_perturbation: bool = False
     design: tuple[DesignEntry, ...] = ()
     defaulted: frozenset[str] = frozenset()
@@ -275,6 +280,7 @@ DEFAULTED_KEYS = (
     "capture.at_least",
     "capture.follow",
     "success.at_least",
+    "success.follow",
     "bounds.low",
     "bounds.high",
     "bounds.max_speed",

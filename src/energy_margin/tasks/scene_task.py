@@ -20,8 +20,10 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits, all_inside
 from energy_margin.tasks.motion import RobotState, Trajectory
+from energy_margin.tasks.region_types import FrameRegions
 from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_defaults import object_armature
+from energy_margin.tasks.scene_follow import node_frames
 from energy_margin.tasks.scene_layout import draw_layout
 from energy_margin.tasks.scene_lookup import SceneFrameLookup, lookup_frame
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
@@ -337,15 +339,6 @@ class SceneTask(Task):
         spec = self.loaded.spec
         return self._set(spec.capture, spec.capture_at_least, root)
 
-    def analysis_problem(self, *, batch: int) -> str | None:
-        """``capture.follow`` on a model with mocap bodies needs every node's mocap pose: batch 1."""
-        if self.loaded.spec.capture_follows and batch > 1 and int(self.loaded.model.nmocap) > 0:
-            return (
-                f"{self.loaded.spec.path}: capture.follow needs the robot's coordinates at every tree node; a "
-                "batched expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1"
-            )
-        return None
-
     def capture_inside(
         self,
         root: FrameState,
@@ -354,40 +347,55 @@ class SceneTask(Task):
         object_quat: np.ndarray | None = None,
         robot_q: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Which reached states have every object captured; with ``capture.follow``, in each state's own region.
+        """Which reached states have every object captured; a region that follows, in each state's own.
 
-        A region in a body's or a site's frame (a paddle's band) is, by default, the one of the
-        analysed frame; the tree's states move on with the robot for up to a second, so an object
-        that stays in the moving band leaves the frozen one. With ``capture.follow = true`` the
-        region is built at every state's own robot configuration (``robot_q``).
+        A region in the frame of a body the robot moves (a paddle's band) moves on with it in the
+        tree's states, so an object that stays in the moving band would leave one frozen at the
+        analysed frame: such a region follows unless the file says ``capture.follow = false``
+        (:mod:`~energy_margin.tasks.scene_follow`), built at every state's own ``robot_q``.
 
         Raises:
-            InvalidParameterError: ``capture.follow`` and no robot configuration per state (a batched
-                expansion of a model with mocap bodies does not keep them).
+            InvalidParameterError: a following region and no robot configuration per state.
         """
-        spec = self.loaded.spec
-        if not spec.capture_follows:
+        if not self.loaded.spec.capture_follows:
             return super().capture_inside(root, object_pos, object_vel, object_quat)
-        if robot_q is None:
-            raise InvalidParameterError(
-                "batch",
-                f"must be 1 for {spec.path}: capture.follow needs the robot's coordinates at every tree node; "
-                "a batched expansion (batch > 1) of a model with mocap bodies does not keep them: use batch 1",
-            )
-        object_pos = np.asarray(object_pos, dtype=float)
-        robot_v = np.zeros_like(np.asarray(root.robot_v, dtype=float))
-        states = [
-            FrameState(
-                object_pos=object_pos[node],
-                object_quat=np.asarray(root.object_quat if object_quat is None else object_quat[node], dtype=float),
-                object_vel=np.asarray(object_vel[node], dtype=float),
-                robot_q=np.asarray(robot_q[node], dtype=float),
-                robot_v=robot_v,
-            )
-            for node in range(object_pos.shape[0])
-        ]
+        states = self._node_states("capture", root, object_pos, object_vel, object_quat, robot_q)
         # One region per state, measured row by row: the mechanism of capture_regions.
         return all_inside(self.capture_regions(states), object_pos, object_vel, object_quat)
+
+    def success_inside(
+        self,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None = None,
+        robot_q: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """As :meth:`capture_inside`, for the success region and ``success.follow`` (a tray the robot carries)."""
+        if not self.loaded.spec.success_follows:
+            return super().success_inside(root, object_pos, object_vel, object_quat)
+        states = self._node_states("success", root, object_pos, object_vel, object_quat, robot_q)
+        regions = FrameRegions([self.success_region_at(state) for state in states])
+        return all_inside(regions, object_pos, object_vel, object_quat)
+
+    def _node_states(
+        self,
+        name: str,
+        root: FrameState,
+        object_pos: np.ndarray,
+        object_vel: np.ndarray,
+        object_quat: np.ndarray | None,
+        robot_q: np.ndarray | None,
+    ) -> list[FrameState]:
+        if robot_q is None:
+            raise InvalidParameterError(
+                "robot_q",
+                f"is needed for {self.loaded.spec.path}: its {name} region follows the robot "
+                f"({self.loaded.follow[name].describe()}), so every state's robot coordinates are needed; "
+                f"pass them, or write {name}.follow = false in the scene file to freeze the region at the "
+                "analysed frame",
+            )
+        return node_frames(root, object_pos, object_vel, object_quat, robot_q)
 
     def success_region(self) -> Region:
         """The success set with body and site frames at the model's start configuration."""

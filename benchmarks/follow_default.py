@@ -1,0 +1,136 @@
+"""Capture AP of example scenes written without ``capture.follow``: the old default against the new one.
+
+For each scene, a copy without its ``follow = true`` line (written as a new user would) is
+generated once, then the same dataset is analysed and evaluated twice: by the code of an earlier
+checkout (``--old-src``: before regions followed their robot by default, the region is frozen at the
+analysed frame) and by this checkout's code (``--new-src``: the region rides on the robot). The
+results go to one JSON file (docs/figures/follow_default.json) with the seeds, sizes and budget.
+
+    python benchmarks/follow_default.py --old-src /path/to/old/src --out docs/figures/follow_default.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+__all__: list[str] = []
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ("examples/fetch/fetch.toml", "examples/pushing/pushing.toml")
+
+
+def _cli(src: Path, *args: str) -> str:
+    """Run ``python -m energy_margin ARGS`` with ``src`` first on the path; its standard output."""
+    env = {**os.environ, "PYTHONPATH": str(src)}
+    done = subprocess.run(
+        [sys.executable, "-m", "energy_margin", *args], env=env, capture_output=True, text=True, check=False
+    )
+    if done.returncode != 0:
+        raise SystemExit(f"energy-margin {' '.join(args)} failed:\n{done.stderr}")
+    return done.stdout
+
+
+def _without_follow(scene: Path, out: Path) -> Path:
+    """A copy of ``scene`` without its ``follow = true`` line, its model named by absolute path."""
+    text = scene.read_text()
+    lines = [line for line in text.splitlines() if line.strip() != "follow = true"]
+    if len(lines) != len(text.splitlines()) - 1:
+        raise SystemExit(f"{scene}: expected exactly one 'follow = true' line")
+    copied = "\n".join(lines) + "\n"
+    model = lambda match: f'mjcf = "{(scene.parent / match.group(1)).resolve()}"'  # noqa: E731
+    copied = re.sub(r'^mjcf = "([^"]+)"', model, copied, count=1, flags=re.M)
+    path = out / scene.name
+    path.write_text(copied)
+    return path
+
+
+def _scores(src: Path, dataset: Path, expansions: int, seed: int) -> dict[str, Any]:
+    """Analyse ``dataset`` with the code at ``src``; the capture APs at k-hat 0 and 2 and the success AP."""
+    started = time.perf_counter()
+    _cli(src, "analyze", str(dataset), "--expansions", str(expansions), "--workers", "1", "--seed", str(seed),
+         "--no-progress")  # fmt: skip
+    result: dict[str, Any] = {"analysis_s": round(time.perf_counter() - started, 1)}
+    for window in (0, 2):
+        report = json.loads(
+            _cli(src, "evaluate", str(dataset), "--capture-window", str(window), "--resamples", "0", "--json")
+        )
+        result[f"capture_k{window}"] = {
+            "margin": report["capture_ap"],
+            **{name: values["capture_ap"] for name, values in report["baselines"].items()},
+            "positive_rate": report["capture_positive_rate"],
+        }
+        result["success"] = {
+            "margin": report["success_ap"],
+            **{name: values["success_ap"] for name, values in report["baselines"].items()},
+            "positive_rate": report["success_positive_rate"],
+        }
+    return result
+
+
+def _commit(src: Path) -> str:
+    """The git commit of the checkout holding ``src`` (with ``+`` when its tree has changes)."""
+    head = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--", "."], capture_output=True, text=True)
+    return head.stdout.strip() + ("+" if dirty.stdout.strip() else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--old-src", type=Path, required=True, help="src/ of the checkout before the default")
+    parser.add_argument("--new-src", type=Path, default=ROOT / "src", help="src/ of this checkout")
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
+    parser.add_argument("--trajectories", type=int, default=20)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=11, help="generation seed (the examples use 0, 1, 2 and 202)")
+    parser.add_argument("--analysis-seed", type=int, default=0)
+    parser.add_argument("--expansions", type=int, default=100)
+    parser.add_argument("--work", type=Path, default=ROOT / "runs" / "follow_default")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "follow_default.json")
+    args = parser.parse_args(argv)
+    if args.work.exists():
+        shutil.rmtree(args.work)
+    args.work.mkdir(parents=True)
+    results: dict[str, Any] = {
+        "settings": {
+            "trajectories": args.trajectories,
+            "frames": args.frames,
+            "generation_seed": args.seed,
+            "analysis_seed": args.analysis_seed,
+            "expansions": args.expansions,
+            "workers": 1,
+            "scene": "the example with its 'follow = true' line removed",
+            "old_code": _commit(args.old_src),
+            "new_code": _commit(args.new_src),
+        },
+        "scenes": {},
+    }
+    for name in args.scenes:
+        scene = _without_follow(ROOT / name, args.work)
+        key = scene.stem
+        dataset = args.work / f"{key}_data"
+        _cli(args.new_src, "generate", "--scene", str(scene), "--trajectories", str(args.trajectories),
+             "--frames", str(args.frames), "--seed", str(args.seed), "--out", str(dataset))  # fmt: skip
+        entry: dict[str, Any] = {"scene": name}
+        for label, src in (("old_default", args.old_src), ("new_default", args.new_src)):
+            copy = args.work / f"{key}_{label}"
+            shutil.copytree(dataset, copy)
+            entry[label] = _scores(src.resolve(), copy, args.expansions, args.analysis_seed)
+            print(f"{key} {label}: {entry[label]['analysis_s']} s", flush=True)
+        results["scenes"][key] = entry
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
