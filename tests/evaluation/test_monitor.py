@@ -9,6 +9,7 @@ import pytest
 
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.monitor import (
+    LiveAlarm,
     MonitorCalibration,
     alarm_frames,
     calibrate_grid,
@@ -193,3 +194,35 @@ def test_a_calibration_file_round_trips(tmp_path: Path) -> None:
     with pytest.raises(EnergyMarginError, match="not a monitor calibration file"):
         load_calibration(path)
     assert isinstance(first, MonitorCalibration)
+
+
+# ---------------------------------------------------------------- live
+
+
+def _calibration(**changes: object) -> MonitorCalibration:
+    settings: dict[str, object] = {
+        "threshold": 0.3,
+        "alpha": 0.1,
+        "rank": 1,
+        "n_successes": 9,
+        "n_trajectories": 12,
+        "scorer": "margin",
+        "score": "min",
+        "start_frame": 1,
+    }
+    settings.update(changes)
+    return MonitorCalibration.from_dict(settings)
+
+
+def test_the_live_alarm_watches_from_the_start_frame_and_stays_raised() -> None:
+    alarm = LiveAlarm(_calibration())
+    # Call 0 is not monitored; call 2's min(capture, success) = 0.2 < 0.3 fires; it stays raised.
+    seen = [alarm.update(c, s) for c, s in [(0.0, 0.0), (0.9, 0.4), (0.2, 0.9), (0.9, 0.9)]]
+    assert seen == [False, False, True, True]
+    assert alarm.fired_at == 2
+    alarm.reset()
+    assert alarm.update(0.9, 0.9) is False and alarm.fired_at is None
+    success_only = LiveAlarm(_calibration(score="success", start_frame=0))
+    assert success_only.update(0.0, 0.5) is False and success_only.update(0.5, 0.1) is True
+    with pytest.raises(InvalidParameterError, match=r"^calibration watches the distance baseline"):
+        LiveAlarm(_calibration(scorer="distance"))

@@ -42,6 +42,7 @@ __all__ = [
     "CALIBRATION_VERSION",
     "SCORERS",
     "SCORES",
+    "LiveAlarm",
     "MonitorCalibration",
     "alarm_frames",
     "calibrate_grid",
@@ -144,6 +145,47 @@ class MonitorCalibration(TypedResult):
     def fires(self, value: float) -> bool:
         """Whether a monitored frame whose score is ``value`` raises the alarm."""
         return bool(value < self.threshold)
+
+    def watched(self, capture: float, success: float) -> float:
+        """The watched score of a frame whose capture and success scores are given."""
+        return {"success": success, "capture": capture, "min": min(capture, success)}[self.score]
+
+
+class LiveAlarm:
+    """The alarm of a margin calibration over the scored calls of one live episode.
+
+    Call k after :meth:`reset` (the reset's own call is 0) stands for frame k of the calibration's
+    trajectories, so the calibration set's frames should be as far apart as the live calls (a set
+    recorded from the same wrapper and cadence, ``energy-margin record``). Once fired, the alarm
+    stays raised until the next reset.
+
+    Raises:
+        InvalidParameterError: a ``distance`` calibration (live calls score margins only).
+
+    """
+
+    def __init__(self, calibration: MonitorCalibration) -> None:
+        if calibration.scorer != "margin":
+            raise InvalidParameterError(
+                "calibration", f"watches the {calibration.scorer} baseline; a live scorer needs a margin calibration"
+            )
+        self.calibration = calibration
+        self.calls = 0
+        self.fired_at: int | None = None
+
+    def reset(self) -> None:
+        """A new episode: no call yet, no alarm."""
+        self.calls = 0
+        self.fired_at = None
+
+    def update(self, capture: float, success: float) -> bool:
+        """Add the next call's scores; whether the alarm is raised (now or earlier in the episode)."""
+        frame = self.calls
+        self.calls += 1
+        found = self.calibration
+        if self.fired_at is None and frame >= found.start_frame and found.fires(found.watched(capture, success)):
+            self.fired_at = frame
+        return self.fired_at is not None
 
 
 def calibrate_grid(

@@ -26,8 +26,8 @@ def test_monitor_end_to_end(analysed: tuple[Path, Path], tmp_path: Path, capsys:
     assert successes >= 1  # alpha 0.5 needs one
     saved = tmp_path / "alarm.json"
     capsys.readouterr()
-    argv = ["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20", "--json", "--save", str(saved)]
-    assert main(argv) == 0
+    argv = ["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20"]
+    assert main([*argv, "--json", "--save", str(saved)]) == 0
     result = json.loads(capsys.readouterr().out)
     assert [entry["scorer"] for entry in result["evaluations"]] == ["margin", "distance"]
     assert result["calibrations"][0]["n_successes"] == successes
