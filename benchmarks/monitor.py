@@ -59,8 +59,10 @@ def _scene_options(name: str, folder: Path) -> list[str]:
 
 def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argparse.Namespace) -> Path:
     path = folder / name
+    if (path / "scores.csv").is_file():
+        return path  # analysed by an earlier run in the same --work directory
     generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
-    assert cli([*generate, "--seed", str(seed), "--out", str(path)]) == 0
+    assert cli([*generate, "--seed", str(seed), "--out", str(path), "--overwrite"]) == 0
     analyse = ["analyze", str(path), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]
     assert cli([*analyse, "--seed", str(args.analysis_seed)]) == 0
     return path
@@ -145,6 +147,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="seeds the bootstrap resamples")
     parser.add_argument("--scenes", nargs="+", choices=(*TASKS, *SCENE_EXAMPLES), default=[*TASKS, *SCENE_EXAMPLES])
     parser.add_argument("--out", type=Path, help="results JSON (scenes of an earlier run not rerun are kept)")
+    parser.add_argument("--work", type=Path, help="keep the sets here; analysed sets found there are reused")
     args = parser.parse_args()
     results: dict[str, Any] = {"scenes": {}}
     if args.out is not None and args.out.is_file():
@@ -159,22 +162,24 @@ def main() -> None:
         "resample_seed": args.seed,
         "analysis_seed": args.analysis_seed,
     }
-    with tempfile.TemporaryDirectory() as folder:
+    results["cores"] = os.cpu_count()
+    results["versions"] = engine_versions("mujoco")
+    with tempfile.TemporaryDirectory() as temporary:
+        folder = Path(args.work) if args.work is not None else Path(temporary)
         for name in args.scenes:
             started, cpu = time.perf_counter(), _cpu_s()
-            results["scenes"][name] = _scene(name, _scene_options(name, Path(folder)), Path(folder), args)
+            results["scenes"][name] = _scene(name, _scene_options(name, folder), folder, args)
+            # cpu_s: this run's (sets reused from --work were analysed by an earlier one).
             results["scenes"][name] |= {
                 "budget": budget,
                 "wall_s": time.perf_counter() - started,
                 "cpu_s": _cpu_s() - cpu,
             }
-    results["cores"] = os.cpu_count()
-    results["versions"] = engine_versions("mujoco")
-    text = json.dumps(results, indent=2, sort_keys=True) + "\n"
-    if args.out is not None:
-        args.out.write_text(text)
-    for name in args.scenes:
-        print(f"{name}: wall {results['scenes'][name]['wall_s']:.0f} s, cpu {results['scenes'][name]['cpu_s']:.0f} s")
+            if args.out is not None:
+                args.out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+            print(
+                f"{name}: wall {results['scenes'][name]['wall_s']:.0f} s, cpu {results['scenes'][name]['cpu_s']:.0f} s"
+            )
 
 
 if __name__ == "__main__":
