@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from energy_margin.cli.app import main as cli
+from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import InvalidParameterError
 from energy_margin.evaluation.monitor import SCORES, calibrate_monitor
 from energy_margin.evaluation.monitor_report import evaluate_monitor
@@ -57,14 +57,20 @@ def _scene_options(name: str, folder: Path) -> list[str]:
     return ["--scene", str(out / f"{name}.toml")]
 
 
+def _energy_margin(*arguments: str) -> None:
+    """Run one ``energy-margin`` command in its own process."""
+    subprocess.run([sys.executable, "-m", "energy_margin", *arguments], check=True)
+
+
 def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argparse.Namespace) -> Path:
+    """Generate and analyse one set (a set already generated in ``folder`` is kept; ``analyze`` resumes)."""
     path = folder / name
-    if (path / "scores.csv").is_file():
-        return path  # analysed by an earlier run in the same --work directory
-    generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
-    assert cli([*generate, "--seed", str(seed), "--out", str(path), "--overwrite"]) == 0
-    analyse = ["analyze", str(path), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]
-    assert cli([*analyse, "--seed", str(args.analysis_seed)]) == 0
+    if not (path / "dataset.json").is_file():
+        generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
+        _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
+    if not (path / "scores.csv").is_file():
+        analyse = ["analyze", str(path), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]
+        _energy_margin(*analyse, "--seed", str(args.analysis_seed))
     return path
 
 
@@ -125,7 +131,11 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
                 flush=True,
             )
         rows[f"alpha_{alpha:g}"] = per_scorer
-    return {"seeds": seeds, **rows}
+    # The trees' wall time, summed over every analysed frame of the three sets (kept in scores.csv,
+    # so it counts sets analysed by an earlier run in --work too).
+    analysis_s = sum(float(load_scores(path)["runtime_s"].sum()) for path in paths.values())
+    frames = sum(int(load_scores(path)["frame"].size) for path in paths.values())
+    return {"seeds": seeds, "analysis_s": analysis_s, "analysed_frames": frames, **rows}
 
 
 def _cpu_s() -> float:
