@@ -181,8 +181,10 @@ def test_a_calibration_file_round_trips(tmp_path: Path) -> None:
     path = tmp_path / "alarm.json"
     write_calibration(path, [first, second])
     assert load_calibration(path, alpha=0.1) == second
-    with pytest.raises(InvalidParameterError, match="picks no single calibration"):
+    with pytest.raises(EnergyMarginError, match=r"holds 2 calibrations \(alphas: 0.05, 0.1\); pick one by its alpha"):
         load_calibration(path)
+    with pytest.raises(InvalidParameterError, match=r"^alpha 0.2 picks no single calibration"):
+        load_calibration(path, alpha=0.2)
     write_calibration(path, [first])
     assert load_calibration(path) == first
     data = json.loads(path.read_text())

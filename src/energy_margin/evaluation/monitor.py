@@ -298,5 +298,7 @@ def load_calibration(path: Path | str, *, alpha: float | None = None) -> Monitor
     chosen = found if alpha is None else [entry for entry in found if math.isclose(entry.alpha, alpha)]
     if len(chosen) != 1:
         alphas = ", ".join(f"{entry.alpha:g}" for entry in found) or "none"
+        if alpha is None:
+            raise EnergyMarginError(f"{path} holds {len(found)} calibrations (alphas: {alphas}); pick one by its alpha")
         raise InvalidParameterError("alpha", f"{alpha} picks no single calibration of {path} (alphas: {alphas})")
     return chosen[0]
