@@ -22,6 +22,7 @@ COMMAND_NAMES = (
     "analyze",
     "evaluate",
     "calibrate",
+    "monitor",
     "check",
     "perturb",
     "import-reference",

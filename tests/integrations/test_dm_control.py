@@ -82,3 +82,31 @@ def test_bad_inputs_are_one_line() -> None:
         PhysicsScorer(object(), objects="x", capture=CAPTURE, success=SUCCESS)
     with pytest.raises(EnergyMarginError, match=r"objects.bodies: no body 'brick'"):
         MarginEnvironment(lift_brick(), objects="brick", capture=CAPTURE, success=SUCCESS)
+
+
+def test_a_calibration_adds_the_alarm() -> None:
+    from energy_margin.evaluation.monitor import MonitorCalibration
+
+    always = MonitorCalibration(
+        threshold=2.0,
+        alpha=0.1,
+        rank=1,
+        n_successes=9,
+        n_trajectories=9,
+        scorer="margin",
+        score="success",
+        start_frame=1,
+    )
+    wrapper = MarginEnvironment(
+        lift_brick(3),
+        objects="duplo2x4/",
+        capture=CAPTURE,
+        success=SUCCESS,
+        budget_s=None,
+        max_expansions=3,
+        calibration=always,
+    )
+    wrapper.reset()
+    for action in steps(wrapper, 2):
+        wrapper.step(action)
+    assert [margin["alarm"] for margin in wrapper.margins] == [False, True, True]  # call 0 is not monitored

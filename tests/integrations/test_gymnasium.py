@@ -273,3 +273,19 @@ def test_a_not_region_is_a_region_not_a_set_table() -> None:
         gymnasium.make("Pusher-v5"), objects="object", capture={"region": CAPTURE, "at_least": 1}, success=SUCCESS
     )
     assert with_at_least.scorer.task.loaded.spec.capture_at_least == 1
+
+
+def test_a_calibration_adds_the_alarm(tmp_path: Path) -> None:
+    from energy_margin.evaluation.monitor import MonitorCalibration, write_calibration
+
+    settings = {"alpha": 0.1, "rank": 1, "n_successes": 9, "n_trajectories": 9, "scorer": "margin"}
+    always = MonitorCalibration(threshold=2.0, score="success", start_frame=1, **settings)  # scores are <= 1
+    never = MonitorCalibration(threshold=0.0, score="min", start_frame=0, **settings)  # scores are >= 0
+    path = tmp_path / "alarm.json"
+    write_calibration(path, [always])
+    for calibration, expected in ((path, [False, True, True]), (never, [False, False, False])):
+        wrapper = wrapped(every=1, max_expansions=3, calibration=calibration)
+        seen = [wrapper.reset(seed=0)[1]["energy_margin"]["alarm"]]
+        seen += [wrapper.step(action)[4]["energy_margin"]["alarm"] for action in actions(2)]
+        assert seen == expected
+    assert "alarm" not in wrapped(every=1, max_expansions=3).reset(seed=0)[1]["energy_margin"]

@@ -28,6 +28,7 @@ import mujoco
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
+from energy_margin.evaluation.monitor import MonitorCalibration, load_calibration
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
@@ -103,6 +104,8 @@ class MarginEnvironment:
         record: keep the episode's rows for :meth:`save_episode`.
         perturbation: a scene file's ``[perturbation]`` table.
         config: further analysis settings.
+        calibration: a monitor calibration (a loaded ``MonitorCalibration`` or the file of one,
+            ``energy-margin monitor --save``); each scored call's ``margin`` then holds ``alarm``.
 
     """
 
@@ -123,6 +126,7 @@ class MarginEnvironment:
         record: bool = False,
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
+        calibration: MonitorCalibration | str | Path | None = None,
     ) -> None:
         self.env = env
         self.scorer = PhysicsScorer(
@@ -136,7 +140,9 @@ class MarginEnvironment:
             options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
             origin=type(env).__name__,
         )
-        self.session = LiveSession(self.scorer, every=every, record=record)
+        if isinstance(calibration, str | Path):
+            calibration = load_calibration(calibration)
+        self.session = LiveSession(self.scorer, every=every, record=record, calibration=calibration)
         # Found once here and again at every reset (a composer task may rebuild its physics there), not per step.
         self._data = physics_handles(env)[1]
         self.margin: dict[str, Any] | None = None

@@ -39,6 +39,7 @@ import mujoco
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.errors import EnergyMarginError
+from energy_margin.evaluation.monitor import MonitorCalibration, load_calibration
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
 
@@ -116,6 +117,9 @@ class MarginWrapper(gymnasium.Wrapper):
         record: keep the episode's rows for :meth:`save_episode`.
         perturbation: a scene file's ``[perturbation]`` table.
         config: further analysis settings.
+        calibration: a monitor calibration (``energy-margin monitor --save``: a loaded
+            :class:`~energy_margin.evaluation.monitor.MonitorCalibration` or the file of one);
+            each scored call then adds ``alarm`` to ``info["energy_margin"]``.
 
     """
 
@@ -136,6 +140,7 @@ class MarginWrapper(gymnasium.Wrapper):
         record: bool = False,
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
+        calibration: MonitorCalibration | str | Path | None = None,
     ) -> None:
         super().__init__(env)
         # Found once here and again at every reset (robosuite rebuilds its simulation there), not per step.
@@ -151,7 +156,9 @@ class MarginWrapper(gymnasium.Wrapper):
             options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
             origin=environment_name(env),
         )
-        self.session = LiveSession(scorer, every=every, record=record)
+        if isinstance(calibration, str | Path):
+            calibration = load_calibration(calibration)
+        self.session = LiveSession(scorer, every=every, record=record, calibration=calibration)
         self.scorer = scorer
 
     @property

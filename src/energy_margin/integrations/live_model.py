@@ -39,6 +39,7 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS, LiveScore, score_state
 from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
+from energy_margin.evaluation.monitor import LiveAlarm, MonitorCalibration
 from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.sim.mujoco_audit import WARNINGS_ARRAY, WarningLog, warning_numbers
@@ -395,23 +396,37 @@ class LiveSession:
         scorer: the scorer of the environment's model.
         every: score after every this many steps (>= 1), and at reset; 0 never scores.
         record: keep the episode's rows.
+        calibration: a margin calibration of ``energy-margin monitor``: every scored call adds
+            ``alarm`` (:class:`~energy_margin.evaluation.monitor.LiveAlarm`; the reset's call is frame 0).
 
     """
 
-    def __init__(self, scorer: LiveModelScorer, *, every: int, record: bool) -> None:
+    def __init__(
+        self, scorer: LiveModelScorer, *, every: int, record: bool, calibration: MonitorCalibration | None = None
+    ) -> None:
         check_positive_int("every", every, minimum=0)
         self.scorer = scorer
         self.every = every
         self.recorder = EpisodeRecorder() if record else None
         self.steps = 0
+        self.alarm = LiveAlarm(calibration) if calibration is not None else None
+
+    def _scored(self, data: mujoco.MjData) -> dict[str, Any]:
+        """The scores of the state in ``data``, with ``alarm`` when a calibration watches them."""
+        scores = self.scorer.score(data)
+        if self.alarm is not None:
+            scores["alarm"] = self.alarm.update(scores["capture_score"], scores["success_score"])
+        return scores
 
     def reset(self, data: mujoco.MjData) -> dict[str, Any] | None:
         """A new episode from the state in ``data``: its scores (``None`` when scoring is off)."""
         self.steps = 0
+        if self.alarm is not None:
+            self.alarm.reset()
         if self.recorder is not None:
             self.recorder.clear()
             self.recorder.add(data)
-        return self.scorer.score(data) if self.every else None
+        return self._scored(data) if self.every else None
 
     def step(self, data: mujoco.MjData) -> dict[str, Any] | None:
         """The state after one more step: its scores on every ``every``-th step, else ``None``."""
@@ -419,7 +434,7 @@ class LiveSession:
         if self.recorder is not None:
             self.recorder.add(data)
         if self.every and self.steps % self.every == 0:
-            return self.scorer.score(data)
+            return self._scored(data)
         return None
 
     def save_episode(self, path: str | Path) -> Path:

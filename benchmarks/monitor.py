@@ -1,0 +1,196 @@
+"""The conformal failure alarm of ``energy-margin monitor``: the margin against the distance baseline.
+
+For each scene, three sets are generated (``energy-margin generate``) from three generation seeds
+and analysed (``energy-margin analyze``, one worker):
+
+* the *selection* set picks, for each alarm (margin, distance) and alpha, the watched score
+  (``success``, ``capture``, ``min``) and first monitored frame (0 .. K / 2): the one whose alarm,
+  calibrated on the set's own successes, fires at or before the failure frame on most of its failed
+  trajectories (ties: the longer lead time, then the earlier frame);
+* the *calibration* set's successful trajectories calibrate the chosen alarm (split-conformal);
+* the *test* set measures detection, lead time and the realised false-alarm rate, with 95 %
+  bootstrap intervals over its trajectories.
+
+Neither the calibration nor the test set is seen by the selection. Writes the seeds, the budget,
+the selection table and the test results.
+
+    python benchmarks/monitor.py --out docs/figures/monitor.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from energy_margin.data.scores_file import load_scores
+from energy_margin.errors import InvalidParameterError
+from energy_margin.evaluation.monitor import SCORES, calibrate_monitor
+from energy_margin.evaluation.monitor_report import evaluate_monitor
+from energy_margin.runs.versions import engine_versions
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+#: Built-in tasks: name -> ``generate`` options.
+TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
+#: Scene examples whose model ``write_model.py`` writes.
+SCENE_EXAMPLES = ("planar_manipulator",)
+ALPHAS = (0.05, 0.1)
+
+
+def _scene_options(name: str, folder: Path) -> list[str]:
+    """``generate``'s options of a built-in task or of a scene example (its model written to ``folder``)."""
+    if name in TASKS:
+        return TASKS[name]
+    out = folder / name
+    subprocess.run(
+        [sys.executable, str(EXAMPLES / name / "write_model.py"), "--out", str(out)], check=True, capture_output=True
+    )
+    shutil.copy(EXAMPLES / name / f"{name}.toml", out / f"{name}.toml")
+    return ["--scene", str(out / f"{name}.toml")]
+
+
+def _energy_margin(*arguments: str) -> None:
+    """Run one ``energy-margin`` command in its own process."""
+    subprocess.run([sys.executable, "-m", "energy_margin", *arguments], check=True)
+
+
+def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argparse.Namespace) -> Path:
+    """Generate and analyse one set (a set already generated in ``folder`` is kept; ``analyze`` resumes)."""
+    path = folder / name
+    if not (path / "dataset.json").is_file():
+        generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
+        _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
+    if not (path / "scores.csv").is_file():
+        analyse = ["analyze", str(path), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]
+        _energy_margin(*analyse, "--seed", str(args.analysis_seed))
+    return path
+
+
+def _select(path: Path, scorer: str, alpha: float, frames: int) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
+    """The (score, start frame) whose alarm detects most failures early on the selection set."""
+    table = []
+    for score in SCORES:
+        for start in range(frames // 2 + 1):
+            try:
+                found = calibrate_monitor(path, alpha=alpha, scorer=scorer, score=score, start_frame=start)
+            except InvalidParameterError:
+                continue
+            result = evaluate_monitor(found, path, resamples=1)
+            table.append(
+                {
+                    "score": score,
+                    "start_frame": start,
+                    "early_detection_rate": result.early_detection_rate,
+                    "lead_time_s": result.lead_time_s,
+                }
+            )
+    if not table:
+        return None, table
+    best = max(
+        table,
+        key=lambda row: (row["early_detection_rate"] or 0.0, row["lead_time_s"] or 0.0, -row["start_frame"]),
+    )
+    return best, table
+
+
+def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) -> dict[str, Any]:
+    seeds = {"selection": args.selection_seed, "calibration": args.calibration_seed, "test": args.test_seed}
+    paths = {role: _make_set(folder, f"{name}-{role}", scene, seed, args) for role, seed in seeds.items()}
+    rows: dict[str, Any] = {}
+    for alpha in ALPHAS:
+        per_scorer: dict[str, Any] = {}
+        for scorer in ("margin", "distance"):
+            best, table = _select(paths["selection"], scorer, alpha, args.frames)
+            if best is None:
+                per_scorer[scorer] = {"refused": "too few successes in the selection set", "selection": table}
+                continue
+            try:
+                chosen = {"score": best["score"], "start_frame": best["start_frame"]}
+                found = calibrate_monitor(paths["calibration"], alpha=alpha, scorer=scorer, **chosen)
+            except InvalidParameterError as error:
+                per_scorer[scorer] = {"refused": str(error), "selection": table}
+                continue
+            result = evaluate_monitor(found, paths["test"], resamples=args.resamples, seed=args.seed)
+            per_scorer[scorer] = {
+                **result.to_dict(),
+                "n_calibration_successes": found.n_successes,
+                "selection": table,
+            }
+            print(
+                f"{name} alpha {alpha:.2f} {scorer:8s} score {best['score']:7s} from frame {best['start_frame']}: "
+                f"detection {result.detection_rate} early {result.early_detection_rate} lead "
+                f"{result.lead_time_s} s, false alarms {result.false_alarm_rate} (n = {found.n_successes})",
+                flush=True,
+            )
+        rows[f"alpha_{alpha:g}"] = per_scorer
+    # The trees' wall time, summed over every analysed frame of the three sets (kept in scores.csv,
+    # so it counts sets analysed by an earlier run in --work too).
+    analysis_s = sum(float(load_scores(path)["runtime_s"].sum()) for path in paths.values())
+    frames = sum(int(load_scores(path)["frame"].size) for path in paths.values())
+    return {"seeds": seeds, "analysis_s": analysis_s, "analysed_frames": frames, **rows}
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and its finished children."""
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trajectories", type=int, default=70)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--iterations", type=int, default=100)
+    parser.add_argument("--selection-seed", type=int, default=2)
+    parser.add_argument("--calibration-seed", type=int, default=0)
+    parser.add_argument("--test-seed", type=int, default=1)
+    parser.add_argument("--analysis-seed", type=int, default=0)
+    parser.add_argument("--resamples", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=0, help="seeds the bootstrap resamples")
+    parser.add_argument("--scenes", nargs="+", choices=(*TASKS, *SCENE_EXAMPLES), default=[*TASKS, *SCENE_EXAMPLES])
+    parser.add_argument("--out", type=Path, help="results JSON (scenes of an earlier run not rerun are kept)")
+    parser.add_argument("--work", type=Path, help="keep the sets here; analysed sets found there are reused")
+    args = parser.parse_args()
+    results: dict[str, Any] = {"scenes": {}}
+    if args.out is not None and args.out.is_file():
+        results = json.loads(args.out.read_text())
+    budget = {
+        "trajectories_per_set": args.trajectories,
+        "frames": args.frames,
+        "expansions_per_frame": args.iterations,
+        "workers": 1,
+        "sets_per_scene": 3,
+        "resamples": args.resamples,
+        "resample_seed": args.seed,
+        "analysis_seed": args.analysis_seed,
+    }
+    results["cores"] = os.cpu_count()
+    results["versions"] = engine_versions("mujoco")
+    with tempfile.TemporaryDirectory() as temporary:
+        folder = Path(args.work) if args.work is not None else Path(temporary)
+        for name in args.scenes:
+            started, cpu = time.perf_counter(), _cpu_s()
+            results["scenes"][name] = _scene(name, _scene_options(name, folder), folder, args)
+            # cpu_s: this run's (sets reused from --work were analysed by an earlier one).
+            results["scenes"][name] |= {
+                "budget": budget,
+                "wall_s": time.perf_counter() - started,
+                "cpu_s": _cpu_s() - cpu,
+            }
+            if args.out is not None:
+                args.out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+            print(
+                f"{name}: wall {results['scenes'][name]['wall_s']:.0f} s, cpu {results['scenes'][name]['cpu_s']:.0f} s"
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,304 @@
+"""A failure alarm calibrated by split-conformal prediction on successful roll-outs only.
+
+The monitor watches one per-frame score of a trajectory (the energy margin's ``success`` or
+``capture`` score, their frame-wise minimum ``min``, or the same three from the ``distance``
+baseline) from frame ``start_frame`` on, and raises an alarm at the first frame whose score falls
+below a threshold.
+
+Calibration needs no failure. Each successful calibration roll-out i gives its nonconformity, the
+worst (smallest) score over its monitored frames, ``w_i``. With the n values sorted,
+``w_(1) <= ... <= w_(n)``, the threshold is ``w_(j)`` with ``j = floor((n + 1) alpha)``. A new
+successful roll-out exchangeable with the calibration ones raises the alarm exactly when its own
+worst score ``w`` is below ``w_(j)``, that is when ``w`` ranks among the j smallest of the n + 1
+values, so ``P(alarm) <= j / (n + 1) <= alpha`` (ties only lower it). When ``(n + 1) alpha < 1``
+no order statistic keeps that promise and the calibration is refused (alpha = 0.05 needs 19
+successes, alpha = 0.1 needs 9).
+
+:func:`calibrate_grid` is the calibration of a score grid; :func:`calibrate_monitor` that of an
+analysed dataset directory. :func:`write_calibration` and :func:`load_calibration` keep one or
+more calibrations in a small versioned JSON file that a live scorer can load.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.scores_file import load_scores
+from energy_margin.data.validation import require_valid
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_choice, check_float, check_int
+from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.metrics import score_grid
+from energy_margin.runs.files import read_json, write_json
+from energy_margin.runs.results import TypedResult
+
+__all__ = [
+    "CALIBRATION_FORMAT",
+    "CALIBRATION_VERSION",
+    "SCORERS",
+    "SCORES",
+    "LiveAlarm",
+    "MonitorCalibration",
+    "alarm_frames",
+    "calibrate_grid",
+    "calibrate_monitor",
+    "conformal_rank",
+    "load_calibration",
+    "monitored_grid",
+    "worst_scores",
+    "write_calibration",
+]
+
+#: What the monitor watches: the energy margin's scores or the distance baseline's.
+SCORERS = ("margin", "distance")
+#: Which per-frame score: success, capture, or the frame-wise minimum of the two.
+SCORES = ("success", "capture", "min")
+#: The ``format`` and ``version`` keys of a calibration file.
+CALIBRATION_FORMAT = "energy-margin-monitor"
+CALIBRATION_VERSION = 1
+
+
+def conformal_rank(n: int, alpha: float) -> int:
+    """The order statistic j = floor((n + 1) alpha) whose worst score is the threshold, 1 <= j <= n.
+
+    Raises:
+        InvalidParameterError: when ``alpha`` is outside (0, 1), or (n + 1) alpha < 1: too few
+            successful roll-outs for that false-alarm rate.
+
+    """
+    check_float("alpha", alpha, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
+    # The small tolerance keeps (19 + 1) * 0.05 at 1 despite rounding.
+    rank = min(n, math.floor((n + 1) * alpha + 1e-9))
+    if rank < 1:
+        needed = math.ceil(1.0 / alpha - 1.0 - 1e-9)
+        raise InvalidParameterError(
+            "alpha",
+            f"{alpha:g} needs at least {needed} successful calibration roll-outs ((n + 1) alpha >= 1); "
+            f"the calibration set has {n}",
+        )
+    return rank
+
+
+def worst_scores(grid: np.ndarray, *, start_frame: int = 0) -> np.ndarray:
+    """Each trajectory's smallest score over frames ``start_frame`` .. K - 1, shape (T,), from a (T, K) grid."""
+    grid = np.asarray(grid, dtype=float)
+    check_int("start_frame", start_frame, minimum=0, maximum=grid.shape[1] - 1)
+    return grid[:, start_frame:].min(axis=1)
+
+
+def alarm_frames(grid: np.ndarray, threshold: float, *, start_frame: int = 0) -> np.ndarray:
+    """The first frame >= ``start_frame`` whose score is below ``threshold``, per trajectory; -1: none.
+
+    Args:
+        grid: scores, shape (T, K).
+        threshold: the calibrated threshold, in the scores' unit.
+        start_frame: the first monitored frame.
+
+    Returns:
+        Frame indices, shape (T,), int; -1 where the alarm never fires.
+
+    """
+    grid = np.asarray(grid, dtype=float)
+    check_int("start_frame", start_frame, minimum=0, maximum=grid.shape[1] - 1)
+    below = grid[:, start_frame:] < threshold
+    return np.where(below.any(axis=1), below.argmax(axis=1) + start_frame, -1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MonitorCalibration(TypedResult):
+    """A calibrated alarm: fire at the first monitored frame whose score is below ``threshold``.
+
+    Attributes:
+        threshold: the worst score of rank ``rank`` among the calibration successes (the score's
+            unit: a probability for ``margin``, metres for ``distance``).
+        alpha: the false-alarm rate guaranteed on successful roll-outs exchangeable with the
+            calibration ones.
+        rank: j = floor((n + 1) alpha), the order statistic taken.
+        n_successes: n, the successful calibration roll-outs.
+        n_trajectories: all roll-outs of the calibration set (its failures are not used).
+        scorer: ``margin`` or ``distance``.
+        score: ``success``, ``capture`` or ``min``.
+        start_frame: the first monitored frame.
+        dataset: the calibration dataset's directory; empty for a grid.
+        dataset_seed: its generation seed; ``None`` for a grid or a set without one.
+        task: its task; empty for a grid.
+
+    """
+
+    threshold: float
+    alpha: float
+    rank: int
+    n_successes: int
+    n_trajectories: int
+    scorer: str
+    score: str
+    start_frame: int
+    dataset: str = ""
+    dataset_seed: int | None = None
+    task: str = ""
+
+    def fires(self, value: float) -> bool:
+        """Whether a monitored frame whose score is ``value`` raises the alarm."""
+        return bool(value < self.threshold)
+
+    def watched(self, capture: float, success: float) -> float:
+        """The watched score of a frame whose capture and success scores are given."""
+        return {"success": success, "capture": capture, "min": min(capture, success)}[self.score]
+
+
+class LiveAlarm:
+    """The alarm of a margin calibration over the scored calls of one live episode.
+
+    Call k after :meth:`reset` (the reset's own call is 0) stands for frame k of the calibration's
+    trajectories, so the calibration set's frames should be as far apart as the live calls (a set
+    recorded from the same wrapper and cadence, ``energy-margin record``). Once fired, the alarm
+    stays raised until the next reset.
+
+    Raises:
+        InvalidParameterError: a ``distance`` calibration (live calls score margins only).
+
+    """
+
+    def __init__(self, calibration: MonitorCalibration) -> None:
+        if calibration.scorer != "margin":
+            raise InvalidParameterError(
+                "calibration", f"watches the {calibration.scorer} baseline; a live scorer needs a margin calibration"
+            )
+        self.calibration = calibration
+        self.calls = 0
+        self.fired_at: int | None = None
+
+    def reset(self) -> None:
+        """A new episode: no call yet, no alarm."""
+        self.calls = 0
+        self.fired_at = None
+
+    def update(self, capture: float, success: float) -> bool:
+        """Add the next call's scores; whether the alarm is raised (now or earlier in the episode)."""
+        frame = self.calls
+        self.calls += 1
+        found = self.calibration
+        if self.fired_at is None and frame >= found.start_frame and found.fires(found.watched(capture, success)):
+            self.fired_at = frame
+        return self.fired_at is not None
+
+
+def calibrate_grid(
+    grid: np.ndarray,
+    success: np.ndarray,
+    *,
+    alpha: float,
+    start_frame: int = 0,
+    scorer: str = "margin",
+    score: str = "success",
+) -> MonitorCalibration:
+    """Calibrate on the successful rows of a score grid (the failed rows are ignored).
+
+    Args:
+        grid: per-frame scores, shape (T, K).
+        success: success label of each trajectory, shape (T,), bool.
+        alpha: the false-alarm rate to guarantee, in (0, 1).
+        start_frame: the first monitored frame.
+        scorer: recorded in the result (``margin`` or ``distance``).
+        score: recorded in the result (``success``, ``capture`` or ``min``).
+
+    """
+    worst = worst_scores(grid, start_frame=start_frame)[np.asarray(success, dtype=bool)]
+    rank = conformal_rank(worst.size, alpha)
+    return MonitorCalibration(
+        threshold=float(np.sort(worst)[rank - 1]),
+        alpha=float(alpha),
+        rank=rank,
+        n_successes=int(worst.size),
+        n_trajectories=int(np.asarray(grid).shape[0]),
+        scorer=scorer,
+        score=score,
+        start_frame=start_frame,
+    )
+
+
+def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin", score: str = "success") -> np.ndarray:
+    """The per-frame score the monitor watches, shape (T, K), of an analysed dataset.
+
+    Raises:
+        EnergyMarginError: ``scorer="distance"`` on a task whose regions measure no distance.
+
+    """
+    check_choice("scorer", scorer, SCORERS)
+    check_choice("score", score, SCORES)
+    if scorer == "margin":
+        scores = load_scores(path)
+        capture = score_grid(dataset, scores, "capture_score")
+        success = score_grid(dataset, scores, "success_score")
+    else:
+        distances = distance_scores(dataset)
+        if distances is None:
+            raise EnergyMarginError(f"the regions of task {dataset.metadata['task']} measure no distance")
+        capture, success = distances
+    return {"success": success, "capture": capture, "min": np.minimum(capture, success)}[score]
+
+
+def calibrate_monitor(
+    path: Path | str, *, alpha: float, scorer: str = "margin", score: str = "success", start_frame: int = 0
+) -> MonitorCalibration:
+    """Calibrate the alarm on the successful trajectories of an analysed dataset directory.
+
+    Args:
+        path: dataset directory; ``scorer="margin"`` needs its ``scores.csv``.
+        alpha: the false-alarm rate to guarantee on successful roll-outs, in (0, 1).
+        scorer: ``margin`` (the energy-margin scores) or ``distance`` (the distance baseline).
+        score: ``success``, ``capture`` or ``min`` (their frame-wise minimum).
+        start_frame: the first monitored frame.
+
+    Raises:
+        InvalidParameterError: too few successes for ``alpha``, or a bad option.
+
+    """
+    dataset = require_valid(path, overlaps=True, scores=True if scorer == "margin" else None)
+    grid = monitored_grid(dataset, path, scorer=scorer, score=score)
+    found = calibrate_grid(
+        grid, dataset.success_labels(), alpha=alpha, start_frame=start_frame, scorer=scorer, score=score
+    )
+    seed = dataset.metadata.get("seed")
+    recorded = {"dataset": str(path), "dataset_seed": seed if isinstance(seed, int) else None}
+    return MonitorCalibration.from_dict(found.to_dict() | recorded | {"task": dataset.metadata["task"]})
+
+
+def write_calibration(path: Path | str, calibrations: list[MonitorCalibration]) -> None:
+    """Write calibrations (one per alpha, say) as ``{"format", "version", "calibrations": [...]}``."""
+    write_json(
+        Path(path),
+        {
+            "format": CALIBRATION_FORMAT,
+            "version": CALIBRATION_VERSION,
+            "calibrations": [calibration.to_dict() for calibration in calibrations],
+        },
+    )
+
+
+def load_calibration(path: Path | str, *, alpha: float | None = None) -> MonitorCalibration:
+    """The calibration of ``alpha`` in a file of :func:`write_calibration` (``None``: its only one).
+
+    Raises:
+        EnergyMarginError: not a monitor calibration file, an unknown version, or no (single)
+            calibration of that alpha.
+
+    """
+    data: Any = read_json(Path(path), what="monitor calibration")
+    if not isinstance(data, dict) or data.get("format") != CALIBRATION_FORMAT:
+        raise EnergyMarginError(f"{path} is not a monitor calibration file (format {CALIBRATION_FORMAT!r})")
+    if data.get("version") != CALIBRATION_VERSION:
+        raise EnergyMarginError(f"{path} has version {data.get('version')!r}; this release reads {CALIBRATION_VERSION}")
+    found = [MonitorCalibration.from_dict(entry) for entry in data.get("calibrations", [])]
+    chosen = found if alpha is None else [entry for entry in found if math.isclose(entry.alpha, alpha)]
+    if len(chosen) != 1:
+        alphas = ", ".join(f"{entry.alpha:g}" for entry in found) or "none"
+        if alpha is None:
+            raise EnergyMarginError(f"{path} holds {len(found)} calibrations (alphas: {alphas}); pick one by its alpha")
+        raise InvalidParameterError("alpha", f"{alpha} picks no single calibration of {path} (alphas: {alphas})")
+    return chosen[0]

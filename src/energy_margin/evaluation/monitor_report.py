@@ -1,0 +1,266 @@
+"""How a calibrated alarm does on a test set: detection, lead time and the realised false-alarm rate.
+
+On a failed test trajectory, failure becomes certain by the labels at its *failure frame*: the first
+frame from which the capture label (``captured``, k-hat 0) stays negative to the last frame; when
+the last frame is still captured (the trajectory fails only the success region), the last frame.
+A successful trajectory has none.
+
+* **detection rate**: share of failed trajectories on which the alarm fires at some monitored frame;
+* **early detection rate**: share on which it fires at or before the failure frame;
+* **lead time**: on the detected failed trajectories, the time of the failure frame minus the time of
+  the alarm frame (``frame_time``, s), mean; negative when the alarm comes after;
+* **false-alarm rate**: share of successful trajectories on which the alarm fires (the calibration
+  promises at most alpha on average over calibration sets).
+
+Each comes with a 95 % percentile interval over bootstrap resamples of the test trajectories (the
+threshold held fixed). :func:`compare_monitors` calibrates the margin and the distance baseline on
+one dataset for each alpha and reports both on another.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.data.validation import require_valid
+from energy_margin.errors import check_int, check_seed
+from energy_margin.evaluation.baselines import distance_scores
+from energy_margin.evaluation.bootstrap import percentile_interval
+from energy_margin.evaluation.monitor import (
+    SCORERS,
+    MonitorCalibration,
+    alarm_frames,
+    calibrate_monitor,
+    monitored_grid,
+)
+from energy_margin.runs.results import TypedResult, plain_result
+
+__all__ = [
+    "MonitorComparison",
+    "MonitorEvaluation",
+    "alarm_measures",
+    "compare_monitors",
+    "evaluate_monitor",
+    "failure_frames",
+    "format_table",
+]
+
+_MEASURES = ("detection_rate", "early_detection_rate", "lead_time_s", "false_alarm_rate")
+
+
+def failure_frames(captured: np.ndarray, success: np.ndarray) -> np.ndarray:
+    """The frame at which failure becomes certain by the labels, per trajectory; -1 for a success.
+
+    Args:
+        captured: capture label of every frame (k-hat 0), shape (T, K), bool.
+        success: success label of every trajectory, shape (T,), bool.
+
+    Returns:
+        Shape (T,), int: for a failed trajectory the first frame from which ``captured`` stays
+        False to the end (K - 1 when its last frame is captured), -1 for a successful one.
+
+    """
+    captured = np.asarray(captured, dtype=bool)
+    frames = captured.shape[1]
+    # Frames captured at or after each frame, counted from the end.
+    later = np.cumsum(captured[:, ::-1], axis=1)[:, ::-1]
+    never_again = later == 0
+    first = np.where(never_again.any(axis=1), never_again.argmax(axis=1), frames - 1)
+    return np.where(np.asarray(success, dtype=bool), -1, first)
+
+
+def alarm_measures(alarms: np.ndarray, failures: np.ndarray, times: np.ndarray) -> dict[str, float | None]:
+    """The four measures of one set of trajectories (``None`` where undefined).
+
+    Args:
+        alarms: alarm frame per trajectory, shape (T,), -1 for none (``monitor.alarm_frames``).
+        failures: failure frame per trajectory, shape (T,), -1 for a success (:func:`failure_frames`).
+        times: time of every frame, shape (T, K), s.
+
+    """
+    failed = failures >= 0
+    fired = alarms >= 0
+    rows = np.arange(alarms.size)
+    detected = failed & fired
+    lead = times[rows, failures] - times[rows, alarms]
+    return {
+        "detection_rate": float(fired[failed].mean()) if failed.any() else None,
+        "early_detection_rate": float((detected & (alarms <= failures))[failed].mean()) if failed.any() else None,
+        "lead_time_s": float(lead[detected].mean()) if detected.any() else None,
+        "false_alarm_rate": float(fired[~failed].mean()) if (~failed).any() else None,
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class MonitorEvaluation(TypedResult):
+    """A calibrated alarm on a test set; each measure with its 95 % bootstrap interval (``_low``, ``_high``).
+
+    Rates are shares in [0, 1], lead times seconds; a measure is ``None`` when the test set has no
+    trajectory it is defined on (no failure, no detection, no success).
+    """
+
+    scorer: str
+    score: str
+    alpha: float
+    threshold: float
+    start_frame: int
+    detection_rate: float | None
+    detection_rate_low: float | None
+    detection_rate_high: float | None
+    early_detection_rate: float | None
+    early_detection_rate_low: float | None
+    early_detection_rate_high: float | None
+    lead_time_s: float | None
+    lead_time_s_low: float | None
+    lead_time_s_high: float | None
+    false_alarm_rate: float | None
+    false_alarm_rate_low: float | None
+    false_alarm_rate_high: float | None
+    n_failed: int
+    n_successful: int
+    resamples: int
+    seed: int
+
+
+def evaluate_monitor(
+    calibration: MonitorCalibration, path: Path | str, *, resamples: int = 1000, seed: int = 0
+) -> MonitorEvaluation:
+    """The alarm of ``calibration`` on the analysed dataset directory ``path``.
+
+    Args:
+        calibration: from :func:`~energy_margin.evaluation.monitor.calibrate_monitor`.
+        path: the test dataset (``scores.csv`` needed for a ``margin`` calibration).
+        resamples: bootstrap resamples of the test trajectories, >= 1.
+        seed: seeds the resamples.
+
+    """
+    check_int("resamples", resamples, minimum=1)
+    check_seed(seed)
+    dataset = require_valid(path, overlaps=True, scores=True if calibration.scorer == "margin" else None)
+    grid = monitored_grid(dataset, path, scorer=calibration.scorer, score=calibration.score)
+    alarms = alarm_frames(grid, calibration.threshold, start_frame=calibration.start_frame)
+    failures = failure_frames(dataset.arrays["captured"], dataset.success_labels())
+    times = np.asarray(dataset.arrays["frame_time"], dtype=float)
+    found: dict[str, Any] = dict(alarm_measures(alarms, failures, times))
+    rng = np.random.default_rng(seed)
+    drawn = rng.integers(0, alarms.size, size=(resamples, alarms.size))
+    samples = {name: np.full(resamples, np.nan) for name in _MEASURES}
+    for number, rows in enumerate(drawn):
+        for name, value in alarm_measures(alarms[rows], failures[rows], times[rows]).items():
+            if value is not None:
+                samples[name][number] = value
+    for name in _MEASURES:
+        found[f"{name}_low"], found[f"{name}_high"] = percentile_interval(samples[name])
+    return MonitorEvaluation.from_dict(
+        found
+        | {
+            "scorer": calibration.scorer,
+            "score": calibration.score,
+            "alpha": calibration.alpha,
+            "threshold": calibration.threshold,
+            "start_frame": calibration.start_frame,
+            "n_failed": int((failures >= 0).sum()),
+            "n_successful": int((failures < 0).sum()),
+            "resamples": resamples,
+            "seed": seed,
+        }
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class MonitorComparison(TypedResult):
+    """Margin and distance alarms, each calibrated on one dataset and evaluated on another, per alpha.
+
+    Attributes:
+        calibration_dataset: the calibration set's directory.
+        test_dataset: the test set's directory.
+        calibration_seed: the calibration set's generation seed (``None``: not recorded).
+        test_seed: the test set's generation seed.
+        task: the calibration set's task.
+        calibrations: one :class:`~energy_margin.evaluation.monitor.MonitorCalibration` dictionary
+            per scorer and alpha.
+        evaluations: one :class:`MonitorEvaluation` dictionary per scorer and alpha, same order.
+
+    """
+
+    calibration_dataset: str
+    test_dataset: str
+    calibration_seed: int | None
+    test_seed: int | None
+    task: str
+    calibrations: list[dict[str, Any]]
+    evaluations: list[dict[str, Any]]
+
+
+def compare_monitors(
+    calibration_path: Path | str,
+    test_path: Path | str,
+    *,
+    alphas: tuple[float, ...] = (0.05, 0.1),
+    score: str = "success",
+    start_frame: int = 0,
+    resamples: int = 1000,
+    seed: int = 0,
+) -> MonitorComparison:
+    """Calibrate on ``calibration_path``'s successes, report on ``test_path``: margin, then distance.
+
+    The distance alarm is left out for a task whose regions measure no distance. See
+    :func:`~energy_margin.evaluation.monitor.calibrate_monitor` for ``score`` and ``start_frame``.
+    """
+    test = require_valid(test_path, overlaps=True, scores=True)
+    scorers = SCORERS if distance_scores(test) is not None else ("margin",)
+    calibrations: list[MonitorCalibration] = []
+    for scorer in scorers:
+        for alpha in alphas:
+            calibrations.append(
+                calibrate_monitor(calibration_path, alpha=alpha, scorer=scorer, score=score, start_frame=start_frame)
+            )
+    evaluations = [evaluate_monitor(found, test_path, resamples=resamples, seed=seed) for found in calibrations]
+    test_seed = test.metadata.get("seed")
+    return MonitorComparison(
+        calibration_dataset=str(calibration_path),
+        test_dataset=str(test_path),
+        calibration_seed=calibrations[0].dataset_seed,
+        test_seed=test_seed if isinstance(test_seed, int) else None,
+        task=calibrations[0].task,
+        calibrations=[found.to_dict() for found in calibrations],
+        evaluations=[found.to_dict() for found in evaluations],
+    )
+
+
+def _cell(value: float | None, low: float | None, high: float | None, unit: str = "") -> str:
+    if value is None:
+        return "n/a"
+    interval = "" if low is None or high is None else f" [{low:.2f}, {high:.2f}]"
+    return f"{value:.2f}{unit}{interval}"
+
+
+def format_table(result: MonitorComparison | dict[str, Any]) -> str:
+    """A text table of :func:`compare_monitors`: one row per scorer and alpha."""
+    result = plain_result(result)
+    header = (
+        f"{'alarm':10s} {'alpha':>5s} {'n':>3s} {'threshold':>10s}  {'detection':22s} {'early detection':22s} "
+        f"{'lead time s':22s} false alarms"
+    )
+    lines = [
+        f"{result['task']}: calibrated on the successes of {result['calibration_dataset']} (seed "
+        f"{result['calibration_seed']}), tested on {result['test_dataset']} (seed {result['test_seed']})",
+        header,
+        "-" * len(header),
+    ]
+    for calibration, found in zip(result["calibrations"], result["evaluations"], strict=True):
+        cells = [_cell(found[name], found[f"{name}_low"], found[f"{name}_high"]) for name in _MEASURES]
+        lines.append(
+            f"{found['scorer']:10s} {found['alpha']:5.2f} {calibration['n_successes']:3d} {found['threshold']:10.4g}  "
+            f"{cells[0]:22s} {cells[1]:22s} {cells[2]:22s} {cells[3]}"
+        )
+    first = result["evaluations"][0]
+    lines.append(
+        f"score {first['score']} from frame {first['start_frame']}; test set: {first['n_failed']} failed, "
+        f"{first['n_successful']} successful; 95 % intervals over {first['resamples']} resamples of the test "
+        f"trajectories (seed {first['seed']})"
+    )
+    return "\n".join(lines)

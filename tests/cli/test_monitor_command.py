@@ -1,0 +1,54 @@
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from energy_margin.cli.app import main
+from energy_margin.data.dataset import load_dataset
+from energy_margin.evaluation.monitor import load_calibration
+
+
+@pytest.fixture
+def analysed(copy_dataset: Callable[[str], Path]) -> tuple[Path, Path]:
+    """Two analysed copies of the tiny real dataset: one calibrates, the other is tested."""
+    calibration, test = copy_dataset("calib"), copy_dataset("test")
+    for path in (calibration, test):
+        assert main(["analyze", str(path), "--iterations", "5", "--no-progress"]) == 0
+    return calibration, test
+
+
+def test_monitor_end_to_end(analysed: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    calibration, test = analysed
+    successes = int(load_dataset(calibration).success_labels().sum())
+    assert successes >= 1  # alpha 0.5 needs one
+    saved = tmp_path / "alarm.json"
+    capsys.readouterr()
+    argv = ["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20"]
+    assert main([*argv, "--json", "--save", str(saved)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert [entry["scorer"] for entry in result["evaluations"]] == ["margin", "distance"]
+    assert result["calibrations"][0]["n_successes"] == successes
+    assert result["calibration_seed"] == result["test_seed"] == 0
+    loaded = load_calibration(saved)
+    assert loaded.scorer == "margin" and loaded.threshold == result["calibrations"][0]["threshold"]
+    assert main(["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20"]) == 0
+    assert "false alarms" in capsys.readouterr().out
+
+
+def test_too_few_successes_is_one_line(analysed: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    calibration, test = analysed
+    capsys.readouterr()
+    assert main(["monitor", str(calibration), str(test), "--alpha", "0.05"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith("energy-margin: error: --alpha 0.05 needs at least 19 successful calibration roll-outs")
+    assert "Traceback" not in err
+
+
+def test_a_dataset_without_scores_is_one_line(tiny_dataset: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["monitor", str(tiny_dataset), str(tiny_dataset)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "scores.csv" in err
