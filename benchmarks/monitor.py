@@ -69,7 +69,7 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
         generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
         _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
     if not (path / "scores.csv").is_file():
-        analyse = ["analyze", str(path), "--iterations", str(args.iterations), "--workers", "1", "--no-progress"]
+        analyse = ["analyze", str(path), "--expansions", str(args.expansions), "--workers", "1", "--no-progress"]
         _energy_margin(*analyse, "--seed", str(args.analysis_seed))
     return path
 
@@ -148,7 +148,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trajectories", type=int, default=70)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--iterations", type=int, default=100)
+    parser.add_argument("--expansions", type=int, default=100)
     parser.add_argument("--selection-seed", type=int, default=2)
     parser.add_argument("--calibration-seed", type=int, default=0)
     parser.add_argument("--test-seed", type=int, default=1)
@@ -165,7 +165,7 @@ def main() -> None:
     budget = {
         "trajectories_per_set": args.trajectories,
         "frames": args.frames,
-        "expansions_per_frame": args.iterations,
+        "expansions_per_frame": args.expansions,
         "workers": 1,
         "sets_per_scene": 3,
         "resamples": args.resamples,
