@@ -99,6 +99,8 @@ class SceneTask(Task):
         )
         super().__init__(resolved)
         self.loaded = loaded
+        derived = "derived" if "lambda" in loaded.perturbation.derived else "default"
+        self.lambda_origin = "set" if spec.likelihood_lambda is not None else derived
         self.fixed_objects = loaded.n_objects
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
