@@ -215,6 +215,39 @@ def measure(name: str, seed: int, args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
+def gap(row: dict[str, Any], entry: dict[str, Any] | None) -> float | None:
+    """How far below the calibrated mean AP ``entry`` is (``None``: no such lambda or no AP)."""
+    if entry is None or entry["mean"] is None or row["calibrated"]["mean"] is None:
+        return None
+    return float(row["calibrated"]["mean"] - entry["mean"])
+
+
+def worst(values: list[float | None]) -> float:
+    """The largest of the defined gaps."""
+    return max((value for value in values if value is not None), default=float("nan"))
+
+
+def select(results: dict[str, Any], choose: str, check: str) -> dict[str, Any]:
+    """Each rule's constant chosen on seed ``choose`` (smallest worst gap), and its gaps on ``check``."""
+    selection: dict[str, Any] = {}
+    for rule, constants in RULES.items():
+        keys = [f"{rule}:{constant:g}" for constant in constants]
+        chosen = min(
+            keys, key=lambda key: worst([gap(rows[choose], rows[choose]["rules"][key]) for rows in results.values()])
+        )
+        check_gaps = {name: gap(rows[check], rows[check]["rules"][chosen]) for name, rows in results.items()}
+        selection[rule] = {
+            "chosen": chosen,
+            "worst_gap_choose": worst([gap(rows[choose], rows[choose]["rules"][chosen]) for rows in results.values()]),
+            "gaps_check": check_gaps,
+            "worst_gap_check": worst(list(check_gaps.values())),
+        }
+    for setting in ("hand_set", "derived"):
+        gaps = {name: gap(rows[check], rows[check][setting]) for name, rows in results.items()}
+        selection[setting] = {"gaps_check": gaps, "worst_gap_check": worst(list(gaps.values()))}
+    return selection
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, default=Path("runs/lambda_rule"))
@@ -244,6 +277,8 @@ def main() -> None:
             },
             "examples": results,
         }
+        if len(args.seeds) == 2:
+            document["selection"] = select(results, str(args.seeds[0]), str(args.seeds[1]))
         args.out.write_text(json.dumps(document, indent=1, sort_keys=True) + "\n")
 
 
