@@ -279,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
     from energy_margin.data.provenance import dataset_note
 
     config = analyzer_config(args)
-    say_notes(dataset_note(args.dataset, engine=args.engine), lambda_note(args.dataset, config))
+    say_notes(dataset_note(args.dataset, engine=args.engine))
     path = analyze(
         args.dataset,
         config,
@@ -294,6 +294,8 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(path).is_file():
         say_notes(rejection_note(load_scores(Path(path).parent)))
+    # After the analysis, so that a refused one says only why.
+    say_notes(lambda_note(args.dataset, config))
     print(f"wrote {path}")
     return 0
 
