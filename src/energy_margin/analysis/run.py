@@ -17,6 +17,7 @@ from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
+from energy_margin.data.provenance import read_metadata
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, format_row, header, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, check_seed
@@ -24,11 +25,12 @@ from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.runs.progress import Progress
-from energy_margin.tasks import with_contacts
+from energy_margin.tasks import get_recorded_task, with_contacts
 
 __all__ = [
     "ANALYSIS_RUN",
     "analyze",
+    "lambda_note",
     "open_analysis",
     "run_description",
     "write_scores",
@@ -156,6 +158,32 @@ def analyze(
         finally:
             bar.close()
         return write_scores(directory, done)
+
+
+def lambda_note(path: Path | str, config: AnalyzerConfig) -> str | None:
+    """The one-line note for an analysis at a lambda nobody chose: its task sets none, nor does ``config``.
+
+    A scene file without ``perturbation.lambda`` takes the default or, with ``derive = true``, a
+    derived one (:attr:`~energy_margin.tasks.base.Task.lambda_origin`); no rule from the scene or
+    its trees holds the calibrated AP on every example (docs/howto/scenes.md), so the note says how
+    to calibrate. ``None`` when ``config`` or the task sets lambda, or ``path`` holds no dataset
+    this version reads (``analyze`` refuses it in its own words).
+    """
+    metadata = read_metadata(path) if config.likelihood_lambda is None else None
+    if metadata is None:
+        return None
+    try:
+        task = get_recorded_task(metadata["task"], metadata.get("task_config"))
+    except (EnergyMarginError, KeyError):
+        return None
+    if task.lambda_origin == "set":
+        return None
+    return (
+        f"note: lambda is unset and uncalibrated: {task.label} gives no perturbation.lambda, so the scores use "
+        f"the {task.lambda_origin} {task.config.likelihood_lambda:.3g} 1/J; to calibrate it on labelled data: "
+        f"energy-margin calibrate {path} --out CAL, then energy-margin analyze DATASET "
+        "--calibration CAL/calibration.json"
+    )
 
 
 def open_analysis(

@@ -275,13 +275,14 @@ def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
     if getattr(args, "model", None) is not None:
         return run_learned(args)
-    from energy_margin.analysis.run import analyze
+    from energy_margin.analysis.run import analyze, lambda_note
     from energy_margin.data.provenance import dataset_note
 
+    config = analyzer_config(args)
     say_notes(dataset_note(args.dataset, engine=args.engine))
     path = analyze(
         args.dataset,
-        analyzer_config(args),
+        config,
         seed=args.seed,
         workers=args.workers,
         executor=args.executor,
@@ -293,6 +294,8 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(path).is_file():
         say_notes(rejection_note(load_scores(Path(path).parent)))
+    # After the analysis, so that a refused one says only why.
+    say_notes(lambda_note(args.dataset, config))
     print(f"wrote {path}")
     return 0
 

@@ -95,6 +95,8 @@ class Task(ABC):
 
     name: ClassVar[str]
     config_class: ClassVar[type[TaskConfig]] = TaskConfig
+    #: How the task's likelihood lambda was chosen: ``"set"`` (by the task), ``"default"`` or ``"derived"``.
+    lambda_origin: str = "set"
 
     def __init__(self, config: TaskConfig | None = None) -> None:
         self.config = config if config is not None else self.config_class()

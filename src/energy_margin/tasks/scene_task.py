@@ -1,8 +1,7 @@
 """A task built from a scene file: the user's MuJoCo model, declared motion, randomisation and sets.
 
-:class:`SceneTask` is registered as ``"scene"``; its configuration names the scene file and the
-hashes of the file and of its compiled model, so a dataset written from it rebuilds the same task
-and refuses to (``dataset.json: task_config: ...``) when the file or the model changed since.
+:class:`SceneTask` (``"scene"``) records the scene file and the hashes of the file and its compiled model:
+a dataset written from it rebuilds the same task, or refuses to (``dataset.json: task_config``) when either changed.
 """
 
 from __future__ import annotations
@@ -101,6 +100,8 @@ class SceneTask(Task):
         )
         super().__init__(resolved)
         self.loaded = loaded
+        unset = "derived" if "lambda" in loaded.perturbation.derived else "default"
+        self.lambda_origin = "set" if spec.likelihood_lambda is not None else unset
         self.fixed_objects = loaded.n_objects
         self.control_period = spec.motion.control_period
         self._kinematics = mujoco.MjData(model)
