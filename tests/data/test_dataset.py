@@ -415,3 +415,21 @@ def test_archive_member_that_is_not_an_array(tiny_dataset: Path) -> None:
     with zipfile.ZipFile(tiny_dataset / FRAMES_FILE, "w") as archive:
         archive.writestr("object_pos.npy", b"definitely not an npy file")
     _expect_load_error(tiny_dataset, "object_pos")
+
+
+def test_loading_a_dataset_resolves_its_task_once(tiny_dataset: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import energy_margin.data.dataset as dataset_module
+
+    calls: list[str] = []
+    real = dataset_module.get_recorded_task
+
+    def counting(name: str, config: dict | None) -> object:
+        calls.append(name)
+        return real(name, config)
+
+    monkeypatch.setattr(dataset_module, "get_recorded_task", counting)
+    dataset = load_dataset(tiny_dataset)
+    task = dataset.task
+    assert calls == [dataset.metadata["task"]]
+    assert task is dataset.task
+    assert task.config == real(dataset.metadata["task"], dataset.metadata["task_config"]).config

@@ -209,7 +209,7 @@ def read_dataset(path: Path | str) -> tuple[Dataset | None, list[Problem]]:
         metadata = read_json(metadata_path, what=METADATA_FILE)
     except EnergyMarginError as error:
         return None, [Problem(METADATA_FILE, "file", "", f"is not valid JSON ({str(error).split('(', 1)[-1]}")]
-    problems = metadata_problems(metadata)
+    problems, task = _checked_metadata(metadata)
     if problems:
         return None, problems
     frames_path = path / FRAMES_FILE
@@ -220,16 +220,24 @@ def read_dataset(path: Path | str) -> tuple[Dataset | None, list[Problem]]:
     if problems:
         return None, problems
     dataset = Dataset(path=path, metadata=metadata, arrays=arrays)
+    # The task built to check the metadata is the dataset's (its cached ``task``): one lookup per load.
+    vars(dataset)["task"] = task
     return dataset, array_problems(dataset)
 
 
 def metadata_problems(metadata: Any) -> list[Problem]:
     """Problems of the parsed ``dataset.json``: format, version, sizes and task configuration."""
+    return _checked_metadata(metadata)[0]
+
+
+def _checked_metadata(metadata: Any) -> tuple[list[Problem], Task | None]:
+    """The problems of the parsed ``dataset.json`` and the task it records (``None`` if it has none)."""
     if not isinstance(metadata, dict) or metadata.get("format") != FORMAT:
-        return [Problem(METADATA_FILE, "format", "", "is not an energy-margin dataset")]
+        return [Problem(METADATA_FILE, "format", "", "is not an energy-margin dataset")], None
     if metadata.get("schema_version") != SCHEMA_VERSION:
-        return [Problem(METADATA_FILE, "schema_version", "", _unsupported_schema(metadata))]
+        return [Problem(METADATA_FILE, "schema_version", "", _unsupported_schema(metadata))], None
     problems = []
+    task: Task | None = None
     for key in ("task", *_LIMITS):
         if key not in metadata:
             problems.append(Problem(METADATA_FILE, key, "", "is missing"))
@@ -252,7 +260,7 @@ def metadata_problems(metadata: Any) -> list[Problem]:
             else:
                 if not any(problem.field in ("n_robot_dofs", "n_drive") for problem in problems):
                     problems.extend(_task_size_problems(task, metadata))
-    return problems
+    return problems, task
 
 
 def _unsupported_schema(metadata: dict[str, Any]) -> str:
