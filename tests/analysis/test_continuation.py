@@ -162,3 +162,29 @@ def test_the_command_line_takes_the_continuation(tiny_dataset: Path, capsys: pyt
     with pytest.raises(SystemExit):
         main(["analyze", str(tiny_dataset), "--expansions", "5", "--continuation-horizon", "0", "--no-progress"])
     assert "continuation-horizon" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("batched", [True, False])
+def test_a_continuation_from_a_recorded_frame_replays_the_recorded_motion(tmp_path: Path, batched: bool) -> None:
+    # The command of every step, as the generator's: held for a period, the roll-out would differ.
+    from energy_margin.analysis import continuation
+    from energy_margin.data.generate import generate_dataset
+
+    scene = write_tiny_scene(tmp_path / "scene")
+    dataset = generate_dataset(
+        get_task("scene", {"scene_file": str(scene)}), n_objects=None, n_trajectories=1, n_frames=4, seed=0,
+        out=tmp_path / "data",
+    )  # fmt: skip
+    task = dataset.task
+    friction, drive = float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]
+    simulator = task.make_simulator(dataset.n_objects, friction, drive)
+    _, field = analyze_frame(task, dataset.frame(0, 1), friction=friction, drive=drive, seed=0,
+                             config=AnalyzerConfig(expansions=3), start_time=float(dataset.arrays["frame_time"][0, 1]),
+                             simulator=simulator)  # fmt: skip
+    nodes, start = np.array([0]), float(dataset.arrays["frame_time"][0, 1])
+    steps = continuation._steps(task, simulator.timestep, field, nodes, start, None)
+    run = continuation._continue_batched if batched else continuation._continue_one_by_one
+    args = (simulator if batched else _OneAtATime(simulator), task, field, nodes, np.array([start]), steps, drive)
+    pos = run(*args, *((False, 1) if batched else ()))[0]  # type: ignore[operator]
+    assert float(dataset.arrays["frame_time"][0, -1]) == pytest.approx(task.config.duration)
+    np.testing.assert_allclose(pos[0], dataset.frame(0, 3).object_pos, atol=1e-6)

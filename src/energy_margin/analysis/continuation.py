@@ -8,10 +8,11 @@ fraction of draws whose continuation ends in the success region: a Monte Carlo e
 likelihood-weighted probability that the motion still succeeds from the tree's states.
 
 The continuations run together through ``mujoco.rollout`` when the simulator offers it
-(:class:`~energy_margin.sim.base.BatchedRollout`), else one at a time through the simulator. As in
-the tree, the command (:func:`~energy_margin.tasks.command.command_robot`, without random
-variation) is re-evaluated every :attr:`Task.control_period` when the task sets one, else every
-``max_duration`` of the task (the tree's longest propagation).
+(:class:`~energy_margin.sim.base.BatchedRollout`), else one at a time through the simulator. The
+command (:func:`~energy_margin.tasks.command.command_robot`, without random variation) is
+re-evaluated every step, as the data generator does: held for a control period instead, a stiff
+servo's targets jump and jerk what the robot carries (a Panda's tray of boxes flies apart where the
+recorded roll-out keeps them).
 """
 
 from __future__ import annotations
@@ -55,19 +56,14 @@ class Continuation:
     steps: int
 
 
-def _steps(task: Task, field: CostField, nodes: np.ndarray, start_time: float, horizon: float | None) -> np.ndarray:
+def _steps(
+    task: Task, dt: float, field: CostField, nodes: np.ndarray, start_time: float, horizon: float | None
+) -> np.ndarray:
     """Steps of each node's continuation: to the end of the motion or the horizon, at least one."""
-    dt = task.config.timestep
     remaining = task.config.duration - (start_time + field.times[nodes])
     if horizon is not None:
         remaining = np.minimum(remaining, horizon)
     return np.maximum(np.round(remaining / dt).astype(np.int64), 1)
-
-
-def _control_steps(task: Task, dt: float) -> int:
-    """Steps between two evaluations of the scripted command (the tree's rule)."""
-    period = task.control_period if task.control_period is not None else task.config.max_duration
-    return max(1, round(period / dt))
 
 
 def continued_success(
@@ -113,7 +109,7 @@ def continued_success(
     rng = np.random.default_rng(continuation_seed(seed))
     draws = rng.choice(field.nodes, size=samples, p=likelihood(field.costs, lam))
     nodes, counts = np.unique(draws, return_counts=True)
-    n_steps = _steps(task, field, nodes, start_time, horizon)
+    n_steps = _steps(task, simulator.timestep, field, nodes, start_time, horizon)
     times = start_time + field.times[nodes]
     drive = np.asarray(drive, dtype=float)
     if isinstance(simulator, BatchedRollout):
@@ -153,10 +149,8 @@ def _continue_batched(
             plain.set_state(field.states[node])
             states[row] = propagator.current_state()
     wrenches = np.zeros((nodes.size, field.object_pos.shape[1], 6))
-    dt = task.config.timestep
-    pos, vel, quat, final = propagator.propagate(
-        task, drive, states, times, wrenches, n_steps, _control_steps(task, dt)
-    )
+    # The command of every step, as the data generator's.
+    pos, vel, quat, final = propagator.propagate(task, drive, states, times, wrenches, n_steps, 1)
     return pos, vel, quat, propagator.end_robot_positions(final)
 
 
@@ -172,19 +166,15 @@ def _continue_one_by_one(
     """End objects and robot of the continuations, one at a time through the simulator."""
     assert field.states is not None
     dt = simulator.timestep
-    every = _control_steps(task, dt)
     n_objects = field.object_pos.shape[1]
     ends: list[tuple[np.ndarray, ...]] = []
     for node, start, steps in zip(nodes.tolist(), times.tolist(), n_steps.tolist(), strict=True):
         simulator.set_state(field.states[node])
         # A node's state holds the wrenches of the propagation that reached it: none from here on.
         simulator.set_object_wrenches(np.zeros((n_objects, 6)))
-        done = 0
-        while done < steps:
-            chunk = min(every, steps - done)
-            command_robot(task, simulator, drive, start + done * dt, None)
-            simulator.step(chunk)
-            done += chunk
+        for step in range(steps):
+            command_robot(task, simulator, drive, start + step * dt, None)
+            simulator.step(1)
         ends.append(
             (
                 simulator.object_positions().copy(),
