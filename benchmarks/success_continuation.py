@@ -14,6 +14,8 @@ positive rate) and ``distance`` (the signed distance of the worst object to the 
 Seconds per frame: tree growth plus the continuations, wall time on one process.
 
     python benchmarks/success_continuation.py --out docs/figures/success_continuation.json
+
+K is chosen on generation seed 11 (:func:`choose`) and checked on seed 12.
 """
 
 from __future__ import annotations
@@ -46,25 +48,29 @@ SCENES = {
     "pushing_scene": ("pushing/pushing.toml", None),
     "panda_tray": ("panda_tray/panda_tray.toml", "panda_tray/write_model.py"),
 }
+#: Built-in tasks: name -> ``generate`` options.
+TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
 EARLY = {"first3": 3, "first5": 5}
 LAST = 3
 ANALYSIS_SEED = 0
 
 
-def _scene_file(name: str, folder: Path) -> Path:
-    """The scene file, beside its model (written for an example that writes it)."""
+def _task_options(name: str, folder: Path) -> list[str]:
+    """``generate``'s options: a built-in task, or a scene file beside its model (written if the example does)."""
+    if name in TASKS:
+        return TASKS[name]
     relative, writer = SCENES[name]
     source = EXAMPLES / relative
     if writer is None:
-        return source
+        return ["--scene", str(source)]
     out = folder / name
     subprocess.run([sys.executable, str(EXAMPLES / writer), "--out", str(out)], check=True, capture_output=True)
     shutil.copy(source, out / source.name)
-    return out / source.name
+    return ["--scene", str(out / source.name)]
 
 
-def _generate(scene: Path, seed: int, trajectories: int, out: Path) -> Dataset:
-    command = [sys.executable, "-m", "energy_margin", "generate", "--scene", str(scene)]
+def _generate(options: list[str], seed: int, trajectories: int, out: Path) -> Dataset:
+    command = [sys.executable, "-m", "energy_margin", "generate", *options]
     command += ["--trajectories", str(trajectories), "--frames", "10", "--seed", str(seed), "--out", str(out)]
     subprocess.run(command, check=True, capture_output=True)
     return load_dataset(out)
@@ -145,15 +151,42 @@ def _measure(dataset: Dataset, expansions: int, ks: list[int]) -> dict[str, Any]
     return {"success_rate": float(np.mean(labels)), "methods": methods, "baselines": baselines}
 
 
+def choose(results: dict[str, Any]) -> dict[str, Any]:
+    """K of the best mean early-success AP over the scenes on the selection seed (ties: the smaller K).
+
+    Each scene's AP of a K is the mean of its first-3 and first-5 APs (a scene whose labels hold a
+    single class is left out); K = 0 is the tree's own success score. The check seeds are not read.
+    """
+    seed = str(results["selection_seed"])
+    means: dict[str, float] = {}
+    for k in [0, *results["ks"]]:
+        name = "tree" if k == 0 else f"continuation_{k}"
+        aps = [
+            ap
+            for scene in results["scenes"].values()
+            for ap in (scene[seed]["methods"][name][early] for early in EARLY)
+            if ap is not None
+        ]
+        means[str(k)] = float(np.mean(aps)) if aps else float("nan")
+    chosen = max(means, key=lambda k: (means[k], -int(k)))
+    return {"rule": choose.__doc__.splitlines()[0] if choose.__doc__ else "", "mean_ap": means, "chosen_k": int(chosen)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
-    parser.add_argument("--trajectories", type=int, default=16)
+    parser.add_argument("--scenes", nargs="+", default=[*SCENES, *TASKS], choices=[*SCENES, *TASKS])
+    parser.add_argument("--trajectories", type=int, default=20)
     parser.add_argument("--expansions", type=int, default=80)
     parser.add_argument("--ks", type=int, nargs="+", default=[8, 16])
     parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12], help="choose on the first, check on the rest")
+    parser.add_argument("--choose-only", action="store_true", help="add the choice of K to an existing --out file")
     args = parser.parse_args()
+    if args.choose_only:
+        results = json.loads(args.out.read_text())
+        results["selection"] = choose(results)
+        args.out.write_text(json.dumps(results, indent=2) + "\n")
+        return
     results: dict[str, Any] = {
         "command": "python benchmarks/success_continuation.py " + " ".join(sys.argv[1:]),
         "trajectories": args.trajectories,
@@ -169,15 +202,16 @@ def main() -> None:
     }
     with tempfile.TemporaryDirectory() as folder:
         for name in args.scenes:
-            scene = _scene_file(name, Path(folder))
+            options = _task_options(name, Path(folder))
             results["scenes"][name] = {}
             for seed in args.seeds:
                 started = time.perf_counter()
-                dataset = _generate(scene, seed, args.trajectories, Path(folder) / f"{name}-{seed}")
+                dataset = _generate(options, seed, args.trajectories, Path(folder) / f"{name}-{seed}")
                 measured = _measure(dataset, args.expansions, args.ks)
                 measured["wall_s"] = time.perf_counter() - started
                 results["scenes"][name][str(seed)] = measured
                 print(name, seed, json.dumps(measured), flush=True)
+    results["selection"] = choose(results)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
 
 
