@@ -188,3 +188,14 @@ def test_a_continuation_from_a_recorded_frame_replays_the_recorded_motion(tmp_pa
     pos = run(*args, *((False, 1) if batched else ()))[0]  # type: ignore[operator]
     assert float(dataset.arrays["frame_time"][0, -1]) == pytest.approx(task.config.duration)
     np.testing.assert_allclose(pos[0], dataset.frame(0, 3).object_pos, atol=1e-6)
+
+
+def test_a_lambda_re_scoring_refuses_the_continuation(tiny_dataset: Path) -> None:
+    # Its success score is no likelihood mass a lambda would re-weight: refused, not silently the tree's.
+    from energy_margin.data.dataset import load_dataset
+    from energy_margin.evaluation.lambda_rescoring import LambdaRescorer
+
+    dataset = load_dataset(tiny_dataset)
+    with pytest.raises(InvalidParameterError, match="continuation"):
+        LambdaRescorer(dataset, AnalyzerConfig(expansions=5, continuation=2), 0, lambdas=[1.0, 5.0])
+    assert LambdaRescorer(dataset, AnalyzerConfig(expansions=5), 0, lambdas=[1.0, 5.0]).lambdas == (1.0, 5.0)
