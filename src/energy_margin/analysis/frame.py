@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin._renamed import renamed_fields
+from energy_margin.analysis.continuation import continued_success
 from energy_margin.analysis.scores import region_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import (
@@ -91,6 +92,9 @@ class AnalyzerConfig:
             contacts from cheaper pairs; pushing: footprint ground contacts and sphere stand-ins).
         wrench_scale: factor on the task's perturbation wrench bounds (1: the task's own).
         duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
+        continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
+            (MuJoCo; :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score.
+        continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
 
     """
 
@@ -116,6 +120,10 @@ class AnalyzerConfig:
     contacts: str = constrained("recorded", Constraint("choice", choices=tuple(CONTACT_MODELS)))
     wrench_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
     duration_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
+    continuation: int = constrained(0, Constraint("int", minimum=0))
+    continuation_horizon: float | None = constrained(
+        None, Constraint("float", minimum=0.0, exclusive=True, optional=True)
+    )
 
     def __post_init__(self) -> None:
         # Each field's constraint is declared once, beside its default (the command line takes both).
@@ -130,6 +138,8 @@ class AnalyzerConfig:
             raise InvalidParameterError(
                 "contacts", f"'fast' is a MuJoCo contact model, not available with engine {self.engine!r}"
             )
+        if self.continuation and self.engine != "mujoco":
+            raise InvalidParameterError("continuation", f"needs the 'mujoco' engine, not {self.engine!r}")
 
     @property
     def budget(self) -> TreeBudget:
@@ -330,6 +340,10 @@ def analyze_frame(
         check_every=every,
     )
     capture, success = score_field(task, frame, field, lam)
+    if config.continuation:
+        success = continued_success(simulator, task, frame, field, drive, lam=lam, samples=config.continuation,
+            seed=seed, start_time=start_time, horizon=config.continuation_horizon, batched_states=config.batch > 1,
+            threads=config.threads).success_score  # fmt: skip
     runtime = time.perf_counter() - started
     scores = FrameScores(
         capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
@@ -394,8 +408,7 @@ class FrameAnalyzer:
         key = (friction, np.asarray(drive, dtype=float).tobytes())
         simulator = self._simulators.pop(key, None)
         if simulator is None:
-            # Frames arrive trajectory by trajectory: a few recent simulators suffice, and keeping
-            # more would let memory grow with the number of distinct trajectories.
+            # Frames arrive trajectory by trajectory: a few recent simulators suffice (memory stays bounded).
             while len(self._simulators) >= _SIMULATOR_CACHE:
                 self._simulators.pop(next(iter(self._simulators)))
             simulator = self.task.make_simulator(self.dataset.n_objects, friction, drive, self.config.engine)

@@ -79,6 +79,8 @@ TREE_ONLY = {
     "converge_rule": "--converge-rule",
     "contacts": "--contacts",
     "projection": "--projection",
+    "continuation": "--continuation",
+    "continuation_horizon": "--continuation-horizon",
 }
 
 
@@ -133,6 +135,21 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="FILE",
         help="calibration.json of energy-margin calibrate: analyse at the lambda it chose (not with --lambda)",
+    )
+    parser.add_argument(
+        "--continuation",
+        type=non_negative_int,
+        default=default("continuation"),
+        metavar="K",
+        help="success continuation: score success by the fraction of K nodes, drawn by likelihood, whose "
+        "unperturbed scripted motion ends in the success region (mujoco engine; default 0: the tree's own)",
+    )
+    parser.add_argument(
+        "--continuation-horizon",
+        type=positive_float,
+        default=default("continuation_horizon"),
+        metavar="SECONDS",
+        help="longest continuation past its node, s (default: to the end of the task's motion)",
     )
 
 
@@ -255,6 +272,8 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         converge=args.converge,
         converge_rule=args.converge_rule,
         contacts=args.contacts,
+        continuation=args.continuation,
+        continuation_horizon=args.continuation_horizon,
     )
 
 

@@ -47,6 +47,9 @@ class LambdaRescorer(FrameAnalyzer):
     """
 
     def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int, *, lambdas: Sequence[float]) -> None:
+        if config.continuation:
+            # Its success score is not a likelihood mass over the tree that a lambda re-weights.
+            raise InvalidParameterError("continuation", "has no lambda re-scoring: leave it 0 to calibrate lambda")
         super().__init__(dataset, config, seed)
         self.lambdas = tuple(float(lam) for lam in lambdas)
 

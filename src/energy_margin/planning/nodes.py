@@ -42,6 +42,10 @@ class CostField:
         rejected: reached states rejected for leaving the task's state box (an object outside
             its bounds or faster than its speed bound).
         diverged: reached states rejected for holding a non-finite number (the simulation blew up).
+        states: every node's simulator state, shape (M, state_size): :meth:`Simulator.get_state`
+            vectors, or the batched propagator's when the tree grew in rounds (``None`` when not
+            kept); an engine with :class:`~energy_margin.sim.base.ReleasableStates` frees them
+            once growth ends.
 
     """
 
@@ -57,6 +61,7 @@ class CostField:
     robot_q: np.ndarray | None = None
     rejected: int = 0
     diverged: int = 0
+    states: np.ndarray | None = None
 
     @property
     def nodes(self) -> int:
@@ -219,6 +224,7 @@ class _Tree:
             robot_q=self._robot_q(count, copy=True),
             rejected=self.rejected,
             diverged=self.diverged,
+            states=self.states[:count].copy(),
         )
 
 

@@ -1,0 +1,219 @@
+"""Early-success AP with and without success continuation (``analyze --continuation K``).
+
+For each scene, two sets are generated (``energy-margin generate``, 10 frames per trajectory):
+generation seed 11 to choose K and generation seed 12 to check the choice. Only the first five
+frames of each trajectory are scored (early success reads no other): each frame's tree is grown
+once, exactly as ``analyze`` grows it (the same per-frame seeds of :func:`frame_seeds` for analysis
+seed 0, the same simulator reuse), and the continuations of every K are drawn from that tree, as
+``analyze_frame`` with ``continuation=K`` does (checked on the first frame: the same score).
+
+Early success as ``evaluate`` and the study define it: the trajectory's success score is the
+weighted mean of the last 3 frame success scores (weights 1, 2, 3) among its first 3 (first 5)
+frames, its AP scikit-learn's against the trajectory's success label. Baselines: ``chance`` (the
+positive rate) and ``distance`` (the signed distance of the worst object to the success region).
+Seconds per frame: tree growth plus the continuations, wall time on one process.
+
+    python benchmarks/success_continuation.py --out docs/figures/success_continuation.json
+
+K is chosen on generation seed 11 (:func:`choose`) and checked on seed 12.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.analysis.continuation import continued_success
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.analysis.scores import trajectory_success_score
+from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.evaluation.baselines import baseline_grids
+from energy_margin.evaluation.metrics import average_precision
+from energy_margin.runs.versions import engine_versions
+
+__all__: list[str] = []
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+#: Scene name -> (scene file, the example's ``write_model.py`` when its model is written on this machine).
+SCENES = {
+    "pushing_scene": ("pushing/pushing.toml", None),
+    "panda_tray": ("panda_tray/panda_tray.toml", "panda_tray/write_model.py"),
+}
+#: Built-in tasks: name -> ``generate`` options.
+TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
+EARLY = {"first3": 3, "first5": 5}
+LAST = 3
+ANALYSIS_SEED = 0
+
+
+def _task_options(name: str, folder: Path) -> list[str]:
+    """``generate``'s options: a built-in task, or a scene file beside its model (written if the example does)."""
+    if name in TASKS:
+        return TASKS[name]
+    relative, writer = SCENES[name]
+    source = EXAMPLES / relative
+    if writer is None:
+        return ["--scene", str(source)]
+    out = folder / name
+    subprocess.run([sys.executable, str(EXAMPLES / writer), "--out", str(out)], check=True, capture_output=True)
+    shutil.copy(source, out / source.name)
+    return ["--scene", str(out / source.name)]
+
+
+def _generate(options: list[str], seed: int, trajectories: int, out: Path) -> Dataset:
+    command = [sys.executable, "-m", "energy_margin", "generate", *options]
+    command += ["--trajectories", str(trajectories), "--frames", "10", "--seed", str(seed), "--out", str(out)]
+    subprocess.run(command, check=True, capture_output=True)
+    return load_dataset(out)
+
+
+def _scores(dataset: Dataset, expansions: int, ks: list[int]) -> tuple[dict[int, np.ndarray], dict[int, float]]:
+    """Success scores (T, 5) of the first five frames per K (0: the tree's own) and seconds per frame."""
+    task, frames = dataset.task, max(EARLY.values())
+    seeds = frame_seeds(ANALYSIS_SEED, dataset.n_trajectories * dataset.n_frames)
+    config = AnalyzerConfig(expansions=expansions)
+    lam = task.config.likelihood_lambda
+    success = {k: np.zeros((dataset.n_trajectories, frames)) for k in [0, *ks]}
+    seconds = dict.fromkeys([0, *ks], 0.0)
+    for trajectory in range(dataset.n_trajectories):
+        friction = float(dataset.arrays["friction"][trajectory])
+        drive = dataset.arrays["drive"][trajectory]
+        simulator = task.make_simulator(dataset.n_objects, friction, drive, config.engine)
+        for frame_index in range(frames):
+            index = trajectory * dataset.n_frames + frame_index
+            frame = dataset.frame(trajectory, frame_index)
+            start = float(dataset.arrays["frame_time"][trajectory, frame_index])
+            started = time.perf_counter()
+            scores, field = analyze_frame(
+                task, frame, friction=friction, drive=drive, seed=seeds[index], config=config,
+                start_time=start, simulator=simulator,
+            )  # fmt: skip
+            tree_s = time.perf_counter() - started
+            success[0][trajectory, frame_index] = scores.success_score
+            seconds[0] += tree_s
+            for k in ks:
+                tick = time.perf_counter()
+                continued = continued_success(
+                    simulator, task, frame, field, drive, lam=lam, samples=k, seed=seeds[index], start_time=start
+                )
+                seconds[k] += tree_s + time.perf_counter() - tick
+                success[k][trajectory, frame_index] = continued.success_score
+    count = dataset.n_trajectories * frames
+    return success, {k: value / count for k, value in seconds.items()}
+
+
+def _check_equivalence(dataset: Dataset, expansions: int, k: int, expected: float) -> None:
+    """``analyze_frame`` with ``continuation=k`` gives the benchmark's score on the first frame."""
+    drive = dataset.arrays["drive"][0]
+    scores, _ = analyze_frame(
+        dataset.task, dataset.frame(0, 0), friction=float(dataset.arrays["friction"][0]), drive=drive,
+        seed=frame_seeds(ANALYSIS_SEED, dataset.n_trajectories * dataset.n_frames)[0],
+        config=AnalyzerConfig(expansions=expansions, continuation=k),
+        start_time=float(dataset.arrays["frame_time"][0, 0]),
+    )  # fmt: skip
+    if scores.success_score != expected:
+        raise SystemExit(f"analyze_frame gives {scores.success_score}, the benchmark {expected}")
+
+
+def _early_aps(labels: np.ndarray, grid: np.ndarray) -> dict[str, float | None]:
+    return {
+        name: average_precision(labels, trajectory_success_score(grid[:, :frames], last=LAST))
+        for name, frames in EARLY.items()
+    }
+
+
+def _measure(dataset: Dataset, expansions: int, ks: list[int]) -> dict[str, Any]:
+    success, seconds = _scores(dataset, expansions, ks)
+    _check_equivalence(dataset, expansions, ks[-1], float(success[ks[-1]][0, 0]))
+    labels = dataset.success_labels()
+    methods: dict[str, Any] = {}
+    for k in [0, *ks]:
+        name = "tree" if k == 0 else f"continuation_{k}"
+        grid = success[k]
+        methods[name] = {
+            **_early_aps(labels, grid),
+            "seconds_per_frame": seconds[k],
+            "frames_with_success_above_0": int(np.count_nonzero(grid > 0)),
+        }
+    baselines = {"chance": dict.fromkeys(EARLY, float(np.mean(labels)))}
+    grids = baseline_grids(dataset)
+    if "distance" in grids:
+        baselines["distance"] = _early_aps(labels, grids["distance"][1][:, : max(EARLY.values())])
+    return {"success_rate": float(np.mean(labels)), "methods": methods, "baselines": baselines}
+
+
+def choose(results: dict[str, Any]) -> dict[str, Any]:
+    """K of the best mean early-success AP over the scenes on the selection seed (ties: the smaller K).
+
+    Each scene's AP of a K is the mean of its first-3 and first-5 APs (a scene whose labels hold a
+    single class is left out); K = 0 is the tree's own success score. The check seeds are not read.
+    """
+    seed = str(results["selection_seed"])
+    means: dict[str, float] = {}
+    for k in [0, *results["ks"]]:
+        name = "tree" if k == 0 else f"continuation_{k}"
+        aps = [
+            ap
+            for scene in results["scenes"].values()
+            for ap in (scene[seed]["methods"][name][early] for early in EARLY)
+            if ap is not None
+        ]
+        means[str(k)] = float(np.mean(aps)) if aps else float("nan")
+    chosen = max(means, key=lambda k: (means[k], -int(k)))
+    return {"rule": choose.__doc__.splitlines()[0] if choose.__doc__ else "", "mean_ap": means, "chosen_k": int(chosen)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--scenes", nargs="+", default=[*SCENES, *TASKS], choices=[*SCENES, *TASKS])
+    parser.add_argument("--trajectories", type=int, default=20)
+    parser.add_argument("--expansions", type=int, default=80)
+    parser.add_argument("--ks", type=int, nargs="+", default=[8, 16])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12], help="choose on the first, check on the rest")
+    parser.add_argument("--choose-only", action="store_true", help="add the choice of K to an existing --out file")
+    args = parser.parse_args()
+    if args.choose_only:
+        results = json.loads(args.out.read_text())
+        results["selection"] = choose(results)
+        args.out.write_text(json.dumps(results, indent=2) + "\n")
+        return
+    results: dict[str, Any] = {
+        "command": "python benchmarks/success_continuation.py " + " ".join(sys.argv[1:]),
+        "trajectories": args.trajectories,
+        "frames": 10,
+        "frames_scored": max(EARLY.values()),
+        "expansions": args.expansions,
+        "analysis_seed": ANALYSIS_SEED,
+        "ks": args.ks,
+        "selection_seed": args.seeds[0],
+        "check_seeds": args.seeds[1:],
+        "versions": engine_versions("mujoco"),
+        "scenes": {},
+    }
+    with tempfile.TemporaryDirectory() as folder:
+        for name in args.scenes:
+            options = _task_options(name, Path(folder))
+            results["scenes"][name] = {}
+            for seed in args.seeds:
+                started = time.perf_counter()
+                dataset = _generate(options, seed, args.trajectories, Path(folder) / f"{name}-{seed}")
+                measured = _measure(dataset, args.expansions, args.ks)
+                measured["wall_s"] = time.perf_counter() - started
+                results["scenes"][name][str(seed)] = measured
+                print(name, seed, json.dumps(measured), flush=True)
+    results["selection"] = choose(results)
+    args.out.write_text(json.dumps(results, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,187 @@
+"""Success continuation: the task's scripted motion continued from a tree's likely states.
+
+A tree reaches about a second past its frame; a success region the nominal motion reaches later
+holds none of its states, and the success score stays 0. :func:`continued_success` draws nodes of
+the tree by likelihood weight, continues the task's scripted motion from each node's state without
+perturbation to the end of the motion (the task's ``duration``) or a horizon, and returns the
+fraction of draws whose continuation ends in the success region: a Monte Carlo estimate of the
+likelihood-weighted probability that the motion still succeeds from the tree's states.
+
+The continuations run together through ``mujoco.rollout`` when the simulator offers it
+(:class:`~energy_margin.sim.base.BatchedRollout`), else one at a time through the simulator. The
+command (:func:`~energy_margin.tasks.command.command_robot`, without random variation) is
+re-evaluated every step, as the data generator does: held for a control period instead, a stiff
+servo's targets jump and jerk what the robot carries (a Panda's tray of boxes flies apart where the
+recorded roll-out keeps them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from energy_margin.analysis.scores import likelihood
+from energy_margin.errors import InvalidParameterError, check_float, check_int
+from energy_margin.planning import CostField
+from energy_margin.sim.base import BatchedRollout, Simulator
+from energy_margin.tasks import Task
+from energy_margin.tasks.command import command_robot
+from energy_margin.world.state import FrameState
+
+__all__ = ["Continuation", "continuation_seed", "continued_success"]
+
+#: Spawn key of the continuation's draws under the frame's seed (the tree's generator is the seed's own).
+_SPAWN_KEY = (0xC0,)
+
+
+def continuation_seed(seed: int) -> np.random.SeedSequence:
+    """The seed sequence of a frame's continuation draws, independent of its tree's generator."""
+    return np.random.SeedSequence(seed, spawn_key=_SPAWN_KEY)
+
+
+@dataclass(frozen=True)
+class Continuation:
+    """What a frame's continuations found.
+
+    Attributes:
+        success_score: fraction of the draws whose continuation ends in the success region, in [0, 1].
+        nodes: the distinct nodes continued.
+        steps: simulator steps of the longest continuation.
+
+    """
+
+    success_score: float
+    nodes: int
+    steps: int
+
+
+def _steps(
+    task: Task, dt: float, field: CostField, nodes: np.ndarray, start_time: float, horizon: float | None
+) -> np.ndarray:
+    """Steps of each node's continuation: to the end of the motion or the horizon, at least one."""
+    remaining = task.config.duration - (start_time + field.times[nodes])
+    if horizon is not None:
+        remaining = np.minimum(remaining, horizon)
+    return np.maximum(np.round(remaining / dt).astype(np.int64), 1)
+
+
+def continued_success(
+    simulator: Simulator,
+    task: Task,
+    root: FrameState,
+    field: CostField,
+    drive: np.ndarray,
+    *,
+    lam: float,
+    samples: int,
+    seed: int,
+    start_time: float = 0.0,
+    horizon: float | None = None,
+    batched_states: bool = False,
+    threads: int = 1,
+) -> Continuation:
+    """Success score of ``samples`` continuations of the scripted motion from nodes drawn by likelihood.
+
+    Args:
+        simulator: the simulator the tree grew on (its states are ``field.states``).
+        task: the task (script, success region, timestep, duration).
+        root: the analysed frame z_init (the success region may follow it).
+        field: the tree's cost field, with its node states.
+        drive: the trajectory's drive parameters.
+        lam: the likelihood's inverse temperature, 1/J.
+        samples: draws (with replacement) by likelihood weight, >= 1.
+        seed: the frame's seed (the draws use :func:`continuation_seed`).
+        start_time: time of the frame within its roll-out, s.
+        horizon: longest continuation, s past the node; ``None``: to the task's ``duration``.
+        batched_states: ``field.states`` are the batched propagator's (a tree grown in rounds).
+        threads: ``mujoco.rollout`` threads.
+
+    Raises:
+        InvalidParameterError: ``samples`` < 1, a non-positive horizon, or a field without states.
+
+    """
+    check_int("samples", samples, minimum=1)
+    if horizon is not None:
+        check_float("horizon", horizon, minimum=0.0, exclusive_minimum=True)
+    if field.states is None:
+        raise InvalidParameterError("field", "holds no node states to continue from")
+    rng = np.random.default_rng(continuation_seed(seed))
+    draws = rng.choice(field.nodes, size=samples, p=likelihood(field.costs, lam))
+    nodes, counts = np.unique(draws, return_counts=True)
+    n_steps = _steps(task, simulator.timestep, field, nodes, start_time, horizon)
+    times = start_time + field.times[nodes]
+    drive = np.asarray(drive, dtype=float)
+    if isinstance(simulator, BatchedRollout):
+        ends = _continue_batched(simulator, task, field, nodes, times, n_steps, drive, batched_states, threads)
+    else:
+        ends = _continue_one_by_one(simulator, task, field, nodes, times, n_steps, drive)
+    pos, vel, quat, robot = ends
+    inside = np.asarray(task.success_inside(root, pos, vel, quat, robot), dtype=bool)
+    score = float(np.sum(counts[inside])) / samples
+    return Continuation(success_score=score, nodes=int(nodes.size), steps=int(n_steps.max()))
+
+
+_Ends = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _continue_batched(
+    simulator: BatchedRollout,
+    task: Task,
+    field: CostField,
+    nodes: np.ndarray,
+    times: np.ndarray,
+    n_steps: np.ndarray,
+    drive: np.ndarray,
+    batched_states: bool,
+    threads: int,
+) -> _Ends:
+    """End objects and robot of the continuations, rolled out together through ``mujoco.rollout``."""
+    assert field.states is not None
+    propagator = simulator.rollout_propagator(threads)
+    if batched_states:
+        states = field.states[nodes]
+    else:
+        # The simulator's own vectors: restore each and read it back as the propagator's.
+        plain: Simulator = simulator  # type: ignore[assignment]
+        states = np.empty((nodes.size, propagator.state_size))
+        for row, node in enumerate(nodes.tolist()):
+            plain.set_state(field.states[node])
+            states[row] = propagator.current_state()
+    wrenches = np.zeros((nodes.size, field.object_pos.shape[1], 6))
+    # The command of every step, as the data generator's.
+    pos, vel, quat, final = propagator.propagate(task, drive, states, times, wrenches, n_steps, 1)
+    return pos, vel, quat, propagator.end_robot_positions(final)
+
+
+def _continue_one_by_one(
+    simulator: Simulator,
+    task: Task,
+    field: CostField,
+    nodes: np.ndarray,
+    times: np.ndarray,
+    n_steps: np.ndarray,
+    drive: np.ndarray,
+) -> _Ends:
+    """End objects and robot of the continuations, one at a time through the simulator."""
+    assert field.states is not None
+    dt = simulator.timestep
+    n_objects = field.object_pos.shape[1]
+    ends: list[tuple[np.ndarray, ...]] = []
+    for node, start, steps in zip(nodes.tolist(), times.tolist(), n_steps.tolist(), strict=True):
+        simulator.set_state(field.states[node])
+        # A node's state holds the wrenches of the propagation that reached it: none from here on.
+        simulator.set_object_wrenches(np.zeros((n_objects, 6)))
+        for step in range(steps):
+            command_robot(task, simulator, drive, start + step * dt, None)
+            simulator.step(1)
+        ends.append(
+            (
+                simulator.object_positions().copy(),
+                simulator.object_velocities().copy(),
+                simulator.object_quaternions().copy(),
+                simulator.robot_positions().copy(),
+            )
+        )
+    pos, vel, quat, robot = (np.stack(column) for column in zip(*ends, strict=True))
+    return pos, vel, quat, robot
