@@ -96,3 +96,59 @@ def test_architecture_lists_every_module() -> None:
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         assert f"| `{name}` |" in text
     assert module_index.MARKER in (DOCS / "reference" / "architecture.md").read_text(encoding="utf-8")
+
+
+#: A relative link with an anchor: ``[text](page.md#anchor)`` or ``[text](#anchor)``.
+ANCHORED = re.compile(r"\]\(([^)\s#]*)#([^)\s]+)\)")
+FENCE = re.compile(r"^(```|~~~).*?^\1", re.S | re.M)
+#: Pages whose headings are generated when the site builds (the API and CLI references).
+GENERATED = ("docs/reference/api/", "docs/reference/cli.md")
+
+
+def heading_anchor(heading: str) -> str:
+    """The anchor the site gives a heading (mkdocs.yml: pymdownx's GitHub slug, lower case)."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading)  # a link keeps its text
+    text = re.sub(r"<[^>]+>", "", text).replace("`", "")
+    return re.sub(r"[^\w\- ]", "", text.strip().lower()).replace(" ", "-")
+
+
+def page_anchors(page: Path) -> set[str]:
+    """Every anchor of a page: its headings' (a repeated one gets ``_1``, ``_2``) and explicit ones."""
+    found: set[str] = set()
+    seen: dict[str, int] = {}
+    for line in FENCE.sub("", page.read_text(encoding="utf-8")).splitlines():
+        heading = re.match(r"^#{1,6}\s+(.*?)\s*#*\s*$", line)
+        if heading:
+            explicit = re.search(r"\{#([^}]+)\}\s*$", heading.group(1))
+            base = explicit.group(1) if explicit else heading_anchor(heading.group(1))
+            count = seen.get(base, 0)
+            seen[base] = count + 1
+            found.add(base if count == 0 else f"{base}_{count}")
+        for pair in re.findall(r'\{#([\w-]+)\}|<a (?:id|name)="([\w-]+)"', line):
+            found.update(name for name in pair if name)
+    return found
+
+
+def test_heading_anchors_are_spelled_as_the_site_spells_them() -> None:
+    assert heading_anchor("Success beyond a tree's reach (`--continuation`)") == (
+        "success-beyond-a-trees-reach---continuation"
+    )
+    assert heading_anchor("Pushing, n_o = 10, 20 trajectories × 10 frames") == (
+        "pushing-n_o--10-20-trajectories--10-frames"
+    )
+
+
+@pytest.mark.parametrize("page", [*sorted(p.relative_to(ROOT).as_posix() for p in DOCS.rglob("*.md")), "README.md"])
+def test_anchored_links_land_on_a_heading(page: str) -> None:
+    path = ROOT / page
+    broken = []
+    for target, anchor in ANCHORED.findall(FENCE.sub("", path.read_text(encoding="utf-8"))):
+        destination = (path.parent / target).resolve() if target else path
+        relative = destination.relative_to(ROOT).as_posix() if destination.is_relative_to(ROOT) else ""
+        if re.match(r"^[a-z]+:", target) or destination.suffix != ".md" or not destination.is_file():
+            continue
+        if relative.startswith(GENERATED):
+            continue
+        if anchor not in page_anchors(destination):
+            broken.append(f"{target}#{anchor}")
+    assert not broken, f"{page}: links to anchors no heading has: {broken}"
