@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin._renamed import RENAMED_KEYS
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.journal import Journal
 
@@ -30,6 +31,7 @@ __all__ = [
     "RENAMED_COLUMNS",
     "SCORES_FILE",
     "UNKNOWN_COUNT",
+    "current_names",
     "file_columns",
     "format_row",
     "header",
@@ -90,12 +92,16 @@ def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] |
         return None
     try:
         row: dict[str, Any] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
-        for name, text in zip(columns, fields, strict=True):
-            key = "expansions" if name == "iterations" else name
+        for key, text in zip(current_names(columns), fields, strict=True):
             row[key] = int(text) if key in INTEGER_COLUMNS else float(text)
     except ValueError:
         return None
     return row
+
+
+def current_names(columns: tuple[str, ...]) -> tuple[str, ...]:
+    """A file's columns under today's names (release 0.2's ``iterations`` is ``expansions``)."""
+    return tuple(RENAMED_KEYS.get(name, name) for name in columns)
 
 
 def scores_journal(directory: Path, *, path: Path | None = None) -> Journal[tuple[int, int]]:

@@ -23,7 +23,14 @@ from typing import Any
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
 from energy_margin.data.physical import state_problems
 from energy_margin.data.provenance import version_findings
-from energy_margin.data.scores_file import COLUMNS, INTEGER_COLUMNS, SCORES_FILE, UNKNOWN_COUNT, file_columns
+from energy_margin.data.scores_file import (
+    COLUMNS,
+    INTEGER_COLUMNS,
+    SCORES_FILE,
+    UNKNOWN_COUNT,
+    current_names,
+    file_columns,
+)
 from energy_margin.sim import Simulator
 from energy_margin.world.scene import Scene
 
@@ -123,7 +130,7 @@ def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
     columns = file_columns(lines[0] if lines else "")
     if columns is None:
         return [Problem(SCORES_FILE, "header", "line 1", f"expected {','.join(COLUMNS)}")]
-    columns = tuple("expansions" if name == "iterations" else name for name in columns)  # release 0.2's name
+    columns = current_names(columns)
     problems: list[Problem] = []
     seen: dict[tuple[int, int], int] = {}
     for number, line in enumerate(lines[1:], start=2):
