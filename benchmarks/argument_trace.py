@@ -21,13 +21,10 @@ given its row format or a table its columns).
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
+
+from checkout import checkout_arguments, commit_of, run_on, write_figures
 
 #: The stages, earliest first (tests/test_architecture.py); a module outside them is a foundation.
 STAGES = (
@@ -146,23 +143,13 @@ print(json.dumps(results))
 
 def measure(root: Path) -> dict[str, Any]:
     """The counts of the checkout ``root``, measured in a child process on its sources."""
-    env = {**os.environ, "PYTHONPATH": str(root / "src")}
-    code = _CHILD.replace("STAGES_HERE", repr(STAGES))
-    found = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
-    if found.returncode != 0:
-        raise SystemExit(f"tracing {root} failed:\n{found.stderr[-2000:]}")
-    return json.loads(found.stdout.strip().splitlines()[-1])
+    return run_on(root, _CHILD.replace("STAGES_HERE", repr(STAGES)), required=True)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1], help="the checkout")
-    parser.add_argument("--out", type=Path, help="write the counts as JSON here")
-    args = parser.parse_args()
-    root = args.root.resolve()
-    commit = subprocess.run(
-        ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
+    args = checkout_arguments(__doc__)
+    root = args.root
+    commit = commit_of(root)
     results = {"commit": commit, **measure(root)}
     print(f"checkout {root} at {commit}")
     for command in ("analyze", "design"):
@@ -174,8 +161,7 @@ def main() -> None:
         )
         for site in (*entry["reentry_sites"], *entry["call_back_up_sites"]):
             print(f"      {site}")
-    if args.out is not None:
-        args.out.write_text(json.dumps(results, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    write_figures(args.out, results)
 
 
 if __name__ == "__main__":

@@ -19,15 +19,15 @@ earlier commit) and prints one table; ``--out`` writes the figures as JSON.
 
 from __future__ import annotations
 
-import argparse
 import ast
 import json
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
+
+from checkout import checkout_arguments, commit_of, run_on
 
 MODULE_LIMIT = 450
 FUNCTION_LIMIT = 80
@@ -146,14 +146,7 @@ def readme_measures(readme: Path) -> dict[str, int]:
 
 def cli_measures(root: Path) -> dict[str, int] | None:
     """Commands and options of the checkout's command line; ``None`` when its parser cannot be built here."""
-    found = subprocess.run(
-        [sys.executable, "-c", _CLI_COUNT],
-        capture_output=True,
-        text=True,
-        env={"PYTHONPATH": str(root / "src"), "PATH": "/usr/bin:/bin"},
-        check=False,
-    )
-    return json.loads(found.stdout) if found.returncode == 0 else None
+    return run_on(root, _CLI_COUNT)
 
 
 def _is_listing(line: str) -> bool:
@@ -193,15 +186,10 @@ def duplicate_pairs(package: Path) -> dict[str, int] | None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1], help="the checkout")
-    parser.add_argument("--out", type=Path, help="write the figures as JSON here")
-    args = parser.parse_args()
-    root = args.root.resolve()
+    args = checkout_arguments(__doc__)
+    root = args.root
     package = root / "src" / "energy_margin"
-    commit = subprocess.run(
-        ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
+    commit = commit_of(root)
     figures: dict[str, Any] = {"commit": commit, **source_measures(package)}
     figures["readme"] = readme_measures(root / "README.md")
     figures["cli"] = cli_measures(root)

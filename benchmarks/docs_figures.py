@@ -11,12 +11,11 @@ hand. Code blocks are left out (commands and their settings, not figures).
 
 from __future__ import annotations
 
-import argparse
-import json
 import re
-import subprocess
 from pathlib import Path
 from typing import Any
+
+from checkout import checkout_arguments, commit_of, write_figures
 
 DECIMAL = re.compile(r"(?<![\w.])\d+\.\d+(?![\w.])")
 FENCE = re.compile(r"```.*?```", re.S)
@@ -58,22 +57,16 @@ def measure(root: Path) -> dict[str, Any]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1], help="the checkout")
-    parser.add_argument("--out", type=Path, help="write the figures as JSON here")
-    args = parser.parse_args()
-    root = args.root.resolve()
-    commit = subprocess.run(
-        ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
+    args = checkout_arguments(__doc__)
+    root = args.root
+    commit = commit_of(root)
     figures = {"commit": commit, **measure(root)}
     print(f"checkout {root} at {commit}")
     for page, entry in sorted(figures["pages"].items(), key=lambda item: -item[1]["by_hand"]):
         if entry["by_hand"] or entry["from_files"]:
             print(f"  {page:<40} {entry['from_files']:>5} from files {entry['by_hand']:>5} by hand")
     print(f"  {'all pages':<40} {figures['from_files']:>5} from files {figures['by_hand']:>5} by hand")
-    if args.out is not None:
-        args.out.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    write_figures(args.out, figures)
 
 
 if __name__ == "__main__":

@@ -18,14 +18,13 @@ and, for each concept below, lists the spellings it finds:
 
 from __future__ import annotations
 
-import argparse
 import ast
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
+
+from checkout import checkout_arguments, commit_of, run_on, write_figures
 
 #: Concept -> the command-line spellings and the Python spellings looked for.
 CONCEPTS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -77,17 +76,6 @@ sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersActio
 python = inspect.signature(fit_margin_model).parameters["kind"].default
 print(json.dumps({"cli": sub.get_default("kind"), "python": python}))
 """
-
-
-def _run(root: Path, code: str) -> Any:
-    found = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        env={"PYTHONPATH": str(root / "src"), "PATH": "/usr/bin:/bin"},
-        check=False,
-    )
-    return json.loads(found.stdout) if found.returncode == 0 else None
 
 
 def _python_names(package: Path) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
@@ -150,7 +138,7 @@ def _base(spelling: str) -> str:
 def measure(root: Path) -> dict[str, Any]:
     """The spellings of every concept in the checkout ``root``."""
     package = root / "src" / "energy_margin"
-    options = _run(root, _CLI_OPTIONS) or {}
+    options = run_on(root, _CLI_OPTIONS) or {}
     visible = {option for found in options.values() for option in found}
     names, progress = _python_names(package)
     concepts: dict[str, Any] = {}
@@ -176,29 +164,23 @@ def measure(root: Path) -> dict[str, Any]:
     concepts["progress"] = {"python": sorted(progress), "names": len(progress)}
     settings = _settings_files(package)
     concepts["settings file"] = {"files": settings, "names": len(settings)}
-    learn = _run(root, _LEARN_DEFAULTS)
+    learn = run_on(root, _LEARN_DEFAULTS)
     if learn is not None:
         concepts["learned margin kind (default)"] = {**learn, "names": len({learn["cli"], learn["python"]})}
     return {"concepts": concepts, "names": sum(entry["names"] for entry in concepts.values()), "count": len(concepts)}
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1], help="the checkout")
-    parser.add_argument("--out", type=Path, help="write the figures as JSON here")
-    args = parser.parse_args()
-    root = args.root.resolve()
-    commit = subprocess.run(
-        ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=False
-    ).stdout.strip()
+    args = checkout_arguments(__doc__)
+    root = args.root
+    commit = commit_of(root)
     figures = {"commit": commit, **measure(root)}
     print(f"checkout {root} at {commit}")
     for concept, entry in figures["concepts"].items():
         detail = {key: value for key, value in entry.items() if key != "names"}
         print(f"  {concept:<32} {entry['names']} names  {json.dumps(detail, sort_keys=True)}")
     print(f"  {figures['names']} names for {figures['count']} concepts")
-    if args.out is not None:
-        args.out.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    write_figures(args.out, figures)
 
 
 if __name__ == "__main__":
