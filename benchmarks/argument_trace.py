@@ -25,26 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from checkout import checkout_arguments, commit_of, run_on, write_figures
-
-#: The stages, earliest first (tests/test_architecture.py); a module outside them is a foundation.
-STAGES = (
-    "runs",
-    "world",
-    "sim",
-    "tasks",
-    "data",
-    "planning",
-    "analysis",
-    "evaluation",
-    "robustness",
-    "learning",
-    "control",
-    "design",
-    "experiments",
-    "integrations",
-    "report",
-    "cli",
-)
+from energy_margin._stages import STAGES
 
 #: Run in the child: trace the commands and print the counts as JSON.
 _CHILD = r"""

@@ -14,29 +14,12 @@ from pathlib import Path
 import pytest
 
 import energy_margin
+from energy_margin._stages import STAGES
 
 PACKAGE = Path(energy_margin.__file__).parent
 
 #: The stages in the order data flows. Modules outside them (errors, compat, _moved, the package
 #: ``__init__``) are foundations every stage may import, and they import no stage.
-STAGES = (
-    "runs",
-    "world",
-    "sim",
-    "tasks",
-    "data",
-    "planning",
-    "analysis",
-    "evaluation",
-    "robustness",
-    "learning",
-    "control",
-    "design",
-    "experiments",
-    "integrations",
-    "report",
-    "cli",
-)
 FOUNDATIONS = (
     "energy_margin",
     "energy_margin.errors",
@@ -44,6 +27,7 @@ FOUNDATIONS = (
     "energy_margin._moved",
     "energy_margin._lazy",
     "energy_margin._renamed",
+    "energy_margin._stages",
     "energy_margin._version",
     "energy_margin.__main__",
 )
