@@ -12,14 +12,17 @@ hand. Code blocks are left out (commands and their settings, not figures).
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
-from checkout import checkout_arguments, commit_of, write_figures
+from checkout import ROOT, checkout_arguments, commit_of, write_figures
+
+sys.path.insert(0, str(ROOT / "tools"))
+from figures import MARKER, TABLE
 
 DECIMAL = re.compile(r"(?<![\w.])\d+\.\d+(?![\w.])")
 FENCE = re.compile(r"```.*?```", re.S)
-QUOTED = re.compile(r"<!-- fig .*?<!-- /fig -->|<!-- table .*?<!-- /table -->", re.S)
 PAGES = ("README.md", "docs/**/*.md")
 #: Results files themselves (written by the commands that measured them), not pages that quote them.
 RESULTS = "docs/figures/"
@@ -28,14 +31,12 @@ RESULTS = "docs/figures/"
 def page_counts(text: str) -> dict[str, int]:
     """Decimals of one page: from results files (markers, tables) and by hand."""
     text = FENCE.sub("", text)
-    quoted = sum(len(DECIMAL.findall(_shown(block))) for block in QUOTED.findall(text))
-    by_hand = len(DECIMAL.findall(QUOTED.sub("", text)))
+    # What a reader sees of a marker or a table block: its value or its rows, not its source.
+    shown = [match.group("value") for match in MARKER.finditer(text)]
+    shown += [match.group("rows") for match in TABLE.finditer(text)]
+    quoted = sum(len(DECIMAL.findall(part)) for part in shown)
+    by_hand = len(DECIMAL.findall(TABLE.sub("", MARKER.sub("", text))))
     return {"from_files": quoted, "by_hand": by_hand}
-
-
-def _shown(block: str) -> str:
-    """What a reader sees of a marker or table block: its value or rows, not its source."""
-    return block[block.index("-->") + 3 : block.rindex("<!--")]
 
 
 def measure(root: Path) -> dict[str, Any]:
