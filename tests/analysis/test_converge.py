@@ -33,7 +33,7 @@ def _field(expansions: int, nodes: int | None = None) -> CostField:
 
 def _rule(monkeypatch: pytest.MonkeyPatch, scores: list[tuple[float, float]], **kwargs: object) -> ScoresConverged:
     values = iter(scores)
-    monkeypatch.setattr("energy_margin.analysis.frame.score_field", lambda *args: next(values))
+    monkeypatch.setattr("energy_margin.analysis.convergence.score_field", lambda *args: next(values))
     return ScoresConverged(None, None, 1.0, **kwargs)  # type: ignore[arg-type]
 
 

@@ -17,12 +17,18 @@ import numpy as np
 
 from energy_margin._renamed import renamed_fields
 from energy_margin.analysis.continuation import continued_success
-from energy_margin.analysis.scores import region_score
+from energy_margin.analysis.convergence import (
+    CONVERGE_RULES,
+    EitherStop,
+    ScoresConverged,
+    field_membership,
+    frame_seeds,
+    score_field,
+)
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import (
     Constraint,
     InvalidParameterError,
-    check_choice,
     check_fields,
     constrained,
 )
@@ -31,12 +37,14 @@ from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS, make_features
 from energy_margin.planning.methods import METHODS
 from energy_margin.sim import ENGINES, Simulator
-from energy_margin.tasks import Task, TaskRegions, with_contacts
+from energy_margin.sim.base import ObjectContacts
+from energy_margin.tasks import Task, with_contacts
 from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
 
 __all__ = [
+    "ANALYSIS_MODELS",
     "CONVERGE_RULES",
     "AnalyzerConfig",
     "FrameAnalyzer",
@@ -48,8 +56,8 @@ __all__ = [
     "score_field",
 ]
 
-#: Rules of the adaptive budget (:class:`ScoresConverged`).
-CONVERGE_RULES = ("projected", "window")
+#: Models an analysis simulates (:attr:`AnalyzerConfig.analysis_model`).
+ANALYSIS_MODELS = ("pruned", "full")
 
 
 @renamed_fields(iterations="expansions")
@@ -90,6 +98,10 @@ class AnalyzerConfig:
         contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or
             ``"fast"`` (the task's fast contact model, :attr:`TaskConfig.fast_contacts`: the same
             contacts from cheaper pairs; pushing: footprint ground contacts and sphere stand-ins).
+        analysis_model: ``"pruned"``: simulate the analysis model, the frame's model less the
+            contact pairs that cannot move an object (robot self-collision; robot-world pairs
+            when the robot is held still), exact while no dropped pair touches
+            (:mod:`energy_margin.sim.analysis_model`; MuJoCo); ``"full"``: the model as it is.
         wrench_scale: factor on the task's perturbation wrench bounds (1: the task's own).
         duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
         continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
@@ -118,6 +130,7 @@ class AnalyzerConfig:
     converge_window: int = constrained(50, Constraint("int", minimum=1))
     converge_every: int = constrained(25, Constraint("int", minimum=1))
     contacts: str = constrained("recorded", Constraint("choice", choices=tuple(CONTACT_MODELS)))
+    analysis_model: str = constrained("pruned", Constraint("choice", choices=ANALYSIS_MODELS))
     wrench_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
     duration_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
     continuation: int = constrained(0, Constraint("int", minimum=0))
@@ -176,103 +189,6 @@ class FrameScores:
     physics_s: float
     rejected: int = 0
     diverged: int = 0
-
-
-def frame_seeds(seed: int, count: int) -> list[int]:
-    """Per-frame seeds spawned from ``seed``: one 64-bit integer per frame."""
-    children = np.random.SeedSequence(seed).spawn(count)
-    return [int(child.generate_state(1, np.uint64)[0]) for child in children]
-
-
-def field_membership(task: TaskRegions, root: FrameState, field: CostField) -> tuple[np.ndarray, np.ndarray]:
-    """Which nodes of a cost field are captured and which successful, each shape (M,), bool."""
-    captured = task.capture_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
-    successful = task.success_inside(root, field.object_pos, field.object_vel, field.object_quat, field.robot_q)
-    return captured, successful
-
-
-def score_field(task: TaskRegions, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
-    """Capture and success scores of a cost field (Algorithm 1, lines 4-11)."""
-    captured, successful = field_membership(task, root, field)
-    return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
-
-
-class ScoresConverged:
-    """Early-stopping rule of the adaptive budget (``AnalyzerConfig.converge``).
-
-    Called by the tree every few expansions with the cost field so far; it scores the field
-    (Algorithm 1) and keeps the history of both scores, so the decision depends only on the
-    tree, never on timing (same seed, same stopping point). Both rules look back ``window``
-    expansions and need a check at least that far back:
-
-    * ``"projected"``: stop when ``|s(n) - s(n - w)| * remaining / w <= tolerance`` for both
-      scores, ``remaining`` being the expansions the budget still allows (the accepted nodes it
-      still allows when that is fewer): the change the budget's rest would bring at the current
-      rate;
-    * ``"window"``: stop when both scores stayed within ``tolerance`` over the last ``window``.
-    """
-
-    def __init__(
-        self,
-        task: Task,
-        root: FrameState,
-        lam: float,
-        *,
-        tolerance: float,
-        window: int,
-        rule: str = "projected",
-        budget: TreeBudget | None = None,
-    ) -> None:
-        check_choice("rule", rule, CONVERGE_RULES)
-        self.task, self.root, self.lam = task, root, lam
-        self.tolerance, self.window, self.rule = tolerance, window, rule
-        self.budget = budget if budget is not None else TreeBudget()
-        self.history: list[tuple[int, float, float]] = []
-
-    def _remaining(self, field: CostField) -> int:
-        """Expansions the budget still allows after ``field`` (accepted nodes, when fewer)."""
-        remaining = self.budget.expansion_limit - field.expansions
-        if self.budget.nodes is not None:
-            remaining = min(remaining, self.budget.nodes - (field.nodes - 1))
-        return max(remaining, 0)
-
-    def __call__(self, field: CostField) -> bool:
-        """Whether growth can stop after ``field.expansions`` expansions."""
-        capture, success = score_field(self.task, self.root, field, self.lam)
-        now = field.expansions
-        self.history.append((now, capture, success))
-        earlier = [entry for entry in self.history if entry[0] <= now - self.window]
-        if not earlier:
-            return False
-        if self.rule == "projected":
-            then, capture_then, success_then = earlier[-1]
-            factor = self._remaining(field) / (now - then)
-            return bool(
-                abs(capture - capture_then) * factor <= self.tolerance
-                and abs(success - success_then) * factor <= self.tolerance
-            )
-        recent = [(c, s) for i, c, s in self.history if i >= now - self.window]
-        if len(recent) < 2:
-            return False
-        spread = np.ptp(np.array(recent), axis=0)
-        return bool(np.all(spread <= self.tolerance))
-
-
-class _EitherStop:
-    """Stop when ``first`` says so (every call) or ``periodic`` does (every ``period`` expansions)."""
-
-    def __init__(self, first: Callable[[CostField], bool], periodic: Callable[[CostField], bool], period: int) -> None:
-        self.first, self.periodic, self.period = first, periodic, period
-        self.next_check = period
-
-    def __call__(self, field: CostField) -> bool:
-        """Whether growth can stop after ``field.expansions`` expansions."""
-        if self.first(field):
-            return True
-        if field.expansions < self.next_check:
-            return False
-        self.next_check = (field.expansions // self.period + 1) * self.period
-        return self.periodic(field)
 
 
 def analyze_frame(
@@ -368,6 +284,11 @@ def _frame_simulator(
     ):
         # A simulator of the recorded scene would silently analyse the other contact model.
         raise InvalidParameterError("simulator", f"is not a simulator of the scene of contacts {config.contacts!r}")
+    if isinstance(simulator, ObjectContacts):
+        if config.analysis_model == "pruned":
+            simulator.keep_object_contacts()
+        elif getattr(simulator, "pruned_contacts", None) is not None:
+            raise InvalidParameterError("simulator", "simulates the pruned analysis model, not the 'full' one")
     return simulator
 
 
@@ -385,7 +306,7 @@ def _stopping_rule(
             rule=config.converge_rule,
             budget=config.budget,
         )
-        stop = converged if stop is None else _EitherStop(stop, converged, config.converge_every)
+        stop = converged if stop is None else EitherStop(stop, converged, config.converge_every)
     return stop
 
 

@@ -61,7 +61,7 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
 
 # Analyzer settings added after the first release take their defaults in an analysis.json without
 # them (:func:`_comparable`), except these, whose behaviour before is not the new default.
-_EARLIER_BEHAVIOUR = {"converge_rule": "window"}
+_EARLIER_BEHAVIOUR = {"converge_rule": "window", "analysis_model": "full"}
 
 
 def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from energy_margin.analysis.executors import EXECUTORS
-from energy_margin.analysis.frame import CONVERGE_RULES, AnalyzerConfig
+from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, AnalyzerConfig
 from energy_margin.cli.common import (
     add_engine,
     add_old_spelling,
@@ -78,6 +78,7 @@ TREE_ONLY = {
     "converge": "--converge",
     "converge_rule": "--converge-rule",
     "contacts": "--contacts",
+    "analysis_model": "--analysis-model",
     "projection": "--projection",
     "continuation": "--continuation",
     "continuation_horizon": "--continuation-horizon",
@@ -216,6 +217,14 @@ def _add_growth(parser: argparse.ArgumentParser) -> None:
         "contact per cylinder and sphere stand-ins for the lateral pairs; the same contacts, cheaper)",
     )
     parser.add_argument(
+        "--analysis-model",
+        choices=ANALYSIS_MODELS,
+        default=default("analysis_model"),
+        help="pruned (default): simulate the model less the contact pairs that cannot move an object (robot "
+        "self-collision; robot-world pairs for a robot held still), exact while no dropped pair touches; full: "
+        "the model as it is",
+    )
+    parser.add_argument(
         "--projection",
         choices=PROJECTIONS,
         default=default("projection"),
@@ -272,6 +281,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         converge=args.converge,
         converge_rule=args.converge_rule,
         contacts=args.contacts,
+        analysis_model=args.analysis_model,
         continuation=args.continuation,
         continuation_horizon=args.continuation_horizon,
     )

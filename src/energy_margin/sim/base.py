@@ -10,7 +10,9 @@ typed as it (or says clearly which capability is missing):
 * :class:`ModelCommands`: the actuator controls and mocap poses of a MuJoCo model
   (:class:`ModelCommand`);
 * :class:`CompiledModel`: the compiled ``mujoco.MjModel`` and its ``mujoco.MjData``;
-* :class:`ReleasableStates`: engine memory behind saved states, freed by :func:`release_states`.
+* :class:`ReleasableStates`: engine memory behind saved states, freed by :func:`release_states`;
+* :class:`ObjectContacts`: the analysis model, whose contacts are only those that can move an
+  object (:mod:`energy_margin.sim.analysis_model`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ __all__ = [
     "MissingCapabilityError",
     "ModelCommand",
     "ModelCommands",
+    "ObjectContacts",
     "Propagator",
     "ReleasableStates",
     "Simulator",
@@ -278,6 +281,19 @@ class ReleasableStates(Protocol):
         ...
 
 
+@runtime_checkable
+class ObjectContacts(Protocol):
+    """Capability: simulate the analysis model, whose contacts are only those that can move an object."""
+
+    def keep_object_contacts(self) -> Any:
+        """Drop the other contact pairs from the simulator's model, once.
+
+        Robot self-collision, and robot-world pairs when the robot is held still; later calls
+        return the first result (a :class:`~energy_margin.sim.analysis_model.PrunedContacts`).
+        """
+        ...
+
+
 _MUJOCO = ": use the 'mujoco' engine"
 #: What each capability gives, its members and a hint, for :func:`require`'s message.
 _CAPABILITIES: dict[type, tuple[str, tuple[str, ...], str]] = {
@@ -285,6 +301,7 @@ _CAPABILITIES: dict[type, tuple[str, tuple[str, ...], str]] = {
     ModelCommands: ("MuJoCo model commands", ("set_model_command",), _MUJOCO),
     CompiledModel: ("a compiled MuJoCo model", ("model", "data"), _MUJOCO),
     ReleasableStates: ("releasable states", ("release_states",), ""),
+    ObjectContacts: ("the analysis model", ("keep_object_contacts",), _MUJOCO),
 }
 
 C = TypeVar("C")

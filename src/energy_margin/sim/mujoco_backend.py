@@ -16,6 +16,7 @@ import numpy as np
 
 from energy_margin.compat import contact_depths
 from energy_margin.errors import InvalidParameterError
+from energy_margin.sim.analysis_model import PrunedContacts, keep_object_contacts
 from energy_margin.sim.base import ModelCommand
 from energy_margin.sim.mujoco_index import (
     ModelIndex,
@@ -80,6 +81,21 @@ class MujocoSimulator:
             self._spin_dof[index.yaw_rate_index] = spinning
         self._has_spin_friction = bool(self._spin_dof.any())
         self._pyramid = np.arange(4)
+        self.pruned_contacts: PrunedContacts | None = None
+
+    def keep_object_contacts(self) -> PrunedContacts:
+        """Simulate the analysis model from now on (:mod:`energy_margin.sim.analysis_model`).
+
+        The model's contact masks are rewritten once; later calls return the first result.
+        """
+        if self.pruned_contacts is None:
+            self.pruned_contacts = keep_object_contacts(self.model, self._geom_is_object, robot_still=self._robot_still)
+        return self.pruned_contacts
+
+    @property
+    def _robot_still(self) -> bool:
+        """Whether the robot is held still during a propagation (not for generated scenes)."""
+        return False
 
     @property
     def n_robot_dofs(self) -> int:

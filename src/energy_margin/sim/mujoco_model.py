@@ -67,6 +67,11 @@ class MujocoModelSimulator(MujocoSimulator):
             model.dof_armature[index.robot_qvel] = STILL_ARMATURE
 
     @property
+    def _robot_still(self) -> bool:
+        """Whether the robot is held still during a propagation (``still=True``)."""
+        return self.still
+
+    @property
     def n_robot_dofs(self) -> int:
         """Robot joints plus seven coordinates per mocap body."""
         return int(self.index.robot_qpos.size) + 7 * self._n_mocap
