@@ -9,11 +9,14 @@ Usage::
 
 For each generation seed a dataset is generated, then every frame's tree is grown once to
 ``--max-expansions`` with the frame's own seed (``analyze``'s per-frame seeds for
-``--analysis-seed``). Every 10 expansions both scores of the tree so far are recorded with the
+``--analysis-seed``). Every 5 expansions both scores of the tree so far are recorded with the
 growth time up to there (the time spent recording is left out; the final scoring of a frame is
-timed once and added to every budget). A tree grown with a budget of n expansions is the first n
-expansions of the longer one (the same controls from the same seed), so the scores at n are
-those ``analyze --expansions n`` gives: checked on the first frame of every set.
+timed once and added to every budget). The tree at n expansions is a tree of n expansions, grown
+with the random stream of the whole budget: the controls are drawn in blocks whose size the
+budget sets, so its scores are those of ``analyze --expansions n`` in distribution, not to the
+bit; every budget is compared with 300 expansions on the same trees (paired). That recording
+leaves the tree as it is is checked on the first frame of every set (its scores at the whole
+budget are ``analyze``'s).
 
 It prints and writes, per set and budget, the AP of ``evaluate``'s questions (capture k̂ = 0 and
 2, success from the last 3 frames and from the first half, linear weights) and the mean seconds per
@@ -21,9 +24,9 @@ frame; the budgets' AP against 300 expansions; and the replay of the adaptive bu
 (``--converge TOL``, projected and window, checks every 25 expansions) on the same traces, and
 of the projected rule on the scores' logit, which counts a move of a score near 0 or 1 as much as
 one near 0.5 (a candidate for near-certain frames, not an ``analyze`` option).
-The first seed's sets choose (``choose``), the others check (``check``): the cheapest budget that
-holds every AP within 0.01 of 300 expansions on the choosing sets is reported with its AP change
-on the checking ones.
+The first ``--choose`` seeds' sets choose, the others check: the cheapest budget that holds every
+AP within 0.01 of 300 expansions on every choosing set is reported with its AP change on the
+checking ones.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ __all__: list[str] = []
 
 BUDGETS = (10, 20, 30, 50, 100, 150, 200, 300, 500, 1000)
 REFERENCE = 300
-STEP = 10
+STEP = 5
 QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
 TOLERANCE = 0.01
 #: Replayed stopping rules and their tolerances: ``analyze --converge TOL --converge-rule RULE``,
@@ -170,7 +173,7 @@ def measure_set(args: argparse.Namespace, seed: int, workdir: Path) -> dict[str,
     with multiprocessing.get_context("spawn").Pool(args.workers, initializer=_init, initargs=(str(out),)) as pool:
         traces = pool.map(_trace_frame, jobs, chunksize=1)
     _init(str(out))
-    # The prefix property: the 300-expansion score of the first frame is analyze's.
+    # Recording never changes the tree: the last row is what analyze gives at the whole budget.
     first = traces[0]
     direct, _ = analyze_frame(
         dataset.task,
@@ -178,11 +181,11 @@ def measure_set(args: argparse.Namespace, seed: int, workdir: Path) -> dict[str,
         friction=float(dataset.arrays["friction"][0]),
         drive=dataset.arrays["drive"][0],
         seed=seeds[0],
-        config=AnalyzerConfig(expansions=REFERENCE, method=args.method),
+        config=AnalyzerConfig(expansions=args.max_expansions, method=args.method),
         start_time=float(dataset.arrays["frame_time"][0, 0]),
     )
-    if _at(first["rows"], REFERENCE)[:2] != (direct.capture_score, direct.success_score):
-        raise SystemExit(f"set {seed}: the trace at {REFERENCE} expansions is not analyze's score")
+    if tuple(first["rows"][-1][1:3]) != (direct.capture_score, direct.success_score):
+        raise SystemExit(f"set {seed}: the traced tree's scores are not analyze's at {args.max_expansions} expansions")
     shape = (dataset.n_trajectories, dataset.n_frames)
     budgets = []
     for budget in [b for b in BUDGETS if b <= args.max_expansions]:
@@ -223,12 +226,14 @@ def holds(row: dict[str, Any], reference: dict[str, Any]) -> bool:
     )
 
 
-def choose(sets: list[dict[str, Any]]) -> dict[str, Any]:
+def choose(sets: list[dict[str, Any]], n_choosing: int) -> dict[str, Any]:
     """The cheapest budget holding every AP on every choosing set, and what it does on the checking sets."""
-    choosing, checking = sets[:1], sets[1:]
+    choosing, checking = sets[:n_choosing], sets[n_choosing:]
 
     def reference(entry: dict[str, Any]) -> dict[str, Any]:
-        return next(row for row in entry["budgets"] if row["expansions"] == REFERENCE)
+        # 300 expansions, or the largest budget traced when that is fewer.
+        budget = min(REFERENCE, max(row["expansions"] for row in entry["budgets"]))
+        return next(row for row in entry["budgets"] if row["expansions"] == budget)
 
     chosen = REFERENCE
     for budget in sorted(row["expansions"] for row in choosing[0]["budgets"]):
@@ -289,12 +294,42 @@ def plot(document: dict[str, Any], path: Path, title: str) -> None:
     figure.savefig(path, dpi=110)
 
 
+def summary(sets: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per budget and per rule over the sets: mean time, mean AP and the worst AP change against 300 expansions."""
+    rows: list[dict[str, Any]] = []
+    labels = [("budget", str(row["expansions"])) for row in sets[0]["budgets"]]
+    labels += [("rule", f"{row['rule']} {row['tolerance']}") for row in sets[0]["rules"]]
+    for kind, label in labels:
+        found = []
+        for entry in sets:
+            budgets = {str(row["expansions"]): row for row in entry["budgets"]}
+            rules = {f"{row['rule']} {row['tolerance']}": row for row in entry["rules"]}
+            reference = budgets[str(min(REFERENCE, max(row["expansions"] for row in entry["budgets"])))]
+            found.append(((budgets if kind == "budget" else rules)[label], reference))
+        row: dict[str, Any] = {
+            "setting": label if kind == "rule" else f"{label} expansions",
+            "mean_expansions": float(np.mean([r.get("mean_expansions", r.get("expansions")) for r, _ in found])),
+            "seconds_per_frame": float(np.mean([r["seconds_per_frame"] for r, _ in found])),
+        }
+        for key in QUESTIONS:
+            pairs = [(r[key], ref[key]) for r, ref in found if r[key] is not None and ref[key] is not None]
+            row[key] = float(np.mean([value for value, _ in pairs])) if pairs else None
+            row[f"{key}_worst_change"] = min(value - ref for value, ref in pairs) if pairs else None
+        worst = [row[f"{key}_worst_change"] for key in QUESTIONS if row[f"{key}_worst_change"] is not None]
+        row["worst_change"] = min(worst) if worst else None
+        rows.append(row)
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="pushing")
     parser.add_argument("--scene", help="a scene file instead of a built-in task")
     parser.add_argument("--objects", type=int, default=10)
-    parser.add_argument("--seeds", type=int, nargs="+", required=True, help="generation seeds: the first chooses")
+    parser.add_argument(
+        "--seeds", type=int, nargs="+", required=True, help="generation seeds: the first --choose choose"
+    )
+    parser.add_argument("--choose", type=int, default=1, help="how many of the seeds' sets choose the budget")
     parser.add_argument("--trajectories", type=int, default=10)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--method", default="est")
@@ -310,33 +345,58 @@ def main() -> None:
         f"load average {os.getloadavg()[0]:.2f} before"
     )
     print(f"machine: {machine}", flush=True)
+    settings = {key: value for key, value in vars(args).items() if key not in ("out", "figure")}
+    sets = _done_sets(args.out, settings)
     with tempfile.TemporaryDirectory() as workdir:
-        sets = []
         for seed in args.seeds:
-            sets.append(measure_set(args, seed, Path(workdir)))
-            entry = sets[-1]
-            print(f"\nset {seed} ({entry['n_frames']} frames), {args.method}:")
-            print("| expansions | s / frame | capture k̂ = 0 | capture k̂ = 2 | success, last 3 | success, first half |")
-            print("|---:|---:|---:|---:|---:|---:|")
-            for row in entry["budgets"] + entry["rules"]:
-                label = row.get("expansions") or f"{row['rule']} {row['tolerance']} ({row['mean_expansions']:.0f})"
-                cells = " | ".join("–" if row[key] is None else f"{row[key]:.3f}" for key in QUESTIONS)
-                print(f"| {label} | {row['seconds_per_frame']:.3f} | {cells} |", flush=True)
-    chosen = choose(sets) if len(sets) > 1 else None
+            entry = next((done for done in sets if done["seed"] == seed), None)
+            if entry is None:
+                entry = measure_set(args, seed, Path(workdir))
+                sets.append(entry)
+                # Written after every set: an interrupted run resumes with the sets it finished.
+                _write(args.out, {"machine": machine, "settings": settings, "sets": sets, "choice": None})
+            _print_set(entry, args.method)
+    chosen = choose(sets, args.choose) if len(sets) > args.choose else None
     if chosen:
         print(
-            f"\ncheapest budget holding every AP within {TOLERANCE} of {REFERENCE} on set {args.seeds[0]}: "
-            f"{chosen['chosen_expansions']}; on the checking sets: {chosen['checks']}"
+            f"\ncheapest budget holding every AP within {TOLERANCE} of {REFERENCE} on sets "
+            f"{args.seeds[: args.choose]}: {chosen['chosen_expansions']}; on the checking sets: {chosen['checks']}"
         )
-    if args.out:
-        settings = {key: getattr(args, key) for key in vars(args) if key != "out"}
-        document = {"machine": machine, "settings": settings, "sets": sets, "choice": chosen}
-        args.out.write_text(json.dumps(document, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    document = {"machine": machine, "settings": settings, "sets": sets, "choice": chosen, "summary": summary(sets)}
+    _write(args.out, document)
     if args.figure:
         name = Path(args.scene).stem if args.scene else f"{args.task}, {args.objects} objects"
         plot({"sets": sets}, args.figure, f"{name} ({args.method})")
         print(f"wrote {args.figure}")
+
+
+def _done_sets(path: Path | None, settings: dict[str, Any]) -> list[dict[str, Any]]:
+    """The sets an earlier run with the same settings (but the seeds) wrote to ``path``."""
+    if path is None or not path.exists():
+        return []
+    earlier = json.loads(path.read_text())
+    same = {key: value for key, value in earlier.get("settings", {}).items() if key not in ("seeds", "choose")}
+    if same != {key: value for key, value in settings.items() if key not in ("seeds", "choose")}:
+        raise SystemExit(f"{path} holds a run with other settings: give another --out or remove it")
+    return [entry for entry in earlier["sets"] if entry["seed"] in settings["seeds"]]
+
+
+def _write(path: Path | None, document: dict[str, Any]) -> None:
+    if path is None:
+        return
+    partial = path.with_suffix(".partial")
+    partial.write_text(json.dumps(document, indent=2) + "\n")
+    partial.replace(path)
+
+
+def _print_set(entry: dict[str, Any], method: str) -> None:
+    print(f"\nset {entry['seed']} ({entry['n_frames']} frames), {method}:")
+    print("| expansions | s / frame | capture k̂ = 0 | capture k̂ = 2 | success, last 3 | success, first half |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for row in entry["budgets"] + entry["rules"]:
+        label = row.get("expansions") or f"{row['rule']} {row['tolerance']} ({row['mean_expansions']:.0f})"
+        cells = " | ".join("–" if row[key] is None else f"{row[key]:.3f}" for key in QUESTIONS)
+        print(f"| {label} | {row['seconds_per_frame']:.3f} | {cells} |", flush=True)
 
 
 if __name__ == "__main__":
