@@ -7,6 +7,10 @@ Usage::
         [--out docs/figures/time_to_ap_pushing.json]
     python benchmarks/time_to_ap.py --scene examples/pushing/pushing.toml --seeds 61 62 ...
 
+EST and RRT only: Monte Carlo lays its roll-outs out by the whole budget (N / L roll-outs grown
+layer by layer), so its first n expansions are not a tree of n expansions (``energy-margin budget``
+analyses each budget of it apart).
+
 For each generation seed a dataset is generated, then every frame's tree is grown once to
 ``--max-expansions`` with the frame's own seed (``analyze``'s per-frame seeds for
 ``--analysis-seed``). Every 5 expansions both scores of the tree so far are recorded with the
@@ -332,7 +336,9 @@ def main() -> None:
     parser.add_argument("--choose", type=int, default=1, help="how many of the seeds' sets choose the budget")
     parser.add_argument("--trajectories", type=int, default=10)
     parser.add_argument("--frames", type=int, default=10)
-    parser.add_argument("--method", default="est")
+    # Monte Carlo lays its roll-outs out by the whole budget (N / L roll-outs, grown layer by
+    # layer), so its first n expansions are not a tree of n expansions: it is not traced.
+    parser.add_argument("--method", default="est", choices=("est", "rrt"))
     parser.add_argument("--max-expansions", type=int, default=1000)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--analysis-seed", type=int, default=0)
