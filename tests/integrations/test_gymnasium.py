@@ -289,3 +289,23 @@ def test_a_calibration_adds_the_alarm(tmp_path: Path) -> None:
         seen += [wrapper.step(action)[4]["energy_margin"]["alarm"] for action in actions(2)]
         assert seen == expected
     assert "alarm" not in wrapped(every=1, max_expansions=3).reset(seed=0)[1]["energy_margin"]
+
+
+@pytest.mark.parametrize("hold", ["action", "still"])
+def test_live_calls_simulate_the_analysis_model_and_score_as_the_full_one(hold: str) -> None:
+    from energy_margin.analysis.frame import AnalyzerConfig
+
+    scores = {}
+    for model in ("pruned", "full"):
+        wrapper = wrapped(hold=hold, config=AnalyzerConfig(analysis_model=model))
+        wrapper.reset(seed=2)
+        margins = [wrapper.step(action)[4]["energy_margin"] for action in actions(3)]
+        scores[model] = [(m["capture_score"], m["success_score"], m["nodes"]) for m in margins]
+        report = wrapper.scorer.simulator.pruned_contacts
+        if model == "full":
+            assert report is None
+        else:
+            # The arm's links no longer test against each other (nor, held still, against the table).
+            assert report.applied and report.robot_geoms > 0 and report.robot_still == (hold == "still")
+    # The arm touches itself nowhere in these trees: the same scores to the last bit.
+    assert scores["pruned"] == scores["full"]
