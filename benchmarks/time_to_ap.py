@@ -25,9 +25,10 @@ budget are ``analyze``'s).
 It prints and writes, per set and budget, the AP of ``evaluate``'s questions (capture k̂ = 0 and
 2, success from the last 3 frames and from the first half, linear weights) and the mean seconds per
 frame; the budgets' AP against 300 expansions; and the replay of the adaptive budget's rules
-(``--converge TOL``, projected and window, checks every 25 expansions) on the same traces, and
-of the projected rule on the scores' logit, which counts a move of a score near 0 or 1 as much as
-one near 0.5 (a candidate for near-certain frames, not an ``analyze`` option).
+(``--converge TOL``, projected and window, decided by ``analyze``'s own rule every 25 expansions)
+on the same traces, and of the projected rule on the scores' logit, which counts a move of a
+score near 0 or 1 as much as one near 0.5 (a candidate for near-certain frames, not an
+``analyze`` option).
 The first ``--choose`` seeds' sets choose, the others check: the cheapest budget that holds every
 AP within 0.01 of 300 expansions on every choosing set is reported with its AP change on the
 checking ones.
@@ -48,7 +49,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from energy_margin.analysis.convergence import frame_seeds, score_field
+from energy_margin.analysis.convergence import frame_seeds, score_field, scores_settled
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
@@ -124,23 +125,24 @@ def _at(rows: list[tuple[int, float, float, float]], budget: int) -> tuple[float
 
 
 def _replay(rows: list[tuple[int, float, float, float]], rule: str, tolerance: float, budget: int) -> int:
-    """Expansions at which the adaptive budget's rule stops (checks every 25, window 50)."""
-    history = [row for row in rows if row[0] % 25 == 0 and row[0] <= budget]
-    for i, (now, capture, success, _) in enumerate(history):
-        earlier = [entry for entry in history[: i + 1] if entry[0] <= now - 50]
-        if not earlier:
-            continue
-        if rule in ("projected", "projected-logit"):
-            then, capture_then, success_then, _ = earlier[-1]
-            factor = (budget - now) / (now - then)
-            scale = _logit if rule == "projected-logit" else float
-            moves = (abs(scale(capture) - scale(capture_then)), abs(scale(success) - scale(success_then)))
-            if max(moves) * factor <= tolerance:
-                return now
-        else:
-            recent = np.array([(c, s) for n, c, s, _ in history[: i + 1] if n >= now - 50])
-            if len(recent) >= 2 and np.all(np.ptp(recent, axis=0) <= tolerance):
-                return now
+    """Expansions at which the adaptive budget's rule stops, checked as ``analyze --converge`` checks it."""
+    defaults = AnalyzerConfig()
+    scale = _logit if rule == "projected-logit" else float
+    history = [
+        (n, scale(capture), scale(success))
+        for n, capture, success, _ in rows
+        if n % defaults.converge_every == 0 and n <= budget
+    ]
+    for i, (now, _, _) in enumerate(history):
+        settled = scores_settled(
+            history[: i + 1],
+            remaining=budget - now,
+            tolerance=tolerance,
+            window=defaults.converge_window,
+            rule="projected" if rule == "projected-logit" else rule,
+        )
+        if settled:
+            return now
     return budget
 
 

@@ -7,7 +7,7 @@ caller's own rule (a wall-clock deadline). :func:`frame_seeds` spawns the per-fr
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -24,6 +24,7 @@ __all__ = [
     "field_membership",
     "frame_seeds",
     "score_field",
+    "scores_settled",
 ]
 
 #: Rules of the adaptive budget (:class:`ScoresConverged`).
@@ -91,23 +92,40 @@ class ScoresConverged:
     def __call__(self, field: CostField) -> bool:
         """Whether growth can stop after ``field.expansions`` expansions."""
         capture, success = score_field(self.task, self.root, field, self.lam)
-        now = field.expansions
-        self.history.append((now, capture, success))
-        earlier = [entry for entry in self.history if entry[0] <= now - self.window]
-        if not earlier:
-            return False
-        if self.rule == "projected":
-            then, capture_then, success_then = earlier[-1]
-            factor = self._remaining(field) / (now - then)
-            return bool(
-                abs(capture - capture_then) * factor <= self.tolerance
-                and abs(success - success_then) * factor <= self.tolerance
-            )
-        recent = [(c, s) for i, c, s in self.history if i >= now - self.window]
-        if len(recent) < 2:
-            return False
-        spread = np.ptp(np.array(recent), axis=0)
-        return bool(np.all(spread <= self.tolerance))
+        self.history.append((field.expansions, capture, success))
+        return scores_settled(
+            self.history, remaining=self._remaining(field), tolerance=self.tolerance, window=self.window, rule=self.rule
+        )
+
+
+def scores_settled(
+    history: Sequence[tuple[int, float, float]], *, remaining: int, tolerance: float, window: int, rule: str
+) -> bool:
+    """The decision of :class:`ScoresConverged` after the last entry of ``history``.
+
+    Args:
+        history: ``(expansions, capture score, success score)`` at every check so far, in order.
+        remaining: expansions the budget still allows after the last check.
+        tolerance: the score tolerance.
+        window: expansions the rule looks back over.
+        rule: ``"projected"`` or ``"window"`` (see :class:`ScoresConverged`).
+
+    """
+    now, capture, success = history[-1]
+    earlier = [entry for entry in history if entry[0] <= now - window]
+    if not earlier:
+        return False
+    if rule == "projected":
+        then, capture_then, success_then = earlier[-1]
+        factor = remaining / (now - then)
+        return bool(
+            abs(capture - capture_then) * factor <= tolerance and abs(success - success_then) * factor <= tolerance
+        )
+    recent = [(c, s) for i, c, s in history if i >= now - window]
+    if len(recent) < 2:
+        return False
+    spread = np.ptp(np.array(recent), axis=0)
+    return bool(np.all(spread <= tolerance))
 
 
 class EitherStop:
