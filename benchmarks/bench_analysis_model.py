@@ -22,20 +22,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
-
-import mujoco
-import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
 from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.tasks import get_task
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
 
 __all__: list[str] = []
 
@@ -77,7 +77,8 @@ def measure_scene(scene: str, args: argparse.Namespace, workdir: Path) -> dict[s
                 times[model].append(result.runtime_s)
                 scores[model] = (result.capture_score, result.success_score)
             same += scores["full"] == scores["pruned"]
-        report = simulators["pruned"].pruned_contacts  # type: ignore[attr-defined]
+        report = simulators["pruned"].pruned_contacts
+    assert report is not None  # every frame's pruned simulator was built and pruned
     full, pruned = statistics.mean(times["full"]), statistics.mean(times["pruned"])
     return {
         "scene": scene,
@@ -104,11 +105,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
-    machine = (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
-        f"Python {platform.python_version()}, MuJoCo {mujoco.__version__}, NumPy {np.__version__}; "
-        f"load average {os.getloadavg()[0]:.2f} before"
-    )
+    machine = f"{describe_machine()}; load average {os.getloadavg()[0]:.2f} before"
     print(f"machine: {machine}")
     rows = []
     with tempfile.TemporaryDirectory() as workdir:

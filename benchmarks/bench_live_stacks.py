@@ -26,7 +26,6 @@ import argparse
 import importlib.util
 import json
 import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -34,10 +33,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
 
 __all__: list[str] = []
 
@@ -78,7 +79,8 @@ def robosuite_stack(seed: int, steps: int, workdir: Path) -> tuple[Callable[[], 
         return GymWrapper(env)
 
     def actor(_: Any) -> Any:
-        return policy.ScriptedPickPlace(envs[0], np.random.default_rng(seed), target="Can")
+        script = policy.ScriptedPickPlace(envs[0], np.random.default_rng(seed), target="Can")
+        return lambda observation: script()  # the script reads the first environment's state
 
     return make, actor, {"scene": scene, "hold": "still"}
 
@@ -95,14 +97,7 @@ def metaworld_stack(seed: int, steps: int, workdir: Path) -> tuple[Callable[[], 
         return gymnasium.make("Meta-World/MT1", env_name="push-v3", seed=seed)
 
     def actor(env: Any) -> Any:
-        expert = SawyerPushV3Policy()
-        last: dict[str, Any] = {}
-
-        def act() -> Any:
-            return expert.get_action(last["observation"])
-
-        act.last = last  # type: ignore[attr-defined]
-        return act
+        return SawyerPushV3Policy().get_action
 
     kwargs = {
         "objects": "obj",
@@ -123,7 +118,7 @@ def pusher_stack(seed: int, steps: int, workdir: Path) -> tuple[Callable[[], Any
 
     def actor(env: Any) -> Any:
         rng = np.random.default_rng(seed)
-        return lambda: rng.uniform(-1.0, 1.0, size=env.action_space.shape)
+        return lambda observation: rng.uniform(-1.0, 1.0, size=env.action_space.shape)
 
     kwargs = {
         "objects": "object",
@@ -151,9 +146,7 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     reached: dict[str, list[int]] = {name: [] for name in VARIANTS}
     seconds: dict[str, list[float]] = {name: [] for name in VARIANTS}
     for _ in range(args.steps):
-        if hasattr(act, "last"):
-            act.last["observation"] = observations[0]
-        action = act()
+        action = act(observations[0])
         observations = []
         for name, wrapper in wrappers.items():
             observation, _, terminated, truncated, info = wrapper.step(action)
@@ -187,11 +180,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args()
-    machine = (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
-        f"Python {platform.python_version()}, MuJoCo {mujoco.__version__}, NumPy {np.__version__}; "
-        f"load average {os.getloadavg()[0]:.2f} before"
-    )
+    machine = f"{describe_machine()}; load average {os.getloadavg()[0]:.2f} before"
     print(f"machine: {machine}")
     with tempfile.TemporaryDirectory() as workdir:
         results = measure(args, Path(workdir))

@@ -40,13 +40,12 @@ import argparse
 import json
 import multiprocessing
 import os
-import platform
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from energy_margin.analysis.convergence import frame_seeds, score_field, scores_settled
@@ -56,6 +55,9 @@ from energy_margin.data.generate import generate_dataset
 from energy_margin.evaluation.metrics import _questions
 from energy_margin.planning import CostField
 from energy_margin.tasks import get_task
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
 
 __all__: list[str] = []
 
@@ -347,11 +349,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path)
     parser.add_argument("--figure", type=Path, help="a PNG of AP against time per frame")
     args = parser.parse_args()
-    machine = (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
-        f"Python {platform.python_version()}, MuJoCo {mujoco.__version__}, NumPy {np.__version__}; "
-        f"load average {os.getloadavg()[0]:.2f} before"
-    )
+    machine = f"{describe_machine()}; load average {os.getloadavg()[0]:.2f} before"
     print(f"machine: {machine}", flush=True)
     settings = {key: value for key, value in vars(args).items() if key not in ("out", "figure")}
     sets = _done_sets(args.out, settings)
