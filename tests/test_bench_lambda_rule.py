@@ -2,24 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from bench_modules import load_benchmark
 from energy_margin.analysis.scores import likelihood
-
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "lambda_rule.py"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("lambda_rule", PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("lambda_rule")
 
 
 def fields(scale: float = 1.0) -> list[dict[str, np.ndarray]]:

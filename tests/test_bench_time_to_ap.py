@@ -2,25 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from bench_modules import load_benchmark
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.tasks import get_task
-
-PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "time_to_ap.py"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("time_to_ap", PATH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("time_to_ap")
 
 
 class _Dataset:

@@ -65,6 +65,42 @@ region = { type = "all", of = [
 """
 
 
+# An arm swept by a motor about a base at ``height``: its link pushes a box across the ground; two
+# slide fingers on the link can close onto each other (robot self-contact). With the default height
+# the link rests clear of the ground; a lower one lays it on the ground.
+SWEEPING_ARM = """<mujoco>
+  <option timestep="{timestep}"/>
+  <worldbody>
+    <geom name="ground" type="plane" size="2 2 0.1"/>
+    <body name="base" pos="0 0 {height}">
+      <joint name="shoulder" type="hinge" axis="0 0 1" damping="0.1"/>
+      <geom name="link" type="capsule" fromto="0 0 0 0.4 0 0" size="0.02" mass="0.5"/>
+      <site name="tip" pos="0.4 0 0"/>
+      <body name="left" pos="0.45 0.03 0">
+        <joint name="left" type="slide" axis="0 1 0" range="-0.05 0.05"/>
+        <geom name="left" type="box" size="0.01 0.01 0.01" mass="0.05"/>
+      </body>
+      <body name="right" pos="0.45 -0.03 0">
+        <joint name="right" type="slide" axis="0 1 0" range="-0.05 0.05"/>
+        <geom name="right" type="box" size="0.01 0.01 0.01" mass="0.05"/>
+      </body>
+    </body>
+    <body name="box" pos="0.3 0.12 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.2"/></body>
+  </worldbody>
+  <actuator>
+    <motor joint="shoulder" gear="1"/>
+    <position joint="left" kp="50"/>
+    <position joint="right" kp="50"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def sweeping_arm(*, height: float = 0.05, timestep: float = 0.002) -> str:
+    """The MJCF of :data:`SWEEPING_ARM` with its base at ``height`` (m) and its time step (s)."""
+    return SWEEPING_ARM.format(height=height, timestep=timestep)
+
+
 def write_tiny_scene(directory: Path, scene: str = TINY_SCENE, model: str = TINY_MODEL) -> Path:
     """Write the tiny model and scene file into ``directory``; return the scene file's path."""
     directory.mkdir(parents=True, exist_ok=True)

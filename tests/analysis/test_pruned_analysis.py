@@ -9,33 +9,7 @@ from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.cli.analyze import add_arguments, analyzer_config
 from energy_margin.errors import InvalidParameterError
 from energy_margin.tasks import get_task
-
-ARM = """<mujoco>
-  <option timestep="0.004"/>
-  <worldbody>
-    <geom name="ground" type="plane" size="2 2 0.1"/>
-    <body name="base" pos="0 0 0.05">
-      <joint name="shoulder" type="hinge" axis="0 0 1" damping="0.1"/>
-      <geom name="link" type="capsule" fromto="0 0 0 0.4 0 0" size="0.02" mass="0.5"/>
-      <site name="tip" pos="0.4 0 0"/>
-      <body name="left" pos="0.45 0.03 0">
-        <joint name="left" type="slide" axis="0 1 0" range="-0.05 0.05"/>
-        <geom name="left" type="box" size="0.01 0.01 0.01" mass="0.05"/>
-      </body>
-      <body name="right" pos="0.45 -0.03 0">
-        <joint name="right" type="slide" axis="0 1 0" range="-0.05 0.05"/>
-        <geom name="right" type="box" size="0.01 0.01 0.01" mass="0.05"/>
-      </body>
-    </body>
-    <body name="box" pos="0.3 0.12 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.2"/></body>
-  </worldbody>
-  <actuator>
-    <motor joint="shoulder" gear="1"/>
-    <position joint="left" kp="50"/>
-    <position joint="right" kp="50"/>
-  </actuator>
-</mujoco>
-"""
+from tiny_scene import sweeping_arm
 
 SCENE = """schema_version = 1
 mjcf = "model.xml"
@@ -62,7 +36,7 @@ region = { type = "box", center = [0.0, 0.4, 0.03], half_size = [0.2, 0.2, 0.1] 
 @pytest.fixture(scope="module")
 def arm_task(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
     directory = tmp_path_factory.mktemp("arm")
-    (directory / "model.xml").write_text(ARM)
+    (directory / "model.xml").write_text(sweeping_arm(timestep=0.004))
     (directory / "scene.toml").write_text(SCENE)
     task = get_task("scene", {"scene_file": str(directory / "scene.toml")})
     return task, task.sample_trajectory(np.random.default_rng(0), 1)

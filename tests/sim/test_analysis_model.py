@@ -10,39 +10,11 @@ import numpy as np
 import pytest
 
 from energy_margin.sim.analysis_model import keep_object_contacts
-
-# An arm swept by a motor about a static base: its link pushes a box across the ground; two
-# slide fingers on the link can close onto each other (robot self-contact). The link rests clear
-# of the ground unless ``drop`` lowers it.
-ARM = """<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <geom name="ground" type="plane" size="2 2 0.1"/>
-    <body name="base" pos="0 0 {height}">
-      <joint name="shoulder" type="hinge" axis="0 0 1" damping="0.1"/>
-      <geom name="link" type="capsule" fromto="0 0 0 0.4 0 0" size="0.02" mass="0.5"/>
-      <body name="left" pos="0.45 0.03 0">
-        <joint name="left" type="slide" axis="0 1 0" range="-0.05 0.05"/>
-        <geom name="left" type="box" size="0.01 0.01 0.01" mass="0.05"/>
-      </body>
-      <body name="right" pos="0.45 -0.03 0">
-        <joint name="right" type="slide" axis="0 1 0" range="-0.05 0.05"/>
-        <geom name="right" type="box" size="0.01 0.01 0.01" mass="0.05"/>
-      </body>
-    </body>
-    <body name="box" pos="0.3 0.12 0.03"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.2"/></body>
-  </worldbody>
-  <actuator>
-    <motor joint="shoulder" gear="1"/>
-    <position joint="left" kp="50"/>
-    <position joint="right" kp="50"/>
-  </actuator>
-</mujoco>
-"""
+from tiny_scene import sweeping_arm
 
 
 def _arm(height: float = 0.05) -> tuple[mujoco.MjModel, np.ndarray]:
-    model = mujoco.MjModel.from_xml_string(ARM.format(height=height))
+    model = mujoco.MjModel.from_xml_string(sweeping_arm(height=height))
     box = model.body("box").id
     return model, model.geom_bodyid == box
 
