@@ -26,6 +26,7 @@ the model is left as it is (:attr:`PrunedContacts.applied` is ``False`` and ``re
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,14 +95,15 @@ def keep_object_contacts(model: object, geom_is_object: np.ndarray, *, robot_sti
     moving = moving_geoms(model)
     robot = colliding & moving & ~is_object
     static = colliding & ~moving & ~is_object
-    counts = {
-        "object_geoms": int((colliding & is_object).sum()),
-        "robot_geoms": int(robot.sum()),
-        "static_geoms": int(static.sum()),
-        "robot_still": robot_still,
-    }
+    report = functools.partial(
+        PrunedContacts,
+        object_geoms=int((colliding & is_object).sum()),
+        robot_geoms=int(robot.sum()),
+        static_geoms=int(static.sum()),
+        robot_still=robot_still,
+    )
     if not robot.any():
-        return PrunedContacts(applied=False, reason="no moving non-object geom collides", **counts)  # type: ignore[arg-type]
+        return report(applied=False, reason="no moving non-object geom collides")
     in_use = int(np.bitwise_or.reduce(contype | conaffinity))
     used = [bit for bit in range(MASK_BITS) if in_use >> bit & 1]
     free = [bit for bit in range(MASK_BITS) if not in_use >> bit & 1]
@@ -110,7 +112,7 @@ def keep_object_contacts(model: object, geom_is_object: np.ndarray, *, robot_sti
             f"the model uses {len(used)} of the {MASK_BITS} contact mask bits; "
             f"at most {MASK_BITS // 3} leave room for the rewrite"
         )
-        return PrunedContacts(applied=False, reason=reason, **counts)  # type: ignore[arg-type]
+        return report(applied=False, reason=reason)
     offer, accept = free[: len(used)], free[len(used) : 2 * len(used)]
     # Three copies of the used bits: the original ones, "offer" and "accept". A robot geom offers
     # contacts on the offer copy and accepts them on the accept copy only, so two robot geoms never
@@ -126,4 +128,4 @@ def keep_object_contacts(model: object, geom_is_object: np.ndarray, *, robot_sti
     new_conaffinity[robot] = _spread(conaffinity[robot], used, accept)
     model.geom_contype[:] = new_contype.astype(np.int32)  # type: ignore[attr-defined]
     model.geom_conaffinity[:] = new_conaffinity.astype(np.int32)  # type: ignore[attr-defined]
-    return PrunedContacts(applied=True, **counts)  # type: ignore[arg-type]
+    return report(applied=True)
