@@ -2,6 +2,7 @@
 
 * ``newest``: the locked versions (``requirements.lock``), what the README's quick start installs.
 * ``oldest``: every lower bound ``pyproject.toml`` declares (``ci/oldest.txt``: MuJoCo 3.3.0, numpy 1.26, ...).
+* ``gpu``: the ``mujoco-warp`` engine on the CPU device, with the locked ``gpu`` extra (its tests only).
 * ``stack(NAME)``: the package installed beside one user stack through pip's resolver
   (``ci/stacks/NAME.txt``), on the MuJoCo that stack needs, running that stack's tests only
   (``tests/stacks/test_NAME.py``).
@@ -37,6 +38,23 @@ def oldest(session: nox.Session) -> None:
     """The suite on every declared lower bound."""
     session.install("-c", OLDEST, ".[test]")
     session.run("python", "-m", "pytest", *session.posargs)
+
+
+@nox.session(python="3.11")
+def gpu(session: nox.Session) -> None:
+    """The ``mujoco-warp`` engine on the CPU device (the locked ``gpu`` extra) and its tests."""
+    session.install("-c", LOCK, ".[gpu]", "pytest", "hypothesis")
+    session.run(
+        "python",
+        "-m",
+        "pytest",
+        "-p",
+        "no:cacheprovider",
+        "tests/sim/test_mujoco_warp.py",
+        "tests/sim/test_engines.py",
+        "tests/analysis/test_frames_together.py",
+        *session.posargs,
+    )
 
 
 @nox.session(python="3.11")

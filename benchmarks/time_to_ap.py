@@ -52,7 +52,7 @@ from energy_margin.analysis.convergence import frame_seeds, score_field, scores_
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
-from energy_margin.evaluation.metrics import _questions
+from energy_margin.evaluation.metrics import question_aps
 from energy_margin.planning import CostField
 from energy_margin.tasks import get_task
 
@@ -155,7 +155,7 @@ def _logit(score: float) -> float:
 
 
 def _ap(dataset: Dataset, capture: np.ndarray, success: np.ndarray) -> dict[str, float | None]:
-    found = _questions(dataset, capture, success, capture_window=0, success_frames=3, weights="linear")
+    found = question_aps(dataset, capture, success, capture_window=0, success_frames=3, weights="linear")
     return {key: found[key] for key in QUESTIONS}
 
 

@@ -113,9 +113,19 @@ def _init_local_worker(
     _WORKER = factory(dataset, AnalyzerConfig(**config), seed)
 
 
+def _rows(analyzer: Callable[[int], dict[str, Any]], indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+    """The analyser's rows of ``indices``: through its ``rows`` when it has one (frames grown together)."""
+    rows = getattr(analyzer, "rows", None)
+    if rows is not None:
+        yield from rows(indices)
+    else:
+        for index in indices:
+            yield analyzer(index)
+
+
 def _run_local_chunk(indices: list[int]) -> list[dict[str, Any]]:
     assert _WORKER is not None
-    return [_WORKER(index) for index in indices]
+    return list(_rows(_WORKER, indices))
 
 
 @contextlib.contextmanager
@@ -221,9 +231,7 @@ class LocalExecutor:
         if not indices:
             return
         if self.workers == 1:
-            analyzer = self.analyzer(dataset, config, seed)
-            for index in indices:
-                yield analyzer(index)
+            yield from _rows(self.analyzer(dataset, config, seed), indices)
             return
         pool = ProcessPoolExecutor(
             max_workers=self.workers,

@@ -1,21 +1,21 @@
 """Energy margins of one frame (Algorithm 1): grow a tree from the state and score it.
 
-``analyze_frame`` scores one state; :class:`FrameAnalyzer` scores the frames of one dataset by
-index, reusing simulators, with per-frame seeds from :func:`frame_seeds` so that the scores do not
-depend on the number of workers or on the order in which frames finish.
+``analyze_frame`` scores one state; ``analyze_frames`` scores the frames of one roll-out with
+their trees grown in lockstep (an engine whose batched propagations run on a device);
+:class:`FrameAnalyzer` scores the frames of one dataset by index, reusing simulators, with
+per-frame seeds from :func:`frame_seeds` so that the scores do not depend on the number of
+workers, on the order in which frames finish, or on which frames grow together.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
 
-from energy_margin._renamed import renamed_fields
+from energy_margin.analysis.config import ANALYSIS_MODELS, DEVICES, AnalyzerConfig, FrameScores
 from energy_margin.analysis.continuation import continued_success
 from energy_margin.analysis.convergence import (
     CONVERGE_RULES,
@@ -26,169 +26,30 @@ from energy_margin.analysis.convergence import (
     score_field,
 )
 from energy_margin.data.dataset import Dataset
-from energy_margin.errors import (
-    Constraint,
-    InvalidParameterError,
-    check_fields,
-    constrained,
-)
-from energy_margin.planning import CostField, TreeBudget, grow_tree
-from energy_margin.planning.costs import COST_MODELS, make_cost_model
-from energy_margin.planning.density import PROJECTIONS, make_features
-from energy_margin.planning.methods import METHODS
-from energy_margin.sim import ENGINES, Simulator
-from energy_margin.sim.base import ObjectContacts
+from energy_margin.errors import InvalidParameterError
+from energy_margin.planning import CostField, grow_tree, grow_trees_together
+from energy_margin.planning.costs import make_cost_model
+from energy_margin.planning.density import make_features
+from energy_margin.sim import Simulator, get_engine
+from energy_margin.sim.base import CompiledModel, ObjectContacts
 from energy_margin.tasks import Task, with_contacts
-from energy_margin.tasks.base import CONTACT_MODELS
 from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
 
 __all__ = [
     "ANALYSIS_MODELS",
     "CONVERGE_RULES",
+    "DEVICES",
     "AnalyzerConfig",
     "FrameAnalyzer",
     "FrameScores",
     "ScoresConverged",
     "analyze_frame",
+    "analyze_frames",
     "field_membership",
     "frame_seeds",
     "score_field",
 ]
-
-#: Models an analysis simulates (:attr:`AnalyzerConfig.analysis_model`).
-ANALYSIS_MODELS = ("pruned", "full")
-
-
-@renamed_fields(iterations="expansions")
-@dataclass(frozen=True)
-class AnalyzerConfig:
-    """Settings of an energy-margin analysis.
-
-    Attributes:
-        expansions: tree expansions per frame (accepted or rejected); ``None`` for a node budget only.
-        nodes: accepted tree nodes (children of the root) per frame; ``None`` for no node budget.
-        cost: incremental cost model, ``"wrench"`` (perturbation work) or ``"energy"`` (|dE - W_fri|).
-        likelihood_lambda: softmax inverse temperature lambda, 1/J; ``None`` uses the task's value.
-        n_projections: random projections of the EST density estimate.
-        cell_size: density grid cell width, m.
-        engine: physics engine.
-        method: tree method, ``"est"`` (the paper), ``"montecarlo"`` (independent roll-outs) or
-            ``"rrt"`` (nearest node to a random target, one random control); see
-            :mod:`energy_margin.planning.methods`.
-        batch: expansions propagated together per round through ``mujoco.rollout`` (1: one at a
-            time, the reference behaviour; > 1 needs the ``"wrench"`` cost).
-        threads: ``mujoco.rollout`` threads when ``batch`` > 1.
-        rollout_length: propagations per Monte Carlo roll-out.
-        rrt_extent: half width of the RRT target box, m.
-        projection: EST density features, ``"objects"`` (every object's centre relative to the
-            root) or ``"ellipsoid"`` (centre and shape matrix of the ellipsoid of the centres).
-        converge: adaptive budget: a score tolerance in (0, 1); the tree stops once the rule of
-            ``converge_rule`` says neither score will move by more than it (checked every
-            ``converge_every`` expansions); the expansion/node budget stays the upper bound.
-            ``None``: always spend the whole budget.
-        converge_rule: ``"projected"``: stop once neither score, moving on at its rate over the
-            last ``converge_window`` expansions, would move by more than ``converge`` by the end
-            of the budget; ``"window"``: once neither moved by more than ``converge`` over the
-            last ``converge_window`` expansions. Scores drift slowly down as a tree grows into
-            costlier states, and the window rule stops a slow drift early (biased high); the
-            projected rule is the one whose AP holds (docs/results/performance.md).
-        converge_window: expansions the convergence rule looks back over.
-        converge_every: expansions between two convergence checks.
-        contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or
-            ``"fast"`` (the task's fast contact model, :attr:`TaskConfig.fast_contacts`: the same
-            contacts from cheaper pairs; pushing: footprint ground contacts and sphere stand-ins).
-        analysis_model: ``"pruned"``: simulate the analysis model, the frame's model less the
-            contact pairs that cannot move an object (robot self-collision; robot-world pairs
-            when the robot is held still), exact while no dropped pair touches
-            (:mod:`energy_margin.sim.analysis_model`; MuJoCo); ``"full"``: the model as it is.
-        wrench_scale: factor on the task's perturbation wrench bounds (1: the task's own).
-        duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
-        continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
-            (MuJoCo; :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score.
-        continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
-
-    """
-
-    expansions: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
-    nodes: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
-    cost: str = constrained("wrench", Constraint("choice", choices=tuple(COST_MODELS)))
-    likelihood_lambda: float | None = constrained(None, Constraint("float", minimum=0.0, optional=True))
-    n_projections: int = constrained(8, Constraint("int", minimum=1))
-    cell_size: float = constrained(0.01, Constraint("float", minimum=0.0, exclusive=True))
-    engine: str = constrained("mujoco", Constraint("choice", choices=tuple(ENGINES)))
-    method: str = constrained("est", Constraint("choice", choices=tuple(METHODS)))
-    batch: int = constrained(1, Constraint("int", minimum=1))
-    threads: int = constrained(1, Constraint("int", minimum=1))
-    rollout_length: int = constrained(10, Constraint("int", minimum=1))
-    rrt_extent: float = constrained(0.1, Constraint("float", minimum=0.0, exclusive=True))
-    projection: str = constrained("objects", Constraint("choice", choices=tuple(PROJECTIONS)))
-    converge: float | None = constrained(
-        None, Constraint("float", minimum=0.0, maximum=1.0, exclusive=True, optional=True)
-    )
-    converge_rule: str = constrained("projected", Constraint("choice", choices=CONVERGE_RULES))
-    converge_window: int = constrained(50, Constraint("int", minimum=1))
-    converge_every: int = constrained(25, Constraint("int", minimum=1))
-    contacts: str = constrained("recorded", Constraint("choice", choices=tuple(CONTACT_MODELS)))
-    analysis_model: str = constrained("pruned", Constraint("choice", choices=ANALYSIS_MODELS))
-    wrench_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
-    duration_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
-    continuation: int = constrained(0, Constraint("int", minimum=0))
-    continuation_horizon: float | None = constrained(
-        None, Constraint("float", minimum=0.0, exclusive=True, optional=True)
-    )
-
-    def __post_init__(self) -> None:
-        # Each field's constraint is declared once, beside its default (the command line takes both).
-        check_fields(self)
-        if self.expansions is None and self.nodes is None:
-            raise InvalidParameterError("expansions", "and nodes cannot both be None")
-        if self.batch > 1 and make_cost_model(self.cost).needs_friction_work:
-            raise InvalidParameterError(
-                "cost", f"must be 'wrench' with batch > 1, which does not integrate friction work, got {self.cost!r}"
-            )
-        if self.contacts == "fast" and self.engine != "mujoco":
-            raise InvalidParameterError(
-                "contacts", f"'fast' is a MuJoCo contact model, not available with engine {self.engine!r}"
-            )
-        if self.continuation and self.engine != "mujoco":
-            raise InvalidParameterError("continuation", f"needs the 'mujoco' engine, not {self.engine!r}")
-
-    @property
-    def budget(self) -> TreeBudget:
-        """The tree budget."""
-        return TreeBudget(expansions=self.expansions, nodes=self.nodes)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-compatible dictionary of every field."""
-        return dataclasses.asdict(self)
-
-
-@renamed_fields(iterations="expansions")
-@dataclass(frozen=True)
-class FrameScores:
-    """Scores of one frame.
-
-    Attributes:
-        capture_score: likelihood mass of captured states, in [0, 1].
-        success_score: likelihood mass of successful states, in [0, 1].
-        nodes: tree nodes including the root.
-        expansions: expansions performed.
-        runtime_s: wall time of tree growth and scoring, s.
-        physics_s: part of it spent in the simulator, s.
-        rejected: reached states the tree rejected for leaving the task's state box.
-        diverged: reached states the tree rejected for a non-finite number (a blow-up).
-
-    """
-
-    capture_score: float
-    success_score: float
-    nodes: int
-    expansions: int
-    runtime_s: float
-    physics_s: float
-    rejected: int = 0
-    diverged: int = 0
 
 
 def analyze_frame(
@@ -267,6 +128,76 @@ def analyze_frame(
     return scores, field
 
 
+def analyze_frames(
+    task: Task,
+    frames: Sequence[FrameState],
+    *,
+    friction: float,
+    drive: np.ndarray,
+    seeds: Sequence[int],
+    start_times: Sequence[float],
+    config: AnalyzerConfig,
+    simulator: Simulator | None = None,
+) -> list[tuple[FrameScores, CostField]]:
+    """Score the frames of one roll-out with their trees grown in lockstep, each round one batched call.
+
+    Every frame gets the scores :func:`analyze_frame` gives it alone with the same seed and
+    ``config`` (its tree is the same, ``config.batch`` expansions a round); only where the
+    propagations run changes: on an engine with :attr:`~energy_margin.sim.Engine.grows_together`,
+    the worlds of every tree of the roll-out step together on the device.
+
+    Args:
+        task: the task.
+        frames: the frames, states of one roll-out (one friction and drive).
+        friction: Coulomb coefficient of the roll-out.
+        drive: drive parameters of the roll-out, shape (n_drive,).
+        seeds: each frame's seed.
+        start_times: each frame's time within the roll-out, s.
+        config: analysis settings, ``batch`` > 1 and no ``continuation``.
+        simulator: a simulator of the frames' scene (as :func:`analyze_frame`'s).
+
+    Returns:
+        Each frame's scores and cost field; ``runtime_s`` is the group's wall time over its frames.
+
+    """
+    if config.batch < 2 or config.continuation:
+        raise InvalidParameterError("config", "needs batch > 1 and no continuation to grow frames together")
+    recorded_task, task = task, with_contacts(task, config.contacts)
+    simulator = _frame_simulator(recorded_task, task, frames[0], friction, drive, config, simulator)
+    lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
+    started = time.perf_counter()
+    fields = grow_trees_together(
+        simulator,
+        task,
+        list(frames),
+        np.asarray(drive, dtype=float),
+        [np.random.default_rng(seed) for seed in seeds],
+        budget=config.budget,
+        cost_model=make_cost_model(config.cost),
+        start_times=list(start_times),
+        batch=config.batch,
+        features=make_features(config.projection, simulator.scene),
+        n_projections=config.n_projections,
+        cell_size=config.cell_size,
+        method=config.method,
+        rollout_length=config.rollout_length,
+        rrt_extent=config.rrt_extent,
+        stops=[_stopping_rule(task, frame, lam, config, None) for frame in frames],
+        check_every=config.converge_every,
+        wrench_scale=config.wrench_scale,
+        duration_scale=config.duration_scale,
+    )
+    runtime = (time.perf_counter() - started) / len(frames)
+    results = []
+    for frame, field in zip(frames, fields, strict=True):
+        capture, success = score_field(task, frame, field, lam)
+        scores = FrameScores(
+            capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
+        )
+        results.append((scores, field))
+    return results
+
+
 def _frame_simulator(
     recorded_task: PhysicsReadout,
     task: Task,
@@ -278,7 +209,7 @@ def _frame_simulator(
 ) -> Simulator:
     """The given simulator, checked to be of ``task``'s scene (its contacts), or a new one."""
     if simulator is None:
-        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine)
+        simulator = task.make_simulator(frame.n_objects, friction, drive, config.engine, device=config.device)
     elif task is not recorded_task and getattr(simulator, "scene", None) != task.build_scene(
         frame.n_objects, friction, drive
     ):
@@ -332,13 +263,62 @@ class FrameAnalyzer:
             # Frames arrive trajectory by trajectory: a few recent simulators suffice (memory stays bounded).
             while len(self._simulators) >= _SIMULATOR_CACHE:
                 self._simulators.pop(next(iter(self._simulators)))
-            simulator = self.task.make_simulator(self.dataset.n_objects, friction, drive, self.config.engine)
+            simulator = self.task.make_simulator(
+                self.dataset.n_objects, friction, drive, self.config.engine, device=self.config.device
+            )
         self._simulators[key] = simulator
         return simulator
 
     def __call__(self, index: int) -> dict[str, Any]:
         """The scores row of frame ``index`` (trajectory-major)."""
         return self.analyse(index)[0]
+
+    def rows(self, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+        """The scores rows of frames ``indices``, in order.
+
+        On an engine that grows trees together, each run of consecutive frames of one roll-out is
+        scored in one lockstep growth (:func:`analyze_frames`); the rows are the same as one at a time.
+        """
+        if not self._together:
+            for index in indices:
+                yield self(index)
+            return
+        n_frames = self.dataset.n_frames
+        at = 0
+        while at < len(indices):
+            trajectory = indices[at] // n_frames
+            end = at
+            while end < len(indices) and indices[end] // n_frames == trajectory:
+                end += 1
+            yield from self._rows_together(list(indices[at:end]))
+            at = end
+
+    @property
+    def _together(self) -> bool:
+        config = self.config
+        return get_engine(config.engine).grows_together and config.batch > 1 and not config.continuation
+
+    def _rows_together(self, indices: list[int]) -> list[dict[str, Any]]:
+        dataset = self.dataset
+        trajectory = indices[0] // dataset.n_frames
+        friction = float(dataset.arrays["friction"][trajectory])
+        drive = dataset.arrays["drive"][trajectory]
+        simulator = self._simulator(friction, drive)
+        if isinstance(simulator, CompiledModel) and simulator.model.nmocap:
+            # A command without mocap poses holds the root's: one root per batched call.
+            return [self(index) for index in indices]
+        frames = [index % dataset.n_frames for index in indices]
+        results = analyze_frames(
+            self.task,
+            [dataset.frame(trajectory, frame) for frame in frames],
+            friction=friction,
+            drive=drive,
+            seeds=[self.seeds[index] for index in indices],
+            start_times=[float(dataset.arrays["frame_time"][trajectory, frame]) for frame in frames],
+            config=self.config,
+            simulator=simulator,
+        )
+        return [self._row(index, scores) for index, (scores, _) in zip(indices, results, strict=True)]
 
     def analyse(self, index: int) -> tuple[dict[str, Any], CostField]:
         """The scores row of frame ``index`` (trajectory-major) and the cost field it was scored on."""
@@ -356,6 +336,10 @@ class FrameAnalyzer:
             start_time=float(dataset.arrays["frame_time"][trajectory, frame_index]),
             simulator=self._simulator(friction, drive),
         )
+        return self._row(index, scores), field
+
+    def _row(self, index: int, scores: FrameScores) -> dict[str, Any]:
+        trajectory, frame_index = divmod(index, self.dataset.n_frames)
         return {
             "trajectory": trajectory,
             "frame": frame_index,
@@ -368,4 +352,4 @@ class FrameAnalyzer:
             "seed": self.seeds[index],
             "rejected": scores.rejected,
             "diverged": scores.diverged,
-        }, field
+        }

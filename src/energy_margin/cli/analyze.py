@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from energy_margin.analysis.executors import EXECUTORS
-from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, AnalyzerConfig
+from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, DEVICES, AnalyzerConfig
 from energy_margin.cli.common import (
     add_engine,
     add_old_spelling,
@@ -27,6 +27,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
+from energy_margin.sim import check_engine_device
 from energy_margin.tasks.base import CONTACT_MODELS
 
 __all__ = [
@@ -72,6 +73,7 @@ TREE_ONLY = {
     "executor": "--executor",
     "address": "--address",
     "engine": "--engine",
+    "device": "--device",
     "method": "--method",
     "batch": "--batch",
     "threads": "--threads",
@@ -161,6 +163,12 @@ def _add_run(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", default=None, help="Ray cluster address (default: start a local Ray)")
     add_seed(parser)
     add_engine(parser)
+    parser.add_argument(
+        "--device",
+        choices=DEVICES,
+        default=None,
+        help="where engine mujoco-warp runs: cuda (default) or cpu (slow; for checks); other engines run on the CPU",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace scores of another configuration")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument(
@@ -266,6 +274,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     }
     if getattr(args, "calibration", None) is not None:
         chosen.update(calibrated_settings(args))
+    check_engine_device(args.engine, args.device)
     return AnalyzerConfig(
         expansions=expansions,
         nodes=args.nodes,
@@ -274,6 +283,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         wrench_scale=chosen["wrench_scale"],
         duration_scale=chosen["duration_scale"],
         engine=args.engine,
+        device=args.device,
         method=args.method,
         batch=args.batch,
         threads=args.threads,

@@ -39,7 +39,7 @@ from energy_margin.evaluation.explain import explain_failures, format_explanatio
 from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs.results import TypedResult, plain_result
 
-__all__ = ["Evaluation", "average_precision", "check_options", "evaluate", "score_grid"]
+__all__ = ["Evaluation", "average_precision", "check_options", "evaluate", "question_aps", "score_grid"]
 
 
 def average_precision(labels: np.ndarray, scores: np.ndarray) -> float | None:
@@ -144,7 +144,7 @@ def score_grid(dataset: Dataset, scores: dict[str, np.ndarray], column: str) -> 
     return grid
 
 
-def _questions(
+def question_aps(
     dataset: Dataset,
     capture: np.ndarray,
     success: np.ndarray,
@@ -153,6 +153,21 @@ def _questions(
     success_frames: int,
     weights: str,
 ) -> dict[str, float | None]:
+    """The AP of every question of :func:`evaluate` for one set of scores, without baselines.
+
+    Args:
+        dataset: the dataset whose labels are the truth.
+        capture: capture scores, shape (n_trajectories, n_frames).
+        success: success scores, shape (n_trajectories, n_frames).
+        capture_window: k-hat of the capture question (k-hat = 2 is answered too).
+        success_frames: k-bar, the last frames weighted into a trajectory's success score.
+        weights: how the k-bar frames are weighted (:func:`trajectory_success_score`'s ``scheme``).
+
+    Returns:
+        ``{"capture_ap": ..., "capture_ap_window2": ..., "success_ap": ..., "success_ap_first_half": ...}``
+        (the keys of :func:`evaluate`), ``None`` where the labels hold one class.
+
+    """
     half = max(1, dataset.n_frames // 2)
     success_labels = dataset.success_labels()
     return {
@@ -231,15 +246,15 @@ def evaluate(
     runtime = score_grid(dataset, scores, "runtime_s")
     physics = score_grid(dataset, scores, "physics_s")
     options: dict[str, Any] = {"capture_window": capture_window, "success_frames": success_frames, "weights": weights}
-    result: dict[str, Any] = dict(_questions(dataset, capture, success, **options))
+    result: dict[str, Any] = dict(question_aps(dataset, capture, success, **options))
     grids = baseline_grids(dataset)
     constant = np.zeros_like(capture)
     result["baselines"] = {
-        "current_state": _questions(dataset, *grids["current_state"], **options),
-        "chance": _questions(dataset, constant, constant, **options),
+        "current_state": question_aps(dataset, *grids["current_state"], **options),
+        "chance": question_aps(dataset, constant, constant, **options),
     }
     if "distance" in grids:
-        result["baselines"]["distance"] = _questions(dataset, *grids["distance"], **options)
+        result["baselines"]["distance"] = question_aps(dataset, *grids["distance"], **options)
     if resamples:
         found = verdicts(dataset, (capture, success), grids, **options, resamples=resamples, seed=seed)
         result["verdict"] = {question: found[question].to_dict() for question in found}

@@ -19,12 +19,12 @@ import numpy as np
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features
 from energy_margin.planning.methods import expansion_factory
-from energy_margin.planning.tree import CostField, Expansion, TreeBudget, grow
+from energy_margin.planning.tree import CostField, Expansion, TreeBudget, grow, grow_together
 from energy_margin.sim.base import Simulator, release_states
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
 
-__all__ = ["CostField", "TreeBudget", "grow_tree"]
+__all__ = ["CostField", "TreeBudget", "grow_tree", "grow_trees_together"]
 
 
 def grow_tree(
@@ -102,6 +102,54 @@ def grow_tree(
     finally:
         # Engines that keep saved states outside the node array (PyBullet) free them now.
         release_states(simulator)
+
+
+def grow_trees_together(
+    simulator: Simulator,
+    task: Task,
+    roots: list[FrameState],
+    drive: np.ndarray,
+    rngs: list[np.random.Generator],
+    *,
+    budget: TreeBudget,
+    cost_model: CostModel,
+    start_times: list[float],
+    batch: int,
+    features: Features | None = None,
+    n_projections: int = 8,
+    cell_size: float = 0.01,
+    method: str = "est",
+    rollout_length: int = 10,
+    rrt_extent: float = 0.1,
+    stops: list[Callable[[CostField], bool] | None] | None = None,
+    check_every: int = 25,
+    wrench_scale: float = 1.0,
+    duration_scale: float = 1.0,
+) -> list[CostField]:
+    """Grow one tree per root (frames of one roll-out) in lockstep, each round one batched call.
+
+    Each tree is the tree :func:`grow_tree` grows from its root and generator with ``batch``
+    (:func:`~energy_margin.planning.tree.grow_together`); the arguments are :func:`grow_tree`'s,
+    one per root where they are lists.
+    """
+    makes = [_expansion(method, root, budget, n_projections, cell_size, rollout_length, rrt_extent) for root in roots]
+    return grow_together(
+        simulator,
+        task,
+        roots,
+        drive,
+        rngs,
+        makes,
+        budget=budget,
+        cost_model=cost_model,
+        start_times=start_times,
+        batch=batch,
+        features=features,
+        stops=stops,
+        check_every=check_every,
+        wrench_scale=wrench_scale,
+        duration_scale=duration_scale,
+    )
 
 
 def _expansion(

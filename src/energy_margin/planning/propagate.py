@@ -42,17 +42,32 @@ def _propagate_round(
     control_steps: int | None,
 ) -> list[Outcome]:
     """The outcomes of a round's expansions, propagated together (``mujoco.rollout``)."""
-    pos, vel, quat, states = propagator.propagate(
+    states = tree.states[[parent for _, parent, _, _ in round_]]
+    times = np.array([start_time + tree.times[parent] for _, parent, _, _ in round_])
+    return _propagate_rows(propagator, task, drive, states, times, round_, control_steps)
+
+
+def _propagate_rows(
+    propagator: Propagator,
+    task: Task,
+    drive: np.ndarray,
+    states: np.ndarray,
+    start_times: np.ndarray,
+    expansions: list[_Expansion],
+    control_steps: int | None,
+) -> list[Outcome]:
+    """The outcomes of expansions from their parents' states (k, state_size) at script times (k,), s."""
+    pos, vel, quat, ends = propagator.propagate(
         task,
         drive,
-        tree.states[[parent for _, parent, _, _ in round_]],
-        np.array([start_time + tree.times[parent] for _, parent, _, _ in round_]),
-        np.stack([wrenches for _, _, wrenches, _ in round_]),
-        np.array([n_steps for _, _, _, n_steps in round_]),
+        states,
+        start_times,
+        np.stack([wrenches for _, _, wrenches, _ in expansions]),
+        np.array([n_steps for _, _, _, n_steps in expansions]),
         control_steps,
     )
-    robots = propagator.end_robot_positions(states)  # joint coordinates, then a model's mocap poses
-    return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, states[j], robots[j]) for j in range(len(round_))]
+    robots = propagator.end_robot_positions(ends)  # joint coordinates, then a model's mocap poses
+    return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, ends[j], robots[j]) for j in range(len(expansions))]
 
 
 def _propagate_one(

@@ -38,7 +38,7 @@ from energy_margin.errors import Constraint, InvalidParameterError, check_fields
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.planning.nodes import CostField, Outcome, _Tree
-from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _read
+from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _propagate_rows, _read
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
@@ -49,6 +49,7 @@ __all__ = [
     "Outcome",
     "TreeBudget",
     "grow",
+    "grow_together",
 ]
 
 
@@ -217,17 +218,103 @@ def grow(
     check_positive_int("check_every", check_every)
     features = features if features is not None else ObjectPositions()
     bounds = _Bounds.of(simulator, task, cost_model, wrench_scale, duration_scale)
-    simulator.reset(root)
     propagator = _batch_propagator(simulator, cost_model, batch, threads)
-    tree = _plant(simulator, task, root, budget, cost_model, propagator)
-    root_pos = tree.positions[0].copy()
-    expansion = make_expansion(rng, root_pos, features)
-    expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
-    limit = budget.expansion_limit
-    controls = _Controls(rng, expansion.uniforms, bounds.max_wrench, bounds.max_duration, bounds.dt, limit)
-    growth = _Growth(simulator, task, drive, tree, expansion, controls, features, root_pos, propagator, bounds)
-    expansions, physics_s = growth.run(limit, batch, start_time, stop, check_every)
-    return tree.field(expansions, physics_s, started)
+    growth = _Growth.plant(simulator, task, root, drive, rng, make_expansion, budget, cost_model, features,
+                           propagator, bounds)  # fmt: skip
+    expansions, physics_s = growth.run(budget.expansion_limit, batch, start_time, stop, check_every)
+    return growth.tree.field(expansions, physics_s, started)
+
+
+def grow_together(
+    simulator: Simulator,
+    task: Task,
+    roots: list[FrameState],
+    drive: np.ndarray,
+    rngs: list[np.random.Generator],
+    make_expansions: list[Callable[[np.random.Generator, np.ndarray, Features], Expansion]],
+    *,
+    budget: TreeBudget,
+    cost_model: CostModel,
+    start_times: list[float],
+    batch: int,
+    features: Features | None = None,
+    stops: list[Callable[[CostField], bool] | None] | None = None,
+    check_every: int = 25,
+    wrench_scale: float = 1.0,
+    duration_scale: float = 1.0,
+) -> list[CostField]:
+    """Grow one tree per root in lockstep: each round of every tree still growing is one batched call.
+
+    Every tree is the one :func:`grow` grows alone from the same arguments with ``batch`` (its
+    parents, controls and seed are its own; a propagation does not depend on the others in its
+    call), so only the wall time changes: a device engine steps all the trees' worlds together.
+    The roots share the simulator's model and the trajectory's drive (frames of one roll-out).
+
+    Args:
+        simulator: a simulator of the roots' scene with :class:`~energy_margin.sim.base.BatchedRollout`.
+        task: the task.
+        roots: the frame states, one tree each.
+        drive: the trajectory's drive parameters, shape (n_drive,).
+        rngs: one generator per root.
+        make_expansions: one method factory per root (as :func:`grow`'s ``make_expansion``).
+        budget: expansions and/or nodes, per tree.
+        cost_model: incremental cost Q (``"wrench"``: batched propagation).
+        start_times: each root's time within its roll-out, s.
+        batch: expansions per tree per round, >= 2.
+        features: density features (every object's displacement from the root by default).
+        stops: an early-stopping rule per tree (or ``None``), as :func:`grow`'s ``stop``.
+        check_every: expansions between two calls of a tree's ``stop``.
+        wrench_scale: factor on the task's perturbation wrench bounds.
+        duration_scale: factor on the task's longest perturbation propagation.
+
+    Returns:
+        The cost field of each root's tree. Its ``physics_s`` is the tree's share (by propagations)
+        of the batched calls' wall time, its ``total_s`` the group's wall time over the trees.
+
+    Raises:
+        InvalidParameterError: mismatched lists, ``batch`` < 2, or a simulator without batched
+            propagation.
+
+    """
+    started = time.perf_counter()
+    n = len(roots)
+    if not (len(rngs) == len(make_expansions) == len(start_times) == n) or (stops is not None and len(stops) != n):
+        raise InvalidParameterError("roots", "rngs, make_expansions, start_times and stops need one entry per root")
+    check_positive_int("check_every", check_every)
+    if batch < 2:
+        raise InvalidParameterError("batch", f"must be >= 2 to grow trees together, got {batch}")
+    features = features if features is not None else ObjectPositions()
+    bounds = _Bounds.of(simulator, task, cost_model, wrench_scale, duration_scale)
+    propagator = _batch_propagator(simulator, cost_model, batch, 1)
+    assert propagator is not None
+    growths = []
+    for j in range(n):
+        growth = _Growth.plant(simulator, task, roots[j], drive, rngs[j], make_expansions[j], budget, cost_model,
+                               features, propagator, bounds)  # fmt: skip
+        growth.start(budget.expansion_limit, stops[j] if stops is not None else None, check_every)
+        growths.append(growth)
+    physics = np.zeros(n)
+    while True:
+        rounds = [(j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None]
+        if not rounds:
+            break
+        tick = time.perf_counter()
+        everything = [expansion for _, round_ in rounds for expansion in round_]
+        owners = np.concatenate([np.full(len(round_), j) for j, round_ in rounds])
+        times = [start_times[j] + growths[j].tree.times[parent] for j, round_ in rounds for _, parent, _, _ in round_]
+        states = np.stack([growths[j].tree.states[parent] for j, round_ in rounds for _, parent, _, _ in round_])
+        outcomes = _propagate_rows(propagator, task, drive, states, np.array(times), everything, bounds.control_steps)
+        spent = time.perf_counter() - tick
+        at = 0
+        for j, round_ in rounds:
+            growths[j].offer(round_, outcomes[at : at + len(round_)])
+            at += len(round_)
+        physics += spent * np.bincount(owners, minlength=n) / owners.size
+    elapsed = time.perf_counter() - started
+    return [
+        growth.tree.field(growth.expansions, float(physics[j]), time.perf_counter() - elapsed / n)
+        for j, growth in enumerate(growths)
+    ]
 
 
 @dataclass(frozen=True)
@@ -320,28 +407,77 @@ class _Growth:
     propagator: Propagator | None
     bounds: _Bounds
 
+    limit: int = 0
+    stop: Callable[[CostField], bool] | None = None
+    check_every: int = 1
+    expansions: int = 0
+    next_check: int = 0
+    stopped: bool = False
+
+    @classmethod
+    def plant(
+        cls,
+        simulator: Simulator,
+        task: Task,
+        root: FrameState,
+        drive: np.ndarray,
+        rng: np.random.Generator,
+        make_expansion: Callable[[np.random.Generator, np.ndarray, Features], Expansion],
+        budget: TreeBudget,
+        cost_model: CostModel,
+        features: Features,
+        propagator: Propagator | None,
+        bounds: _Bounds,
+    ) -> _Growth:
+        """A growth whose tree holds ``root`` only (the simulator is reset to it), its method and controls."""
+        simulator.reset(root)
+        tree = _plant(simulator, task, root, budget, cost_model, propagator)
+        root_pos = tree.positions[0].copy()
+        expansion = make_expansion(rng, root_pos, features)
+        expansion.added(-1, 0, -1, features(tree.positions[0], root_pos))
+        controls = _Controls(
+            rng, expansion.uniforms, bounds.max_wrench, bounds.max_duration, bounds.dt, budget.expansion_limit
+        )
+        return cls(simulator, task, drive, tree, expansion, controls, features, root_pos, propagator, bounds)
+
     def run(
         self, limit: int, batch: int, start_time: float, stop: Callable[[CostField], bool] | None, check_every: int
     ) -> tuple[int, float]:
         """Expand until the budget, the capacity or ``stop`` ends growth: (expansions, physics wall time in s)."""
-        tree = self.tree
-        expansions = 0
         physics_s = 0.0
-        next_check = check_every
-        while expansions < limit and tree.count < tree.capacity:
-            round_ = _next_round(
-                self.expansion, self.controls, tree, expansions, min(batch, limit - expansions), self.bounds.max_wrench
-            )
+        self.start(limit, stop, check_every)
+        while (round_ := self.next_round(batch)) is not None:
             tick = time.perf_counter()
             outcomes = self._propagate(round_, start_time)
             physics_s += time.perf_counter() - tick
-            self._offer(round_, outcomes)
-            expansions += len(round_)
-            if stop is not None and expansions >= next_check:
-                next_check += check_every
-                if stop(tree.view(expansions)):
-                    break
-        return expansions, physics_s
+            self.offer(round_, outcomes)
+        return self.expansions, physics_s
+
+    def start(self, limit: int, stop: Callable[[CostField], bool] | None, check_every: int) -> None:
+        """Set the budget and the stopping rule before the first :meth:`next_round`."""
+        self.limit, self.stop, self.check_every = limit, stop, check_every
+        self.expansions, self.next_check, self.stopped = 0, check_every, False
+
+    def next_round(self, batch: int) -> list[_Expansion] | None:
+        """The next round's expansions (at most ``batch``), or ``None`` once growth has ended."""
+        tree = self.tree
+        if self.stopped or self.expansions >= self.limit or tree.count >= tree.capacity:
+            return None
+        size = min(batch, self.limit - self.expansions)
+        return _next_round(self.expansion, self.controls, tree, self.expansions, size, self.bounds.max_wrench)
+
+    def offer(self, round_: list[_Expansion], outcomes: list[Outcome]) -> None:
+        """Offer a round's outcomes to the tree in iteration order, then ask the stopping rule."""
+        for (iteration, parent, wrenches, n_steps), outcome in zip(round_, outcomes, strict=True):
+            node = self.tree.offer(parent, wrenches, n_steps * self.bounds.dt, outcome)
+            if node is None:
+                self.expansion.rejected(iteration, parent)
+            else:
+                self.expansion.added(iteration, node, parent, self.features(outcome.pos, self.root_pos))
+        self.expansions += len(round_)
+        if self.stop is not None and self.expansions >= self.next_check:
+            self.next_check += self.check_every
+            self.stopped = bool(self.stop(self.tree.view(self.expansions)))
 
     def _propagate(self, round_: list[_Expansion], start_time: float) -> list[Outcome]:
         """The outcomes of a round, one at a time or batched."""
@@ -365,15 +501,6 @@ class _Growth:
         return _propagate_round(
             self.propagator, self.task, self.drive, self.tree, round_, start_time, bounds.control_steps
         )
-
-    def _offer(self, round_: list[_Expansion], outcomes: list[Outcome]) -> None:
-        """Offer a round's outcomes to the tree in iteration order and tell the method."""
-        for (iteration, parent, wrenches, n_steps), outcome in zip(round_, outcomes, strict=True):
-            node = self.tree.offer(parent, wrenches, n_steps * self.bounds.dt, outcome)
-            if node is None:
-                self.expansion.rejected(iteration, parent)
-            else:
-                self.expansion.added(iteration, node, parent, self.features(outcome.pos, self.root_pos))
 
 
 def _next_round(

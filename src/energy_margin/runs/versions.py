@@ -14,7 +14,13 @@ from typing import Any
 #: The key of the record in ``dataset.json``, ``analysis.json`` and every run's settings file.
 VERSIONS_KEY = "versions"
 #: How each recorded library is named in messages.
-DISPLAY_NAMES = {"mujoco": "MuJoCo", "pybullet": "PyBullet", "numpy": "numpy"}
+DISPLAY_NAMES = {
+    "mujoco": "MuJoCo",
+    "pybullet": "PyBullet",
+    "numpy": "numpy",
+    "mujoco-warp": "MuJoCo Warp",
+    "warp-lang": "Warp",
+}
 #: Written for PyBullet when the engine is PyBullet but it is not installed.
 NOT_INSTALLED = "not installed"
 
@@ -23,27 +29,32 @@ def engine_versions(engine: str = "mujoco") -> dict[str, str]:
     """The engine and the versions of the libraries its results depend on.
 
     MuJoCo is always recorded (every task's scene is a MuJoCo model, whatever engine rolls it
-    out), numpy too, and PyBullet when it is the engine.
+    out), numpy too, PyBullet when it is the engine, and MuJoCo Warp and Warp for ``"mujoco-warp"``.
 
     Args:
-        engine: the physics engine, ``"mujoco"`` or ``"pybullet"``.
+        engine: the physics engine, ``"mujoco"``, ``"pybullet"`` or ``"mujoco-warp"``.
 
     Returns:
-        ``{"engine": engine, "mujoco": "4.0.0", "numpy": "2.4.6"}``, plus ``"pybullet"`` (its
-        version, or ``"not installed"``) when ``engine`` is ``"pybullet"``.
+        ``{"engine": engine, "mujoco": "4.0.0", "numpy": "2.4.6"}``, plus ``"pybullet"`` when
+        ``engine`` is ``"pybullet"``, ``"mujoco-warp"`` and ``"warp-lang"`` when it is
+        ``"mujoco-warp"`` (each a version, or ``"not installed"``).
     """
     import mujoco
     import numpy
 
     versions = {"engine": str(engine), "mujoco": str(mujoco.__version__), "numpy": str(numpy.__version__)}
-    if engine == "pybullet":
-        from importlib.metadata import PackageNotFoundError, version
+    from importlib.metadata import PackageNotFoundError, version
 
+    for package in _ENGINE_PACKAGES.get(engine, ()):
         try:
-            versions["pybullet"] = version("pybullet")
+            versions[package] = version(package)
         except PackageNotFoundError:
-            versions["pybullet"] = NOT_INSTALLED
+            versions[package] = NOT_INSTALLED
     return versions
+
+
+#: The packages besides MuJoCo whose versions decide an engine's results.
+_ENGINE_PACKAGES = {"pybullet": ("pybullet",), "mujoco-warp": ("mujoco-warp", "warp-lang")}
 
 
 def recorded_versions(document: Any) -> dict[str, str] | None:
@@ -70,8 +81,9 @@ def engine_difference(recorded: dict[str, str], current: dict[str, str]) -> tupl
         ``(name, recorded version, current version)``, e.g. ``("MuJoCo", "3.3.0", "4.0.0")``.
     """
     libraries = ["mujoco"]
-    if "pybullet" in (recorded.get("engine"), current.get("engine")):
-        libraries.append("pybullet")
+    for engine, packages in _ENGINE_PACKAGES.items():
+        if engine in (recorded.get("engine"), current.get("engine")):
+            libraries.extend(packages)
     for library in libraries:
         before, now = recorded.get(library), current.get(library)
         if before is not None and now is not None and before != now:

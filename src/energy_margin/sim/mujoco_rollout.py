@@ -141,17 +141,47 @@ class RolloutPropagator:
         if ctrl is not None:
             controls[..., : model.nu] = ctrl
         initial = np.broadcast_to(state, (k, self.state_size)).copy()
-        warmstart = np.zeros((k, self._nv))
+        out = self._roll_all(initial, controls)
+        return out, out[:, -1]
+
+    def _roll_all(self, initial: np.ndarray, controls: np.ndarray) -> np.ndarray:
+        """The states after every step, shape (k, steps, state_size), each from a zero warm start.
+
+        Args:
+            initial: start states, shape (k, state_size).
+            controls: control vectors of every step, shape (k, steps, control_size).
+
+        """
+        k, steps = controls.shape[:2]
         out, _ = self._rollout.rollout(
-            model,
+            self.model,
             self._datas,
             initial,
             controls,
             control_spec=int(_CONTROL_SPEC),
             nstep=steps,
-            initial_warmstart=warmstart,
+            initial_warmstart=np.zeros((k, self._nv)),
         )
-        return out, out[:, -1]
+        return out
+
+    def _roll_to(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray) -> np.ndarray:
+        """The state of each propagation after its own ``n_steps`` (k,) steps, shape (k, state_size).
+
+        ``controls`` (k, longest, control_size) is padded past each propagation's steps.
+        """
+        k = initial.shape[0]
+        if self._warmstart.shape[0] != k:
+            self._warmstart = np.zeros((k, self._nv))
+        out, _ = self._rollout.rollout(
+            self.model,
+            self._datas,
+            initial,
+            controls,
+            control_spec=int(_CONTROL_SPEC),
+            nstep=controls.shape[1],
+            initial_warmstart=self._warmstart,
+        )
+        return out[np.arange(k), n_steps - 1]
 
     def object_states(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Object positions, quaternions, velocities and robot coordinates of states (k, state_size).
@@ -230,18 +260,7 @@ class RolloutPropagator:
                 controls[j, done : done + chunk] = row
                 done += chunk
             controls[j, steps:] = row
-        if self._warmstart.shape[0] != k:
-            self._warmstart = np.zeros((k, self._nv))
-        out, _ = self._rollout.rollout(
-            self.model,
-            self._datas,
-            states,
-            controls,
-            control_spec=int(_CONTROL_SPEC),
-            nstep=longest,
-            initial_warmstart=self._warmstart,
-        )
-        final = out[np.arange(k), n_steps - 1]
+        final = self._roll_to(states, controls, n_steps)
         nmocap = int(self.model.nmocap)
         self._end_mocap = controls[np.arange(k), n_steps - 1, self._mocap_at : self._mocap_at + 7 * nmocap]
         pos, quat, vel = index.objects_of(*self.qpos_qvel(final))

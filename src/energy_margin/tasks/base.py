@@ -259,13 +259,19 @@ class Task(ABC):
         return "region"
 
     def make_simulator(
-        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+        self,
+        n_objects: int,
+        friction: float,
+        drive: np.ndarray | None = None,
+        engine: str = "mujoco",
+        *,
+        device: str | None = None,
     ) -> Simulator:
-        """A simulator of the task's world: :meth:`build_scene` on ``engine`` by default.
+        """A simulator of the task's world: :meth:`build_scene` on ``engine`` (on ``device``) by default.
 
         A task built on a compiled MuJoCo model overrides this to simulate that model itself.
         """
-        return make_simulator(self.build_scene(n_objects, friction, drive), engine)
+        return make_simulator(self.build_scene(n_objects, friction, drive), engine, device=device)
 
     def robot_dofs(self) -> int:
         """Length of the end-effector coordinates ``robot_q`` and ``robot_v`` of a frame."""

@@ -70,9 +70,15 @@ class PhysicsReadout(Protocol):
         ...
 
     def make_simulator(
-        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+        self,
+        n_objects: int,
+        friction: float,
+        drive: np.ndarray | None = None,
+        engine: str = "mujoco",
+        *,
+        device: str | None = None,
     ) -> Simulator:
-        """A simulator of the task's world on ``engine``."""
+        """A simulator of the task's world on ``engine`` (on ``device`` for an engine with devices)."""
         ...
 
     def model_sha256(self, n_objects: int) -> str:

@@ -208,9 +208,15 @@ class SceneTask(Task):
         return model
 
     def make_simulator(
-        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco"
+        self,
+        n_objects: int,
+        friction: float,
+        drive: np.ndarray | None = None,
+        engine: str = "mujoco",
+        *,
+        device: str | None = None,
     ) -> Simulator:
-        """A MuJoCo simulator of the scene's compiled model (the only engine for scene files)."""
+        """A MuJoCo simulator of the scene's compiled model (the only engine for scene files; no device)."""
         if engine != "mujoco":
             raise InvalidParameterError(
                 "engine",

@@ -1,0 +1,185 @@
+"""The ``mujoco-warp`` engine against C MuJoCo: parity of the scores and AP, and frames per second.
+
+Parity (``--parity``): one generated set (``--task``, ``--objects``, ``--trajectories`` x 10
+frames, generation seed ``--seed``) is analysed twice with the same seed and the same batched
+expansion (``--batch`` expansions a round, so both grow their trees the same way): on C MuJoCo
+(``mujoco.rollout``, one process) and on MuJoCo Warp on ``--device``, a roll-out's trees grown in
+lockstep. It prints and writes the AP of every question of ``evaluate`` on each engine, their
+difference, the correlation of the two engines' scores, and frames per second of each.
+
+Throughput (``--throughput``): frames per second of MuJoCo Warp on ``--device`` against the
+expansions per round (``--batches``) and the objects per scene (``--object-counts``), with the
+device's memory in use, beside C MuJoCo on every CPU core of the machine (a process pool of
+``os.cpu_count()`` workers, one frame at a time at the default ``batch`` 1: its fastest).
+
+Both sides do different work where said: float32 against float64 physics, Warp's constraint
+solver against MuJoCo's; every propagation of both starts from a zero solver warm start.
+
+    python benchmarks/bench_gpu_engine.py --parity --device cpu --trajectories 6 --out docs/figures/gpu_parity_cpu.json
+    python benchmarks/bench_gpu_engine.py --throughput --device cuda --out gpu_throughput.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from energy_margin.analysis.executors import make_executor
+from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.evaluation.metrics import question_aps
+from energy_margin.runs.versions import engine_versions
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine  # the machine line of the other benchmarks
+
+QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
+
+
+def _generate(task: str, objects: int, trajectories: int, seed: int, workdir: Path) -> Dataset:
+    out = workdir / f"{task}-{objects}x{trajectories}-{seed}"
+    if not (out / "dataset.json").exists():
+        generate_dataset(task, n_objects=objects, n_trajectories=trajectories, n_frames=10, seed=seed, out=out,
+                         overwrite=True)  # fmt: skip
+    return load_dataset(out)
+
+
+def _score(dataset: Dataset, config: AnalyzerConfig, *, seed: int, workers: int) -> tuple[dict[str, np.ndarray], float]:
+    """Capture and success scores (n_trajectories, n_frames) and the wall time, s."""
+    shape = (dataset.n_trajectories, dataset.n_frames)
+    capture, success = np.zeros(shape), np.zeros(shape)
+    started = time.perf_counter()
+    indices = list(range(shape[0] * shape[1]))
+    for row in make_executor("local", workers=workers).run(dataset, config, seed, indices):
+        capture[row["trajectory"], row["frame"]] = row["capture_score"]
+        success[row["trajectory"], row["frame"]] = row["success_score"]
+    return {"capture": capture, "success": success}, time.perf_counter() - started
+
+
+def _aps(dataset: Dataset, scores: dict[str, np.ndarray]) -> dict[str, float | None]:
+    found = question_aps(dataset, scores["capture"], scores["success"], capture_window=0, success_frames=3,
+                         weights="linear")  # fmt: skip
+    return {key: found[key] for key in QUESTIONS}
+
+
+def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
+    frames = dataset.n_trajectories * dataset.n_frames
+    common = {"expansions": args.expansions, "batch": args.batch}
+    reference, reference_s = _score(dataset, AnalyzerConfig(**common), seed=args.analysis_seed, workers=1)
+    warp_config = AnalyzerConfig(**common, engine="mujoco-warp", device=args.device)
+    warp, warp_s = _score(dataset, warp_config, seed=args.analysis_seed, workers=1)
+    ap_c, ap_w = _aps(dataset, reference), _aps(dataset, warp)
+    rows = []
+    for key in QUESTIONS:
+        a, b = ap_c[key], ap_w[key]
+        rows.append(
+            {"question": key, "mujoco": a, "mujoco_warp": b, "difference": None if a is None or b is None else b - a}
+        )
+    correlation = {
+        kind: float(np.corrcoef(reference[kind].ravel(), warp[kind].ravel())[0, 1])
+        if reference[kind].std() > 0 and warp[kind].std() > 0
+        else None
+        for kind in ("capture", "success")
+    }
+    return {
+        "set": {
+            "task": args.task,
+            "objects": args.objects,
+            "trajectories": args.trajectories,
+            "frames": frames,
+            "generation_seed": args.seed,
+            "analysis_seed": args.analysis_seed,
+        },
+        "analysis": common,
+        "ap": rows,
+        "largest_ap_difference": max(
+            (abs(float(r["difference"])) for r in rows if r["difference"] is not None), default=None
+        ),
+        "score_correlation": correlation,
+        "mean_absolute_score_difference": {
+            kind: float(np.abs(reference[kind] - warp[kind]).mean()) for kind in ("capture", "success")
+        },
+        "frames_per_second": {"mujoco": frames / reference_s, "mujoco_warp": frames / warp_s},
+        "device": args.device,
+    }
+
+
+def _device_memory(device: str) -> dict[str, float] | None:
+    if device != "cuda":
+        return None
+    import warp as wp
+
+    cuda = wp.get_device("cuda")
+    return {"total_gib": cuda.total_memory / 2**30, "free_gib": cuda.free_memory / 2**30}
+
+
+def throughput(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    rows = []
+    for objects in args.object_counts:
+        dataset = _generate(args.task, objects, args.trajectories, args.seed, workdir)
+        frames = dataset.n_trajectories * dataset.n_frames
+        cpu = os.cpu_count() or 1
+        _, c_s = _score(dataset, AnalyzerConfig(expansions=args.expansions), seed=args.analysis_seed, workers=cpu)
+        for batch in args.batches:
+            config = AnalyzerConfig(expansions=args.expansions, batch=batch, engine="mujoco-warp", device=args.device)
+            _, warp_s = _score(dataset, config, seed=args.analysis_seed, workers=1)
+            row = {"objects": objects, "batch": batch, "frames": frames, "worlds_per_call": batch * dataset.n_frames,
+                   "warp_frames_per_second": frames / warp_s, "mujoco_all_cores_frames_per_second": frames / c_s,
+                   "mujoco_workers": cpu, "memory": _device_memory(args.device)}  # fmt: skip
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    return {"rows": rows, "expansions": args.expansions, "device": args.device}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    mode = parser.add_mutually_exclusive_group(required=True)
+    mode.add_argument("--parity", action="store_true", help="scores and AP on both engines, one set")
+    mode.add_argument("--throughput", action="store_true", help="frames per second against batch and objects")
+    parser.add_argument("--device", choices=("cuda", "cpu"), default="cuda")
+    parser.add_argument("--task", default="pushing")
+    parser.add_argument("--objects", type=int, default=10)
+    parser.add_argument("--object-counts", type=int, nargs="+", default=[5, 10, 20])
+    parser.add_argument("--trajectories", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=700, help="generation seed (used for nothing else)")
+    parser.add_argument("--analysis-seed", type=int, default=0)
+    parser.add_argument("--expansions", type=int, default=300)
+    parser.add_argument("--batch", type=int, default=32)
+    parser.add_argument("--batches", type=int, nargs="+", default=[32, 100, 300])
+    parser.add_argument("--workdir", type=Path, default=None, help="where the sets are generated (default: a temp dir)")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as temporary:
+        workdir = args.workdir if args.workdir is not None else Path(temporary)
+        workdir.mkdir(parents=True, exist_ok=True)
+        result = parity(args, workdir) if args.parity else throughput(args, workdir)
+    document = {
+        "command": "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "machine": machine(),
+        "versions": engine_versions("mujoco-warp"),
+        **result,
+    }
+    if args.parity:
+        print(f"{'question':<24}{'mujoco':>10}{'mujoco-warp':>13}{'difference':>12}")
+        for row in document["ap"]:
+            cells = [f"{row[key]:.3f}" if row[key] is not None else "-" for key in ("mujoco", "mujoco_warp")]
+            diff = f"{row['difference']:+.3f}" if row["difference"] is not None else "-"
+            print(f"{row['question']:<24}{cells[0]:>10}{cells[1]:>13}{diff:>12}")
+        print("score correlation", document["score_correlation"], "frames/s", document["frames_per_second"])
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(document, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,314 @@
+"""The ``mujoco-warp`` engine: a tree's batched propagations on MuJoCo Warp (GPU, or CPU to test).
+
+:class:`WarpSimulator` is a :class:`~energy_margin.sim.mujoco_backend.MujocoSimulator` whose
+:class:`~energy_margin.sim.base.BatchedRollout` capability runs on `MuJoCo Warp
+<https://github.com/google-deepmind/mujoco_warp>`_ instead of ``mujoco.rollout``: every round of
+expansions is one batched call, one world per expansion, stepped together on the device. What
+is not batched (resetting to a frame, reading the root) stays on C MuJoCo, so a tree's root is the
+same on both engines and every expansion is Warp's.
+
+Scores differ from C MuJoCo only by Warp's arithmetic: float32 physics and its own constraint
+solver. Each propagation starts from a zero solver warm start, as on ``mujoco.rollout``, and its
+world is computed apart from the others, so a propagation's result does not depend on the batch
+it runs in (tested on CPU).
+
+The contact and constraint buffers are sized from the frame (four times the contacts and
+constraints at the root, at least 16 and 64 per world) and doubled, and the round run again,
+whenever a world overflows them: no contact is ever dropped silently.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from energy_margin.errors import EnergyMarginError
+from energy_margin.sim.mujoco_backend import MujocoSimulator
+from energy_margin.sim.mujoco_index import ModelIndex
+from energy_margin.sim.mujoco_rollout import RolloutPropagator
+from energy_margin.world.scene import Scene
+
+__all__ = ["DEVICES", "WarpPropagator", "WarpSimulator", "check_device"]
+
+#: Devices the engine runs on.
+DEVICES = ("cuda", "cpu")
+
+_INSTALL = "pip install 'energy-margin[gpu]'"
+
+
+def check_device(device: str) -> None:
+    """Raise one line when MuJoCo Warp is not installed or ``device`` is not available.
+
+    Raises:
+        EnergyMarginError: ``mujoco_warp`` or ``warp`` cannot be imported (the ``gpu`` extra), or
+            ``device`` is ``"cuda"`` and Warp finds no CUDA device.
+
+    """
+    if device not in DEVICES:
+        raise EnergyMarginError(f"unknown device {device!r}; choose one of {', '.join(DEVICES)}")
+    for package in ("warp", "mujoco_warp"):
+        if importlib.util.find_spec(package) is None:
+            raise EnergyMarginError(f"engine 'mujoco-warp' needs the package {package!r}: {_INSTALL}")
+    if device == "cuda":
+        wp = _warp()
+        if not wp.is_cuda_available():
+            raise EnergyMarginError("device 'cuda': Warp finds no CUDA device here; use `device=cpu` (slow) or a GPU")
+
+
+def _warp() -> Any:
+    import warp as wp
+
+    # Warp reports every module it loads at its default level; the engine's messages are its own.
+    wp.config.log_level = getattr(wp, "LOG_WARNING", wp.config.log_level)
+    wp.config.quiet = True
+    wp.init()
+    return wp
+
+
+_KERNELS: dict[str, Any] = {}
+
+
+def _kernels() -> dict[str, Any]:
+    """The engine's own Warp kernels (defined once, on first use: importing Warp is slow)."""
+    if _KERNELS:
+        return _KERNELS
+    wp = _warp()
+
+    @wp.kernel
+    def hold_controls(
+        t: int,
+        ctrl_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
+        qfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
+        xfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
+        mocap_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
+        ctrl: wp.array2d(dtype=float),  # type: ignore[valid-type]
+        qfrc_applied: wp.array2d(dtype=float),  # type: ignore[valid-type]
+        xfrc_applied: wp.array2d(dtype=wp.spatial_vector),  # type: ignore[valid-type]
+        mocap_pos: wp.array2d(dtype=wp.vec3),  # type: ignore[valid-type]
+        mocap_quat: wp.array2d(dtype=wp.quat),  # type: ignore[valid-type]
+    ) -> None:
+        w = wp.tid()
+        for i in range(ctrl.shape[1]):
+            ctrl[w, i] = ctrl_seq[w, t, i]
+        for i in range(qfrc_applied.shape[1]):
+            qfrc_applied[w, i] = qfrc_seq[w, t, i]
+        for b in range(xfrc_applied.shape[1]):
+            xfrc_applied[w, b] = wp.spatial_vector(
+                xfrc_seq[w, t, 6 * b],
+                xfrc_seq[w, t, 6 * b + 1],
+                xfrc_seq[w, t, 6 * b + 2],
+                xfrc_seq[w, t, 6 * b + 3],
+                xfrc_seq[w, t, 6 * b + 4],
+                xfrc_seq[w, t, 6 * b + 5],
+            )
+        n = mocap_pos.shape[1]
+        for b in range(n):
+            mocap_pos[w, b] = wp.vec3(mocap_seq[w, t, 3 * b], mocap_seq[w, t, 3 * b + 1], mocap_seq[w, t, 3 * b + 2])
+            at = 3 * n + 4 * b
+            mocap_quat[w, b] = wp.quat(
+                mocap_seq[w, t, at], mocap_seq[w, t, at + 1], mocap_seq[w, t, at + 2], mocap_seq[w, t, at + 3]
+            )
+
+    @wp.kernel
+    def keep_state(
+        t: int,
+        every_step: int,
+        steps: wp.array(dtype=int),  # type: ignore[valid-type]
+        time: wp.array(dtype=float),  # type: ignore[valid-type]
+        qpos: wp.array2d(dtype=float),  # type: ignore[valid-type]
+        qvel: wp.array2d(dtype=float),  # type: ignore[valid-type]
+        act: wp.array2d(dtype=float),  # type: ignore[valid-type]
+        out: wp.array3d(dtype=float),  # type: ignore[valid-type]
+    ) -> None:
+        w = wp.tid()
+        slot = t
+        if every_step == 0:
+            if steps[w] != t + 1:
+                return
+            slot = 0
+        out[w, slot, 0] = time[w]
+        nq = qpos.shape[1]
+        nv = qvel.shape[1]
+        for i in range(nq):
+            out[w, slot, 1 + i] = qpos[w, i]
+        for i in range(nv):
+            out[w, slot, 1 + nq + i] = qvel[w, i]
+        for i in range(act.shape[1]):
+            out[w, slot, 1 + nq + nv + i] = act[w, i]
+
+    _KERNELS.update(hold_controls=hold_controls, keep_state=keep_state)
+    return _KERNELS
+
+
+class WarpPropagator(RolloutPropagator):
+    """Batched propagations of one simulator's model on MuJoCo Warp, one world per propagation.
+
+    The same states, controls and results as :class:`~energy_margin.sim.mujoco_rollout.RolloutPropagator`
+    (``mjSTATE_FULLPHYSICS`` vectors, float64 on the host); the physics runs in float32 on the
+    device. The worlds are allocated for the largest batch seen so far; a smaller batch fills the
+    rest with copies of its first propagation, whose results are dropped.
+
+    Args:
+        model: the simulator's compiled model (copied to the device as it is now).
+        data: the simulator's data (its current state, its held controls).
+        index: the objects' and the robot's addresses in ``model``.
+        device: ``"cuda"`` or ``"cpu"`` (:data:`DEVICES`).
+
+    Raises:
+        EnergyMarginError: a model MuJoCo Warp cannot simulate (one line, Warp's reason), or a
+            state with more than time, joints and activations (actuator history, plugins).
+
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index: ModelIndex, device: str) -> None:
+        super().__init__(model, data, index, threads=1)
+        check_device(device)
+        if self.state_size != 1 + model.nq + model.nv + model.na:
+            raise EnergyMarginError(
+                "engine 'mujoco-warp' propagates time, joints and activations only; this model's state "
+                "also holds actuator history, plugin or plasticity state"
+            )
+        wp = _warp()
+        import mujoco_warp as mjw
+
+        self.device = device
+        self._wp, self._mjw = wp, mjw
+        probe = mujoco.MjData(model)
+        mujoco.mj_setState(model, probe, self.current_state(), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_forward(model, probe)
+        self.contacts_per_world = max(16, 4 * int(probe.ncon))
+        self.constraints_per_world = max(64, 4 * int(probe.nefc))
+        with wp.ScopedDevice(device):
+            try:
+                self._model = mjw.put_model(model)
+            except (NotImplementedError, ValueError) as error:
+                raise EnergyMarginError(f"engine 'mujoco-warp' cannot simulate this model: {error}") from None
+        self._model.opt.warn_overflow = 0
+        self._data: Any = None
+        self.worlds = 0
+        self.rounds = 0
+        self.regrown = 0
+
+    def _allocate(self, worlds: int) -> None:
+        with self._wp.ScopedDevice(self.device):
+            self._data = self._mjw.make_data(
+                self.model, nworld=worlds, nconmax=self.contacts_per_world, njmax=self.constraints_per_world
+            )
+        self.worlds = worlds
+
+    def _run(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray, *, every_step: bool) -> np.ndarray:
+        """Step every world; the state after each step (every_step) or after its own last one."""
+        k = controls.shape[0]
+        if k > self.worlds:
+            self._allocate(k)
+        while True:
+            out = self._attempt(initial, controls, n_steps, every_step=every_step)
+            overflow = self._data.overflow.numpy()[:k]
+            if not overflow.any():
+                return out
+            # A world ran out of contact or constraint rows: double them and run the round again.
+            self.contacts_per_world *= 2
+            self.constraints_per_world *= 2
+            self.regrown += 1
+            self._allocate(self.worlds)
+
+    def _attempt(
+        self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray, *, every_step: bool
+    ) -> np.ndarray:
+        wp, mjw, model, data = self._wp, self._mjw, self.model, self._data
+        k, steps = controls.shape[:2]
+        worlds = self.worlds
+        pad = np.r_[np.arange(k), np.zeros(worlds - k, dtype=int)]
+        initial, controls = initial[pad], controls[pad]
+        nu, nv, nbody = int(model.nu), int(model.nv), int(model.nbody)
+        parts = np.split(controls, np.cumsum([nu, nv, 6 * nbody]), axis=2)
+        kernels = _kernels()
+        with wp.ScopedDevice(self.device):
+
+            def upload(array: np.ndarray) -> Any:
+                # Empty parts still need one column: Warp arrays have no zero-sized axis here.
+                if array.shape[-1] == 0:
+                    array = np.zeros((*array.shape[:-1], 1))
+                return wp.array(np.ascontiguousarray(array, dtype=np.float32), dtype=float)
+
+            sequences = [upload(part) for part in parts]
+            nq = int(model.nq)
+            data.time.assign(initial[:, 0].astype(np.float32))
+            data.qpos.assign(initial[:, 1 : 1 + nq].astype(np.float32))
+            data.qvel.assign(initial[:, 1 + nq : 1 + nq + nv].astype(np.float32))
+            if model.na:
+                data.act.assign(initial[:, 1 + nq + nv :].astype(np.float32))
+            data.qacc_warmstart.zero_()
+            data.overflow.zero_()
+            ends = wp.array(np.where(np.arange(worlds) < k, n_steps[pad], -1).astype(np.int32), dtype=int)
+            out = wp.zeros((worlds, steps if every_step else 1, self.state_size), dtype=float)
+            targets = [data.ctrl, data.qfrc_applied, data.xfrc_applied, data.mocap_pos, data.mocap_quat]
+            for t in range(steps):
+                wp.launch(kernels["hold_controls"], dim=worlds, inputs=[t, *sequences, *targets])
+                mjw.step(self._model, data)
+                wp.launch(
+                    kernels["keep_state"],
+                    dim=worlds,
+                    inputs=[t, int(every_step), ends, data.time, data.qpos, data.qvel, data.act, out],
+                )
+            result = out.numpy()[:k].astype(np.float64)
+        self.rounds += 1
+        return result
+
+    def _roll_all(self, initial: np.ndarray, controls: np.ndarray) -> np.ndarray:
+        k, steps = controls.shape[:2]
+        return self._run(initial, controls, np.full(k, steps), every_step=True)
+
+    def _roll_to(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray) -> np.ndarray:
+        return self._run(initial, controls, np.asarray(n_steps), every_step=False)[:, 0]
+
+    def close(self) -> None:
+        """Free the device arrays."""
+        super().close()
+        self._data = None
+        self.worlds = 0
+
+
+class WarpSimulator(MujocoSimulator):
+    """A MuJoCo simulator whose batched propagations run on MuJoCo Warp (engine ``"mujoco-warp"``).
+
+    Args:
+        scene: the world description.
+        device: ``"cuda"`` or ``"cpu"`` (:data:`DEVICES`).
+        model: a compiled model of ``scene`` to simulate instead of building one; with ``index``.
+        index: the objects' and the robot's addresses in ``model``.
+
+    Raises:
+        EnergyMarginError: MuJoCo Warp is not installed, or ``device`` is not available.
+
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        *,
+        device: str = "cpu",
+        model: mujoco.MjModel | None = None,
+        index: ModelIndex | None = None,
+    ) -> None:
+        check_device(device)
+        super().__init__(scene, model=model, index=index)
+        self.device = device
+        self._warp_propagator: WarpPropagator | None = None
+
+    def keep_object_contacts(self) -> Any:
+        """Simulate the analysis model from now on; the device copy follows the rewritten model."""
+        before = self.pruned_contacts
+        report = super().keep_object_contacts()
+        if before is None:
+            self._warp_propagator = None
+        return report
+
+    def rollout_propagator(self, threads: int = 1) -> WarpPropagator:
+        """The Warp propagator of this simulator's model (one per simulator; ``threads`` is unused)."""
+        if self._warp_propagator is None:
+            self._warp_propagator = WarpPropagator(self.model, self.data, self.index, self.device)
+        return self._warp_propagator

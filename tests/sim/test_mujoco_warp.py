@@ -1,0 +1,124 @@
+"""The ``mujoco-warp`` engine on the CPU device: the propagations of ``mujoco.rollout`` up to float32.
+
+Skipped where MuJoCo Warp is not installed (the ``gpu`` extra; CI's ``gpu`` leg installs it). The
+first propagation compiles Warp's kernels for the CPU (about 40 s on two cores, cached afterwards).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco_warp")
+
+from energy_margin.analysis.config import AnalyzerConfig
+from energy_margin.analysis.frame import FrameAnalyzer
+from energy_margin.cli import main
+from energy_margin.data.dataset import load_dataset
+from energy_margin.errors import EnergyMarginError
+from energy_margin.sim import check_engine_device
+from energy_margin.sim.mujoco_warp import WarpPropagator, WarpSimulator
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def batch(tiny_dataset_source: Path):  # type: ignore[no-untyped-def]
+    """Both engines reset to one frame of the tiny pushing set, and a batch of six perturbed propagations."""
+    dataset = load_dataset(tiny_dataset_source)
+    task = dataset.task
+    friction, drive = float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]
+    frame = dataset.frame(0, 1)
+    reference = task.make_simulator(2, friction, drive)
+    warp = WarpSimulator(task.build_scene(2, friction, drive), device="cpu")
+    for simulator in (reference, warp):
+        simulator.reset(frame)
+    rng = np.random.default_rng(0)
+    k = 6
+    state = reference.rollout_propagator(1).current_state()
+    inputs = (
+        task,
+        drive,
+        np.repeat(state[None], k, axis=0),
+        np.full(k, float(dataset.arrays["frame_time"][0, 1])),
+        rng.uniform(-1, 1, (k, 2, 6)) * task.wrench_limits(reference.scene).max_wrench,
+        rng.integers(5, 30, k),
+        None,
+    )
+    return reference, warp, inputs
+
+
+def test_warp_propagations_match_mujoco_rollout_up_to_float32(batch) -> None:  # type: ignore[no-untyped-def]
+    reference, warp, inputs = batch
+    propagator = warp.rollout_propagator()
+    assert isinstance(propagator, WarpPropagator) and warp.rollout_propagator(4) is propagator
+    np.testing.assert_array_equal(propagator.current_state(), reference.rollout_propagator(1).current_state())
+    pos, _, quat, ends = reference.rollout_propagator(1).propagate(*inputs)
+    w_pos, _, w_quat, w_ends = propagator.propagate(*inputs)
+    assert w_ends.dtype == np.float64 and w_ends.shape == ends.shape
+    n_steps = inputs[5]
+    np.testing.assert_allclose(w_ends[:, 0], ends[:, 0], rtol=1e-6)  # each stopped at its own step
+    assert np.abs(pos - pos.mean(axis=0)).max() > 1e-4  # the wrenches differ, and so do the outcomes
+    np.testing.assert_allclose(w_pos, pos, atol=2e-3)
+    np.testing.assert_allclose(np.abs(np.sum(w_quat * quat, axis=-1)), 1.0, atol=1e-3)
+    assert np.all(n_steps >= 5)
+
+
+def test_a_propagation_does_not_depend_on_its_batch(batch) -> None:  # type: ignore[no-untyped-def]
+    _, warp, inputs = batch
+    propagator = warp.rollout_propagator()
+    task, drive, states, times, wrenches, n_steps, control = inputs
+    together = propagator.propagate(*inputs)[3]
+    alone = propagator.propagate(task, drive, states[2:3], times[2:3], wrenches[2:3], n_steps[2:3], control)[3]
+    np.testing.assert_array_equal(alone[0], together[2])
+
+
+def test_overflowing_buffers_grow_and_the_round_runs_again(batch) -> None:  # type: ignore[no-untyped-def]
+    _, warp, inputs = batch
+    expected = warp.rollout_propagator().propagate(*inputs)[3]
+    small = WarpPropagator(warp.model, warp.data, warp.index, "cpu")
+    small.contacts_per_world, small.constraints_per_world = 1, 1
+    got = small.propagate(*inputs)[3]
+    assert small.regrown >= 1 and small.contacts_per_world > 1
+    np.testing.assert_allclose(got, expected, atol=1e-5)
+
+
+def test_scores_on_warp_follow_those_on_mujoco(tiny_dataset_source: Path) -> None:
+    dataset = load_dataset(tiny_dataset_source)
+    indices = list(range(dataset.n_trajectories * dataset.n_frames))
+    config = AnalyzerConfig(expansions=60, batch=10)
+    reference = [FrameAnalyzer(dataset, config, seed=1)(index) for index in indices]
+    warp_config = AnalyzerConfig(expansions=60, batch=10, engine="mujoco-warp", device="cpu")
+    warp = list(FrameAnalyzer(dataset, warp_config, seed=1).rows(indices))
+    assert [row["expansions"] for row in warp] == [60] * len(indices)
+    for key in ("capture_score", "success_score"):
+        a = np.array([row[key] for row in reference])
+        b = np.array([row[key] for row in warp])
+        assert np.abs(a - b).mean() < 0.05, key
+
+
+def test_analyze_on_warp_records_its_versions_and_resumes(
+    tiny_dataset: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = ["analyze", str(tiny_dataset), "--engine", "mujoco-warp", "--device", "cpu", "--batch", "8",
+            "--expansions", "16", "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    description = json.loads((tiny_dataset / "analysis.json").read_text())
+    assert description["analyzer"]["engine"] == "mujoco-warp" and description["analyzer"]["device"] == "cpu"
+    assert {"mujoco-warp", "warp-lang"} <= set(description["versions"])
+    scores = (tiny_dataset / "scores.csv").read_text()
+    capsys.readouterr()
+    assert main(args) == 0
+    assert (tiny_dataset / "scores.csv").read_text() == scores
+
+
+def test_cuda_is_refused_in_one_line_where_there_is_none() -> None:
+    import warp as wp
+
+    if wp.is_cuda_available():
+        pytest.skip("this machine has a CUDA device")
+    with pytest.raises(EnergyMarginError, match="Warp finds no CUDA device here"):
+        check_engine_device("mujoco-warp", "cuda")
