@@ -114,6 +114,21 @@ def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     }
 
 
+def seed_noise(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    """How far C MuJoCo's own AP moves with the analysis seed: the yardstick of a parity difference."""
+    dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
+    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch)
+    first = _aps(dataset, _score(dataset, config, seed=args.analysis_seed, workers=1)[0])
+    second = _aps(dataset, _score(dataset, config, seed=args.analysis_seed + 1, workers=1)[0])
+    rows = []
+    for key in QUESTIONS:
+        a, b = first[key], second[key]
+        rows.append(
+            {"question": key, "seed": a, "next_seed": b, "difference": None if a is None or b is None else b - a}
+        )
+    return {"analysis_seeds": [args.analysis_seed, args.analysis_seed + 1], "ap": rows}
+
+
 def _device_memory(device: str) -> dict[str, float] | None:
     if device != "cuda":
         return None
@@ -146,6 +161,11 @@ def main() -> None:
     mode = parser.add_mutually_exclusive_group(required=True)
     mode.add_argument("--parity", action="store_true", help="scores and AP on both engines, one set")
     mode.add_argument("--throughput", action="store_true", help="frames per second against batch and objects")
+    mode.add_argument(
+        "--seed-noise",
+        action="store_true",
+        help="C MuJoCo's AP at two analysis seeds, added to the --out file of a parity run as seed_noise",
+    )
     parser.add_argument("--device", choices=("cuda", "cpu"), default="cuda")
     parser.add_argument("--task", default="pushing")
     parser.add_argument("--objects", type=int, default=10)
@@ -162,6 +182,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as temporary:
         workdir = args.workdir if args.workdir is not None else Path(temporary)
         workdir.mkdir(parents=True, exist_ok=True)
+        if args.seed_noise:
+            noise = seed_noise(args, workdir)
+            print(json.dumps(noise, indent=1))
+            if args.out is not None:
+                document = json.loads(args.out.read_text())
+                command = "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+                document["seed_noise"] = {"command": command, **noise}
+                args.out.write_text(json.dumps(document, indent=2) + "\n")
+            return
         result = parity(args, workdir) if args.parity else throughput(args, workdir)
     document = {
         "command": "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),

@@ -46,8 +46,8 @@ def test_rows_grown_together_equal_rows_one_at_a_time(tiny_dataset_source: Path,
 def test_analyze_frames_needs_batched_expansion(tiny_dataset_source: Path) -> None:
     dataset = load_dataset(tiny_dataset_source)
     frames = [dataset.frame(0, 0)]
-    kwargs = {"friction": float(dataset.arrays["friction"][0]), "drive": dataset.arrays["drive"][0], "seeds": [0],
-              "start_times": [0.0]}  # fmt: skip
+    kwargs = {"frictions": [float(dataset.arrays["friction"][0])], "drives": [dataset.arrays["drive"][0]],
+              "seeds": [0], "start_times": [0.0]}  # fmt: skip
     with pytest.raises(InvalidParameterError, match="batch > 1"):
         analyze_frames(dataset.task, frames, config=AnalyzerConfig(expansions=5), **kwargs)  # type: ignore[arg-type]
 

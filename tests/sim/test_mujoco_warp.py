@@ -21,6 +21,7 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import check_engine_device
 from energy_margin.sim.mujoco_warp import WarpPropagator, WarpSimulator
+from energy_margin.tasks import get_task
 
 pytestmark = pytest.mark.slow
 
@@ -98,6 +99,27 @@ def test_scores_on_warp_follow_those_on_mujoco(tiny_dataset_source: Path) -> Non
         a = np.array([row[key] for row in reference])
         b = np.array([row[key] for row in warp])
         assert np.abs(a - b).mean() < 0.05, key
+
+
+def test_frames_of_several_roll_outs_grown_together_score_as_alone(tiny_dataset_source: Path) -> None:
+    """One call holds both roll-outs' worlds, each with its own friction (a per-world model field)."""
+    dataset = load_dataset(tiny_dataset_source)
+    indices = list(range(dataset.n_trajectories * dataset.n_frames))
+    config = AnalyzerConfig(expansions=30, batch=6, engine="mujoco-warp", device="cpu")
+    analyzer = FrameAnalyzer(dataset, config, seed=2)
+    together = list(analyzer.rows(indices))
+    alone = [FrameAnalyzer(dataset, config, seed=2)(index) for index in indices]
+    for one, other in zip(alone, together, strict=True):
+        assert (other["capture_score"], other["success_score"]) == (one["capture_score"], one["success_score"])
+    propagator = analyzer._lead.rollout_propagator()  # type: ignore[union-attr]
+    assert propagator.rounds == 5  # 30 expansions, 6 a round: every call held all six trees
+
+
+def test_a_model_of_another_structure_is_refused(batch) -> None:  # type: ignore[no-untyped-def]
+    _, warp, inputs = batch
+    other = get_task("pushing").make_simulator(3, 0.5).model
+    with pytest.raises(EnergyMarginError, match="differ in"):
+        warp.rollout_propagator().propagate(*inputs, [other] * len(inputs[2]))
 
 
 def test_analyze_on_warp_records_its_versions_and_resumes(

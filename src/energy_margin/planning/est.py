@@ -12,14 +12,15 @@ The loop itself is shared with the Monte Carlo and RRT baselines (:mod:`energy_m
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features
+from energy_margin.planning.lockstep import grow_together
 from energy_margin.planning.methods import expansion_factory
-from energy_margin.planning.tree import CostField, Expansion, TreeBudget, grow, grow_together
+from energy_margin.planning.tree import CostField, Expansion, TreeBudget, grow
 from energy_margin.sim.base import Simulator, release_states
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
@@ -105,15 +106,15 @@ def grow_tree(
 
 
 def grow_trees_together(
-    simulator: Simulator,
+    simulators: Sequence[Simulator],
     task: Task,
-    roots: list[FrameState],
-    drive: np.ndarray,
-    rngs: list[np.random.Generator],
+    roots: Sequence[FrameState],
+    drives: Sequence[np.ndarray],
+    rngs: Sequence[np.random.Generator],
     *,
     budget: TreeBudget,
     cost_model: CostModel,
-    start_times: list[float],
+    start_times: Sequence[float],
     batch: int,
     features: Features | None = None,
     n_projections: int = 8,
@@ -121,12 +122,13 @@ def grow_trees_together(
     method: str = "est",
     rollout_length: int = 10,
     rrt_extent: float = 0.1,
-    stops: list[Callable[[CostField], bool] | None] | None = None,
+    stops: Sequence[Callable[[CostField], bool] | None] | None = None,
     check_every: int = 25,
     wrench_scale: float = 1.0,
     duration_scale: float = 1.0,
+    propagating: Simulator | None = None,
 ) -> list[CostField]:
-    """Grow one tree per root (frames of one roll-out) in lockstep, each round one batched call.
+    """Grow one tree per root (frames of one or more roll-outs of a scene) in lockstep, each round one batched call.
 
     Each tree is the tree :func:`grow_tree` grows from its root and generator with ``batch``
     (:func:`~energy_margin.planning.tree.grow_together`); the arguments are :func:`grow_tree`'s,
@@ -134,10 +136,10 @@ def grow_trees_together(
     """
     makes = [_expansion(method, root, budget, n_projections, cell_size, rollout_length, rrt_extent) for root in roots]
     return grow_together(
-        simulator,
+        simulators,
         task,
         roots,
-        drive,
+        drives,
         rngs,
         makes,
         budget=budget,
@@ -149,6 +151,7 @@ def grow_trees_together(
         check_every=check_every,
         wrench_scale=wrench_scale,
         duration_scale=duration_scale,
+        propagating=propagating,
     )
 
 

@@ -7,6 +7,8 @@ propagator (:func:`_propagate_round`, ``mujoco.rollout``).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from energy_margin.planning.nodes import Outcome, _Tree
@@ -55,8 +57,13 @@ def _propagate_rows(
     start_times: np.ndarray,
     expansions: list[_Expansion],
     control_steps: int | None,
+    models: list[Any] | None = None,
 ) -> list[Outcome]:
-    """The outcomes of expansions from their parents' states (k, state_size) at script times (k,), s."""
+    """The outcomes of expansions from their parents' states (k, state_size) at script times (k,), s.
+
+    ``drive``: the roll-out's (n_drive,) or each expansion's (k, n_drive); ``models``: each
+    expansion's model when they come from several roll-outs (``None``: the propagator's).
+    """
     pos, vel, quat, ends = propagator.propagate(
         task,
         drive,
@@ -65,6 +72,7 @@ def _propagate_rows(
         np.stack([wrenches for _, _, wrenches, _ in expansions]),
         np.array([n_steps for _, _, _, n_steps in expansions]),
         control_steps,
+        models,
     )
     robots = propagator.end_robot_positions(ends)  # joint coordinates, then a model's mocap poses
     return [Outcome(pos[j], vel[j], quat[j], 0.0, 0.0, ends[j], robots[j]) for j in range(len(expansions))]

@@ -38,7 +38,7 @@ from energy_margin.errors import Constraint, InvalidParameterError, check_fields
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.planning.nodes import CostField, Outcome, _Tree
-from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _propagate_rows, _read
+from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _read
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
@@ -49,7 +49,6 @@ __all__ = [
     "Outcome",
     "TreeBudget",
     "grow",
-    "grow_together",
 ]
 
 
@@ -225,98 +224,6 @@ def grow(
     return growth.tree.field(expansions, physics_s, started)
 
 
-def grow_together(
-    simulator: Simulator,
-    task: Task,
-    roots: list[FrameState],
-    drive: np.ndarray,
-    rngs: list[np.random.Generator],
-    make_expansions: list[Callable[[np.random.Generator, np.ndarray, Features], Expansion]],
-    *,
-    budget: TreeBudget,
-    cost_model: CostModel,
-    start_times: list[float],
-    batch: int,
-    features: Features | None = None,
-    stops: list[Callable[[CostField], bool] | None] | None = None,
-    check_every: int = 25,
-    wrench_scale: float = 1.0,
-    duration_scale: float = 1.0,
-) -> list[CostField]:
-    """Grow one tree per root in lockstep: each round of every tree still growing is one batched call.
-
-    Every tree is the one :func:`grow` grows alone from the same arguments with ``batch`` (its
-    parents, controls and seed are its own; a propagation does not depend on the others in its
-    call), so only the wall time changes: a device engine steps all the trees' worlds together.
-    The roots share the simulator's model and the trajectory's drive (frames of one roll-out).
-
-    Args:
-        simulator: a simulator of the roots' scene with :class:`~energy_margin.sim.base.BatchedRollout`.
-        task: the task.
-        roots: the frame states, one tree each.
-        drive: the trajectory's drive parameters, shape (n_drive,).
-        rngs: one generator per root.
-        make_expansions: one method factory per root (as :func:`grow`'s ``make_expansion``).
-        budget: expansions and/or nodes, per tree.
-        cost_model: incremental cost Q (``"wrench"``: batched propagation).
-        start_times: each root's time within its roll-out, s.
-        batch: expansions per tree per round, >= 2.
-        features: density features (every object's displacement from the root by default).
-        stops: an early-stopping rule per tree (or ``None``), as :func:`grow`'s ``stop``.
-        check_every: expansions between two calls of a tree's ``stop``.
-        wrench_scale: factor on the task's perturbation wrench bounds.
-        duration_scale: factor on the task's longest perturbation propagation.
-
-    Returns:
-        The cost field of each root's tree. Its ``physics_s`` is the tree's share (by propagations)
-        of the batched calls' wall time, its ``total_s`` the group's wall time over the trees.
-
-    Raises:
-        InvalidParameterError: mismatched lists, ``batch`` < 2, or a simulator without batched
-            propagation.
-
-    """
-    started = time.perf_counter()
-    n = len(roots)
-    if not (len(rngs) == len(make_expansions) == len(start_times) == n) or (stops is not None and len(stops) != n):
-        raise InvalidParameterError("roots", "rngs, make_expansions, start_times and stops need one entry per root")
-    check_positive_int("check_every", check_every)
-    if batch < 2:
-        raise InvalidParameterError("batch", f"must be >= 2 to grow trees together, got {batch}")
-    features = features if features is not None else ObjectPositions()
-    bounds = _Bounds.of(simulator, task, cost_model, wrench_scale, duration_scale)
-    propagator = _batch_propagator(simulator, cost_model, batch, 1)
-    assert propagator is not None
-    growths = []
-    for j in range(n):
-        growth = _Growth.plant(simulator, task, roots[j], drive, rngs[j], make_expansions[j], budget, cost_model,
-                               features, propagator, bounds)  # fmt: skip
-        growth.start(budget.expansion_limit, stops[j] if stops is not None else None, check_every)
-        growths.append(growth)
-    physics = np.zeros(n)
-    while True:
-        rounds = [(j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None]
-        if not rounds:
-            break
-        tick = time.perf_counter()
-        everything = [expansion for _, round_ in rounds for expansion in round_]
-        owners = np.concatenate([np.full(len(round_), j) for j, round_ in rounds])
-        times = [start_times[j] + growths[j].tree.times[parent] for j, round_ in rounds for _, parent, _, _ in round_]
-        states = np.stack([growths[j].tree.states[parent] for j, round_ in rounds for _, parent, _, _ in round_])
-        outcomes = _propagate_rows(propagator, task, drive, states, np.array(times), everything, bounds.control_steps)
-        spent = time.perf_counter() - tick
-        at = 0
-        for j, round_ in rounds:
-            growths[j].offer(round_, outcomes[at : at + len(round_)])
-            at += len(round_)
-        physics += spent * np.bincount(owners, minlength=n) / owners.size
-    elapsed = time.perf_counter() - started
-    return [
-        growth.tree.field(growth.expansions, float(physics[j]), time.perf_counter() - elapsed / n)
-        for j, growth in enumerate(growths)
-    ]
-
-
 @dataclass(frozen=True)
 class _Bounds:
     """The controls' bounds and the clock of one growth.
@@ -387,7 +294,8 @@ def _plant(
         cost_model,
     )
     if propagator is not None:
-        first.state = propagator.current_state()
+        # The root's own live data: the propagator may belong to another roll-out's simulator.
+        first.state = propagator.current_state(getattr(simulator, "data", None))
     tree.set_root(first)
     return tree
 

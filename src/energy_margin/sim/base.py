@@ -199,8 +199,11 @@ class Propagator(Protocol):
 
     state_size: int
 
-    def current_state(self) -> np.ndarray:
-        """The simulator's current state, shape (state_size,)."""
+    def current_state(self, data: Any = None) -> np.ndarray:
+        """The simulator's current state, shape (state_size,), or that of ``data``.
+
+        ``data``: another simulator's live data, of a model like this one (another roll-out's).
+        """
         ...
 
     def propagate(
@@ -212,8 +215,12 @@ class Propagator(Protocol):
         wrenches: np.ndarray,
         n_steps: np.ndarray,
         control_steps: int | None,
+        models: list[Any] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Propagate states (k, state_size) with object wrenches (k, n_objects, 6) and the task's script.
+
+        ``drive`` is one roll-out's (n_drive,) or each propagation's (k, n_drive); ``models``, when
+        given, each propagation's model (the models of other roll-outs of the same scene).
 
         Returns:
             Object positions (k, n_objects, 3), velocities (k, n_objects, 6), quaternions

@@ -79,10 +79,10 @@ class RolloutPropagator:
         """Stop the thread pool."""
         self._rollout.close()
 
-    def current_state(self) -> np.ndarray:
-        """The simulator's current state as a ``mjSTATE_FULLPHYSICS`` vector."""
+    def current_state(self, data: mujoco.MjData | None = None) -> np.ndarray:
+        """The simulator's current state, or that of ``data`` (a model like this one), as a FULLPHYSICS vector."""
         state = np.empty(self.state_size)
-        mujoco.mj_getState(self.model, self.data, state, _FULL_PHYSICS)
+        mujoco.mj_getState(self.model, self.data if data is None else data, state, _FULL_PHYSICS)
         return state
 
     def qpos_qvel(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -164,16 +164,23 @@ class RolloutPropagator:
         )
         return out
 
-    def _roll_to(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray) -> np.ndarray:
+    def _roll_to(
+        self,
+        initial: np.ndarray,
+        controls: np.ndarray,
+        n_steps: np.ndarray,
+        models: list[mujoco.MjModel] | None = None,
+    ) -> np.ndarray:
         """The state of each propagation after its own ``n_steps`` (k,) steps, shape (k, state_size).
 
-        ``controls`` (k, longest, control_size) is padded past each propagation's steps.
+        ``controls`` (k, longest, control_size) is padded past each propagation's steps;
+        ``models``: each propagation's model (this propagator's when ``None``).
         """
         k = initial.shape[0]
         if self._warmstart.shape[0] != k:
             self._warmstart = np.zeros((k, self._nv))
         out, _ = self._rollout.rollout(
-            self.model,
+            self.model if models is None else models,
             self._datas,
             initial,
             controls,
@@ -218,18 +225,23 @@ class RolloutPropagator:
         wrenches: np.ndarray,
         n_steps: np.ndarray,
         control_steps: int | None,
+        models: list[mujoco.MjModel] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Propagate every state with its wrenches for its number of steps.
 
         Args:
             task: the task (its scripted ``robot_force`` and ``robot_targets``, without variation).
-            drive: the trajectory's drive parameters.
+            drive: the trajectory's drive parameters, shape (n_drive,), or each propagation's,
+                shape (k, n_drive).
             states: start states, shape (k, state_size).
             start_times: script time at each start, shape (k,), s.
             wrenches: object wrenches, shape (k, n_objects, 6).
             n_steps: steps of each propagation, shape (k,), >= 1; shorter ones are padded to the
                 longest and read at their own last step.
             control_steps: the command is re-evaluated every this many steps (``None``: once).
+            models: each propagation's model, shape (k,) (``None``: this propagator's): models of
+                other roll-outs of the same scene, which differ from it in numbers only
+                (friction, masses), not in structure.
 
         Returns:
             Object positions (k, n_objects, 3), velocities (k, n_objects, 6), quaternions
@@ -241,6 +253,7 @@ class RolloutPropagator:
         longest = int(n_steps.max())
         dt = float(self.model.opt.timestep)
         qpos, qvel = self.qpos_qvel(states)
+        drives = np.broadcast_to(drive, (k, np.shape(drive)[-1]))
         controls = np.empty((k, longest, self.control_size))
         # A command without mocap poses holds those of the simulator's state (the tree's root), as
         # the one-at-a-time path restores them with each node's state.
@@ -253,14 +266,14 @@ class RolloutPropagator:
             while done < steps:
                 chunk = steps - done if control_steps is None else min(control_steps, steps - done)
                 time = float(start_times[j]) + done * dt
-                state = RobotState(drive, time, robot_q, robot_v)
+                state = RobotState(drives[j], time, robot_q, robot_v)
                 force = task.robot_force(state, None)
                 targets = task.robot_targets(state, None)
-                row = self._control(wrenches[j], force, targets, task.model_command(drive, time))
+                row = self._control(wrenches[j], force, targets, task.model_command(drives[j], time))
                 controls[j, done : done + chunk] = row
                 done += chunk
             controls[j, steps:] = row
-        final = self._roll_to(states, controls, n_steps)
+        final = self._roll_to(states, controls, n_steps, models)
         nmocap = int(self.model.nmocap)
         self._end_mocap = controls[np.arange(k), n_steps - 1, self._mocap_at : self._mocap_at + 7 * nmocap]
         pos, quat, vel = index.objects_of(*self.qpos_qvel(final))

@@ -31,10 +31,13 @@ from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
 from energy_margin.world.scene import Scene
 
-__all__ = ["DEVICES", "WarpPropagator", "WarpSimulator", "check_device"]
+__all__ = ["DEVICES", "PER_WORLD_FIELDS", "WarpPropagator", "WarpSimulator", "check_device"]
 
 #: Devices the engine runs on.
 DEVICES = ("cuda", "cpu")
+#: Model numbers that may differ between the worlds of one call: the models of one scene's
+#: roll-outs differ in these only (friction; masses scaled by a drive). Warp batches them per world.
+PER_WORLD_FIELDS = ("geom_friction", "body_mass", "body_inertia")
 
 _INSTALL = "pip install 'energy-margin[gpu]'"
 
@@ -71,6 +74,10 @@ def _warp() -> Any:
 _KERNELS: dict[str, Any] = {}
 
 
+class _CaptureError(Exception):
+    """A CUDA graph could not be captured; the call runs again without graphs."""
+
+
 def _kernels() -> dict[str, Any]:
     """The engine's own Warp kernels (defined once, on first use: importing Warp is slow)."""
     if _KERNELS:
@@ -79,7 +86,7 @@ def _kernels() -> dict[str, Any]:
 
     @wp.kernel
     def hold_controls(
-        t: int,
+        clock: wp.array(dtype=int),  # type: ignore[valid-type]
         ctrl_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
         qfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
         xfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
@@ -91,6 +98,7 @@ def _kernels() -> dict[str, Any]:
         mocap_quat: wp.array2d(dtype=wp.quat),  # type: ignore[valid-type]
     ) -> None:
         w = wp.tid()
+        t = clock[0]
         for i in range(ctrl.shape[1]):
             ctrl[w, i] = ctrl_seq[w, t, i]
         for i in range(qfrc_applied.shape[1]):
@@ -114,7 +122,7 @@ def _kernels() -> dict[str, Any]:
 
     @wp.kernel
     def keep_state(
-        t: int,
+        clock: wp.array(dtype=int),  # type: ignore[valid-type]
         every_step: int,
         steps: wp.array(dtype=int),  # type: ignore[valid-type]
         time: wp.array(dtype=float),  # type: ignore[valid-type]
@@ -124,6 +132,7 @@ def _kernels() -> dict[str, Any]:
         out: wp.array3d(dtype=float),  # type: ignore[valid-type]
     ) -> None:
         w = wp.tid()
+        t = clock[0]
         slot = t
         if every_step == 0:
             if steps[w] != t + 1:
@@ -139,7 +148,13 @@ def _kernels() -> dict[str, Any]:
         for i in range(act.shape[1]):
             out[w, slot, 1 + nq + nv + i] = act[w, i]
 
-    _KERNELS.update(hold_controls=hold_controls, keep_state=keep_state)
+    @wp.kernel
+    def tick(clock: wp.array(dtype=int)) -> None:  # type: ignore[valid-type]
+        # (Warp resolves the annotations through the body's names: it must name wp.)
+        if wp.tid() == 0:
+            clock[0] = clock[0] + 1
+
+    _KERNELS.update(hold_controls=hold_controls, keep_state=keep_state, tick=tick)
     return _KERNELS
 
 
@@ -187,10 +202,15 @@ class WarpPropagator(RolloutPropagator):
             except (NotImplementedError, ValueError) as error:
                 raise EnergyMarginError(f"engine 'mujoco-warp' cannot simulate this model: {error}") from None
         self._model.opt.warn_overflow = 0
+        self._shared = {name: getattr(self._model, name) for name in PER_WORLD_FIELDS}
+        self._checked: set[int] = {id(model)}
         self._data: Any = None
         self.worlds = 0
         self.rounds = 0
         self.regrown = 0
+        #: Whether a CUDA device replays each step as a captured graph (turned off if a capture fails).
+        self.graphs = True
+        self.graph_calls = 0
 
     def _allocate(self, worlds: int) -> None:
         with self._wp.ScopedDevice(self.device):
@@ -199,13 +219,45 @@ class WarpPropagator(RolloutPropagator):
             )
         self.worlds = worlds
 
-    def _run(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray, *, every_step: bool) -> np.ndarray:
+    def _per_world(self, models: list[mujoco.MjModel] | None) -> dict[str, np.ndarray]:
+        """Each propagation's values of the :data:`PER_WORLD_FIELDS` that differ from this model's.
+
+        Raises:
+            EnergyMarginError: a model that differs from this one in anything else.
+
+        """
+        if models is None:
+            return {}
+        for other in {id(model): model for model in models}.values():
+            if id(other) not in self._checked:
+                _check_same_structure(self.model, other)
+                self._checked.add(id(other))
+        return {
+            name: np.stack([getattr(model, name) for model in models])
+            for name in PER_WORLD_FIELDS
+            if any(not np.array_equal(getattr(model, name), getattr(self.model, name)) for model in models)
+        }
+
+    def _run(
+        self,
+        initial: np.ndarray,
+        controls: np.ndarray,
+        n_steps: np.ndarray,
+        *,
+        every_step: bool,
+        models: list[mujoco.MjModel] | None = None,
+    ) -> np.ndarray:
         """Step every world; the state after each step (every_step) or after its own last one."""
         k = controls.shape[0]
         if k > self.worlds:
             self._allocate(k)
+        per_world = self._per_world(models)
         while True:
-            out = self._attempt(initial, controls, n_steps, every_step=every_step)
+            try:
+                out = self._attempt(initial, controls, n_steps, every_step=every_step, per_world=per_world)
+            except _CaptureError:
+                # A capture leaves nothing run: the round starts again with plain launches.
+                out = self._attempt(initial, controls, n_steps, every_step=every_step, per_world=per_world)
             overflow = self._data.overflow.numpy()[:k]
             if not overflow.any():
                 return out
@@ -216,13 +268,26 @@ class WarpPropagator(RolloutPropagator):
             self._allocate(self.worlds)
 
     def _attempt(
-        self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray, *, every_step: bool
+        self,
+        initial: np.ndarray,
+        controls: np.ndarray,
+        n_steps: np.ndarray,
+        *,
+        every_step: bool,
+        per_world: dict[str, np.ndarray],
     ) -> np.ndarray:
         wp, mjw, model, data = self._wp, self._mjw, self.model, self._data
         k, steps = controls.shape[:2]
         worlds = self.worlds
         pad = np.r_[np.arange(k), np.zeros(worlds - k, dtype=int)]
         initial, controls = initial[pad], controls[pad]
+        with wp.ScopedDevice(self.device):
+            for name, shared in self._shared.items():
+                if name in per_world:
+                    values = np.ascontiguousarray(per_world[name][pad], dtype=np.float32)
+                    setattr(self._model, name, wp.array(values, dtype=shared.dtype))
+                else:
+                    setattr(self._model, name, shared)
         nu, nv, nbody = int(model.nu), int(model.nv), int(model.nbody)
         parts = np.split(controls, np.cumsum([nu, nv, 6 * nbody]), axis=2)
         kernels = _kernels()
@@ -246,30 +311,73 @@ class WarpPropagator(RolloutPropagator):
             ends = wp.array(np.where(np.arange(worlds) < k, n_steps[pad], -1).astype(np.int32), dtype=int)
             out = wp.zeros((worlds, steps if every_step else 1, self.state_size), dtype=float)
             targets = [data.ctrl, data.qfrc_applied, data.xfrc_applied, data.mocap_pos, data.mocap_quat]
-            for t in range(steps):
-                wp.launch(kernels["hold_controls"], dim=worlds, inputs=[t, *sequences, *targets])
+            # The step number lives on the device, so one step is the same launches every time:
+            # on CUDA they are captured once as a graph and replayed.
+            clock = wp.zeros(1, dtype=int)
+
+            def one_step() -> None:
+                wp.launch(kernels["hold_controls"], dim=worlds, inputs=[clock, *sequences, *targets])
                 mjw.step(self._model, data)
                 wp.launch(
                     kernels["keep_state"],
                     dim=worlds,
-                    inputs=[t, int(every_step), ends, data.time, data.qpos, data.qvel, data.act, out],
+                    inputs=[clock, int(every_step), ends, data.time, data.qpos, data.qvel, data.act, out],
                 )
+                wp.launch(kernels["tick"], dim=1, inputs=[clock])
+
+            self._steps(one_step, steps)
             result = out.numpy()[:k].astype(np.float64)
         self.rounds += 1
         return result
+
+    def _steps(self, one_step: Any, steps: int) -> None:
+        """Run ``one_step`` ``steps`` times: replayed as a CUDA graph on a GPU, launched on a CPU."""
+        wp = self._wp
+        if self.device != "cuda" or not self.graphs or steps < 2:
+            for _ in range(steps):
+                one_step()
+            return
+        try:
+            with wp.ScopedCapture() as capture:
+                one_step()
+        except Exception:
+            self.graphs = False
+            raise _CaptureError from None
+        for _ in range(steps):
+            wp.capture_launch(capture.graph)
+        self.graph_calls += 1
 
     def _roll_all(self, initial: np.ndarray, controls: np.ndarray) -> np.ndarray:
         k, steps = controls.shape[:2]
         return self._run(initial, controls, np.full(k, steps), every_step=True)
 
-    def _roll_to(self, initial: np.ndarray, controls: np.ndarray, n_steps: np.ndarray) -> np.ndarray:
-        return self._run(initial, controls, np.asarray(n_steps), every_step=False)[:, 0]
+    def _roll_to(
+        self,
+        initial: np.ndarray,
+        controls: np.ndarray,
+        n_steps: np.ndarray,
+        models: list[mujoco.MjModel] | None = None,
+    ) -> np.ndarray:
+        return self._run(initial, controls, np.asarray(n_steps), every_step=False, models=models)[:, 0]
 
     def close(self) -> None:
         """Free the device arrays."""
         super().close()
         self._data = None
         self.worlds = 0
+
+
+def _check_same_structure(model: mujoco.MjModel, other: mujoco.MjModel) -> None:
+    """Raise unless ``other`` is ``model`` but for the :data:`PER_WORLD_FIELDS`."""
+    for name in dir(model):
+        if name.startswith("_") or name in PER_WORLD_FIELDS:
+            continue
+        mine = getattr(model, name)
+        if isinstance(mine, np.ndarray) and not np.array_equal(mine, getattr(other, name)):
+            raise EnergyMarginError(
+                f"engine 'mujoco-warp' propagates models together only when they differ in "
+                f"{', '.join(PER_WORLD_FIELDS)}; these also differ in {name}"
+            )
 
 
 class WarpSimulator(MujocoSimulator):
