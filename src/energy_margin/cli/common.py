@@ -99,12 +99,13 @@ def analyzer_default(name: str) -> Any:
     return field_default(AnalyzerConfig, name)
 
 
-def add_engine(parser: argparse.ArgumentParser) -> None:
-    """The ``--engine`` option, with the engines as its choices."""
-    from energy_margin.sim import ENGINES
+def add_engine(parser: argparse.ArgumentParser, *, records: bool = False) -> None:
+    """The ``--engine`` option, with the engines as its choices (``records``: those that record roll-outs)."""
+    from energy_margin.sim import ENGINES, get_engine
 
+    choices = tuple(name for name in ENGINES if get_engine(name).records or not records)
     parser.add_argument(
-        "--engine", choices=ENGINES, default="mujoco", help=f"physics engine: {', '.join(ENGINES)} (default mujoco)"
+        "--engine", choices=choices, default="mujoco", help=f"physics engine: {', '.join(choices)} (default mujoco)"
     )
 
 

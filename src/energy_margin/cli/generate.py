@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trajectories", type=int, default=20, help="roll-outs (default 20)")
     parser.add_argument("--frames", type=int, default=10, help="frames per roll-out (default 10)")
     add_seed(parser)
-    add_engine(parser)
+    add_engine(parser, records=True)
     parser.add_argument("--out", required=True, help="dataset directory to create")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing directory")
     add_set(parser, "override a task setting, e.g. --set drive_jitter=0.1")

@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="small sets: a few minutes on 2 cores")
     parser.add_argument("--out", default=None, help="output directory (default runs/reproduce or runs/reproduce-quick)")
     parser.add_argument("--workers", type=positive_int, default=2, help="parallel workers (default 2)")
-    add_engine(parser)
+    add_engine(parser, records=True)
     add_seed(parser)
     add_overwrite(parser, "a reproduction of other settings in --out")
 
