@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.executors import make_executor
-from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.analysis.frame import FRAMES_TOGETHER, AnalyzerConfig
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.evaluation.metrics import question_aps
@@ -135,7 +135,11 @@ def _device_memory(device: str) -> dict[str, float] | None:
     import warp as wp
 
     cuda = wp.get_device("cuda")
-    return {"total_gib": cuda.total_memory / 2**30, "free_gib": cuda.free_memory / 2**30}
+    memory = {"total_gib": cuda.total_memory / 2**30, "free_gib": cuda.free_memory / 2**30}
+    high = getattr(wp, "get_mempool_used_mem_high", None)
+    if high is not None:
+        memory["pool_high_gib"] = high(cuda) / 2**30  # the most Warp's memory pool held so far
+    return memory
 
 
 def throughput(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
@@ -148,7 +152,7 @@ def throughput(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         for batch in args.batches:
             config = AnalyzerConfig(expansions=args.expansions, batch=batch, engine="mujoco-warp", device=args.device)
             _, warp_s = _score(dataset, config, seed=args.analysis_seed, workers=1)
-            row = {"objects": objects, "batch": batch, "frames": frames, "worlds_per_call": batch * dataset.n_frames,
+            row = {"objects": objects, "batch": batch, "frames": frames, "worlds_per_call": min(batch, args.expansions) * min(frames, FRAMES_TOGETHER),
                    "warp_frames_per_second": frames / warp_s, "mujoco_all_cores_frames_per_second": frames / c_s,
                    "mujoco_workers": cpu, "memory": _device_memory(args.device)}  # fmt: skip
             rows.append(row)
