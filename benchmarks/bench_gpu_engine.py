@@ -152,7 +152,8 @@ def throughput(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         for batch in args.batches:
             config = AnalyzerConfig(expansions=args.expansions, batch=batch, engine="mujoco-warp", device=args.device)
             _, warp_s = _score(dataset, config, seed=args.analysis_seed, workers=1)
-            row = {"objects": objects, "batch": batch, "frames": frames, "worlds_per_call": min(batch, args.expansions) * min(frames, FRAMES_TOGETHER),
+            worlds = min(batch, args.expansions) * min(frames, FRAMES_TOGETHER)
+            row = {"objects": objects, "batch": batch, "frames": frames, "worlds_per_call": worlds,
                    "warp_frames_per_second": frames / warp_s, "mujoco_all_cores_frames_per_second": frames / c_s,
                    "mujoco_workers": cpu, "memory": _device_memory(args.device)}  # fmt: skip
             rows.append(row)
