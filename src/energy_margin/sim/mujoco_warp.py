@@ -72,6 +72,8 @@ def _warp() -> Any:
 
 
 _KERNELS: dict[str, Any] = {}
+#: Models a propagator remembers as checked (a few groups' roll-outs).
+_CHECKED_MODELS = 512
 
 
 class _CaptureError(Exception):
@@ -203,7 +205,9 @@ class WarpPropagator(RolloutPropagator):
                 raise EnergyMarginError(f"engine 'mujoco-warp' cannot simulate this model: {error}") from None
         self._model.opt.warn_overflow = 0
         self._shared = {name: getattr(self._model, name) for name in PER_WORLD_FIELDS}
-        self._checked: set[int] = {id(model)}
+        # Models checked to differ from this one in per-world numbers only, kept alive (so that no
+        # new model takes a checked one's id) up to a bound.
+        self._checked: dict[int, mujoco.MjModel] = {id(model): model}
         self._data: Any = None
         self.worlds = 0
         self.rounds = 0
@@ -231,7 +235,9 @@ class WarpPropagator(RolloutPropagator):
         for other in {id(model): model for model in models}.values():
             if id(other) not in self._checked:
                 _check_same_structure(self.model, other)
-                self._checked.add(id(other))
+                if len(self._checked) >= _CHECKED_MODELS:
+                    self._checked = {id(self.model): self.model}
+                self._checked[id(other)] = other
         return {
             name: np.stack([getattr(model, name) for model in models])
             for name in PER_WORLD_FIELDS
