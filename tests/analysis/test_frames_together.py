@@ -62,3 +62,26 @@ def test_a_device_engine_needs_batches_and_other_engines_take_no_device() -> Non
     with pytest.raises(InvalidParameterError, match="device"):
         AnalyzerConfig(engine="mujoco-warp", batch=8, device="tpu")
     assert AnalyzerConfig(engine="mujoco-warp", batch=8, device="cpu").to_dict()["device"] == "cpu"
+
+
+def test_roll_outs_a_propagator_cannot_mix_are_grown_one_roll_out_at_a_time(
+    tiny_dataset_source: Path, lockstep_mujoco: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from energy_margin.sim.base import IncompatibleModelsError
+    from energy_margin.sim.mujoco_rollout import RolloutPropagator
+
+    calls: list[int] = []
+
+    def refuse_mixtures(self, models) -> None:  # type: ignore[no-untyped-def]
+        calls.append(len({id(model) for model in models}))
+        if len({id(model) for model in models}) > 1:
+            raise IncompatibleModelsError("models differ")
+
+    monkeypatch.setattr(RolloutPropagator, "check_models", refuse_mixtures, raising=False)
+    dataset = load_dataset(tiny_dataset_source)
+    config = AnalyzerConfig(expansions=20, batch=4)
+    indices = list(range(dataset.n_trajectories * dataset.n_frames))
+    one_at_a_time = [FrameAnalyzer(dataset, config, seed=5)(index) for index in indices]
+    together = list(FrameAnalyzer(dataset, config, seed=5).rows(indices))
+    assert _comparable(together) == _comparable(one_at_a_time)
+    assert calls[0] == 2  # both roll-outs were offered together first, and refused

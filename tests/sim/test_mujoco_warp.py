@@ -20,6 +20,7 @@ from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import check_engine_device
+from energy_margin.sim.base import IncompatibleModelsError
 from energy_margin.sim.mujoco_warp import WarpPropagator, WarpSimulator
 from energy_margin.tasks import get_task
 
@@ -115,10 +116,28 @@ def test_frames_of_several_roll_outs_grown_together_score_as_alone(tiny_dataset_
     assert propagator.rounds == 5  # 30 expansions, 6 a round: every call held all six trees
 
 
+def test_roll_outs_with_their_own_servo_gains_grow_together(tmp_path: Path) -> None:
+    """Scooping's drive sets each roll-out's servo gains: per-world actuator parameters in one call."""
+    from energy_margin.data.generate import generate_dataset
+
+    dataset = generate_dataset("scooping", n_objects=2, n_trajectories=2, n_frames=2, seed=0, out=tmp_path / "s")
+    gains = {dataset.task.make_simulator(2, float(f), d).model.actuator_gainprm.tobytes()
+             for f, d in zip(dataset.arrays["friction"], dataset.arrays["drive"], strict=True)}  # fmt: skip
+    assert len(gains) == 2  # the two roll-outs' models differ in more than friction
+    indices = [0, 1, 2, 3]
+    config = AnalyzerConfig(expansions=12, batch=6, engine="mujoco-warp", device="cpu")
+    analyzer = FrameAnalyzer(dataset, config, seed=4)
+    together = list(analyzer.rows(indices))
+    alone = [FrameAnalyzer(dataset, config, seed=4)(index) for index in indices]
+    for one, other in zip(alone, together, strict=True):
+        assert (other["capture_score"], other["success_score"]) == (one["capture_score"], one["success_score"])
+    assert analyzer._lead.rollout_propagator().rounds == 2  # type: ignore[union-attr]
+
+
 def test_a_model_of_another_structure_is_refused(batch) -> None:  # type: ignore[no-untyped-def]
     _, warp, inputs = batch
     other = get_task("pushing").make_simulator(3, 0.5).model
-    with pytest.raises(EnergyMarginError, match="differ in"):
+    with pytest.raises(IncompatibleModelsError, match="differ in"):
         warp.rollout_propagator().propagate(*inputs, [other] * len(inputs[2]))
 
 

@@ -31,7 +31,7 @@ from energy_margin.planning import CostField, grow_tree, grow_trees_together
 from energy_margin.planning.costs import make_cost_model
 from energy_margin.planning.density import make_features
 from energy_margin.sim import Simulator, get_engine
-from energy_margin.sim.base import CompiledModel, ObjectContacts
+from energy_margin.sim.base import CompiledModel, IncompatibleModelsError, ObjectContacts
 from energy_margin.tasks import Task, with_contacts
 from energy_margin.tasks.protocols import PhysicsReadout
 from energy_margin.world.state import FrameState
@@ -324,7 +324,33 @@ class FrameAnalyzer:
             self._lead = simulators[0]
         # Every group's calls run on one simulator's device copy, built once.
         lead = self._lead
-        results = analyze_frames(
+        try:
+            results = self._grown_together(indices, places, frictions, drives, simulators, lead)
+        except IncompatibleModelsError:
+            # Roll-outs whose models differ in more than the engine batches per world: one
+            # roll-out per group, on its own simulator.
+            rows = []
+            for trajectory in dict.fromkeys(trajectory for trajectory, _ in places):
+                mine = [at for at, (owner, _) in enumerate(places) if owner == trajectory]
+                group = [indices[at] for at in mine]
+                results = self._grown_together(group, [places[at] for at in mine], [frictions[at] for at in mine],
+                                               [drives[at] for at in mine], [simulators[at] for at in mine],
+                                               simulators[mine[0]])  # fmt: skip
+                rows += [self._row(index, scores) for index, (scores, _) in zip(group, results, strict=True)]
+            return rows
+        return [self._row(index, scores) for index, (scores, _) in zip(indices, results, strict=True)]
+
+    def _grown_together(
+        self,
+        indices: list[int],
+        places: list[tuple[int, int]],
+        frictions: list[float],
+        drives: list[np.ndarray],
+        simulators: list[Simulator],
+        lead: Simulator,
+    ) -> list[tuple[FrameScores, CostField]]:
+        dataset = self.dataset
+        return analyze_frames(
             self.task,
             [dataset.frame(trajectory, frame) for trajectory, frame in places],
             frictions=frictions,
@@ -335,7 +361,6 @@ class FrameAnalyzer:
             simulators=simulators,
             propagating=lead,
         )
-        return [self._row(index, scores) for index, (scores, _) in zip(indices, results, strict=True)]
 
     def analyse(self, index: int) -> tuple[dict[str, Any], CostField]:
         """The scores row of frame ``index`` (trajectory-major) and the cost field it was scored on."""

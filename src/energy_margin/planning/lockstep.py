@@ -83,6 +83,8 @@ def grow_together(
     Raises:
         InvalidParameterError: mismatched lists, ``batch`` < 2, or a simulator without batched
             propagation.
+        IncompatibleModelsError: roots' models the propagator cannot run in one call (they differ
+            in more than it batches per world), raised before anything is grown.
 
     """
     started = time.perf_counter()
@@ -110,6 +112,9 @@ def grow_together(
     shared = all(simulator is lead for simulator in simulators)
     models = None if shared else [require(simulator, CompiledModel, purpose="trees of several roll-outs").model
                                   for simulator in simulators]  # fmt: skip
+    check = getattr(propagator, "check_models", None)
+    if models is not None and check is not None:
+        check(models)  # before anything is grown: IncompatibleModelsError
     control_steps = growths[0].bounds.control_steps if growths else None
     physics = np.zeros(n)
     while True:

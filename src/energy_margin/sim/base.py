@@ -34,6 +34,7 @@ __all__ = [
     "BatchedRollout",
     "C",
     "CompiledModel",
+    "IncompatibleModelsError",
     "MissingCapabilityError",
     "ModelCommand",
     "ModelCommands",
@@ -327,6 +328,10 @@ class MissingCapabilityError(EnergyMarginError, ValueError):
         super().__init__(message)
         self.capability = capability
         self.missing = missing
+
+
+class IncompatibleModelsError(EnergyMarginError, ValueError):
+    """Models a batched propagator cannot run in one call (they differ in more than it batches per world)."""
 
 
 def require(simulator: object, capability: Callable[..., C], *, purpose: str) -> C:

@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
+from energy_margin.sim.base import IncompatibleModelsError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
@@ -36,8 +37,17 @@ __all__ = ["DEVICES", "PER_WORLD_FIELDS", "WarpPropagator", "WarpSimulator", "ch
 #: Devices the engine runs on.
 DEVICES = ("cuda", "cpu")
 #: Model numbers that may differ between the worlds of one call: the models of one scene's
-#: roll-outs differ in these only (friction; masses scaled by a drive). Warp batches them per world.
-PER_WORLD_FIELDS = ("geom_friction", "body_mass", "body_inertia")
+#: roll-outs differ in these only (friction; servo gains and masses set by a drive). Warp batches
+#: them per world.
+PER_WORLD_FIELDS = (
+    "geom_friction",
+    "body_mass",
+    "body_inertia",
+    "actuator_gainprm",
+    "actuator_biasprm",
+    "jnt_stiffness",
+    "dof_damping",
+)
 
 _INSTALL = "pip install 'energy-margin[gpu]'"
 
@@ -223,21 +233,25 @@ class WarpPropagator(RolloutPropagator):
             )
         self.worlds = worlds
 
-    def _per_world(self, models: list[mujoco.MjModel] | None) -> dict[str, np.ndarray]:
-        """Each propagation's values of the :data:`PER_WORLD_FIELDS` that differ from this model's.
+    def check_models(self, models: list[mujoco.MjModel]) -> None:
+        """Raise unless every model differs from this one in :data:`PER_WORLD_FIELDS` only.
 
         Raises:
-            EnergyMarginError: a model that differs from this one in anything else.
+            IncompatibleModelsError: a model differs from this one in anything else.
 
         """
-        if models is None:
-            return {}
         for other in {id(model): model for model in models}.values():
             if id(other) not in self._checked:
                 _check_same_structure(self.model, other)
                 if len(self._checked) >= _CHECKED_MODELS:
                     self._checked = {id(self.model): self.model}
                 self._checked[id(other)] = other
+
+    def _per_world(self, models: list[mujoco.MjModel] | None) -> dict[str, np.ndarray]:
+        """Each propagation's values of the :data:`PER_WORLD_FIELDS` that differ from this model's."""
+        if models is None:
+            return {}
+        self.check_models(models)
         return {
             name: np.stack([getattr(model, name) for model in models])
             for name in PER_WORLD_FIELDS
@@ -374,13 +388,18 @@ class WarpPropagator(RolloutPropagator):
 
 
 def _check_same_structure(model: mujoco.MjModel, other: mujoco.MjModel) -> None:
-    """Raise unless ``other`` is ``model`` but for the :data:`PER_WORLD_FIELDS`."""
+    """Raise unless ``other`` is ``model`` but for the :data:`PER_WORLD_FIELDS`.
+
+    Raises:
+        IncompatibleModelsError: they differ elsewhere.
+
+    """
     for name in dir(model):
         if name.startswith("_") or name in PER_WORLD_FIELDS:
             continue
         mine = getattr(model, name)
         if isinstance(mine, np.ndarray) and not np.array_equal(mine, getattr(other, name)):
-            raise EnergyMarginError(
+            raise IncompatibleModelsError(
                 f"engine 'mujoco-warp' propagates models together only when they differ in "
                 f"{', '.join(PER_WORLD_FIELDS)}; these also differ in {name}"
             )
