@@ -194,6 +194,9 @@ def main() -> None:
                 document = json.loads(args.out.read_text())
                 command = "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
                 document["seed_noise"] = {"command": command, **noise}
+                moved = {row["question"]: row["difference"] for row in noise["ap"]}
+                for row in document.get("ap", []):
+                    row["seed_difference"] = moved.get(row["question"])
                 args.out.write_text(json.dumps(document, indent=2) + "\n")
             return
         result = parity(args, workdir) if args.parity else throughput(args, workdir)
