@@ -129,6 +129,42 @@ def seed_noise(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     return {"analysis_seeds": [args.analysis_seed, args.analysis_seed + 1], "ap": rows}
 
 
+def host_side(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    """The host's share of a batched call: building every propagation's controls, no physics.
+
+    One call of ``--rows`` propagations of a frame of the set, each the task's longest, through the
+    batched propagator with its physics replaced by nothing: what is left is the Python that
+    evaluates the scripted command of every propagation and packs its control vector, which a GPU
+    cannot hide. It bounds the frames per second of any engine behind the batched propagator.
+    """
+    dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
+    task = dataset.task
+    simulator = task.make_simulator(dataset.n_objects, float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0])
+    simulator.reset(dataset.frame(0, 0))
+    propagator = simulator.rollout_propagator(1)
+    propagator._roll_to = lambda initial, controls, n_steps, models=None: initial
+    k = args.rows
+    limits = task.wrench_limits(simulator.scene)
+    steps = max(1, int(limits.max_duration / simulator.timestep))
+    rng = np.random.default_rng(0)
+    control_steps = max(1, round(task.control_period / simulator.timestep)) if task.control_period else None
+    started = time.perf_counter()
+    propagator.propagate(
+        task,
+        np.broadcast_to(dataset.arrays["drive"][0], (k, dataset.arrays["drive"].shape[1])),
+        np.repeat(propagator.current_state()[None], k, axis=0),
+        np.zeros(k),
+        rng.uniform(-1, 1, (k, *limits.max_wrench.shape)) * limits.max_wrench,
+        np.full(k, steps),
+        control_steps,
+    )
+    per_row = (time.perf_counter() - started) / k
+    per_frame = per_row * args.expansions
+    return {"rows": k, "steps_per_propagation": steps, "control_steps": control_steps,
+            "host_us_per_propagation": per_row * 1e6, "host_s_per_frame": per_frame,
+            "frames_per_second_ceiling": 1.0 / per_frame, "expansions": args.expansions}  # fmt: skip
+
+
 def _device_memory(device: str) -> dict[str, float] | None:
     if device != "cuda":
         return None
@@ -167,6 +203,9 @@ def main() -> None:
     mode.add_argument("--parity", action="store_true", help="scores and AP on both engines, one set")
     mode.add_argument("--throughput", action="store_true", help="frames per second against batch and objects")
     mode.add_argument(
+        "--host-side", action="store_true", help="the host's Python per propagation of a batched call, no physics"
+    )
+    mode.add_argument(
         "--seed-noise",
         action="store_true",
         help="C MuJoCo's AP at two analysis seeds, added to the --out file of a parity run as seed_noise",
@@ -181,6 +220,7 @@ def main() -> None:
     parser.add_argument("--expansions", type=int, default=300)
     parser.add_argument("--batch", type=int, default=32)
     parser.add_argument("--batches", type=int, nargs="+", default=[32, 100, 300])
+    parser.add_argument("--rows", type=int, default=3200, help="propagations of the --host-side call")
     parser.add_argument("--workdir", type=Path, default=None, help="where the sets are generated (default: a temp dir)")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
@@ -199,7 +239,11 @@ def main() -> None:
                     row["seed_difference"] = moved.get(row["question"])
                 args.out.write_text(json.dumps(document, indent=2) + "\n")
             return
-        result = parity(args, workdir) if args.parity else throughput(args, workdir)
+        if args.host_side:
+            result = host_side(args, workdir)
+            print(json.dumps(result, indent=1))
+        else:
+            result = parity(args, workdir) if args.parity else throughput(args, workdir)
     document = {
         "command": "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         "machine": machine(),
