@@ -216,6 +216,60 @@ class RolloutPropagator:
             raise InvalidParameterError("states", f"are not the end states of the last propagation ({states.shape[0]})")
         return np.concatenate([joints, self._end_mocap], axis=1)
 
+    def _controls_at_once(
+        self,
+        controls: np.ndarray,
+        task: Any,
+        drives: np.ndarray,
+        qpos: np.ndarray,
+        qvel: np.ndarray,
+        start_times: np.ndarray,
+        wrenches: np.ndarray,
+        n_steps: np.ndarray,
+        control_steps: int | None,
+    ) -> bool:
+        """Fill ``controls`` (k, longest, control_size) from the task's vectorised script, if it has one.
+
+        The same numbers as the loop of :meth:`propagate`, to the last bit: a command at the same
+        times (start + done * dt, done a multiple of ``control_steps``), packed into the same
+        vector (the scratch data's, with each row's wrenches, forces and targets in their slots).
+
+        Returns:
+            Whether it did (``False``: the task evaluates one state at a time).
+
+        """
+        robot_commands = getattr(task, "robot_commands", None)
+        if robot_commands is None:
+            return False
+        index, model = self.index, self.model
+        k, longest = controls.shape[:2]
+        dt = float(model.opt.timestep)
+        period = longest if control_steps is None else control_steps
+        robot_q, robot_v = qpos[:, index.robot_qpos], qvel[:, index.robot_qvel]
+        base = np.empty(self.control_size)
+        mujoco.mj_getState(model, self._scratch, base, _CONTROL_SPEC)
+        nu, nv = int(model.nu), int(model.nv)
+        force_at = nu + index.robot_qvel
+        wrench_at = (nu + nv + 6 * index.object_bodies[:, None] + np.arange(6)).ravel()
+        rows = np.broadcast_to(base, (k, self.control_size)).copy()
+        rows[:, wrench_at] = wrenches.reshape(k, -1)
+        ends = np.zeros(k, dtype=np.int64)
+        for done in range(0, longest, period):
+            active = np.flatnonzero(n_steps > done)
+            commands = robot_commands(drives[active], start_times[active] + done * dt, robot_q[active], robot_v[active])
+            if commands is None:
+                return False
+            forces, targets = commands
+            rows[np.ix_(active, force_at)] = np.asarray(forces)[:, : index.robot_qvel.size]
+            if targets is not None and index.servo_actuators.size:
+                rows[np.ix_(active, index.servo_actuators)] = np.asarray(targets, dtype=float)[:, index.servoed]
+            controls[active, done : done + period] = rows[active, None, :]
+            ends[active] = min(done + period, longest)
+        # Past its last command, each propagation holds it (the loop's controls[j, steps:] = row).
+        tail = np.arange(longest)[None, :] >= ends[:, None]
+        controls[tail] = rows[np.nonzero(tail)[0]]
+        return True
+
     def propagate(
         self,
         task: Any,
@@ -259,20 +313,23 @@ class RolloutPropagator:
         # the one-at-a-time path restores them with each node's state.
         self._scratch.mocap_pos[:] = self.data.mocap_pos
         self._scratch.mocap_quat[:] = self.data.mocap_quat
-        for j in range(k):
-            robot_q, robot_v = qpos[j, index.robot_qpos], qvel[j, index.robot_qvel]
-            done, steps = 0, int(n_steps[j])
-            row = controls[j, 0]
-            while done < steps:
-                chunk = steps - done if control_steps is None else min(control_steps, steps - done)
-                time = float(start_times[j]) + done * dt
-                state = RobotState(drives[j], time, robot_q, robot_v)
-                force = task.robot_force(state, None)
-                targets = task.robot_targets(state, None)
-                row = self._control(wrenches[j], force, targets, task.model_command(drives[j], time))
-                controls[j, done : done + chunk] = row
-                done += chunk
-            controls[j, steps:] = row
+        if not self._controls_at_once(
+            controls, task, drives, qpos, qvel, start_times, wrenches, n_steps, control_steps
+        ):
+            for j in range(k):
+                robot_q, robot_v = qpos[j, index.robot_qpos], qvel[j, index.robot_qvel]
+                done, steps = 0, int(n_steps[j])
+                row = controls[j, 0]
+                while done < steps:
+                    chunk = steps - done if control_steps is None else min(control_steps, steps - done)
+                    time = float(start_times[j]) + done * dt
+                    state = RobotState(drives[j], time, robot_q, robot_v)
+                    force = task.robot_force(state, None)
+                    targets = task.robot_targets(state, None)
+                    row = self._control(wrenches[j], force, targets, task.model_command(drives[j], time))
+                    controls[j, done : done + chunk] = row
+                    done += chunk
+                controls[j, steps:] = row
         final = self._roll_to(states, controls, n_steps, models)
         nmocap = int(self.model.nmocap)
         self._end_mocap = controls[np.arange(k), n_steps - 1, self._mocap_at : self._mocap_at + 7 * nmocap]

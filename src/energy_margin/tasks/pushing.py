@@ -239,6 +239,15 @@ class PushingTask(Task):
             force[1] *= 1.0 + rng.uniform(-cfg.drive_jitter, cfg.drive_jitter)
         return force
 
+    def robot_commands(
+        self, drives: np.ndarray, times: np.ndarray, q: np.ndarray, v: np.ndarray
+    ) -> tuple[np.ndarray, None]:
+        """The nominal force of every state at once: each drive's (x, y) force; no servos."""
+        del times, q, v
+        forces = np.zeros((drives.shape[0], 4))
+        forces[:, :2] = drives[:, :2]
+        return forces, None
+
     def capture_region(self, root: FrameState) -> SweptRegion:
         """Swept annular sector (disc at low speed) from the pusher's pose and velocity."""
         return SweptRegion(self.config, root.robot_q[:2], root.robot_v[[0, 1, 3]])

@@ -66,6 +66,13 @@ _GRIPPER_RGBA = (0.2, 0.7, 0.3, 1.0)
 _SIDES = (("right", 1.0), ("left", -1.0))
 
 
+def _smoothsteps(times: np.ndarray, start: float, end: float) -> np.ndarray:
+    """:func:`_smoothstep` of every time, elementwise (the same operations)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (times - start) / (end - start)
+        return np.where(times <= start, 0.0, np.where(times >= end, 1.0, u * u * (3.0 - 2.0 * u)))
+
+
 def _smoothstep(time: float, start: float, end: float) -> float:
     """0 before ``start``, 1 after ``end``, a C1 cubic in between."""
     if time <= start:
@@ -388,6 +395,27 @@ class ScoopingTask(Task):
             rate = (positions[-1] - positions[-2]) / (times[-1] - times[-2])
             return positions[-1] + rate * (time - times[-1])
         return np.array([np.interp(time, times, positions[:, joint]) for joint in range(positions.shape[1])])
+
+    def robot_commands(
+        self, drives: np.ndarray, times: np.ndarray, q: np.ndarray, v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """No force and the script's servo targets for every state at once (``None`` for recorded motion)."""
+        del drives, q, v
+        if self.config.recorded_waypoints:
+            return None
+        cfg = self.config
+        start = self.contact_height + cfg.approach_height
+        # The operations of _targets, in its order, on arrays: the same numbers to the last bit.
+        base = (
+            start
+            - cfg.approach_height * _smoothsteps(times, 0.0, cfg.approach_end)
+            + cfg.lift_height * _smoothsteps(times, cfg.lift_start, cfg.lift_end)
+        )
+        finger = self.closed_travel * _smoothsteps(times, cfg.approach_end, cfg.close_end)
+        targets = np.empty((times.shape[0], 5))
+        targets[:, 0], targets[:, 1], targets[:, 3] = base, finger, finger
+        targets[:, 2] = targets[:, 4] = cfg.scoop_angle
+        return np.zeros((times.shape[0], 5)), targets
 
     def capture_region(self, root: FrameState) -> BoxesAboveTable:
         """Boxes on the blades: ``capture_margin`` above the table, in the footprint, not falling."""
