@@ -142,7 +142,7 @@ def host_side(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     simulator = task.make_simulator(dataset.n_objects, float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0])
     simulator.reset(dataset.frame(0, 0))
     propagator = simulator.rollout_propagator(1)
-    propagator._roll_to = lambda initial, controls, n_steps, models=None: initial
+    propagator._roll_to = lambda initial, chunks, period, n_steps, models=None: initial
     k = args.rows
     limits = task.wrench_limits(simulator.scene)
     steps = max(1, int(limits.max_duration / simulator.timestep))

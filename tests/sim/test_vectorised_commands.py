@@ -39,8 +39,8 @@ def _calls(name: str, n_objects: int):  # type: ignore[no-untyped-def]
 def _controls(propagator: RolloutPropagator, inputs, monkeypatch: pytest.MonkeyPatch, *, vectorised: bool):  # type: ignore[no-untyped-def]
     seen = {}
 
-    def keep(initial, controls, n_steps, models=None):  # type: ignore[no-untyped-def]
-        seen["controls"] = controls.copy()
+    def keep(initial, chunks, period, n_steps, models=None):  # type: ignore[no-untyped-def]
+        seen["controls"] = np.repeat(chunks, period, axis=1)[:, : int(n_steps.max())].copy()
         return initial
 
     monkeypatch.setattr(propagator, "_roll_to", keep)

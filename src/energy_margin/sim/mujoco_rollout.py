@@ -167,16 +167,26 @@ class RolloutPropagator:
     def _roll_to(
         self,
         initial: np.ndarray,
-        controls: np.ndarray,
+        chunks: np.ndarray,
+        period: int,
         n_steps: np.ndarray,
         models: list[mujoco.MjModel] | None = None,
     ) -> np.ndarray:
         """The state of each propagation after its own ``n_steps`` (k,) steps, shape (k, state_size).
 
-        ``controls`` (k, longest, control_size) is padded past each propagation's steps;
-        ``models``: each propagation's model (this propagator's when ``None``).
+        Args:
+            initial: start states, shape (k, state_size).
+            chunks: the control vector of every command period, shape (k, n_chunks, control_size):
+                step ``t`` holds ``chunks[:, t // period]``; a propagation past its own steps
+                holds its last.
+            period: steps per chunk.
+            n_steps: steps of each propagation, shape (k,).
+            models: each propagation's model (this propagator's when ``None``).
+
         """
         k = initial.shape[0]
+        longest = int(n_steps.max())
+        controls = np.repeat(chunks, period, axis=1)[:, :longest]
         if self._warmstart.shape[0] != k:
             self._warmstart = np.zeros((k, self._nv))
         out, _ = self._rollout.rollout(
@@ -185,7 +195,7 @@ class RolloutPropagator:
             initial,
             controls,
             control_spec=int(_CONTROL_SPEC),
-            nstep=controls.shape[1],
+            nstep=longest,
             initial_warmstart=self._warmstart,
         )
         return out[np.arange(k), n_steps - 1]
@@ -218,7 +228,8 @@ class RolloutPropagator:
 
     def _controls_at_once(
         self,
-        controls: np.ndarray,
+        chunks: np.ndarray,
+        period: int,
         task: Any,
         drives: np.ndarray,
         qpos: np.ndarray,
@@ -226,13 +237,12 @@ class RolloutPropagator:
         start_times: np.ndarray,
         wrenches: np.ndarray,
         n_steps: np.ndarray,
-        control_steps: int | None,
     ) -> bool:
-        """Fill ``controls`` (k, longest, control_size) from the task's vectorised script, if it has one.
+        """Fill ``chunks`` (k, n_chunks, control_size) from the task's vectorised script, if it has one.
 
-        The same numbers as the loop of :meth:`propagate`, to the last bit: a command at the same
-        times (start + done * dt, done a multiple of ``control_steps``), packed into the same
-        vector (the scratch data's, with each row's wrenches, forces and targets in their slots).
+        The same numbers as the loop of :meth:`propagate`, to the last bit: commands at the same
+        times (start + done * dt, done a multiple of ``period``), packed into the same vector (the
+        scratch data's, with each row's wrenches, forces and targets in their slots).
 
         Returns:
             Whether it did (``False``: the task evaluates one state at a time).
@@ -242,9 +252,8 @@ class RolloutPropagator:
         if robot_commands is None:
             return False
         index, model = self.index, self.model
-        k, longest = controls.shape[:2]
+        k = chunks.shape[0]
         dt = float(model.opt.timestep)
-        period = longest if control_steps is None else control_steps
         robot_q, robot_v = qpos[:, index.robot_qpos], qvel[:, index.robot_qvel]
         base = np.empty(self.control_size)
         mujoco.mj_getState(model, self._scratch, base, _CONTROL_SPEC)
@@ -253,8 +262,8 @@ class RolloutPropagator:
         wrench_at = (nu + nv + 6 * index.object_bodies[:, None] + np.arange(6)).ravel()
         rows = np.broadcast_to(base, (k, self.control_size)).copy()
         rows[:, wrench_at] = wrenches.reshape(k, -1)
-        ends = np.zeros(k, dtype=np.int64)
-        for done in range(0, longest, period):
+        for c in range(chunks.shape[1]):
+            done = c * period
             active = np.flatnonzero(n_steps > done)
             commands = robot_commands(drives[active], start_times[active] + done * dt, robot_q[active], robot_v[active])
             if commands is None:
@@ -263,11 +272,7 @@ class RolloutPropagator:
             rows[np.ix_(active, force_at)] = np.asarray(forces)[:, : index.robot_qvel.size]
             if targets is not None and index.servo_actuators.size:
                 rows[np.ix_(active, index.servo_actuators)] = np.asarray(targets, dtype=float)[:, index.servoed]
-            controls[active, done : done + period] = rows[active, None, :]
-            ends[active] = min(done + period, longest)
-        # Past its last command, each propagation holds it (the loop's controls[j, steps:] = row).
-        tail = np.arange(longest)[None, :] >= ends[:, None]
-        controls[tail] = rows[np.nonzero(tail)[0]]
+            chunks[:, c] = rows  # a propagation past its last command holds it
         return True
 
     def propagate(
@@ -308,30 +313,29 @@ class RolloutPropagator:
         dt = float(self.model.opt.timestep)
         qpos, qvel = self.qpos_qvel(states)
         drives = np.broadcast_to(drive, (k, np.shape(drive)[-1]))
-        controls = np.empty((k, longest, self.control_size))
+        # One control vector per command period: step t of a propagation holds chunks[:, t // period].
+        period = longest if control_steps is None else int(control_steps)
+        chunks = np.empty((k, -(-longest // period), self.control_size))
         # A command without mocap poses holds those of the simulator's state (the tree's root), as
         # the one-at-a-time path restores them with each node's state.
         self._scratch.mocap_pos[:] = self.data.mocap_pos
         self._scratch.mocap_quat[:] = self.data.mocap_quat
-        if not self._controls_at_once(
-            controls, task, drives, qpos, qvel, start_times, wrenches, n_steps, control_steps
-        ):
+        if not self._controls_at_once(chunks, period, task, drives, qpos, qvel, start_times, wrenches, n_steps):
             for j in range(k):
                 robot_q, robot_v = qpos[j, index.robot_qpos], qvel[j, index.robot_qvel]
-                done, steps = 0, int(n_steps[j])
-                row = controls[j, 0]
-                while done < steps:
-                    chunk = steps - done if control_steps is None else min(control_steps, steps - done)
-                    time = float(start_times[j]) + done * dt
-                    state = RobotState(drives[j], time, robot_q, robot_v)
-                    force = task.robot_force(state, None)
-                    targets = task.robot_targets(state, None)
-                    row = self._control(wrenches[j], force, targets, task.model_command(drives[j], time))
-                    controls[j, done : done + chunk] = row
-                    done += chunk
-                controls[j, steps:] = row
-        final = self._roll_to(states, controls, n_steps, models)
+                steps = int(n_steps[j])
+                for c in range(chunks.shape[1]):
+                    done = c * period
+                    if done < steps:
+                        time = float(start_times[j]) + done * dt
+                        state = RobotState(drives[j], time, robot_q, robot_v)
+                        force = task.robot_force(state, None)
+                        targets = task.robot_targets(state, None)
+                        row = self._control(wrenches[j], force, targets, task.model_command(drives[j], time))
+                    chunks[j, c] = row  # past its last command, a propagation holds it
+        final = self._roll_to(states, chunks, period, n_steps, models)
         nmocap = int(self.model.nmocap)
-        self._end_mocap = controls[np.arange(k), n_steps - 1, self._mocap_at : self._mocap_at + 7 * nmocap]
+        last = chunks[np.arange(k), (n_steps - 1) // period]
+        self._end_mocap = last[:, self._mocap_at : self._mocap_at + 7 * nmocap]
         pos, quat, vel = index.objects_of(*self.qpos_qvel(final))
         return pos, vel, quat, final

@@ -99,6 +99,7 @@ def _kernels() -> dict[str, Any]:
     @wp.kernel
     def hold_controls(
         clock: wp.array(dtype=int),  # type: ignore[valid-type]
+        period: int,
         ctrl_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
         qfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
         xfrc_seq: wp.array3d(dtype=float),  # type: ignore[valid-type]
@@ -110,7 +111,7 @@ def _kernels() -> dict[str, Any]:
         mocap_quat: wp.array2d(dtype=wp.quat),  # type: ignore[valid-type]
     ) -> None:
         w = wp.tid()
-        t = clock[0]
+        t = clock[0] // period
         for i in range(ctrl.shape[1]):
             ctrl[w, i] = ctrl_seq[w, t, i]
         for i in range(qfrc_applied.shape[1]):
@@ -265,19 +266,23 @@ class WarpPropagator(RolloutPropagator):
         n_steps: np.ndarray,
         *,
         every_step: bool,
+        period: int = 1,
         models: list[mujoco.MjModel] | None = None,
     ) -> np.ndarray:
-        """Step every world; the state after each step (every_step) or after its own last one."""
+        """Step every world; the state after each step (every_step) or after its own last one.
+
+        ``controls`` (k, n_chunks, control_size): step ``t`` holds ``controls[:, t // period]``.
+        """
         k = controls.shape[0]
         if k > self.worlds:
             self._allocate(k)
         per_world = self._per_world(models)
         while True:
             try:
-                out = self._attempt(initial, controls, n_steps, every_step=every_step, per_world=per_world)
+                out = self._attempt(initial, controls, n_steps, every_step, period, per_world)
             except _CaptureError:
                 # A capture leaves nothing run: the round starts again with plain launches.
-                out = self._attempt(initial, controls, n_steps, every_step=every_step, per_world=per_world)
+                out = self._attempt(initial, controls, n_steps, every_step, period, per_world)
             overflow = self._data.overflow.numpy()[:k]
             if not overflow.any():
                 return out
@@ -292,12 +297,13 @@ class WarpPropagator(RolloutPropagator):
         initial: np.ndarray,
         controls: np.ndarray,
         n_steps: np.ndarray,
-        *,
         every_step: bool,
+        period: int,
         per_world: dict[str, np.ndarray],
     ) -> np.ndarray:
         wp, mjw, model, data = self._wp, self._mjw, self.model, self._data
-        k, steps = controls.shape[:2]
+        k = controls.shape[0]
+        steps = int(n_steps.max())
         worlds = self.worlds
         pad = np.r_[np.arange(k), np.zeros(worlds - k, dtype=int)]
         initial, controls = initial[pad], controls[pad]
@@ -336,7 +342,7 @@ class WarpPropagator(RolloutPropagator):
             clock = wp.zeros(1, dtype=int)
 
             def one_step() -> None:
-                wp.launch(kernels["hold_controls"], dim=worlds, inputs=[clock, *sequences, *targets])
+                wp.launch(kernels["hold_controls"], dim=worlds, inputs=[clock, period, *sequences, *targets])
                 mjw.step(self._model, data)
                 wp.launch(
                     kernels["keep_state"],
@@ -374,11 +380,13 @@ class WarpPropagator(RolloutPropagator):
     def _roll_to(
         self,
         initial: np.ndarray,
-        controls: np.ndarray,
+        chunks: np.ndarray,
+        period: int,
         n_steps: np.ndarray,
         models: list[mujoco.MjModel] | None = None,
     ) -> np.ndarray:
-        return self._run(initial, controls, np.asarray(n_steps), every_step=False, models=models)[:, 0]
+        # The chunks go to the device as they are: a step reads its period's (no per-step copy).
+        return self._run(initial, chunks, np.asarray(n_steps), every_step=False, period=period, models=models)[:, 0]
 
     def close(self) -> None:
         """Free the device arrays."""
