@@ -56,7 +56,7 @@ def test_analyze_on_a_missing_engine_or_device_is_one_line(
 
 
 def test_an_engine_of_propagations_records_no_roll_outs(tmp_path: Path) -> None:
-    with pytest.raises(EnergyMarginError, match="engine 'mujoco-warp' propagates analysis trees only; record"):
+    with pytest.raises(EnergyMarginError, match="engine 'mujoco-warp' records no roll-outs: use mujoco or pybullet"):
         generate_dataset("pushing", n_objects=1, n_trajectories=1, n_frames=2, seed=0, out=tmp_path / "d",
                          engine="mujoco-warp")  # fmt: skip
     assert not (tmp_path / "d").exists()

@@ -101,9 +101,9 @@ def analyzer_default(name: str) -> Any:
 
 def add_engine(parser: argparse.ArgumentParser, *, records: bool = False) -> None:
     """The ``--engine`` option, with the engines as its choices (``records``: those that record roll-outs)."""
-    from energy_margin.sim import ENGINES, get_engine
+    from energy_margin.sim import ENGINES, recording_engines
 
-    choices = tuple(name for name in ENGINES if get_engine(name).records or not records)
+    choices = recording_engines() if records else ENGINES
     parser.add_argument(
         "--engine", choices=choices, default="mujoco", help=f"physics engine: {', '.join(choices)} (default mujoco)"
     )

@@ -62,6 +62,11 @@ register_engine(
 )
 
 
+def recording_engines() -> tuple[str, ...]:
+    """The engines that record roll-outs (``generate``), in registry order."""
+    return tuple(name for name, engine in ENGINE_REGISTRY.items() if engine.records)
+
+
 def get_engine(name: str) -> Engine:
     """The registered engine ``name``.
 
@@ -120,5 +125,6 @@ __all__ = [
     "check_engine_device",
     "get_engine",
     "make_simulator",
+    "recording_engines",
     "register_engine",
 ]

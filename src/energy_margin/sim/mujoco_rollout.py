@@ -240,6 +240,12 @@ class RolloutPropagator:
     ) -> bool:
         """Fill ``chunks`` (k, n_chunks, control_size) from the task's vectorised script, if it has one.
 
+        A task may vectorise its nominal script: ``task.robot_commands(drives (k, n_drive), times
+        (k,) s, q (k, r), v (k, r))`` returns the forces (k, r) and servo targets (k, r) or ``None``
+        that ``Task.robot_force`` and ``Task.robot_targets`` give each state with ``rng=None``, bit
+        for bit, or ``None`` to be evaluated one state at a time; a task with model commands has
+        none. The built-in tasks have one.
+
         The same numbers as the loop of :meth:`propagate`, to the last bit: commands at the same
         times (start + done * dt, done a multiple of ``period``), packed into the same vector (the
         scratch data's, with each row's wrenches, forces and targets in their slots).

@@ -164,29 +164,6 @@ class Task(ABC):
         del drive, time
         return None
 
-    def robot_commands(
-        self, drives: np.ndarray, times: np.ndarray, q: np.ndarray, v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray | None] | None:
-        """The nominal commands of ``k`` states at once, or ``None`` to evaluate them one at a time.
-
-        A batched propagation evaluates the script of every propagation it runs; a task whose
-        :meth:`robot_force` and :meth:`robot_targets` vectorise returns here, for every state, what
-        they return with ``rng=None``, to the last bit, and has no :meth:`model_command`.
-
-        Args:
-            drives: each state's drive parameters, shape (k, n_drive).
-            times: each state's time since the start of its roll-out, shape (k,), s.
-            q: end-effector coordinates, shape (k, n_robot_dofs).
-            v: end-effector velocities, shape (k, n_robot_dofs).
-
-        Returns:
-            Forces (k, n_robot_dofs) and servo targets (k, n_robot_dofs) or ``None`` without
-            servos; ``None`` (the default): no vectorised script.
-
-        """
-        del drives, times, q, v
-        return None
-
     #: Engines that can simulate the task; ``None`` for every engine of :data:`energy_margin.sim.ENGINES`.
     engines: ClassVar[tuple[str, ...] | None] = None
 

@@ -129,12 +129,6 @@ class ScriptedMotion(Protocol):
         """Actuator controls and mocap poses at ``time`` (s), or ``None``."""
         ...
 
-    def robot_commands(
-        self, drives: np.ndarray, times: np.ndarray, q: np.ndarray, v: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray | None] | None:
-        """Nominal forces and servo targets of many states at once, or ``None`` (one at a time)."""
-        ...
-
     def robot_dofs(self) -> int:
         """Length of the end-effector coordinates of a frame."""
         ...

@@ -208,20 +208,14 @@ class SceneTask(Task):
         return model
 
     def make_simulator(
-        self,
-        n_objects: int,
-        friction: float,
-        drive: np.ndarray | None = None,
-        engine: str = "mujoco",
-        *,
+        self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco", *,
         device: str | None = None,
-    ) -> Simulator:
+    ) -> Simulator:  # fmt: skip
         """A MuJoCo simulator of the scene's compiled model (the only engine for scene files; no device)."""
-        if engine != "mujoco":
+        if engine != "mujoco" or device is not None:
+            where = repr(engine) if device is None else f"{engine!r} on {device!r}"
             raise InvalidParameterError(
-                "engine",
-                f"must be 'mujoco' for scene file {self.loaded.spec.path}: only the 'mujoco' engine runs a scene file, "
-                f"not {engine!r}",
+                "engine", f"must be 'mujoco' for scene file {self.loaded.spec.path}, not {where}"
             )
         from energy_margin.sim.mujoco_model import MujocoModelSimulator
 

@@ -51,6 +51,7 @@ from energy_margin.tasks.base import (
 )
 from energy_margin.tasks.scooping_config import ScoopingConfig
 from energy_margin.tasks.scooping_regions import BoxesAboveTable
+from energy_margin.tasks.scooping_script import script_targets, script_targets_at
 from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.scene import Geom, Joint, Link, RigidObject, Scene
 from energy_margin.world.state import FrameState
@@ -64,23 +65,6 @@ __all__ = [
 _BOX_RGBA = (0.95, 0.55, 0.15, 1.0)
 _GRIPPER_RGBA = (0.2, 0.7, 0.3, 1.0)
 _SIDES = (("right", 1.0), ("left", -1.0))
-
-
-def _smoothsteps(times: np.ndarray, start: float, end: float) -> np.ndarray:
-    """:func:`_smoothstep` of every time, elementwise (the same operations)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = (times - start) / (end - start)
-        return np.where(times <= start, 0.0, np.where(times >= end, 1.0, u * u * (3.0 - 2.0 * u)))
-
-
-def _smoothstep(time: float, start: float, end: float) -> float:
-    """0 before ``start``, 1 after ``end``, a C1 cubic in between."""
-    if time <= start:
-        return 0.0
-    if time >= end:
-        return 1.0
-    u = (time - start) / (end - start)
-    return u * u * (3.0 - 2.0 * u)
 
 
 def _blade_width(value: Any, current: Any) -> Any:
@@ -368,15 +352,7 @@ class ScoopingTask(Task):
 
     def _targets(self, time: float) -> np.ndarray:
         """Scripted joint targets at ``time`` (s), shape (5,)."""
-        cfg = self.config
-        start = self.contact_height + cfg.approach_height
-        base = (
-            start
-            - cfg.approach_height * _smoothstep(time, 0.0, cfg.approach_end)
-            + cfg.lift_height * _smoothstep(time, cfg.lift_start, cfg.lift_end)
-        )
-        finger = self.closed_travel * _smoothstep(time, cfg.approach_end, cfg.close_end)
-        return np.array([base, finger, cfg.scoop_angle, finger, cfg.scoop_angle])
+        return script_targets(self.config, self.contact_height, self.closed_travel, time)
 
     def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """No generalized force: the servos move the gripper (its weight is compensated)."""
@@ -403,18 +379,7 @@ class ScoopingTask(Task):
         del drives, q, v
         if self.config.recorded_waypoints:
             return None
-        cfg = self.config
-        start = self.contact_height + cfg.approach_height
-        # The operations of _targets, in its order, on arrays: the same numbers to the last bit.
-        base = (
-            start
-            - cfg.approach_height * _smoothsteps(times, 0.0, cfg.approach_end)
-            + cfg.lift_height * _smoothsteps(times, cfg.lift_start, cfg.lift_end)
-        )
-        finger = self.closed_travel * _smoothsteps(times, cfg.approach_end, cfg.close_end)
-        targets = np.empty((times.shape[0], 5))
-        targets[:, 0], targets[:, 1], targets[:, 3] = base, finger, finger
-        targets[:, 2] = targets[:, 4] = cfg.scoop_angle
+        targets = script_targets_at(self.config, self.contact_height, self.closed_travel, times)
         return np.zeros((times.shape[0], 5)), targets
 
     def capture_region(self, root: FrameState) -> BoxesAboveTable:
