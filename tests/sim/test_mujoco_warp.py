@@ -17,7 +17,7 @@ pytest.importorskip("mujoco_warp")
 from energy_margin.analysis.config import AnalyzerConfig
 from energy_margin.analysis.frame import FrameAnalyzer
 from energy_margin.cli import main
-from energy_margin.data.dataset import load_dataset
+from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import check_engine_device
 from energy_margin.sim.base import IncompatibleModelsError
@@ -102,16 +102,24 @@ def test_scores_on_warp_follow_those_on_mujoco(tiny_dataset_source: Path) -> Non
         assert np.abs(a - b).mean() < 0.05, key
 
 
+def _together_scores_as_alone(
+    dataset: Dataset, config: AnalyzerConfig, indices: list[int], *, seed: int
+) -> FrameAnalyzer:
+    """Assert the frames grown together score exactly as each alone; the analyzer that grew them together."""
+    analyzer = FrameAnalyzer(dataset, config, seed=seed)
+    together = list(analyzer.rows(indices))
+    alone = [FrameAnalyzer(dataset, config, seed=seed)(index) for index in indices]
+    for one, other in zip(alone, together, strict=True):
+        assert (other["capture_score"], other["success_score"]) == (one["capture_score"], one["success_score"])
+    return analyzer
+
+
 def test_frames_of_several_roll_outs_grown_together_score_as_alone(tiny_dataset_source: Path) -> None:
     """One call holds both roll-outs' worlds, each with its own friction (a per-world model field)."""
     dataset = load_dataset(tiny_dataset_source)
     indices = list(range(dataset.n_trajectories * dataset.n_frames))
     config = AnalyzerConfig(expansions=30, batch=6, engine="mujoco-warp", device="cpu")
-    analyzer = FrameAnalyzer(dataset, config, seed=2)
-    together = list(analyzer.rows(indices))
-    alone = [FrameAnalyzer(dataset, config, seed=2)(index) for index in indices]
-    for one, other in zip(alone, together, strict=True):
-        assert (other["capture_score"], other["success_score"]) == (one["capture_score"], one["success_score"])
+    analyzer = _together_scores_as_alone(dataset, config, indices, seed=2)
     propagator = analyzer._lead.rollout_propagator()  # type: ignore[union-attr]
     assert propagator.rounds == 5  # 30 expansions, 6 a round: every call held all six trees
 
@@ -126,11 +134,7 @@ def test_roll_outs_with_their_own_servo_gains_grow_together(tmp_path: Path) -> N
     assert len(gains) == 2  # the two roll-outs' models differ in more than friction
     indices = [0, 1, 2, 3]
     config = AnalyzerConfig(expansions=12, batch=6, engine="mujoco-warp", device="cpu")
-    analyzer = FrameAnalyzer(dataset, config, seed=4)
-    together = list(analyzer.rows(indices))
-    alone = [FrameAnalyzer(dataset, config, seed=4)(index) for index in indices]
-    for one, other in zip(alone, together, strict=True):
-        assert (other["capture_score"], other["success_score"]) == (one["capture_score"], one["success_score"])
+    analyzer = _together_scores_as_alone(dataset, config, indices, seed=4)
     assert analyzer._lead.rollout_propagator().rounds == 2  # type: ignore[union-attr]
 
 

@@ -169,15 +169,14 @@ def analyze_frames(
     if config.batch < 2 or config.continuation:
         raise InvalidParameterError("config", "needs batch > 1 and no continuation to grow frames together")
     recorded_task, task = task, with_contacts(task, config.contacts)
-    given = list(simulators) if simulators is not None else [None] * len(frames)
-    built: dict[int, Simulator] = {}
-    chosen = []
+    given: Sequence[Simulator | None] = simulators if simulators is not None else [None] * len(frames)
+    chosen: list[Simulator] = []
+    checked: set[int] = set()  # a simulator shared by a roll-out's frames is checked (and pruned) once
     for frame, friction, drive, simulator in zip(frames, frictions, drives, given, strict=True):
-        if simulator is None or id(simulator) not in built:
-            ready = _frame_simulator(recorded_task, task, frame, friction, drive, config, simulator)
-            built[id(simulator) if simulator is not None else id(ready)] = ready
-            simulator = ready
-        chosen.append(built[id(simulator)])
+        if simulator is None or id(simulator) not in checked:
+            simulator = _frame_simulator(recorded_task, task, frame, friction, drive, config, simulator)
+            checked.add(id(simulator))
+        chosen.append(simulator)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     fields = grow_trees_together(

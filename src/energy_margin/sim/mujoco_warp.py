@@ -161,12 +161,17 @@ class WarpPropagator(RolloutPropagator):
         """Each propagation's values of the :data:`PER_WORLD_FIELDS` that differ from this model's."""
         if models is None:
             return {}
-        self.check_models(models)
-        return {
-            name: np.stack([getattr(model, name) for model in models])
-            for name in PER_WORLD_FIELDS
-            if any(not np.array_equal(getattr(model, name), getattr(self.model, name)) for model in models)
-        }
+        # A call holds a few roll-outs' models over thousands of rows: compare each model once.
+        distinct = {id(model): model for model in models}
+        self.check_models(list(distinct.values()))
+        order = {key: at for at, key in enumerate(distinct)}
+        rows = np.fromiter((order[id(model)] for model in models), dtype=np.int64, count=len(models))
+        per_world = {}
+        for name in PER_WORLD_FIELDS:
+            values = [getattr(model, name) for model in distinct.values()]
+            if any(not np.array_equal(value, getattr(self.model, name)) for value in values):
+                per_world[name] = np.stack(values)[rows]
+        return per_world
 
     def _run(
         self,
