@@ -43,6 +43,22 @@ def test_rows_grown_together_equal_rows_one_at_a_time(tiny_dataset_source: Path,
     assert _comparable(pooled) == _comparable(one_at_a_time)
 
 
+def test_continuations_of_frames_grown_together_equal_those_one_at_a_time(
+    tiny_dataset_source: Path, lockstep_mujoco: None
+) -> None:
+    """Every frame's continuations run in one call, each with its roll-out's model and drive."""
+    dataset = load_dataset(tiny_dataset_source)
+    config = AnalyzerConfig(expansions=20, batch=4, continuation=6)
+    indices = list(range(dataset.n_trajectories * dataset.n_frames))
+    one_at_a_time = [FrameAnalyzer(dataset, config, seed=5)(index) for index in indices]
+    analyzer = FrameAnalyzer(dataset, config, seed=5)
+    assert analyzer._together
+    assert _comparable(list(analyzer.rows(indices))) == _comparable(one_at_a_time)
+    # The continuation decided the success scores: without it they differ.
+    plain = list(FrameAnalyzer(dataset, dataclasses.replace(config, continuation=0), seed=5).rows(indices))
+    assert [row["success_score"] for row in plain] != [row["success_score"] for row in one_at_a_time]
+
+
 def test_analyze_frames_needs_batched_expansion(tiny_dataset_source: Path) -> None:
     dataset = load_dataset(tiny_dataset_source)
     frames = [dataset.frame(0, 0)]

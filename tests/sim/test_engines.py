@@ -11,8 +11,16 @@ from energy_margin.cli import main
 from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.runs.versions import engine_difference, engine_versions
-from energy_margin.sim import ENGINE_REGISTRY, ENGINES, check_engine_device, get_engine, make_simulator
+from energy_margin.sim import (
+    ENGINE_REGISTRY,
+    ENGINES,
+    check_engine_device,
+    get_engine,
+    make_model_simulator,
+    make_simulator,
+)
 from energy_margin.sim.mujoco_backend import MujocoSimulator
+from energy_margin.sim.mujoco_model import MujocoModelSimulator
 from energy_margin.tasks import get_task
 
 
@@ -23,6 +31,19 @@ def test_the_registry_names_every_engine_and_what_it_is_for() -> None:
     assert get_engine("mujoco").records and not get_engine("mujoco").grows_together
     with pytest.raises(EnergyMarginError, match="unknown engine 'bullet'"):
         get_engine("bullet")
+
+
+def test_a_user_model_runs_on_the_engines_that_simulate_one(tiny_scene: Path) -> None:
+    task = get_task("scene", {"scene_file": str(tiny_scene)})
+    simulator = task.make_simulator(2, 0.4)
+    assert type(simulator) is MujocoModelSimulator
+    assert [name for name, engine in ENGINE_REGISTRY.items() if engine.model_simulator] == ["mujoco", "mujoco-warp"]
+    with pytest.raises(EnergyMarginError, match="engine 'pybullet' simulates built-in scenes only; a model file "
+                       "runs on mujoco, mujoco-warp"):  # fmt: skip
+        task.make_simulator(2, 0.4, engine="pybullet")
+    with pytest.raises(EnergyMarginError, match="runs on this machine's CPU only, not on `device=cuda`"):
+        make_model_simulator(simulator.model, simulator.scene, "mujoco", object_joints=[], robot_joints=[],
+                             device="cuda")  # fmt: skip
 
 
 def test_a_cpu_engine_takes_no_device() -> None:

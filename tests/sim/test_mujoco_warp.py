@@ -18,11 +18,13 @@ from energy_margin.analysis.config import AnalyzerConfig
 from energy_margin.analysis.frame import FrameAnalyzer
 from energy_margin.cli import main
 from energy_margin.data.dataset import Dataset, load_dataset
+from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import EnergyMarginError
 from energy_margin.sim import check_engine_device
 from energy_margin.sim.base import IncompatibleModelsError
-from energy_margin.sim.mujoco_warp import WarpPropagator, WarpSimulator
+from energy_margin.sim.mujoco_warp import WarpModelSimulator, WarpPropagator, WarpSimulator
 from energy_margin.tasks import get_task
+from tiny_scene import TINY_MODEL, TINY_SCENE, write_tiny_scene
 
 pytestmark = pytest.mark.slow
 
@@ -167,3 +169,41 @@ def test_cuda_is_refused_in_one_line_where_there_is_none() -> None:
         pytest.skip("this machine has a CUDA device")
     with pytest.raises(EnergyMarginError, match="Warp finds no CUDA device here"):
         check_engine_device("mujoco-warp", "cuda")
+
+
+#: The tiny scene with its pusher on a slide joint driven by a position servo instead of a mocap body.
+SLIDE_MODEL = (
+    TINY_MODEL.replace(
+        '<body name="pusher" mocap="true" pos="0 -0.15 0.03">',
+        '<body name="pusher" pos="0 -0.15 0.03"><joint name="push" type="slide" axis="0 1 0" damping="5"/>',
+    )
+    .replace(
+        '<geom name="pusher" type="box" size="0.15 0.02 0.03"/>',
+        '<geom name="pusher" type="box" size="0.15 0.02 0.03" mass="1"/>',
+    )
+    .replace("</worldbody>", '</worldbody><actuator><position joint="push" kp="300"/></actuator>')
+)
+SLIDE_SCENE = TINY_SCENE.replace("mocap.pusher.pos = [0.0, -0.15, 0.03]", "ctrl = [0.0]").replace(
+    "mocap.pusher.pos = [0.0, 0.3, 0.03]", "ctrl = [0.45]"
+)
+
+
+@pytest.mark.parametrize("servo", [False, True], ids=["mocap pusher", "servo pusher"])
+def test_a_scene_file_runs_on_warp_with_its_success_continued(tmp_path: Path, servo: bool) -> None:
+    """A user's model on the GPU engine: one root a call with a mocap body, else every frame grown together."""
+    scene = write_tiny_scene(tmp_path / "scene", *((SLIDE_SCENE, SLIDE_MODEL) if servo else ()))
+    dataset = generate_dataset("scene", n_objects=2, n_trajectories=2, n_frames=2, seed=0, out=tmp_path / "d",
+                               task_config={"scene_file": str(scene)})  # fmt: skip
+    indices = [0, 1, 2, 3]
+    config = AnalyzerConfig(expansions=12, batch=6, engine="mujoco-warp", device="cpu", continuation=4)
+    analyzer = _together_scores_as_alone(dataset, config, indices, seed=6)
+    assert isinstance(analyzer._simulator(float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0]),
+                      WarpModelSimulator)  # fmt: skip
+    assert (analyzer._lead is not None) is servo  # grown together only without mocap bodies
+    reference = [FrameAnalyzer(dataset, AnalyzerConfig(expansions=12, batch=6, continuation=4), seed=6)(index)
+                 for index in indices]  # fmt: skip
+    warp = list(FrameAnalyzer(dataset, config, seed=6).rows(indices))
+    for key in ("capture_score", "success_score"):
+        a = np.array([row[key] for row in reference])
+        b = np.array([row[key] for row in warp])
+        assert np.abs(a - b).mean() < 0.1, key

@@ -13,7 +13,7 @@ from energy_margin.planning import TreeBudget
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
-from energy_margin.sim import ENGINES, get_engine
+from energy_margin.sim import ENGINE_REGISTRY, ENGINES, get_engine
 from energy_margin.tasks.base import CONTACT_MODELS
 
 __all__ = ["ANALYSIS_MODELS", "DEVICES", "AnalyzerConfig", "FrameScores"]
@@ -74,7 +74,8 @@ class AnalyzerConfig:
         wrench_scale: factor on the task's perturbation wrench bounds (1: the task's own).
         duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
         continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
-            (MuJoCo; :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score.
+            (an engine that :attr:`~energy_margin.sim.Engine.continues`: MuJoCo's;
+            :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score.
         continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
 
     """
@@ -129,8 +130,9 @@ class AnalyzerConfig:
             raise InvalidParameterError(
                 "batch", f"must be > 1 with engine {self.engine!r}: each round of expansions is one batched call"
             )
-        if self.continuation and self.engine != "mujoco":
-            raise InvalidParameterError("continuation", f"needs the 'mujoco' engine, not {self.engine!r}")
+        if self.continuation and not get_engine(self.engine).continues:
+            able = " or ".join(repr(name) for name, engine in ENGINE_REGISTRY.items() if engine.continues)
+            raise InvalidParameterError("continuation", f"needs the {able} engine, not {self.engine!r}")
 
     @property
     def budget(self) -> TreeBudget:

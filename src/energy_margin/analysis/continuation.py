@@ -17,7 +17,9 @@ recorded roll-out keeps them).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +31,7 @@ from energy_margin.tasks import Task
 from energy_margin.tasks.command import command_robot
 from energy_margin.world.state import FrameState
 
-__all__ = ["Continuation", "continuation_seed", "continued_success"]
+__all__ = ["Continuation", "continuation_seed", "continued_success", "continued_successes_together"]
 
 #: Spawn key of the continuation's draws under the frame's seed (the tree's generator is the seed's own).
 _SPAWN_KEY = (0xC0,)
@@ -64,6 +66,43 @@ def _steps(
     if horizon is not None:
         remaining = np.minimum(remaining, horizon)
     return np.maximum(np.round(remaining / dt).astype(np.int64), 1)
+
+
+_Ends = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class _Draws:
+    """A frame's continuation draws: the distinct nodes, how often each was drawn, steps and start times."""
+
+    nodes: np.ndarray
+    counts: np.ndarray
+    n_steps: np.ndarray
+    times: np.ndarray
+
+
+def _draw(
+    task: Task, dt: float, field: CostField, *, lam: float, samples: int, seed: int, start_time: float,
+    horizon: float | None,
+) -> _Draws:  # fmt: skip
+    """Draw ``samples`` nodes of ``field`` by likelihood (checked arguments; see :func:`continued_success`)."""
+    check_int("samples", samples, minimum=1)
+    if horizon is not None:
+        check_float("horizon", horizon, minimum=0.0, exclusive_minimum=True)
+    if field.states is None:
+        raise InvalidParameterError("field", "holds no node states to continue from")
+    rng = np.random.default_rng(continuation_seed(seed))
+    draws = rng.choice(field.nodes, size=samples, p=likelihood(field.costs, lam))
+    nodes, counts = np.unique(draws, return_counts=True)
+    n_steps = _steps(task, dt, field, nodes, start_time, horizon)
+    return _Draws(nodes, counts, n_steps, start_time + field.times[nodes])
+
+
+def _scored(task: Task, root: FrameState, draws: _Draws, samples: int, ends: _Ends) -> Continuation:
+    pos, vel, quat, robot = ends
+    inside = np.asarray(task.success_inside(root, pos, vel, quat, robot), dtype=bool)
+    score = float(np.sum(draws.counts[inside])) / samples
+    return Continuation(success_score=score, nodes=int(draws.nodes.size), steps=int(draws.n_steps.max()))
 
 
 def continued_success(
@@ -101,28 +140,77 @@ def continued_success(
         InvalidParameterError: ``samples`` < 1, a non-positive horizon, or a field without states.
 
     """
-    check_int("samples", samples, minimum=1)
-    if horizon is not None:
-        check_float("horizon", horizon, minimum=0.0, exclusive_minimum=True)
-    if field.states is None:
-        raise InvalidParameterError("field", "holds no node states to continue from")
-    rng = np.random.default_rng(continuation_seed(seed))
-    draws = rng.choice(field.nodes, size=samples, p=likelihood(field.costs, lam))
-    nodes, counts = np.unique(draws, return_counts=True)
-    n_steps = _steps(task, simulator.timestep, field, nodes, start_time, horizon)
-    times = start_time + field.times[nodes]
+    draws = _draw(task, simulator.timestep, field, lam=lam, samples=samples, seed=seed, start_time=start_time,
+                  horizon=horizon)  # fmt: skip
     drive = np.asarray(drive, dtype=float)
+    where = (draws.nodes, draws.times, draws.n_steps)
     if isinstance(simulator, BatchedRollout):
-        ends = _continue_batched(simulator, task, field, nodes, times, n_steps, drive, batched_states, threads)
+        ends = _continue_batched(simulator, task, field, *where, drive, batched_states, threads)
     else:
-        ends = _continue_one_by_one(simulator, task, field, nodes, times, n_steps, drive)
-    pos, vel, quat, robot = ends
-    inside = np.asarray(task.success_inside(root, pos, vel, quat, robot), dtype=bool)
-    score = float(np.sum(counts[inside])) / samples
-    return Continuation(success_score=score, nodes=int(nodes.size), steps=int(n_steps.max()))
+        ends = _continue_one_by_one(simulator, task, field, *where, drive)
+    return _scored(task, root, draws, samples, ends)
 
 
-_Ends = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+def continued_successes_together(
+    propagating: BatchedRollout,
+    task: Task,
+    roots: Sequence[FrameState],
+    fields: Sequence[CostField],
+    drives: Sequence[np.ndarray],
+    models: Sequence[Any],
+    *,
+    lam: float,
+    samples: int,
+    seeds: Sequence[int],
+    start_times: Sequence[float],
+    horizon: float | None = None,
+) -> list[Continuation]:
+    """:func:`continued_success` of many frames of one scene, every continuation in one batched call.
+
+    Each frame's score is the one :func:`continued_success` gives it alone on its own simulator
+    with the same seed (``batched_states``: the fields are trees grown in rounds); only where the
+    continuations run changes.
+
+    Args:
+        propagating: the simulator whose batched propagator runs the call.
+        task: the task.
+        roots: each frame's state z_init.
+        fields: each frame's cost field, with the batched propagator's node states.
+        drives: each frame's drive parameters, shape (n_drive,).
+        models: each frame's compiled model (its roll-out's; differing from ``propagating``'s in
+            numbers only).
+        lam: the likelihood's inverse temperature, 1/J.
+        samples: draws per frame, >= 1.
+        seeds: each frame's seed.
+        start_times: each frame's time within its roll-out, s.
+        horizon: longest continuation, s past the node; ``None``: to the task's ``duration``.
+
+    """
+    dt = propagating.timestep  # type: ignore[attr-defined]
+    draws = [
+        _draw(task, dt, field, lam=lam, samples=samples, seed=seed, start_time=start, horizon=horizon)
+        for field, seed, start in zip(fields, seeds, start_times, strict=True)
+    ]
+    rows = [draw.nodes.size for draw in draws]
+    states = np.concatenate([field.states[draw.nodes] for field, draw in zip(fields, draws, strict=True)])  # type: ignore[index]
+    n_objects = fields[0].object_pos.shape[1]
+    propagator = propagating.rollout_propagator(1)
+    pos, vel, quat, final = propagator.propagate(
+        task,
+        np.repeat(np.asarray(drives, dtype=float), rows, axis=0),
+        states,
+        np.concatenate([draw.times for draw in draws]),
+        np.zeros((states.shape[0], n_objects, 6)),
+        np.concatenate([draw.n_steps for draw in draws]),
+        1,
+        [model for model, count in zip(models, rows, strict=True) for _ in range(count)],
+    )
+    robot = propagator.end_robot_positions(final)
+    bounds = np.cumsum([0, *rows])
+    return [
+        _scored(task, root, draw, samples, (pos[a:b], vel[a:b], quat[a:b], robot[a:b]))
+        for root, draw, a, b in zip(roots, draws, bounds[:-1], bounds[1:], strict=True)
+    ]
 
 
 def _continue_batched(

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.config import ANALYSIS_MODELS, DEVICES, AnalyzerConfig, FrameScores
-from energy_margin.analysis.continuation import continued_success
+from energy_margin.analysis.continuation import continued_success, continued_successes_together
 from energy_margin.analysis.convergence import (
     CONVERGE_RULES,
     EitherStop,
@@ -156,7 +156,8 @@ def analyze_frames(
         drives: each frame's drive parameters (its roll-out's), shape (n_drive,).
         seeds: each frame's seed.
         start_times: each frame's time within its roll-out, s.
-        config: analysis settings, ``batch`` > 1 and no ``continuation``.
+        config: analysis settings, ``batch`` > 1; a ``continuation`` runs every frame's in one
+            batched call too (:func:`continued_successes_together`).
         simulators: each frame's simulator (as :func:`analyze_frame`'s; frames of one roll-out
             may share one); built when ``None``.
         propagating: the simulator of the scene whose batched propagator runs every call (the
@@ -166,8 +167,8 @@ def analyze_frames(
         Each frame's scores and cost field; ``runtime_s`` is the group's wall time over its frames.
 
     """
-    if config.batch < 2 or config.continuation:
-        raise InvalidParameterError("config", "needs batch > 1 and no continuation to grow frames together")
+    if config.batch < 2:
+        raise InvalidParameterError("config", "needs batch > 1 to grow frames together")
     recorded_task, task = task, with_contacts(task, config.contacts)
     given: Sequence[Simulator | None] = simulators if simulators is not None else [None] * len(frames)
     chosen: list[Simulator] = []
@@ -201,10 +202,21 @@ def analyze_frames(
         duration_scale=config.duration_scale,
         propagating=propagating,
     )
+    continued: list[float | None] = [None] * len(frames)
+    if config.continuation:
+        lead = propagating if propagating is not None else chosen[0]
+        found = continued_successes_together(
+            lead,  # type: ignore[arg-type]
+            task, frames, fields, list(drives), [simulator.model for simulator in chosen],  # type: ignore[attr-defined]
+            lam=lam, samples=config.continuation, seeds=seeds, start_times=start_times,
+            horizon=config.continuation_horizon,
+        )  # fmt: skip
+        continued = [one.success_score for one in found]
     runtime = (time.perf_counter() - started) / len(frames)
     results = []
-    for frame, field in zip(frames, fields, strict=True):
+    for frame, field, continued_score in zip(frames, fields, continued, strict=True):
         capture, success = score_field(task, frame, field, lam)
+        success = success if continued_score is None else continued_score
         scores = FrameScores(
             capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
         )
@@ -308,7 +320,7 @@ class FrameAnalyzer:
     @property
     def _together(self) -> bool:
         config = self.config
-        return get_engine(config.engine).grows_together and config.batch > 1 and not config.continuation
+        return get_engine(config.engine).grows_together and config.batch > 1
 
     def _rows_together(self, indices: list[int]) -> list[dict[str, Any]]:
         dataset = self.dataset

@@ -145,7 +145,7 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
         default=default("continuation"),
         metavar="K",
         help="success continuation: score success by the fraction of K nodes, drawn by likelihood, whose "
-        "unperturbed scripted motion ends in the success region (mujoco engine; default 0: the tree's own)",
+        "unperturbed scripted motion ends in the success region (mujoco engines; default 0: the tree's own)",
     )
     parser.add_argument(
         "--continuation-horizon",

@@ -25,6 +25,11 @@ class Engine:
         records: it can record roll-outs (``generate``); an engine of propagations only cannot.
         check: ``"module:function"`` that raises one line when the engine cannot run on a device
             (its package missing, the device absent), called with the device; ``None``: always runs.
+        continues: its simulators continue the scripted motion from a tree's states in batches
+            (success continuation, :mod:`energy_margin.analysis.continuation`).
+        model_simulator: ``"module:Class"`` of its simulator of a compiled user model (a scene
+            file's), taking the model, the scene, ``object_joints=``, ``robot_joints=``, ``still=``
+            and ``device=`` when :attr:`devices` is not empty; ``None``: it simulates built-in scenes only.
 
     """
 
@@ -34,6 +39,8 @@ class Engine:
     grows_together: bool = False
     records: bool = True
     check: str | None = None
+    continues: bool = False
+    model_simulator: str | None = None
 
 
 #: Every engine by name, in the order the command line lists them.
@@ -48,7 +55,14 @@ def register_engine(engine: Engine) -> None:
 
 
 ENGINES: tuple[str, ...] = ()
-register_engine(Engine("mujoco", "energy_margin.sim.mujoco_backend:MujocoSimulator"))
+register_engine(
+    Engine(
+        "mujoco",
+        "energy_margin.sim.mujoco_backend:MujocoSimulator",
+        continues=True,
+        model_simulator="energy_margin.sim.mujoco_model:MujocoModelSimulator",
+    )
+)
 register_engine(Engine("pybullet", "energy_margin.sim.pybullet_backend:PybulletSimulator"))
 register_engine(
     Engine(
@@ -58,6 +72,8 @@ register_engine(
         grows_together=True,
         records=False,
         check="energy_margin.sim.mujoco_warp:check_device",
+        continues=True,
+        model_simulator="energy_margin.sim.mujoco_warp:WarpModelSimulator",
     )
 )
 
@@ -96,6 +112,16 @@ def check_engine_device(name: str, device: str | None = None) -> None:
         getattr(importlib.import_module(module), function)(device if device is not None else spec.devices[0])
 
 
+def _build(spec: Engine, path: str, device: str | None, *args: object, **kwargs: object) -> Simulator:
+    """Import ``path`` ("module:Class") and build it, with ``device=`` for an engine with devices."""
+    module, name = path.split(":")
+    factory: Callable[..., Simulator] = getattr(importlib.import_module(module), name)
+    if not spec.devices:
+        check_engine_device(spec.name, device)
+        return factory(*args, **kwargs)
+    return factory(*args, **kwargs, device=device if device is not None else spec.devices[0])
+
+
 def make_simulator(scene: Scene, engine: str = "mujoco", *, device: str | None = None) -> Simulator:
     """Build a simulator for ``scene`` with the named engine (imported lazily).
 
@@ -109,12 +135,41 @@ def make_simulator(scene: Scene, engine: str = "mujoco", *, device: str | None =
 
     """
     spec = get_engine(engine)
-    module, name = spec.simulator.split(":")
-    factory: Callable[..., Simulator] = getattr(importlib.import_module(module), name)
-    if not spec.devices:
-        check_engine_device(engine, device)
-        return factory(scene)
-    return factory(scene, device=device if device is not None else spec.devices[0])
+    return _build(spec, spec.simulator, device, scene)
+
+
+def make_model_simulator(
+    model: object,
+    scene: Scene,
+    engine: str = "mujoco",
+    *,
+    object_joints: list[int],
+    robot_joints: list[int],
+    still: bool = False,
+    device: str | None = None,
+) -> Simulator:
+    """Build a simulator of a compiled user model (``mujoco.MjModel``, not copied) with the named engine.
+
+    Args:
+        model: the compiled model; ``scene.objects[i].name`` is object i's body in it.
+        scene: the objects' description.
+        engine: a name of :data:`ENGINE_REGISTRY` whose :attr:`Engine.model_simulator` is set.
+        object_joints: joint id of each object's free joint (or first upright joint).
+        robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
+        still: hold the robot where each reset puts it.
+        device: where an engine with devices runs (its first device when ``None``).
+
+    Raises:
+        EnergyMarginError: an unknown engine, one that simulates built-in scenes only, or a device
+            for an engine without devices.
+
+    """
+    spec = get_engine(engine)
+    if spec.model_simulator is None:
+        users = ", ".join(name for name, other in ENGINE_REGISTRY.items() if other.model_simulator is not None)
+        raise EnergyMarginError(f"engine {engine!r} simulates built-in scenes only; a model file runs on {users}")
+    return _build(spec, spec.model_simulator, device, model, scene, object_joints=object_joints,
+                  robot_joints=robot_joints, still=still)  # fmt: skip
 
 
 __all__ = [
@@ -124,6 +179,7 @@ __all__ = [
     "Simulator",
     "check_engine_device",
     "get_engine",
+    "make_model_simulator",
     "make_simulator",
     "recording_engines",
     "register_engine",

@@ -29,11 +29,12 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import IncompatibleModelsError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
+from energy_margin.sim.mujoco_model import MujocoModelSimulator
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
 from energy_margin.sim.mujoco_warp_kernels import engine_kernels, load_warp
 from energy_margin.world.scene import Scene
 
-__all__ = ["DEVICES", "PER_WORLD_FIELDS", "WarpPropagator", "WarpSimulator", "check_device"]
+__all__ = ["DEVICES", "PER_WORLD_FIELDS", "WarpModelSimulator", "WarpPropagator", "WarpSimulator", "check_device"]
 
 #: Devices the engine runs on.
 DEVICES = ("cuda", "cpu")
@@ -327,7 +328,32 @@ def _check_same_structure(model: mujoco.MjModel, other: mujoco.MjModel) -> None:
             )
 
 
-class WarpSimulator(MujocoSimulator):
+class _WarpPropagation:
+    """The capability a Warp simulator replaces: its batched propagations run on MuJoCo Warp."""
+
+    device: str
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    index: ModelIndex
+    pruned_contacts: Any
+    _warp_propagator: WarpPropagator | None
+
+    def keep_object_contacts(self) -> Any:
+        """Simulate the analysis model from now on; the device copy follows the rewritten model."""
+        before = self.pruned_contacts
+        report = super().keep_object_contacts()  # type: ignore[misc]
+        if before is None:
+            self._warp_propagator = None
+        return report
+
+    def rollout_propagator(self, threads: int = 1) -> WarpPropagator:
+        """The Warp propagator of this simulator's model (one per simulator; ``threads`` is unused)."""
+        if self._warp_propagator is None:
+            self._warp_propagator = WarpPropagator(self.model, self.data, self.index, self.device)
+        return self._warp_propagator
+
+
+class WarpSimulator(_WarpPropagation, MujocoSimulator):
     """A MuJoCo simulator whose batched propagations run on MuJoCo Warp (engine ``"mujoco-warp"``).
 
     Args:
@@ -352,18 +378,37 @@ class WarpSimulator(MujocoSimulator):
         check_device(device)
         super().__init__(scene, model=model, index=index)
         self.device = device
-        self._warp_propagator: WarpPropagator | None = None
+        self._warp_propagator = None
 
-    def keep_object_contacts(self) -> Any:
-        """Simulate the analysis model from now on; the device copy follows the rewritten model."""
-        before = self.pruned_contacts
-        report = super().keep_object_contacts()
-        if before is None:
-            self._warp_propagator = None
-        return report
 
-    def rollout_propagator(self, threads: int = 1) -> WarpPropagator:
-        """The Warp propagator of this simulator's model (one per simulator; ``threads`` is unused)."""
-        if self._warp_propagator is None:
-            self._warp_propagator = WarpPropagator(self.model, self.data, self.index, self.device)
-        return self._warp_propagator
+class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
+    """A simulator of a compiled user model (a scene file's) whose batched propagations run on MuJoCo Warp.
+
+    Args:
+        model: the compiled model (not copied: one simulator per model).
+        scene: the objects' description; ``scene.objects[i].name`` is object i's body.
+        object_joints: joint id of each object's free joint (or first upright joint).
+        robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
+        still: hold the robot where each reset puts it
+            (:class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
+        device: ``"cuda"`` or ``"cpu"`` (:data:`DEVICES`).
+
+    Raises:
+        EnergyMarginError: MuJoCo Warp is not installed, or ``device`` is not available.
+
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        scene: Scene,
+        *,
+        object_joints: list[int],
+        robot_joints: list[int],
+        still: bool = False,
+        device: str = "cpu",
+    ) -> None:
+        check_device(device)
+        super().__init__(model, scene, object_joints=object_joints, robot_joints=robot_joints, still=still)
+        self.device = device
+        self._warp_propagator = None

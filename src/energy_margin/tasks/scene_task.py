@@ -45,7 +45,7 @@ class SceneTask(Task):
 
     name = "scene"
     config_class = SceneTaskConfig
-    engines = ("mujoco",)
+    engines = ("mujoco", "mujoco-warp")
     config: SceneTaskConfig
 
     def __init__(
@@ -211,20 +211,17 @@ class SceneTask(Task):
         self, n_objects: int, friction: float, drive: np.ndarray | None = None, engine: str = "mujoco", *,
         device: str | None = None,
     ) -> Simulator:  # fmt: skip
-        """A MuJoCo simulator of the scene's compiled model (the only engine for scene files; no device)."""
-        if engine != "mujoco" or device is not None:
-            where = repr(engine) if device is None else f"{engine!r} on {device!r}"
-            raise InvalidParameterError(
-                "engine", f"must be 'mujoco' for scene file {self.loaded.spec.path}, not {where}"
-            )
-        from energy_margin.sim.mujoco_model import MujocoModelSimulator
+        """A simulator of the scene's compiled model on ``engine`` (one with a model simulator: MuJoCo's)."""
+        from energy_margin.sim import make_model_simulator
 
-        return MujocoModelSimulator(
+        return make_model_simulator(
             self.compiled_model(friction, drive),
             self.build_scene(n_objects, friction, drive),
+            engine,
             object_joints=list(self.loaded.object_joints),
             robot_joints=list(self.loaded.robot_joints),
             still=self.loaded.spec.motion.robot == "still",
+            device=device,
         )
 
     def robot_dofs(self) -> int:
