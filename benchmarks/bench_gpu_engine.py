@@ -111,6 +111,11 @@ def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         },
         "frames_per_second": {"mujoco": frames / reference_s, "mujoco_warp": frames / warp_s},
         "device": args.device,
+        # Every frame's scores on both engines, (trajectories, frames) each: where the engines differ.
+        "frame_scores": {
+            engine: {kind: scores[kind].tolist() for kind in ("capture", "success")}
+            for engine, scores in (("mujoco", reference), ("mujoco_warp", warp))
+        },
     }
 
 
@@ -127,6 +132,42 @@ def seed_noise(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
             {"question": key, "seed": a, "next_seed": b, "difference": None if a is None or b is None else b - a}
         )
     return {"analysis_seeds": [args.analysis_seed, args.analysis_seed + 1], "ap": rows}
+
+
+#: The recorded root state of a frame: what the Warp engine holds in float32 on the device.
+ROOT_ARRAYS = ("object_pos", "object_quat", "object_vel", "robot_q", "robot_v")
+
+
+def float32_roots(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
+    """How far C MuJoCo's AP moves when only the frames' roots are rounded to float32.
+
+    The Warp engine starts every propagation from a float32 copy of its state and steps in float32;
+    rounding the recorded frames alone, with everything else float64 and the same seed, measures how
+    sensitive each question is to the smallest change float32 makes: a lower bound of the engine's
+    own arithmetic difference, on C MuJoCo.
+    """
+    dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
+    arrays = dict(dataset.arrays)
+    for name in ROOT_ARRAYS:
+        arrays[name] = np.asarray(arrays[name], dtype=np.float32).astype(np.float64)
+    rounded = Dataset(dataset.path, dataset.metadata, arrays)
+    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch)
+    plain_scores = _score(dataset, config, seed=args.analysis_seed, workers=1)[0]
+    rounded_scores = _score(rounded, config, seed=args.analysis_seed, workers=1)[0]
+    first, second = _aps(dataset, plain_scores), _aps(dataset, rounded_scores)
+    rows = []
+    for key in QUESTIONS:
+        a, b = first[key], second[key]
+        rows.append(
+            {"question": key, "float64": a, "float32_roots": b, "difference": None if a is None or b is None else b - a}
+        )
+    return {
+        "analysis_seed": args.analysis_seed,
+        "ap": rows,
+        "mean_absolute_score_difference": {
+            kind: float(np.abs(plain_scores[kind] - rounded_scores[kind]).mean()) for kind in ("capture", "success")
+        },
+    }
 
 
 def host_side(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
@@ -210,6 +251,11 @@ def main() -> None:
         "--host-side", action="store_true", help="the host's Python per propagation of a batched call, no physics"
     )
     mode.add_argument(
+        "--float32-roots",
+        action="store_true",
+        help="C MuJoCo's AP with the frames' roots rounded to float32, added to the --out file of a parity run",
+    )
+    mode.add_argument(
         "--seed-noise",
         action="store_true",
         help="C MuJoCo's AP at two analysis seeds, added to the --out file of a parity run as seed_noise",
@@ -231,16 +277,19 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as temporary:
         workdir = args.workdir if args.workdir is not None else Path(temporary)
         workdir.mkdir(parents=True, exist_ok=True)
-        if args.seed_noise:
-            noise = seed_noise(args, workdir)
+        if args.seed_noise or args.float32_roots:
+            key, column = ("seed_noise", "seed_difference")
+            if args.float32_roots:
+                key, column = ("float32_roots", "rounded_difference")
+            noise = seed_noise(args, workdir) if args.seed_noise else float32_roots(args, workdir)
             print(json.dumps(noise, indent=1))
             if args.out is not None:
                 document = json.loads(args.out.read_text())
                 command = "python benchmarks/" + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
-                document["seed_noise"] = {"command": command, **noise}
+                document[key] = {"command": command, **noise}
                 moved = {row["question"]: row["difference"] for row in noise["ap"]}
                 for row in document.get("ap", []):
-                    row["seed_difference"] = moved.get(row["question"])
+                    row[column] = moved.get(row["question"])
                 args.out.write_text(json.dumps(document, indent=2) + "\n")
             return
         if args.host_side:
