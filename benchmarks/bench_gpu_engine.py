@@ -74,7 +74,7 @@ def _aps(dataset: Dataset, scores: dict[str, np.ndarray]) -> dict[str, float | N
 def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
     frames = dataset.n_trajectories * dataset.n_frames
-    common = {"expansions": args.expansions, "batch": args.batch}
+    common = {"expansions": args.expansions, "batch": args.batch, "contacts": args.contacts}
     reference, reference_s = _score(dataset, AnalyzerConfig(**common), seed=args.analysis_seed, workers=1)
     warp_config = AnalyzerConfig(**common, engine="mujoco-warp", device=args.device)
     warp, warp_s = _score(dataset, warp_config, seed=args.analysis_seed, workers=1)
@@ -122,7 +122,7 @@ def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
 def seed_noise(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     """How far C MuJoCo's own AP moves with the analysis seed: the yardstick of a parity difference."""
     dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
-    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch)
+    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch, contacts=args.contacts)
     first = _aps(dataset, _score(dataset, config, seed=args.analysis_seed, workers=1)[0])
     second = _aps(dataset, _score(dataset, config, seed=args.analysis_seed + 1, workers=1)[0])
     rows = []
@@ -151,7 +151,7 @@ def float32_roots(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     for name in ROOT_ARRAYS:
         arrays[name] = np.asarray(arrays[name], dtype=np.float32).astype(np.float64)
     rounded = Dataset(dataset.path, dataset.metadata, arrays)
-    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch)
+    config = AnalyzerConfig(expansions=args.expansions, batch=args.batch, contacts=args.contacts)
     plain_scores = _score(dataset, config, seed=args.analysis_seed, workers=1)[0]
     rounded_scores = _score(rounded, config, seed=args.analysis_seed, workers=1)[0]
     first, second = _aps(dataset, plain_scores), _aps(dataset, rounded_scores)
@@ -268,6 +268,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=700, help="generation seed (used for nothing else)")
     parser.add_argument("--analysis-seed", type=int, default=0)
     parser.add_argument("--expansions", type=int, default=300)
+    parser.add_argument(
+        "--contacts", choices=("recorded", "fast"), default="recorded", help="both engines' contact model (--parity)"
+    )
     parser.add_argument("--batch", type=int, default=32)
     parser.add_argument("--batches", type=int, nargs="+", default=[32, 100, 300])
     parser.add_argument("--rows", type=int, default=3200, help="propagations of the --host-side call")

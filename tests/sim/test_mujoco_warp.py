@@ -6,6 +6,7 @@ first propagation compiles Warp's kernels for the CPU (about 40 s on two cores, 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -98,6 +99,21 @@ def test_scores_on_warp_follow_those_on_mujoco(tiny_dataset_source: Path) -> Non
     warp_config = AnalyzerConfig(expansions=60, batch=10, engine="mujoco-warp", device="cpu")
     warp = list(FrameAnalyzer(dataset, warp_config, seed=1).rows(indices))
     assert [row["expansions"] for row in warp] == [60] * len(indices)
+    for key in ("capture_score", "success_score"):
+        a = np.array([row[key] for row in reference])
+        b = np.array([row[key] for row in warp])
+        assert np.abs(a - b).mean() < 0.05, key
+
+
+def test_the_fast_contact_model_runs_on_warp(tiny_dataset_source: Path) -> None:
+    """The task's MuJoCo stand-ins (footprints, spheres) are built for Warp as for C MuJoCo."""
+    dataset = load_dataset(tiny_dataset_source)
+    indices = [0, 1, 2]
+    config = AnalyzerConfig(expansions=12, batch=6, contacts="fast")
+    reference = [FrameAnalyzer(dataset, config, seed=1)(index) for index in indices]
+    analyzer = FrameAnalyzer(dataset, dataclasses.replace(config, engine="mujoco-warp", device="cpu"), seed=1)
+    warp = list(analyzer.rows(indices))
+    assert analyzer._lead is not None and analyzer._lead.scene.ground_contact == "footprint"  # type: ignore[attr-defined]
     for key in ("capture_score", "success_score"):
         a = np.array([row[key] for row in reference])
         b = np.array([row[key] for row in warp])

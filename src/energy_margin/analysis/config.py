@@ -118,9 +118,9 @@ class AnalyzerConfig:
             raise InvalidParameterError(
                 "cost", f"must be 'wrench' with batch > 1, which does not integrate friction work, got {self.cost!r}"
             )
-        if self.contacts == "fast" and self.engine != "mujoco":
+        if self.contacts not in get_engine(self.engine).contact_models:
             raise InvalidParameterError(
-                "contacts", f"'fast' is a MuJoCo contact model, not available with engine {self.engine!r}"
+                "contacts", f"{self.contacts!r} is a MuJoCo contact model, not available with engine {self.engine!r}"
             )
         if self.device is not None and self.device not in get_engine(self.engine).devices:
             raise InvalidParameterError(

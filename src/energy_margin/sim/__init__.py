@@ -25,6 +25,8 @@ class Engine:
         records: it can record roll-outs (``generate``); an engine of propagations only cannot.
         check: ``"module:function"`` that raises one line when the engine cannot run on a device
             (its package missing, the device absent), called with the device; ``None``: always runs.
+        contact_models: the contact models (``AnalyzerConfig.contacts``) its simulators build:
+            ``"recorded"``, the dataset's own, and ``"fast"``, a task's cheaper MuJoCo stand-ins.
         continues: its simulators continue the scripted motion from a tree's states in batches
             (success continuation, :mod:`energy_margin.analysis.continuation`).
         model_simulator: ``"module:Class"`` of its simulator of a compiled user model (a scene
@@ -39,6 +41,7 @@ class Engine:
     grows_together: bool = False
     records: bool = True
     check: str | None = None
+    contact_models: tuple[str, ...] = ("recorded",)
     continues: bool = False
     model_simulator: str | None = None
 
@@ -59,6 +62,7 @@ register_engine(
     Engine(
         "mujoco",
         "energy_margin.sim.mujoco_backend:MujocoSimulator",
+        contact_models=("recorded", "fast"),
         continues=True,
         model_simulator="energy_margin.sim.mujoco_model:MujocoModelSimulator",
     )
@@ -72,6 +76,7 @@ register_engine(
         grows_together=True,
         records=False,
         check="energy_margin.sim.mujoco_warp:check_device",
+        contact_models=("recorded", "fast"),
         continues=True,
         model_simulator="energy_margin.sim.mujoco_warp:WarpModelSimulator",
     )
