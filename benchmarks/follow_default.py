@@ -40,14 +40,15 @@ def _cli(src: Path, *args: str) -> str:
 
 
 def _without_follow(scene: Path, out: Path) -> Path:
-    """A copy of ``scene`` without its ``follow = true`` line, its model named by absolute path."""
+    """A copy of ``scene`` without its ``follow = true`` line, the files it names by absolute path."""
     text = scene.read_text()
     lines = [line for line in text.splitlines() if line.strip() != "follow = true"]
     if len(lines) != len(text.splitlines()) - 1:
         raise SystemExit(f"{scene}: expected exactly one 'follow = true' line")
     copied = "\n".join(lines) + "\n"
-    model = lambda match: f'mjcf = "{(scene.parent / match.group(1)).resolve()}"'  # noqa: E731
-    copied = re.sub(r'^mjcf = "([^"]+)"', model, copied, count=1, flags=re.M)
+    # The files it names (its model, a motion's controls) by absolute path.
+    absolute = lambda match: f'{match.group(1)} = "{(scene.parent / match.group(2)).resolve()}"'  # noqa: E731
+    copied = re.sub(r'^(mjcf|ctrl_file) = "([^"]+)"', absolute, copied, flags=re.M)
     path = out / scene.name
     path.write_text(copied)
     return path

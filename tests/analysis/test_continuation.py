@@ -199,3 +199,27 @@ def test_a_lambda_re_scoring_refuses_the_continuation(tiny_dataset: Path) -> Non
     with pytest.raises(InvalidParameterError, match="continuation"):
         LambdaRescorer(dataset, AnalyzerConfig(expansions=5, continuation=2), 0, lambdas=[1.0, 5.0])
     assert LambdaRescorer(dataset, AnalyzerConfig(expansions=5), 0, lambdas=[1.0, 5.0]).lambdas == (1.0, 5.0)
+
+
+def test_analyze_says_when_the_trees_reach_no_success_early(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The tiny scene's goal lies beyond the trees of its early frames: a note names the continuation."""
+    scene = write_tiny_scene(tmp_path / "scene")
+    data = tmp_path / "data"
+    assert main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "4", "--seed", "0",
+                 "--out", str(data)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["analyze", str(data), "--expansions", "10", "--no-progress"]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "score success 0" in line]
+    assert len(notes) == 1 and "100% of the first-half frames" in notes[0] and "--continuation 16" in notes[0]
+    again = ["analyze", str(data), "--expansions", "10", "--continuation", "4", "--no-progress", "--overwrite"]
+    assert main(again) == 0
+    assert "score success 0" not in capsys.readouterr().err
+
+
+def test_the_share_of_unreached_success_counts_the_first_half_only() -> None:
+    from energy_margin.data.scores_file import unreached_success_share
+
+    frames = np.array([0, 1, 2, 3, 4, 0, 1, 2, 3, 4])
+    success = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.001, 0.0, 0.0, 0.0])
+    assert unreached_success_share({"frame": frames, "success_score": success}) == 5 / 6
+    assert unreached_success_share({"frame": frames[:0], "success_score": success[:0]}) is None

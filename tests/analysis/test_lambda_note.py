@@ -11,7 +11,7 @@ from energy_margin.analysis.run import lambda_note
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
 
-ANALYZE = ["--expansions", "5", "--no-progress", "--overwrite"]
+ANALYZE = ["--expansions", "5", "--no-progress", "--overwrite", "--continuation", "2"]  # no note of its own
 BOUND = "max_duration = 0.1\n"
 
 

@@ -18,7 +18,7 @@ from tiny_scene import write_tiny_scene
 
 MUJOCO = mujoco.__version__
 # The tiny scene gives no lambda: --lambda sets one, so that only the version notes are left to say.
-ANALYZE = ["--expansions", "5", "--no-progress", "--lambda", "5"]
+ANALYZE = ["--expansions", "5", "--no-progress", "--lambda", "5", "--continuation", "2"]  # no note of its own
 EVALUATE = ["--resamples", "0", "--success-frames", "1"]
 
 

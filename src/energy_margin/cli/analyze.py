@@ -329,10 +329,18 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
-    from energy_margin.data.scores_file import load_scores, rejection_note
+    from energy_margin.data.scores_file import UNREACHED_SHARE, load_scores, rejection_note, unreached_success_share
 
     if Path(path).is_file():
-        say_notes(rejection_note(load_scores(Path(path).parent)))
+        scores = load_scores(Path(path).parent)
+        say_notes(rejection_note(scores))
+        unreached = unreached_success_share(scores) if not config.continuation else None
+        if unreached is not None and unreached >= UNREACHED_SHARE:
+            say_notes(
+                f"note: {100 * unreached:.0f}% of the first-half frames score success 0: their trees end before the "
+                "motion reaches the success region, so early success is not ranked; --continuation 16 continues the "
+                "motion from each tree to its end (docs/howto/scenes.md, 'Success beyond a tree's reach')"
+            )
     # After the analysis, so that a refused one says only why.
     say_notes(lambda_note(args.dataset, config))
     print(f"wrote {path}")

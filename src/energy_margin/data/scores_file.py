@@ -31,6 +31,7 @@ __all__ = [
     "RENAMED_COLUMNS",
     "SCORES_FILE",
     "UNKNOWN_COUNT",
+    "UNREACHED_SHARE",
     "current_names",
     "file_columns",
     "format_row",
@@ -41,6 +42,7 @@ __all__ = [
     "rejection_note",
     "scores_journal",
     "tree_rejections",
+    "unreached_success_share",
 ]
 
 SCORES_FILE = "scores.csv"
@@ -203,3 +205,21 @@ def rejection_note(scores: dict[str, np.ndarray]) -> str | None:
             "often (widen [bounds] if they belong there, or lower [perturbation])"
         )
     return None
+
+
+#: ``analyze`` says so when at least this share of the first-half frames scores success exactly 0.
+UNREACHED_SHARE = 0.9
+
+
+def unreached_success_share(scores: dict[str, np.ndarray]) -> float | None:
+    """Share of the first-half frames (index < ceil(K / 2)) whose success score is exactly 0.
+
+    A success score is exactly 0 when no state of the frame's tree lies in the success region: the
+    trees end before the motion reaches it, and the score cannot rank those frames' futures (a
+    success continuation can: :mod:`energy_margin.analysis.continuation`). ``None`` without frames.
+    """
+    frames = scores["frame"]
+    if frames.size == 0:
+        return None
+    first_half = frames < -(-(int(frames.max()) + 1) // 2)
+    return float(np.mean(scores["success_score"][first_half] == 0.0))
