@@ -39,4 +39,7 @@ timeout 240 $py benchmarks/bench_gpu_engine.py --parity --device "$DEVICE" --tra
 timeout 300 $py benchmarks/bench_gpu_engine.py --throughput --device "$DEVICE" --trajectories 2 --seed 701 \
     --expansions "$EXPANSIONS" --object-counts 5 10 20 --batches 32 100 300 \
     --out "$OUT/gpu_throughput_$DEVICE.json" || echo "throughput: exit $?"
+# Parity with the fast contact model on both engines (no cylinder rims: the engines' contacts agree).
+timeout 120 $py benchmarks/bench_gpu_engine.py --parity --device "$DEVICE" --contacts fast --trajectories "$TRAJECTORIES" \
+    --expansions "$EXPANSIONS" --seed 700 --out "$OUT/gpu_parity_fast_$DEVICE.json" || echo "parity, fast contacts: exit $?"
 ls -la "$OUT"
