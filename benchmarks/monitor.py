@@ -15,6 +15,7 @@ Neither the calibration nor the test set is seen by the selection. Writes the se
 the selection table and the test results.
 
     python benchmarks/monitor.py --out docs/figures/monitor.json
+    python benchmarks/monitor.py --continuation 16 --out docs/figures/monitor_continuation.json
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
         _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
     if not (path / "scores.csv").is_file():
         analyse = ["analyze", str(path), "--expansions", str(args.expansions), "--workers", "1", "--no-progress"]
-        _energy_margin(*analyse, "--seed", str(args.analysis_seed))
+        _energy_margin(*analyse, "--seed", str(args.analysis_seed), "--continuation", str(args.continuation))
     return path
 
 
@@ -153,6 +154,9 @@ def main() -> None:
     parser.add_argument("--calibration-seed", type=int, default=0)
     parser.add_argument("--test-seed", type=int, default=1)
     parser.add_argument("--analysis-seed", type=int, default=0)
+    parser.add_argument(
+        "--continuation", type=int, default=0, help="analyze's success continuation (K draws; 0: the tree's own score)"
+    )
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0, help="seeds the bootstrap resamples")
     parser.add_argument("--scenes", nargs="+", choices=(*TASKS, *SCENE_EXAMPLES), default=[*TASKS, *SCENE_EXAMPLES])
@@ -171,6 +175,7 @@ def main() -> None:
         "resamples": args.resamples,
         "resample_seed": args.seed,
         "analysis_seed": args.analysis_seed,
+        "continuation": args.continuation,
     }
     results["cores"] = os.cpu_count()
     results["versions"] = engine_versions("mujoco")
