@@ -83,6 +83,14 @@ def test_an_engine_of_propagations_records_no_roll_outs(tmp_path: Path) -> None:
     assert not (tmp_path / "d").exists()
 
 
+@pytest.mark.parametrize("command", ["generate", "reproduce", "design", "sweep"])
+def test_commands_that_generate_offer_engines_that_record(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    usage = capsys.readouterr().out
+    assert "--engine {mujoco,pybullet}" in " ".join(usage.split())
+
+
 def test_the_versions_of_a_warp_analysis_name_warp() -> None:
     versions = engine_versions("mujoco-warp")
     assert {"engine", "mujoco", "numpy", "mujoco-warp", "warp-lang"} <= set(versions)

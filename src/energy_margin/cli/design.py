@@ -158,7 +158,7 @@ def _add_verification_and_run(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="run directory (a rerun resumes it)")
     add_overwrite(parser, "a design search of other settings in --out")
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
-    add_engine(parser)
+    add_engine(parser, records=True)  # the candidates are generated on it, then analysed
     add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
     parser.add_argument("--no-picture", action="store_true", help="do not draw the chosen design (tool.png)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")

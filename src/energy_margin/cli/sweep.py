@@ -73,7 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="replace a sweep of other settings in --out (its sweep.json, designs/ and results only)",
     )
     parser.add_argument("--workers", type=positive_int, default=1, help="analysis worker processes (default 1)")
-    add_engine(parser)
+    add_engine(parser, records=True)  # the sweep generates its sets on it, then analyses them
     add_set(parser, "a task setting fixed for every design, e.g. --set drive_jitter=0.1")
     expansions = analyzer_default("expansions")
     add_old_spelling(
