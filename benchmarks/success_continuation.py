@@ -14,6 +14,8 @@ positive rate) and ``distance`` (the signed distance of the worst object to the 
 Seconds per frame: tree growth plus the continuations, wall time on one process.
 
     python benchmarks/success_continuation.py --out docs/figures/success_continuation.json
+    python benchmarks/success_continuation.py --scenes gym_pusher scooping \
+        --out docs/figures/success_continuation_more.json
 
 K is chosen on generation seed 11 (:func:`choose`) and checked on seed 12.
 """
@@ -47,9 +49,10 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 SCENES = {
     "pushing_scene": ("pushing/pushing.toml", None),
     "panda_tray": ("panda_tray/panda_tray.toml", "panda_tray/write_model.py"),
+    "gym_pusher": ("gym_pusher/gym_pusher.toml", None),
 }
 #: Built-in tasks: name -> ``generate`` options.
-TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
+TASKS = {"pushing": ["--task", "pushing", "--objects", "10"], "scooping": ["--task", "scooping", "--objects", "5"]}
 EARLY = {"first3": 3, "first5": 5}
 LAST = 3
 ANALYSIS_SEED = 0
@@ -175,7 +178,9 @@ def choose(results: dict[str, Any]) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--scenes", nargs="+", default=[*SCENES, *TASKS], choices=[*SCENES, *TASKS])
+    parser.add_argument(
+        "--scenes", nargs="+", default=["pushing_scene", "panda_tray", "pushing"], choices=[*SCENES, *TASKS]
+    )
     parser.add_argument("--trajectories", type=int, default=20)
     parser.add_argument("--expansions", type=int, default=80)
     parser.add_argument("--ks", type=int, nargs="+", default=[8, 16])
