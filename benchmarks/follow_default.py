@@ -7,6 +7,9 @@ analysed frame) and by this checkout's code (``--new-src``: the region rides on 
 results go to one JSON file (docs/figures/follow_default.json) with the seeds, sizes and budget.
 
     python benchmarks/follow_default.py --old-src /path/to/old/src --out docs/figures/follow_default.json
+
+``--resamples N`` adds each question's verdict (``evaluate``'s paired interval); ``--reuse`` keeps
+the sets already analysed in ``--work``. ``analysis_s``: the frames' tree time summed from ``scores.csv``.
 """
 
 from __future__ import annotations
@@ -18,9 +21,10 @@ import re
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
+
+from energy_margin.data.scores_file import load_scores
 
 __all__: list[str] = []
 
@@ -54,26 +58,36 @@ def _without_follow(scene: Path, out: Path) -> Path:
     return path
 
 
-def _scores(src: Path, dataset: Path, expansions: int, seed: int) -> dict[str, Any]:
-    """Analyse ``dataset`` with the code at ``src``; the capture APs at k-hat 0 and 2 and the success AP."""
-    started = time.perf_counter()
-    _cli(src, "analyze", str(dataset), "--expansions", str(expansions), "--workers", "1", "--seed", str(seed),
-         "--no-progress")  # fmt: skip
-    result: dict[str, Any] = {"analysis_s": round(time.perf_counter() - started, 1)}
-    for window in (0, 2):
-        report = json.loads(
-            _cli(src, "evaluate", str(dataset), "--capture-window", str(window), "--resamples", "0", "--json")
-        )
+def _analyse(src: Path, dataset: Path, expansions: int, seed: int) -> float:
+    """Analyse ``dataset`` with the code at ``src`` (unless it holds scores); its frames' summed tree time, s."""
+    if not (dataset / "scores.csv").is_file():
+        _cli(src, "analyze", str(dataset), "--expansions", str(expansions), "--workers", "1", "--seed", str(seed),
+             "--no-progress")  # fmt: skip
+    return round(float(load_scores(dataset)["runtime_s"].sum()), 1)
+
+
+def _scores(src: Path, dataset: Path, resamples: int) -> dict[str, Any]:
+    """``evaluate`` of ``dataset`` by the code at ``src``: capture AP at k-hat 0, 2 and 4, success AP
+    (the last frames and the first half of them), each beside the baselines, with the verdict (the
+    margin minus the best baseline, paired interval over trajectories) when ``resamples`` > 0."""
+    result: dict[str, Any] = {}
+    for window in (0, 2, 4):
+        options = ["--capture-window", str(window), "--resamples", str(resamples), "--json"]
+        report = json.loads(_cli(src, "evaluate", str(dataset), *options))
+        verdict = report.get("verdict") or {}
         result[f"capture_k{window}"] = {
             "margin": report["capture_ap"],
             **{name: values["capture_ap"] for name, values in report["baselines"].items()},
             "positive_rate": report["capture_positive_rate"],
+            **({"verdict": verdict["capture_ap"]} if "capture_ap" in verdict else {}),
         }
-        result["success"] = {
-            "margin": report["success_ap"],
-            **{name: values["success_ap"] for name, values in report["baselines"].items()},
-            "positive_rate": report["success_positive_rate"],
-        }
+        for key, question in (("success", "success_ap"), ("success_first_half", "success_ap_first_half")):
+            result[key] = {
+                "margin": report[question],
+                **{name: values[question] for name, values in report["baselines"].items()},
+                "positive_rate": report["success_positive_rate"],
+                **({"verdict": verdict[question]} if question in verdict else {}),
+            }
     return result
 
 
@@ -96,10 +110,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--expansions", type=int, default=100)
     parser.add_argument("--work", type=Path, default=ROOT / "runs" / "follow_default")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "follow_default.json")
+    parser.add_argument("--resamples", type=int, default=0, help="bootstrap resamples of the verdicts (0: none)")
+    parser.add_argument("--reuse", action="store_true", help="keep the sets generated and analysed in --work")
     args = parser.parse_args(argv)
-    if args.work.exists():
+    if args.work.exists() and not args.reuse:
         shutil.rmtree(args.work)
-    args.work.mkdir(parents=True)
+    args.work.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
         "settings": {
             "trajectories": args.trajectories,
@@ -108,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
             "analysis_seed": args.analysis_seed,
             "expansions": args.expansions,
             "workers": 1,
+            "resamples": args.resamples,
+            "evaluated_by": "the new code, both",
             "scene": "the example with its 'follow = true' line removed",
             "old_code": _commit(args.old_src),
             "new_code": _commit(args.new_src),
@@ -118,14 +136,18 @@ def main(argv: list[str] | None = None) -> int:
         scene = _without_follow(ROOT / name, args.work)
         key = scene.stem
         dataset = args.work / f"{key}_data"
-        _cli(args.new_src, "generate", "--scene", str(scene), "--trajectories", str(args.trajectories),
-             "--frames", str(args.frames), "--seed", str(args.seed), "--out", str(dataset))  # fmt: skip
+        if not (dataset / "dataset.json").is_file():
+            _cli(args.new_src, "generate", "--scene", str(scene), "--trajectories", str(args.trajectories),
+                 "--frames", str(args.frames), "--seed", str(args.seed), "--out", str(dataset))  # fmt: skip
         entry: dict[str, Any] = {"scene": name}
         for label, src in (("old_default", args.old_src), ("new_default", args.new_src)):
             copy = args.work / f"{key}_{label}"
-            shutil.copytree(dataset, copy)
-            entry[label] = _scores(src.resolve(), copy, args.expansions, args.analysis_seed)
-            print(f"{key} {label}: {entry[label]['analysis_s']} s", flush=True)
+            if not copy.exists():
+                shutil.copytree(dataset, copy)
+            seconds = _analyse(src.resolve(), copy, args.expansions, args.analysis_seed)
+            # Both evaluated by this checkout's code: the sets differ only in how they were analysed.
+            entry[label] = {"analysis_s": seconds, **_scores(args.new_src.resolve(), copy, args.resamples)}
+            print(f"{key} {label}: {seconds} s", flush=True)
         results["scenes"][key] = entry
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
