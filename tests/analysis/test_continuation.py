@@ -8,6 +8,7 @@ is not, and a horizon too short to reach the goal brings it back to 0.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from pathlib import Path
 
@@ -190,15 +191,30 @@ def test_a_continuation_from_a_recorded_frame_replays_the_recorded_motion(tmp_pa
     np.testing.assert_allclose(pos[0], dataset.frame(0, 3).object_pos, atol=1e-6)
 
 
-def test_a_lambda_re_scoring_refuses_the_continuation(tiny_dataset: Path) -> None:
-    # Its success score is no likelihood mass a lambda would re-weight: refused, not silently the tree's.
-    from energy_margin.data.dataset import load_dataset
+@pytest.mark.parametrize("batch", [1, 4])
+def test_a_lambda_re_scoring_continues_at_every_lambda_as_analyze_would(tmp_path: Path, batch: int) -> None:
+    """The continuation's draws depend on lambda: re-scored, each lambda's row is analyze's at that lambda."""
+    from energy_margin.analysis.frame import FrameAnalyzer
+    from energy_margin.data.generate import generate_dataset
     from energy_margin.evaluation.lambda_rescoring import LambdaRescorer
 
-    dataset = load_dataset(tiny_dataset)
-    with pytest.raises(InvalidParameterError, match="continuation"):
-        LambdaRescorer(dataset, AnalyzerConfig(expansions=5, continuation=2), 0, lambdas=[1.0, 5.0])
-    assert LambdaRescorer(dataset, AnalyzerConfig(expansions=5), 0, lambdas=[1.0, 5.0]).lambdas == (1.0, 5.0)
+    scene = write_tiny_scene(tmp_path / "scene")
+    dataset = generate_dataset("scene", n_objects=2, n_trajectories=2, n_frames=2, seed=0, out=tmp_path / "d",
+                               task_config={"scene_file": str(scene)})  # fmt: skip
+    # Continued 1.1 s, about half of the first frame's continuations reach the goal: which nodes are
+    # drawn (by lambda) decides the score.
+    config = AnalyzerConfig(expansions=10, batch=batch, continuation=16, continuation_horizon=1.1)
+    lambdas = [0.0, 1e5]
+    rescorer = LambdaRescorer(dataset, config, 3, lambdas=lambdas)
+    scores = []
+    for index in range(4):
+        rows = rescorer(index)["rows"]
+        for lam, row in zip(lambdas, rows, strict=True):
+            direct = FrameAnalyzer(dataset, dataclasses.replace(config, likelihood_lambda=lam), 3)(index)
+            assert (row["capture_score"], row["success_score"]) == (direct["capture_score"], direct["success_score"])
+        scores.append([row["success_score"] for row in rows])
+    assert any(low != high for low, high in scores)  # lambda moved a continued score
+    assert rescorer.config.continuation == 0  # the tree is grown once, without a continuation
 
 
 def test_analyze_says_when_the_trees_reach_no_success_early(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

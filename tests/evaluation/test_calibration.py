@@ -183,3 +183,23 @@ def test_a_wider_wrench_bound_grows_a_different_tree(dataset: Path) -> None:
     assert (own[0].capture_score, own[0].success_score) == (again[0].capture_score, again[0].success_score)
     np.testing.assert_array_equal(own[1].object_pos, again[1].object_pos)
     assert not np.array_equal(own[1].object_pos, wider[1].object_pos)
+
+
+def test_a_calibration_with_a_continuation_carries_it_to_analyze(dataset: Path, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    import shutil
+
+    out = tmp_path / "cal"
+    argv = ["calibrate", str(dataset), "--out", str(out), "--folds", "4", "--expansions", "8", "--lambdas", "0.5",
+            "50", "--objective", "success_ap_first_half", "--continuation", "3", "--resamples", "20",
+            "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    settings = json.loads((out / CALIBRATION_FILE).read_text())["settings"]["analyzer"]
+    assert settings["continuation"] == 3
+    copy = tmp_path / "copy"
+    shutil.copytree(dataset, copy)
+    file = str(out / CALIBRATION_FILE)
+    assert main(["analyze", str(copy), "--expansions", "8", "--calibration", file, "--no-progress"]) == 0
+    assert json.loads((copy / CONFIG_FILE).read_text())["analyzer"]["continuation"] == 3
+    capsys.readouterr()
+    assert main(["analyze", str(copy), "--calibration", file, "--continuation", "5", "--overwrite"]) == 2
+    assert "--calibration chose lambda with --continuation 3" in capsys.readouterr().err

@@ -272,8 +272,17 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         "wrench_scale": args.wrench_scale,
         "duration_scale": args.duration_scale,
     }
+    continuation = args.continuation
     if getattr(args, "calibration", None) is not None:
-        chosen.update(calibrated_settings(args))
+        calibrated = calibrated_settings(args)
+        # Lambda was chosen for the success score of the calibration's continuation: the same one.
+        if args.continuation and args.continuation != calibrated["continuation"]:
+            raise EnergyMarginError(
+                f"--calibration chose lambda with --continuation {int(calibrated['continuation'])}: "
+                f"leave --continuation out or give the same, not {args.continuation}"
+            )
+        continuation = int(calibrated.pop("continuation"))
+        chosen.update(calibrated)
     check_engine_device(args.engine, args.device)
     return AnalyzerConfig(
         expansions=expansions,
@@ -292,7 +301,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         converge_rule=args.converge_rule,
         contacts=args.contacts,
         analysis_model=args.analysis_model,
-        continuation=args.continuation,
+        continuation=continuation,
         continuation_horizon=args.continuation_horizon,
     )
 

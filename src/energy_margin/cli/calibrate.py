@@ -9,6 +9,7 @@ from energy_margin.cli.common import (
     add_old_spelling,
     add_seed,
     non_negative_float,
+    non_negative_int,
     positive_float,
     positive_int,
     print_json,
@@ -84,6 +85,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             help="expansions per frame (default 300)",
         ),
     )
+    parser.add_argument(
+        "--continuation",
+        type=non_negative_int,
+        default=0,
+        metavar="K",
+        help="score success by K continuations of the script, drawn again at every lambda, as "
+        "analyze --continuation K does (default 0: the tree's own success score)",
+    )
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")
     parser.add_argument("--resamples", type=positive_int, default=1000, help="bootstrap resamples (default 1000)")
     add_seed(parser)
@@ -109,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         lambdas=tuple(args.lambdas),
         folds=args.folds,
         objective=tuple(args.objective),
-        config=AnalyzerConfig(expansions=args.expansions),
+        config=AnalyzerConfig(expansions=args.expansions, continuation=args.continuation),
         seed=args.seed,
         workers=args.workers,
         resamples=args.resamples,

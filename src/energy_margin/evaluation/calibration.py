@@ -366,7 +366,8 @@ def read_calibration(path: Path | str, *, task: str) -> dict[str, float]:
 
     Returns:
         ``likelihood_lambda`` (1/J), ``wrench_scale`` and ``duration_scale`` (1 in a file without
-        growth scales).
+        growth scales), and ``continuation``, the success continuation lambda was chosen with (0
+        in a file without one).
 
     Raises:
         EnergyMarginError: not a calibration file, an unfinished one, or one of another task.
@@ -387,4 +388,9 @@ def read_calibration(path: Path | str, *, task: str) -> dict[str, float]:
         if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
             raise EnergyMarginError(f"{path}: {name} must be a positive number, got {value!r}")
         chosen[name] = float(value)
+    analyzer = settings.get("analyzer")
+    continuation = analyzer.get("continuation", 0) if isinstance(analyzer, dict) else 0
+    if isinstance(continuation, bool) or not isinstance(continuation, int) or continuation < 0:
+        raise EnergyMarginError(f"{path}: analyzer.continuation must be a non-negative integer, got {continuation!r}")
+    chosen["continuation"] = continuation
     return chosen

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.analysis.continuation import continued_success
 from energy_margin.analysis.executors import LocalExecutor
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, field_membership
 from energy_margin.analysis.run import open_analysis, run_description, write_scores
@@ -28,8 +29,10 @@ from energy_margin.data.dataset_files import copy_dataset
 from energy_margin.data.scores_file import load_scores, scores_journal
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_float
+from energy_margin.planning import CostField
 from energy_margin.runs import progress_bar
 from energy_margin.runs.progress import Progress
+from energy_margin.world.state import FrameState
 
 __all__ = [
     "LambdaRescorer",
@@ -47,10 +50,11 @@ class LambdaRescorer(FrameAnalyzer):
     """
 
     def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int, *, lambdas: Sequence[float]) -> None:
-        if config.continuation:
-            # Its success score is not a likelihood mass over the tree that a lambda re-weights.
-            raise InvalidParameterError("continuation", "has no lambda re-scoring: leave it 0 to calibrate lambda")
-        super().__init__(dataset, config, seed)
+        # A success continuation draws its nodes by likelihood: it runs again at every lambda (the
+        # tree, grown once, without one).
+        self.continuation = config.continuation
+        super().__init__(dataset, dataclasses.replace(config, continuation=0), seed)
+        self.continued = config
         self.lambdas = tuple(float(lam) for lam in lambdas)
 
     def __call__(self, index: int) -> dict[str, Any]:
@@ -62,9 +66,23 @@ class LambdaRescorer(FrameAnalyzer):
         rows = []
         for lam in self.lambdas:
             capture = region_score(field.costs, captured, lam)
-            success = region_score(field.costs, successful, lam)
+            if self.continuation:
+                success = self._continued(index, frame, field, lam)
+            else:
+                success = region_score(field.costs, successful, lam)
             rows.append({**row, "capture_score": capture, "success_score": success})
         return {"trajectory": row["trajectory"], "frame": row["frame"], "rows": rows}
+
+    def _continued(self, index: int, frame: FrameState, field: CostField, lam: float) -> float:
+        """The success continuation of frame ``index`` at ``lam``, as ``analyze`` draws it at that lambda."""
+        dataset, config = self.dataset, self.continued
+        trajectory, frame_index = divmod(index, dataset.n_frames)
+        friction, drive = float(dataset.arrays["friction"][trajectory]), dataset.arrays["drive"][trajectory]
+        return continued_success(
+            self._simulator(friction, drive), self.task, frame, field, drive, lam=lam, samples=self.continuation,
+            seed=self.seeds[index], start_time=float(dataset.arrays["frame_time"][trajectory, frame_index]),
+            horizon=config.continuation_horizon, batched_states=config.batch > 1, threads=config.threads,
+        ).success_score  # fmt: skip
 
 
 def lambda_directory(root: Path, method: str, budget: int, lam: float) -> Path:
