@@ -60,7 +60,7 @@ def test_scene_file_generate_check_analyze_evaluate(tiny_scene: Path, tmp_path: 
     out = capsys.readouterr().out
     assert "capture AP, k-hat=0" in out and "positive rate" in out
     assert main(["analyze", str(one), "--engine", "pybullet", "--expansions", "30", "--overwrite"]) == 2
-    assert "runs on mujoco only, not --engine pybullet" in capsys.readouterr().err
+    assert "runs on mujoco, mujoco-warp only, not --engine pybullet" in capsys.readouterr().err
 
 
 def test_analyze_refuses_a_dataset_whose_model_changed(tiny_scene: Path, tmp_path: Path, capsys) -> None:

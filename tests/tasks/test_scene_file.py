@@ -171,7 +171,7 @@ def test_pybullet_with_a_scene_file_is_one_line(tiny_scene: Path, tmp_path: Path
     status = main(["generate", "--scene", str(tiny_scene), "--engine", "pybullet", "--out", str(out)])
     error = capsys.readouterr().err
     assert status == 2 and error.count("\n") == 1
-    assert f"scene file {tiny_scene} runs on mujoco, mujoco-warp only, not --engine pybullet" in error
+    assert f"scene file {tiny_scene} runs on mujoco only, not --engine pybullet" in error
     assert not out.exists()
 
 

@@ -56,10 +56,11 @@ def _check_inputs(n_objects: int, n_trajectories: int, n_frames: int, seed: int)
     check_seed(seed)
 
 
-def check_engine(task: Task, engine: str) -> None:
-    """Raise one line when ``engine`` cannot simulate ``task``."""
+def check_engine(task: Task, engine: str, *, records: bool = False) -> None:
+    """Raise one line when ``engine`` cannot simulate ``task`` (``records``: record its roll-outs)."""
     if task.engines is not None and engine not in task.engines:
-        raise EnergyMarginError(f"{task.label} runs on {', '.join(task.engines)} only, not `engine={engine}`")
+        able = [name for name in task.engines if not records or get_engine(name).records]
+        raise EnergyMarginError(f"{task.label} runs on {', '.join(able)} only, not `engine={engine}`")
 
 
 #: Draws of one trajectory before generation gives up. A draw whose frames the dataset check would
@@ -389,7 +390,7 @@ def generate_dataset(
     if not get_engine(engine).records:  # (an unknown engine: get_engine's one line)
         raise EnergyMarginError(f"engine {engine!r} records no roll-outs: use {' or '.join(recording_engines())}")
     task = resolve_task(task_name, task_config)
-    check_engine(task, engine)
+    check_engine(task, engine, records=True)
     if task.fixed_objects is not None:
         if n_objects is not None and n_objects != task.fixed_objects:
             raise EnergyMarginError(

@@ -182,7 +182,7 @@ def task_settings(
     """The objects per scene and the analysis settings of a sweep of ``task`` on ``engine``, checked."""
     n_objects = _objects(task, n_objects)
     check_choice("engine", engine, ENGINES)
-    check_engine(task, engine)
+    check_engine(task, engine, records=True)
     # AnalyzerConfig raises InvalidParameterError naming the field.
     return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
 
