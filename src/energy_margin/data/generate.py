@@ -66,9 +66,8 @@ def check_engine(task: Task, engine: str, *, records: bool = False) -> None:
 #: Draws of one trajectory before generation gives up. A draw whose frames the dataset check would
 #: refuse is replaced by the next: in crowds (20 pushing cylinders driven into each other and the
 #: walls) MuJoCo's soft contacts let a pile sink up to 30 mm into itself, deeper than the limit
-#: with which ``analyze`` refuses a dataset (data/validation.py), in about one trajectory in 15;
-#: and a roll-out that blew up, left the bounds or gained energy from nothing is drawn again
-#: (data/physical.py).
+#: with which ``analyze`` refuses a dataset (data/validation.py), in about one trajectory in 15; and
+#: a roll-out that blew up, left the bounds or gained energy from nothing is drawn again (data/physical.py).
 MAX_DRAWS = 8
 #: Key of ``dataset.json`` that lists the redrawn trajectories: ``{"index": {"draw": d, "reasons":
 #: [why draw 0 failed, ..., why draw d - 1 failed]}}`` (datasets of earlier versions: ``{"index": d}``).
