@@ -71,6 +71,20 @@ def _aps(dataset: Dataset, scores: dict[str, np.ndarray]) -> dict[str, float | N
     return {key: found[key] for key in QUESTIONS}
 
 
+APs = dict[str, float | None]
+
+
+def _ap_rows(first: APs, second: APs, names: tuple[str, str]) -> list[dict[str, Any]]:
+    """One row per question: the AP of both sides under ``names`` and ``second - first``."""
+    rows = []
+    for key in QUESTIONS:
+        a, b = first[key], second[key]
+        rows.append(
+            {"question": key, names[0]: a, names[1]: b, "difference": None if a is None or b is None else b - a}
+        )
+    return rows
+
+
 def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     dataset = _generate(args.task, args.objects, args.trajectories, args.seed, workdir)
     frames = dataset.n_trajectories * dataset.n_frames
@@ -78,13 +92,7 @@ def parity(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     reference, reference_s = _score(dataset, AnalyzerConfig(**common), seed=args.analysis_seed, workers=1)
     warp_config = AnalyzerConfig(**common, engine="mujoco-warp", device=args.device)
     warp, warp_s = _score(dataset, warp_config, seed=args.analysis_seed, workers=1)
-    ap_c, ap_w = _aps(dataset, reference), _aps(dataset, warp)
-    rows = []
-    for key in QUESTIONS:
-        a, b = ap_c[key], ap_w[key]
-        rows.append(
-            {"question": key, "mujoco": a, "mujoco_warp": b, "difference": None if a is None or b is None else b - a}
-        )
+    rows = _ap_rows(_aps(dataset, reference), _aps(dataset, warp), ("mujoco", "mujoco_warp"))
     correlation = {
         kind: float(np.corrcoef(reference[kind].ravel(), warp[kind].ravel())[0, 1])
         if reference[kind].std() > 0 and warp[kind].std() > 0
@@ -125,12 +133,7 @@ def seed_noise(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     config = AnalyzerConfig(expansions=args.expansions, batch=args.batch, contacts=args.contacts)
     first = _aps(dataset, _score(dataset, config, seed=args.analysis_seed, workers=1)[0])
     second = _aps(dataset, _score(dataset, config, seed=args.analysis_seed + 1, workers=1)[0])
-    rows = []
-    for key in QUESTIONS:
-        a, b = first[key], second[key]
-        rows.append(
-            {"question": key, "seed": a, "next_seed": b, "difference": None if a is None or b is None else b - a}
-        )
+    rows = _ap_rows(first, second, ("seed", "next_seed"))
     return {"analysis_seeds": [args.analysis_seed, args.analysis_seed + 1], "ap": rows}
 
 
@@ -154,13 +157,7 @@ def float32_roots(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     config = AnalyzerConfig(expansions=args.expansions, batch=args.batch, contacts=args.contacts)
     plain_scores = _score(dataset, config, seed=args.analysis_seed, workers=1)[0]
     rounded_scores = _score(rounded, config, seed=args.analysis_seed, workers=1)[0]
-    first, second = _aps(dataset, plain_scores), _aps(dataset, rounded_scores)
-    rows = []
-    for key in QUESTIONS:
-        a, b = first[key], second[key]
-        rows.append(
-            {"question": key, "float64": a, "float32_roots": b, "difference": None if a is None or b is None else b - a}
-        )
+    rows = _ap_rows(_aps(dataset, plain_scores), _aps(dataset, rounded_scores), ("float64", "float32_roots"))
     return {
         "analysis_seed": args.analysis_seed,
         "ap": rows,

@@ -74,21 +74,22 @@ def _scores(src: Path, dataset: Path, resamples: int) -> dict[str, Any]:
     for window in (0, 2, 4):
         options = ["--capture-window", str(window), "--resamples", str(resamples), "--json"]
         report = json.loads(_cli(src, "evaluate", str(dataset), *options))
-        verdict = report.get("verdict") or {}
-        result[f"capture_k{window}"] = {
-            "margin": report["capture_ap"],
-            **{name: values["capture_ap"] for name, values in report["baselines"].items()},
-            "positive_rate": report["capture_positive_rate"],
-            **({"verdict": verdict["capture_ap"]} if "capture_ap" in verdict else {}),
-        }
-        for key, question in (("success", "success_ap"), ("success_first_half", "success_ap_first_half")):
-            result[key] = {
-                "margin": report[question],
-                **{name: values[question] for name, values in report["baselines"].items()},
-                "positive_rate": report["success_positive_rate"],
-                **({"verdict": verdict[question]} if question in verdict else {}),
-            }
+        result[f"capture_k{window}"] = _question(report, "capture_ap", "capture_positive_rate")
+        if window == 0:  # the success questions do not depend on k-hat
+            result["success"] = _question(report, "success_ap", "success_positive_rate")
+            result["success_first_half"] = _question(report, "success_ap_first_half", "success_positive_rate")
     return result
+
+
+def _question(report: dict[str, Any], question: str, positive_rate: str) -> dict[str, Any]:
+    """One question of an ``evaluate --json`` report: the margin, each baseline, the rate, the verdict."""
+    verdict = report.get("verdict") or {}
+    return {
+        "margin": report[question],
+        **{name: values[question] for name, values in report["baselines"].items()},
+        "positive_rate": report[positive_rate],
+        **({"verdict": verdict[question]} if question in verdict else {}),
+    }
 
 
 def _commit(src: Path) -> str:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -52,9 +52,8 @@ class LambdaRescorer(FrameAnalyzer):
     def __init__(self, dataset: Dataset, config: AnalyzerConfig, seed: int, *, lambdas: Sequence[float]) -> None:
         # A success continuation draws its nodes by likelihood: it runs again at every lambda (the
         # tree, grown once, without one).
-        self.continuation = config.continuation
         super().__init__(dataset, dataclasses.replace(config, continuation=0), seed)
-        self.continued = config
+        self.continued_config = config
         self.lambdas = tuple(float(lam) for lam in lambdas)
 
     def __call__(self, index: int) -> dict[str, Any]:
@@ -63,25 +62,25 @@ class LambdaRescorer(FrameAnalyzer):
         frame = self.dataset.frame(row["trajectory"], row["frame"])
         # Which nodes are in each set does not depend on lambda: tested once, weighted per lambda.
         captured, successful = field_membership(self.task, frame, field)
+        continued = self._continuation(index, frame, field) if self.continued_config.continuation else None
         rows = []
         for lam in self.lambdas:
             capture = region_score(field.costs, captured, lam)
-            if self.continuation:
-                success = self._continued(index, frame, field, lam)
-            else:
-                success = region_score(field.costs, successful, lam)
+            success = continued(lam) if continued is not None else region_score(field.costs, successful, lam)
             rows.append({**row, "capture_score": capture, "success_score": success})
         return {"trajectory": row["trajectory"], "frame": row["frame"], "rows": rows}
 
-    def _continued(self, index: int, frame: FrameState, field: CostField, lam: float) -> float:
-        """The success continuation of frame ``index`` at ``lam``, as ``analyze`` draws it at that lambda."""
-        dataset, config = self.dataset, self.continued
+    def _continuation(self, index: int, frame: FrameState, field: CostField) -> Callable[[float], float]:
+        """Frame ``index``'s success continuation as a function of lambda, drawn as ``analyze`` draws it."""
+        dataset, config = self.dataset, self.continued_config
         trajectory, frame_index = divmod(index, dataset.n_frames)
         friction, drive = float(dataset.arrays["friction"][trajectory]), dataset.arrays["drive"][trajectory]
-        return continued_success(
-            self._simulator(friction, drive), self.task, frame, field, drive, lam=lam, samples=self.continuation,
-            seed=self.seeds[index], start_time=float(dataset.arrays["frame_time"][trajectory, frame_index]),
-            horizon=config.continuation_horizon, batched_states=config.batch > 1, threads=config.threads,
+        simulator = self._simulator(friction, drive)
+        start_time = float(dataset.arrays["frame_time"][trajectory, frame_index])
+        return lambda lam: continued_success(
+            simulator, self.task, frame, field, drive, lam=lam, samples=config.continuation, seed=self.seeds[index],
+            start_time=start_time, horizon=config.continuation_horizon, batched_states=config.batch > 1,
+            threads=config.threads,
         ).success_score  # fmt: skip
 
 
