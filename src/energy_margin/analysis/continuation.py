@@ -26,7 +26,7 @@ import numpy as np
 from energy_margin.analysis.scores import likelihood
 from energy_margin.errors import InvalidParameterError, check_float, check_int
 from energy_margin.planning import CostField
-from energy_margin.sim.base import BatchedRollout, Simulator
+from energy_margin.sim.base import BatchedRollout, Propagator, Simulator
 from energy_margin.tasks import Task
 from energy_margin.tasks.command import command_robot
 from energy_margin.world.state import FrameState
@@ -193,19 +193,16 @@ def continued_successes_together(
     ]
     rows = [draw.nodes.size for draw in draws]
     states = np.concatenate([field.states[draw.nodes] for field, draw in zip(fields, draws, strict=True)])  # type: ignore[index]
-    n_objects = fields[0].object_pos.shape[1]
-    propagator = propagating.rollout_propagator(1)
-    pos, vel, quat, final = propagator.propagate(
+    pos, vel, quat, robot = _unperturbed_ends(
+        propagating.rollout_propagator(1),
         task,
         np.repeat(np.asarray(drives, dtype=float), rows, axis=0),
         states,
         np.concatenate([draw.times for draw in draws]),
-        np.zeros((states.shape[0], n_objects, 6)),
         np.concatenate([draw.n_steps for draw in draws]),
-        1,
+        fields[0].object_pos.shape[1],
         [model for model, count in zip(models, rows, strict=True) for _ in range(count)],
     )
-    robot = propagator.end_robot_positions(final)
     bounds = np.cumsum([0, *rows])
     return [
         _scored(task, root, draw, samples, (pos[a:b], vel[a:b], quat[a:b], robot[a:b]))
@@ -236,9 +233,26 @@ def _continue_batched(
         for row, node in enumerate(nodes.tolist()):
             plain.set_state(field.states[node])
             states[row] = propagator.current_state()
-    wrenches = np.zeros((nodes.size, field.object_pos.shape[1], 6))
-    # The command of every step, as the data generator's.
-    pos, vel, quat, final = propagator.propagate(task, drive, states, times, wrenches, n_steps, 1)
+    return _unperturbed_ends(propagator, task, drive, states, times, n_steps, field.object_pos.shape[1])
+
+
+def _unperturbed_ends(
+    propagator: Propagator,
+    task: Task,
+    drive: np.ndarray,
+    states: np.ndarray,
+    times: np.ndarray,
+    n_steps: np.ndarray,
+    n_objects: int,
+    models: list[Any] | None = None,
+) -> _Ends:
+    """End objects and robot of ``states`` continued without wrenches, commanded every step as generated.
+
+    ``drive``: one roll-out's (n_drive,) or each row's (k, n_drive); ``models``: each row's model,
+    or the propagator's when ``None``.
+    """
+    wrenches = np.zeros((states.shape[0], n_objects, 6))
+    pos, vel, quat, final = propagator.propagate(task, drive, states, times, wrenches, n_steps, 1, models)
     return pos, vel, quat, propagator.end_robot_positions(final)
 
 
