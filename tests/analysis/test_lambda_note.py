@@ -7,9 +7,10 @@ from pathlib import Path
 import pytest
 
 from energy_margin.analysis.frame import AnalyzerConfig
-from energy_margin.analysis.run import lambda_note
+from energy_margin.analysis.run import analyze_dataset, lambda_note
 from energy_margin.cli import main
 from energy_margin.data.dataset import load_dataset
+from energy_margin.errors import InvalidParameterError
 
 ANALYZE = ["--expansions", "5", "--no-progress", "--overwrite", "--continuation", "2"]  # no note of its own
 BOUND = "max_duration = 0.1\n"
@@ -42,7 +43,7 @@ def test_a_chosen_lambda_says_nothing(unset: Path, capsys: pytest.CaptureFixture
     capsys.readouterr()
     assert main(["analyze", str(unset), *ANALYZE, "--lambda", "5"]) == 0
     assert capsys.readouterr().err == ""
-    assert lambda_note(unset, AnalyzerConfig(likelihood_lambda=2.0)) is None
+    assert lambda_note(load_dataset(unset), AnalyzerConfig(likelihood_lambda=2.0)) is None
 
 
 def test_a_scene_that_sets_lambda_says_nothing(make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -59,7 +60,7 @@ def test_a_derived_lambda_is_named_derived(make_scene, tmp_path: Path) -> None:
     dataset = generate(scene, tmp_path / "derived")
     task = load_dataset(dataset).task
     assert task.lambda_origin == "derived"
-    note = lambda_note(dataset, AnalyzerConfig())
+    note = lambda_note(load_dataset(dataset), AnalyzerConfig())
     assert note is not None
     assert f"the derived {task.config.likelihood_lambda:.3g} 1/J" in note
     assert task.config.likelihood_lambda != 5.0
@@ -67,8 +68,11 @@ def test_a_derived_lambda_is_named_derived(make_scene, tmp_path: Path) -> None:
 
 def test_a_built_in_task_sets_its_lambda(tiny_dataset: Path) -> None:
     assert load_dataset(tiny_dataset).task.lambda_origin == "set"
-    assert lambda_note(tiny_dataset, AnalyzerConfig()) is None
+    assert lambda_note(load_dataset(tiny_dataset), AnalyzerConfig()) is None
 
 
-def test_no_dataset_no_note(tmp_path: Path) -> None:
-    assert lambda_note(tmp_path, AnalyzerConfig()) is None
+def test_analyze_dataset_needs_its_directory(tiny_dataset: Path) -> None:
+    loaded = load_dataset(tiny_dataset)
+    detached = type(loaded)(path=None, metadata=loaded.metadata, arrays=loaded.arrays)
+    with pytest.raises(InvalidParameterError, match=r"^dataset was not loaded from a directory"):
+        analyze_dataset(detached, AnalyzerConfig(expansions=5))

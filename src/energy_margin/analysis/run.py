@@ -17,19 +17,19 @@ from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
-from energy_margin.data.provenance import read_metadata
 from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FILE, format_row, header, scores_journal
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import EnergyMarginError, check_seed
+from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
 from energy_margin.runs.files import atomic_write_text
 from energy_margin.runs.progress import Progress
-from energy_margin.tasks import get_recorded_task, with_contacts
+from energy_margin.tasks import with_contacts
 
 __all__ = [
     "ANALYSIS_RUN",
     "analyze",
+    "analyze_dataset",
     "lambda_note",
     "open_analysis",
     "run_description",
@@ -110,7 +110,8 @@ def analyze(
 ) -> Path:
     """Score every frame of the dataset at ``path`` and write ``scores.csv`` beside it.
 
-    The resolved configuration goes to ``analysis.json``. Rows are appended to
+    The dataset is loaded and checked (:func:`~energy_margin.data.validation.require_valid`), then
+    analysed by :func:`analyze_dataset`. The resolved configuration goes to ``analysis.json``. Rows are appended to
     ``scores.journal.csv`` as frames finish; ``scores.csv`` (sorted by trajectory and frame) is
     written atomically at the end. Running again after an interruption skips finished frames.
 
@@ -128,10 +129,46 @@ def analyze(
         The path of ``scores.csv``.
 
     """
+    check_seed(seed)
+    make_executor(executor, workers=workers, address=address)  # a bad executor is refused before loading
+    dataset = require_valid(path, overlaps=True, scores=False)
+    return analyze_dataset(
+        dataset,
+        config,
+        seed=seed,
+        workers=workers,
+        executor=executor,
+        address=address,
+        overwrite=overwrite,
+        progress=progress,
+    )
+
+
+def analyze_dataset(
+    dataset: Dataset,
+    config: AnalyzerConfig | None = None,
+    *,
+    seed: int = 0,
+    workers: int = 1,
+    executor: str = "local",
+    address: str | None = None,
+    overwrite: bool = False,
+    progress: Progress = True,
+) -> Path:
+    """:func:`analyze` of a dataset already loaded and checked from its directory (``dataset.path``).
+
+    Its task is the one the caller resolved (``dataset.task``); see :func:`analyze` for the rest.
+
+    Raises:
+        InvalidParameterError: a dataset loaded from no directory.
+
+    """
+    if dataset.path is None:
+        raise InvalidParameterError("dataset", "was not loaded from a directory; analyze writes scores.csv beside it")
+    path = dataset.path
     config = config if config is not None else AnalyzerConfig()
     check_seed(seed)
     runner = make_executor(executor, workers=workers, address=address)
-    dataset = require_valid(path, overlaps=True, scores=False)
     check_engine(dataset.task, config.engine)
     with_contacts(dataset.task, config.contacts)  # InvalidParameterError naming contacts
     problem = dataset.task.analysis_problem(batch=config.batch)
@@ -160,22 +197,17 @@ def analyze(
         return write_scores(directory, done)
 
 
-def lambda_note(path: Path | str, config: AnalyzerConfig) -> str | None:
+def lambda_note(dataset: Dataset, config: AnalyzerConfig) -> str | None:
     """The one-line note for an analysis at a lambda nobody chose: its task sets none, nor does ``config``.
 
     A scene file without ``perturbation.lambda`` takes the default or, with ``derive = true``, a
     derived one (:attr:`~energy_margin.tasks.base.Task.lambda_origin`); no rule from the scene or
     its trees holds the calibrated AP on every example (docs/howto/scenes.md), so the note says how
-    to calibrate. ``None`` when ``config`` or the task sets lambda, or ``path`` holds no dataset
-    this version reads (``analyze`` refuses it in its own words).
+    to calibrate. ``None`` when ``config`` or the dataset's task sets lambda.
     """
-    metadata = read_metadata(path) if config.likelihood_lambda is None else None
-    if metadata is None:
+    if config.likelihood_lambda is not None:
         return None
-    try:
-        task = get_recorded_task(metadata["task"], metadata.get("task_config"))
-    except (EnergyMarginError, KeyError):
-        return None
+    task, path = dataset.task, dataset.path
     if task.lambda_origin == "set":
         return None
     return (

@@ -323,13 +323,15 @@ def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
     if getattr(args, "model", None) is not None:
         return run_learned(args)
-    from energy_margin.analysis.run import analyze, lambda_note
+    from energy_margin.analysis.run import analyze_dataset, lambda_note
     from energy_margin.data.provenance import dataset_note
+    from energy_margin.data.validation import require_valid
 
     config = analyzer_config(args)
     say_notes(dataset_note(args.dataset, engine=args.engine))
-    path = analyze(
-        args.dataset,
+    dataset = require_valid(args.dataset, overlaps=True, scores=False)
+    path = analyze_dataset(
+        dataset,
         config,
         seed=args.seed,
         workers=args.workers,
@@ -351,7 +353,7 @@ def run(args: argparse.Namespace) -> int:
                 "motion from each tree to its end (docs/howto/scenes.md, 'Success beyond a tree's reach')"
             )
     # After the analysis, so that a refused one says only why.
-    say_notes(lambda_note(args.dataset, config))
+    say_notes(lambda_note(dataset, config))
     print(f"wrote {path}")
     return 0
 
