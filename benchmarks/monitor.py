@@ -4,9 +4,11 @@ For each scene, three sets are generated (``energy-margin generate``) from three
 and analysed (``energy-margin analyze``, one worker):
 
 * the *selection* set picks, for each alarm (margin, distance) and alpha, the watched score
-  (``success``, ``capture``, ``min``) and first monitored frame (0 .. K / 2): the one whose alarm,
+  (``success``, ``capture``, ``min``), first monitored frame (0 .. K / 2) and persistence (the
+  alarm at the 1st, 2nd or 3rd monitored frame below the threshold): the one whose alarm,
   calibrated on the set's own successes, fires at or before the failure frame on most of its failed
-  trajectories (ties: the longer lead time, then the earlier frame);
+  trajectories (ties: the longer lead time, then the earlier frame, then the smaller persistence);
+  ``--persistence 1`` keeps the first frame below, as before;
 * the *calibration* set's successful trajectories calibrate the chosen alarm (split-conformal);
 * the *test* set measures detection, lead time and the realised false-alarm rate, with 95 %
   bootstrap intervals over its trajectories.
@@ -42,7 +44,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 #: Built-in tasks: name -> ``generate`` options.
 TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
 #: Scene examples whose model ``write_model.py`` writes.
-SCENE_EXAMPLES = ("planar_manipulator",)
+SCENE_EXAMPLES = ("planar_manipulator", "fetch")
 ALPHAS = (0.05, 0.1)
 
 
@@ -75,29 +77,40 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
     return path
 
 
-def _select(path: Path, scorer: str, alpha: float, frames: int) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
-    """The (score, start frame) whose alarm detects most failures early on the selection set."""
+def _select(
+    path: Path, scorer: str, alpha: float, frames: int, persistences: int
+) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
+    """The (score, start frame, persistence) whose alarm detects most failures early on the selection set."""
     table = []
     for score in SCORES:
         for start in range(frames // 2 + 1):
-            try:
-                found = calibrate_monitor(path, alpha=alpha, scorer=scorer, score=score, start_frame=start)
-            except InvalidParameterError:
-                continue
-            result = evaluate_monitor(found, path, resamples=1)
-            table.append(
-                {
-                    "score": score,
-                    "start_frame": start,
-                    "early_detection_rate": result.early_detection_rate,
-                    "lead_time_s": result.lead_time_s,
-                }
-            )
+            for persistence in range(1, persistences + 1):
+                try:
+                    found = calibrate_monitor(
+                        path, alpha=alpha, scorer=scorer, score=score, start_frame=start, persistence=persistence
+                    )
+                except InvalidParameterError:
+                    continue
+                result = evaluate_monitor(found, path, resamples=1)
+                table.append(
+                    {
+                        "score": score,
+                        "start_frame": start,
+                        "persistence": persistence,
+                        "early_detection_rate": result.early_detection_rate,
+                        "lead_time_s": result.lead_time_s,
+                    }
+                )
     if not table:
         return None, table
     best = max(
         table,
-        key=lambda row: (row["early_detection_rate"] or 0.0, row["lead_time_s"] or 0.0, -row["start_frame"]),
+        key=lambda row: (
+            row["early_detection_rate"] or 0.0,
+            row["lead_time_s"] or 0.0,
+            -row["start_frame"],
+            -row["persistence"],
+        ),
     )
     return best, table
 
@@ -109,12 +122,12 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
     for alpha in ALPHAS:
         per_scorer: dict[str, Any] = {}
         for scorer in ("margin", "distance"):
-            best, table = _select(paths["selection"], scorer, alpha, args.frames)
+            best, table = _select(paths["selection"], scorer, alpha, args.frames, args.persistence)
             if best is None:
                 per_scorer[scorer] = {"refused": "too few successes in the selection set", "selection": table}
                 continue
             try:
-                chosen = {"score": best["score"], "start_frame": best["start_frame"]}
+                chosen = {key: best[key] for key in ("score", "start_frame", "persistence")}
                 found = calibrate_monitor(paths["calibration"], alpha=alpha, scorer=scorer, **chosen)
             except InvalidParameterError as error:
                 per_scorer[scorer] = {"refused": str(error), "selection": table}
@@ -126,7 +139,8 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
                 "selection": table,
             }
             print(
-                f"{name} alpha {alpha:.2f} {scorer:8s} score {best['score']:7s} from frame {best['start_frame']}: "
+                f"{name} alpha {alpha:.2f} {scorer:8s} score {best['score']:7s} from frame {best['start_frame']}, "
+                f"persistence {best['persistence']}: "
                 f"detection {result.detection_rate} early {result.early_detection_rate} lead "
                 f"{result.lead_time_s} s, false alarms {result.false_alarm_rate} (n = {found.n_successes})",
                 flush=True,
@@ -157,6 +171,9 @@ def main() -> None:
     parser.add_argument(
         "--continuation", type=int, default=0, help="analyze's success continuation (K draws; 0: the tree's own score)"
     )
+    parser.add_argument(
+        "--persistence", type=int, default=3, help="the largest persistence the selection tries (1: first frame below)"
+    )
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0, help="seeds the bootstrap resamples")
     parser.add_argument("--scenes", nargs="+", choices=(*TASKS, *SCENE_EXAMPLES), default=[*TASKS, *SCENE_EXAMPLES])
@@ -176,6 +193,7 @@ def main() -> None:
         "resample_seed": args.seed,
         "analysis_seed": args.analysis_seed,
         "continuation": args.continuation,
+        "largest_persistence_tried": args.persistence,
     }
     results["cores"] = os.cpu_count()
     results["versions"] = engine_versions("mujoco")

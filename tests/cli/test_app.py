@@ -13,7 +13,7 @@ import pytest
 from energy_margin import __version__
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.cli import main
-from energy_margin.data.dataset import FRAMES_FILE
+from energy_margin.data.dataset import FRAMES_FILE, Dataset
 
 REQUIRED = {
     "capture_ap",
@@ -129,11 +129,12 @@ def test_default_budget_is_300_iterations(
 ) -> None:
     seen: dict[str, AnalyzerConfig] = {}
 
-    def fake_analyze(path: str, config: AnalyzerConfig, **kwargs: object) -> Path:
+    def fake_analyze(dataset: Dataset, config: AnalyzerConfig, **kwargs: object) -> Path:
         seen["config"] = config
-        return Path(path) / "scores.csv"
+        assert dataset.path is not None
+        return dataset.path / "scores.csv"
 
-    monkeypatch.setattr("energy_margin.analysis.run.analyze", fake_analyze)
+    monkeypatch.setattr("energy_margin.analysis.run.analyze_dataset", fake_analyze)
     code, _, err = run_cli(["analyze", str(tiny_dataset)], capsys)
     assert code == 0, err
     assert (seen["config"].expansions, seen["config"].nodes) == (300, None)
@@ -350,7 +351,7 @@ def test_interrupt_exits_130(
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("energy_margin.analysis.run.analyze", interrupted)
+    monkeypatch.setattr("energy_margin.analysis.run.analyze_dataset", interrupted)
     code, _, err = run_cli(["analyze", str(tiny_dataset)], capsys)
     assert code == 130
     assert "run the same command again to resume" in err

@@ -178,7 +178,7 @@ def test_an_interrupt_inside_python_leaves_the_sigint_handler_alone(monkeypatch:
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("energy_margin.analysis.run.analyze", interrupted)
+    monkeypatch.setattr("energy_margin.data.validation.require_valid", interrupted)
     before = signal.getsignal(signal.SIGINT)
     assert main(["analyze", "somewhere", "--no-progress"]) == 130
     # Child processes inherit an ignored SIGINT: main() called with arguments must not leave one.

@@ -52,3 +52,20 @@ def test_a_dataset_without_scores_is_one_line(tiny_dataset: Path, capsys: pytest
     assert main(["monitor", str(tiny_dataset), str(tiny_dataset)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "scores.csv" in err
+
+
+def test_persistence_is_recorded_and_checked(
+    analysed: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    calibration, test = analysed
+    frames = load_dataset(calibration).n_frames
+    saved = tmp_path / "alarm.json"
+    argv = ["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20"]
+    capsys.readouterr()
+    assert main([*argv, "--persistence", "2", "--json", "--save", str(saved)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert [entry["persistence"] for entry in result["evaluations"]] == [2, 2]
+    assert load_calibration(saved).persistence == 2
+    assert main([*argv, "--persistence", str(frames + 1)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("energy-margin: error: --persistence")

@@ -31,7 +31,9 @@ from score_files import write_scores
 # ---------------------------------------------------------------- the conformal guarantee
 
 
-def _realised_false_alarms(n: int, alpha: float, *, draws: int = 2000, seed: int = 0) -> np.ndarray:
+def _realised_false_alarms(
+    n: int, alpha: float, *, draws: int = 2000, seed: int = 0, persistence: int = 1
+) -> np.ndarray:
     """Realised false-alarm rate on 200 fresh successes per calibration draw of n successes (T x 6 grids)."""
     rng = np.random.default_rng(seed)
     rates = np.empty(draws)
@@ -39,14 +41,15 @@ def _realised_false_alarms(n: int, alpha: float, *, draws: int = 2000, seed: int
         # Exchangeable successes: every roll-out's frames drawn from one distribution, a drift over time.
         calibration = rng.normal(size=(n, 6)) + np.linspace(0.0, 1.0, 6)
         test = rng.normal(size=(200, 6)) + np.linspace(0.0, 1.0, 6)
-        found = calibrate_grid(calibration, np.ones(n, dtype=bool), alpha=alpha, start_frame=1)
-        rates[draw] = float((alarm_frames(test, found.threshold, start_frame=1) >= 0).mean())
+        found = calibrate_grid(calibration, np.ones(n, dtype=bool), alpha=alpha, start_frame=1, persistence=persistence)
+        alarms = alarm_frames(test, found.threshold, start_frame=1, persistence=persistence)
+        rates[draw] = float((alarms >= 0).mean())
     return rates
 
 
-@pytest.mark.parametrize(("n", "alpha"), [(19, 0.05), (25, 0.1), (40, 0.1)])
-def test_exchangeable_successes_alarm_at_most_alpha(n: int, alpha: float) -> None:
-    rates = _realised_false_alarms(n, alpha)
+@pytest.mark.parametrize(("n", "alpha", "persistence"), [(19, 0.05, 1), (25, 0.1, 1), (40, 0.1, 1), (25, 0.1, 3)])
+def test_exchangeable_successes_alarm_at_most_alpha(n: int, alpha: float, persistence: int) -> None:
+    rates = _realised_false_alarms(n, alpha, persistence=persistence)
     promised = conformal_rank(n, alpha) / (n + 1)
     assert promised <= alpha
     # The mean over calibration draws is j / (n + 1) for continuous scores: at most alpha, and not far below.
@@ -93,6 +96,33 @@ def test_the_alarm_fires_at_the_first_monitored_frame_below_the_threshold() -> N
     np.testing.assert_array_equal(alarm_frames(grid, 0.5), [0, -1, 0])
     np.testing.assert_array_equal(alarm_frames(grid, 0.5, start_frame=1), [2, -1, 1])
     np.testing.assert_array_equal(alarm_frames(grid, 0.1, start_frame=2), [-1, -1, -1])
+
+
+def test_persistence_waits_for_that_many_monitored_frames_below() -> None:
+    grid = np.array([[0.1, 0.9, 0.3, 0.2], [0.9, 0.9, 0.9, 0.9], [0.1, 0.1, 0.9, 0.1]])
+    np.testing.assert_array_equal(alarm_frames(grid, 0.5, persistence=2), [2, -1, 1])
+    np.testing.assert_array_equal(alarm_frames(grid, 0.5, persistence=3), [3, -1, 3])
+    np.testing.assert_array_equal(alarm_frames(grid, 0.5, start_frame=1, persistence=2), [3, -1, 3])
+    # The nonconformity is the persistence-th smallest monitored score: it fires exactly when that is below.
+    np.testing.assert_array_equal(worst_scores(grid, persistence=2), [0.2, 0.9, 0.1])
+    with pytest.raises(InvalidParameterError, match=r"^persistence"):
+        alarm_frames(grid, 0.5, start_frame=2, persistence=3)
+    with pytest.raises(InvalidParameterError, match=r"^persistence"):
+        worst_scores(grid, persistence=0)
+
+
+def test_a_success_at_zero_for_one_frame_leaves_persistence_two_able_to_fire() -> None:
+    # Success 0 scores 0 at one frame: with persistence 1 the threshold is 0 and nothing fires.
+    successes = np.array([[0.0, 0.0, 0.7, 0.9], [0.0, 0.4, 0.8, 0.9], [0.0, 0.5, 0.6, 1.0]] * 4)
+    labels = np.ones(len(successes), dtype=bool)
+    first = calibrate_grid(successes, labels, alpha=0.1, start_frame=1)
+    assert first.threshold == 0.0 and not first.can_fire
+    second = calibrate_grid(successes, labels, alpha=0.1, start_frame=1, persistence=2)
+    assert second.threshold == pytest.approx(0.6) and second.can_fire and second.persistence == 2
+    failure = np.array([[0.0, 0.0, 0.0, 0.2]])
+    assert alarm_frames(failure, second.threshold, start_frame=1, persistence=2)[0] == 2
+    # A distance threshold of 0 m (or below) can still be undercut.
+    assert calibrate_grid(successes - 1.0, labels, alpha=0.1, start_frame=1, scorer="distance").can_fire
 
 
 # ---------------------------------------------------------------- failure frame and lead time
@@ -164,7 +194,20 @@ def test_compare_reports_margin_then_distance(labelled: Path, copy_dataset: Call
     assert result.calibration_seed == 0 and result.test_seed == 0
     text = format_table(result)
     assert "margin" in text and "distance" in text
+    assert "cannot fire" not in text
     json.dumps(result.to_dict())
+
+
+def test_the_table_says_when_the_margin_alarm_cannot_fire(labelled: Path) -> None:
+    # The success (trajectory 0) scores a capture of 0.7 at worst, its success score 0.5: from frame 0
+    # with score "min" the threshold is 0.5. Scores of 0 in the success make it 0: rewrite them.
+    write_scores(labelled, np.array([[0.9, 0.0, 0.7], [0.6, 0.3, 0.1]]), np.array([[0.5, 0.6, 0.9], [0.2, 0.1, 0.0]]))
+    result = compare_monitors(labelled, labelled, alphas=(0.5,), score="min", resamples=20)
+    assert [entry["can_fire"] for entry in result.evaluations] == [False, True]
+    assert "the margin alarm at alpha 0.5 cannot fire: its threshold is 0" in format_table(result)
+    two = compare_monitors(labelled, labelled, alphas=(0.5,), score="min", persistence=2, resamples=20)
+    assert two.evaluations[0]["can_fire"] and two.evaluations[0]["threshold"] == 0.5
+    assert "alarm at 2 monitored frames below the threshold" in format_table(two)
 
 
 def test_a_margin_calibration_needs_scores(tiny_dataset: Path) -> None:
@@ -226,5 +269,13 @@ def test_the_live_alarm_watches_from_the_start_frame_and_stays_raised() -> None:
     assert alarm.update(0.9, 0.9) is False and alarm.fired_at is None
     success_only = LiveAlarm(_calibration(score="success", start_frame=0))
     assert success_only.update(0.0, 0.5) is False and success_only.update(0.5, 0.1) is True
+    # With persistence 2 the second monitored call below the threshold raises it, not the first.
+    twice = LiveAlarm(_calibration(persistence=2))
+    seen = [twice.update(c, s) for c, s in [(0.0, 0.0), (0.2, 0.9), (0.9, 0.9), (0.1, 0.1), (0.9, 0.9)]]
+    assert seen == [False, False, False, True, True] and twice.fired_at == 3
+    twice.reset()
+    assert twice.below == 0 and twice.update(0.0, 0.0) is False
     with pytest.raises(InvalidParameterError, match=r"^calibration watches the distance baseline"):
         LiveAlarm(_calibration(scorer="distance"))
+    with pytest.raises(InvalidParameterError, match=r"^calibration has threshold 0, .* could never fire"):
+        LiveAlarm(_calibration(threshold=0.0))

@@ -280,10 +280,13 @@ def test_a_calibration_adds_the_alarm(tmp_path: Path) -> None:
 
     settings = {"alpha": 0.1, "rank": 1, "n_successes": 9, "n_trajectories": 9, "scorer": "margin"}
     always = MonitorCalibration(threshold=2.0, score="success", start_frame=1, **settings)  # scores are <= 1
-    never = MonitorCalibration(threshold=0.0, score="min", start_frame=0, **settings)  # scores are >= 0
+    # Every call is below from call 0 on; the alarm waits for the second (call 1) or a fourth (none in three).
+    second = MonitorCalibration(threshold=2.0, score="min", start_frame=0, persistence=2, **settings)
+    never = MonitorCalibration(threshold=2.0, score="min", start_frame=0, persistence=4, **settings)
     path = tmp_path / "alarm.json"
     write_calibration(path, [always])
-    for calibration, expected in ((path, [False, True, True]), (never, [False, False, False])):
+    cases = ((path, [False, True, True]), (second, [False, True, True]), (never, [False, False, False]))
+    for calibration, expected in cases:
         wrapper = wrapped(every=1, max_expansions=3, calibration=calibration)
         seen = [wrapper.reset(seed=0)[1]["energy_margin"]["alarm"]]
         seen += [wrapper.step(action)[4]["energy_margin"]["alarm"] for action in actions(2)]

@@ -20,6 +20,7 @@ SUMMARY = "calibrate a failure alarm on the successes of one scored dataset (con
 EXAMPLES = (
     "energy-margin monitor runs/calib runs/test --alpha 0.05 0.1",
     "energy-margin monitor runs/calib runs/test --score success --start-frame 4 --save alarm.json --json",
+    "energy-margin monitor runs/calib runs/test --persistence 3",
 )
 
 #: Keyword arguments of the library named by another option.
@@ -47,6 +48,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--start-frame", type=non_negative_int, default=0, help="first monitored frame (default 0)")
     parser.add_argument(
+        "--persistence",
+        type=positive_int,
+        default=1,
+        help="alarm at the Mth monitored frame below the threshold, calibrated to match (default 1: the first)",
+    )
+    parser.add_argument(
         "--resamples",
         type=positive_int,
         default=1000,
@@ -70,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         alphas=tuple(args.alpha),
         score=args.score,
         start_frame=args.start_frame,
+        persistence=args.persistence,
         resamples=args.resamples,
         seed=args.seed,
     )

@@ -2,17 +2,24 @@
 
 The monitor watches one per-frame score of a trajectory (the energy margin's ``success`` or
 ``capture`` score, their frame-wise minimum ``min``, or the same three from the ``distance``
-baseline) from frame ``start_frame`` on, and raises an alarm at the first frame whose score falls
-below a threshold.
+baseline) from frame ``start_frame`` on, and raises an alarm at the ``persistence``-th monitored
+frame whose score falls below a threshold (``persistence`` 1: the first such frame).
 
-Calibration needs no failure. Each successful calibration roll-out i gives its nonconformity, the
-worst (smallest) score over its monitored frames, ``w_i``. With the n values sorted,
-``w_(1) <= ... <= w_(n)``, the threshold is ``w_(j)`` with ``j = floor((n + 1) alpha)``. A new
-successful roll-out exchangeable with the calibration ones raises the alarm exactly when its own
-worst score ``w`` is below ``w_(j)``, that is when ``w`` ranks among the j smallest of the n + 1
-values, so ``P(alarm) <= j / (n + 1) <= alpha`` (ties only lower it). When ``(n + 1) alpha < 1``
-no order statistic keeps that promise and the calibration is refused (alpha = 0.05 needs 19
-successes, alpha = 0.1 needs 9).
+Calibration needs no failure. Each successful calibration roll-out i gives its nonconformity
+``w_i``, its ``persistence``-th smallest score over its monitored frames (with persistence 1, its
+worst score). With the n values sorted, ``w_(1) <= ... <= w_(n)``, the threshold is ``w_(j)`` with
+``j = floor((n + 1) alpha)``. A roll-out raises the alarm exactly when at least ``persistence`` of
+its monitored scores are below the threshold, that is when its own ``w`` is below it; so a new
+successful roll-out exchangeable with the calibration ones alarms exactly when ``w`` ranks among the
+j smallest of the n + 1 values, and ``P(alarm) <= j / (n + 1) <= alpha`` (ties only lower it). When
+``(n + 1) alpha < 1`` no order statistic keeps that promise and the calibration is refused
+(alpha = 0.05 needs 19 successes, alpha = 0.1 needs 9).
+
+The margin's scores are probabilities that reach exactly 0 where no tree state lies in the region.
+A calibration success that scores 0 at ``persistence`` monitored frames can make the threshold 0,
+and no score is below 0: such an alarm cannot fire (:attr:`MonitorCalibration.can_fire`). A
+persistence above the number of frames at which the calibration successes score 0 keeps the
+threshold above 0 where failures stay at 0 for longer.
 
 :func:`calibrate_grid` is the calibration of a score grid; :func:`calibrate_monitor` that of an
 analysed dataset directory. :func:`write_calibration` and :func:`load_calibration` keep one or
@@ -84,38 +91,56 @@ def conformal_rank(n: int, alpha: float) -> int:
     return rank
 
 
-def worst_scores(grid: np.ndarray, *, start_frame: int = 0) -> np.ndarray:
-    """Each trajectory's smallest score over frames ``start_frame`` .. K - 1, shape (T,), from a (T, K) grid."""
-    grid = np.asarray(grid, dtype=float)
+def _check_window(grid: np.ndarray, start_frame: int, persistence: int) -> None:
+    """``start_frame`` within the K frames of ``grid``; ``persistence`` at most the monitored frames."""
     check_int("start_frame", start_frame, minimum=0, maximum=grid.shape[1] - 1)
-    return grid[:, start_frame:].min(axis=1)
+    check_int("persistence", persistence, minimum=1, maximum=grid.shape[1] - start_frame)
 
 
-def alarm_frames(grid: np.ndarray, threshold: float, *, start_frame: int = 0) -> np.ndarray:
-    """The first frame >= ``start_frame`` whose score is below ``threshold``, per trajectory; -1: none.
+def worst_scores(grid: np.ndarray, *, start_frame: int = 0, persistence: int = 1) -> np.ndarray:
+    """Each trajectory's ``persistence``-th smallest score over frames ``start_frame`` .. K - 1.
+
+    Args:
+        grid: scores, shape (T, K).
+        start_frame: the first monitored frame.
+        persistence: which order statistic, 1 (the smallest) .. K - ``start_frame``.
+
+    Returns:
+        Shape (T,), the scores' unit.
+
+    """
+    grid = np.asarray(grid, dtype=float)
+    _check_window(grid, start_frame, persistence)
+    return np.sort(grid[:, start_frame:], axis=1)[:, persistence - 1]
+
+
+def alarm_frames(grid: np.ndarray, threshold: float, *, start_frame: int = 0, persistence: int = 1) -> np.ndarray:
+    """The ``persistence``-th frame >= ``start_frame`` whose score is below ``threshold``; -1: none.
 
     Args:
         grid: scores, shape (T, K).
         threshold: the calibrated threshold, in the scores' unit.
         start_frame: the first monitored frame.
+        persistence: how many monitored frames below the threshold raise the alarm, >= 1.
 
     Returns:
         Frame indices, shape (T,), int; -1 where the alarm never fires.
 
     """
     grid = np.asarray(grid, dtype=float)
-    check_int("start_frame", start_frame, minimum=0, maximum=grid.shape[1] - 1)
-    below = grid[:, start_frame:] < threshold
-    return np.where(below.any(axis=1), below.argmax(axis=1) + start_frame, -1)
+    _check_window(grid, start_frame, persistence)
+    counted = np.cumsum(grid[:, start_frame:] < threshold, axis=1) >= persistence
+    return np.where(counted.any(axis=1), counted.argmax(axis=1) + start_frame, -1)
 
 
 @dataclass(frozen=True, kw_only=True)
 class MonitorCalibration(TypedResult):
-    """A calibrated alarm: fire at the first monitored frame whose score is below ``threshold``.
+    """A calibrated alarm: fire at the ``persistence``-th monitored frame whose score is below ``threshold``.
 
     Attributes:
-        threshold: the worst score of rank ``rank`` among the calibration successes (the score's
-            unit: a probability for ``margin``, metres for ``distance``).
+        threshold: the nonconformity of rank ``rank`` among the calibration successes (each
+            success's ``persistence``-th smallest monitored score; the score's unit: a probability
+            for ``margin``, metres for ``distance``).
         alpha: the false-alarm rate guaranteed on successful roll-outs exchangeable with the
             calibration ones.
         rank: j = floor((n + 1) alpha), the order statistic taken.
@@ -124,6 +149,7 @@ class MonitorCalibration(TypedResult):
         scorer: ``margin`` or ``distance``.
         score: ``success``, ``capture`` or ``min``.
         start_frame: the first monitored frame.
+        persistence: how many monitored frames below the threshold raise the alarm (1: the first).
         dataset: the calibration dataset's directory; empty for a grid.
         dataset_seed: its generation seed; ``None`` for a grid or a set without one.
         task: its task; empty for a grid.
@@ -138,12 +164,18 @@ class MonitorCalibration(TypedResult):
     scorer: str
     score: str
     start_frame: int
+    persistence: int = 1
     dataset: str = ""
     dataset_seed: int | None = None
     task: str = ""
 
+    @property
+    def can_fire(self) -> bool:
+        """False for a margin threshold of 0 or less: no probability is below it, the alarm never fires."""
+        return self.scorer != "margin" or self.threshold > 0.0
+
     def fires(self, value: float) -> bool:
-        """Whether a monitored frame whose score is ``value`` raises the alarm."""
+        """Whether a monitored frame whose score is ``value`` counts toward the alarm (is below the threshold)."""
         return bool(value < self.threshold)
 
     def watched(self, capture: float, success: float) -> float:
@@ -156,11 +188,12 @@ class LiveAlarm:
 
     Call k after :meth:`reset` (the reset's own call is 0) stands for frame k of the calibration's
     trajectories, so the calibration set's frames should be as far apart as the live calls (a set
-    recorded from the same wrapper and cadence, ``energy-margin record``). Once fired, the alarm
-    stays raised until the next reset.
+    recorded from the same wrapper and cadence, ``energy-margin record``). The alarm is raised at
+    the ``persistence``-th monitored call below the threshold and stays raised until the next reset.
 
     Raises:
-        InvalidParameterError: a ``distance`` calibration (live calls score margins only).
+        InvalidParameterError: a ``distance`` calibration (live calls score margins only), or one
+            that cannot fire (:attr:`MonitorCalibration.can_fire`).
 
     """
 
@@ -169,13 +202,21 @@ class LiveAlarm:
             raise InvalidParameterError(
                 "calibration", f"watches the {calibration.scorer} baseline; a live scorer needs a margin calibration"
             )
+        if not calibration.can_fire:
+            raise InvalidParameterError(
+                "calibration",
+                f"has threshold {calibration.threshold:g}, below which no margin falls: the alarm could never fire; "
+                "calibrate again with a larger persistence or a later start frame",
+            )
         self.calibration = calibration
         self.calls = 0
+        self.below = 0
         self.fired_at: int | None = None
 
     def reset(self) -> None:
         """A new episode: no call yet, no alarm."""
         self.calls = 0
+        self.below = 0
         self.fired_at = None
 
     def update(self, capture: float, success: float) -> bool:
@@ -184,7 +225,9 @@ class LiveAlarm:
         self.calls += 1
         found = self.calibration
         if self.fired_at is None and frame >= found.start_frame and found.fires(found.watched(capture, success)):
-            self.fired_at = frame
+            self.below += 1
+            if self.below >= found.persistence:
+                self.fired_at = frame
         return self.fired_at is not None
 
 
@@ -194,6 +237,7 @@ def calibrate_grid(
     *,
     alpha: float,
     start_frame: int = 0,
+    persistence: int = 1,
     scorer: str = "margin",
     score: str = "success",
 ) -> MonitorCalibration:
@@ -204,11 +248,12 @@ def calibrate_grid(
         success: success label of each trajectory, shape (T,), bool.
         alpha: the false-alarm rate to guarantee, in (0, 1).
         start_frame: the first monitored frame.
+        persistence: how many monitored frames below the threshold raise the alarm, >= 1.
         scorer: recorded in the result (``margin`` or ``distance``).
         score: recorded in the result (``success``, ``capture`` or ``min``).
 
     """
-    worst = worst_scores(grid, start_frame=start_frame)[np.asarray(success, dtype=bool)]
+    worst = worst_scores(grid, start_frame=start_frame, persistence=persistence)[np.asarray(success, dtype=bool)]
     rank = conformal_rank(worst.size, alpha)
     return MonitorCalibration(
         threshold=float(np.sort(worst)[rank - 1]),
@@ -219,6 +264,7 @@ def calibrate_grid(
         scorer=scorer,
         score=score,
         start_frame=start_frame,
+        persistence=persistence,
     )
 
 
@@ -244,7 +290,13 @@ def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin"
 
 
 def calibrate_monitor(
-    path: Path | str, *, alpha: float, scorer: str = "margin", score: str = "success", start_frame: int = 0
+    path: Path | str,
+    *,
+    alpha: float,
+    scorer: str = "margin",
+    score: str = "success",
+    start_frame: int = 0,
+    persistence: int = 1,
 ) -> MonitorCalibration:
     """Calibrate the alarm on the successful trajectories of an analysed dataset directory.
 
@@ -254,6 +306,7 @@ def calibrate_monitor(
         scorer: ``margin`` (the energy-margin scores) or ``distance`` (the distance baseline).
         score: ``success``, ``capture`` or ``min`` (their frame-wise minimum).
         start_frame: the first monitored frame.
+        persistence: how many monitored frames below the threshold raise the alarm, >= 1.
 
     Raises:
         InvalidParameterError: too few successes for ``alpha``, or a bad option.
@@ -262,7 +315,13 @@ def calibrate_monitor(
     dataset = require_valid(path, overlaps=True, scores=True if scorer == "margin" else None)
     grid = monitored_grid(dataset, path, scorer=scorer, score=score)
     found = calibrate_grid(
-        grid, dataset.success_labels(), alpha=alpha, start_frame=start_frame, scorer=scorer, score=score
+        grid,
+        dataset.success_labels(),
+        alpha=alpha,
+        start_frame=start_frame,
+        persistence=persistence,
+        scorer=scorer,
+        score=score,
     )
     seed = dataset.metadata.get("seed")
     recorded = {"dataset": str(path), "dataset_seed": seed if isinstance(seed, int) else None}

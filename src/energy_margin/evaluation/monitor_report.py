@@ -107,6 +107,8 @@ class MonitorEvaluation(TypedResult):
     alpha: float
     threshold: float
     start_frame: int
+    persistence: int
+    can_fire: bool
     detection_rate: float | None
     detection_rate_low: float | None
     detection_rate_high: float | None
@@ -141,7 +143,9 @@ def evaluate_monitor(
     check_seed(seed)
     dataset = require_valid(path, overlaps=True, scores=True if calibration.scorer == "margin" else None)
     grid = monitored_grid(dataset, path, scorer=calibration.scorer, score=calibration.score)
-    alarms = alarm_frames(grid, calibration.threshold, start_frame=calibration.start_frame)
+    alarms = alarm_frames(
+        grid, calibration.threshold, start_frame=calibration.start_frame, persistence=calibration.persistence
+    )
     failures = failure_frames(dataset.arrays["captured"], dataset.success_labels())
     times = np.asarray(dataset.arrays["frame_time"], dtype=float)
     found: dict[str, Any] = dict(alarm_measures(alarms, failures, times))
@@ -162,6 +166,8 @@ def evaluate_monitor(
             "alpha": calibration.alpha,
             "threshold": calibration.threshold,
             "start_frame": calibration.start_frame,
+            "persistence": calibration.persistence,
+            "can_fire": calibration.can_fire,
             "n_failed": int((failures >= 0).sum()),
             "n_successful": int((failures < 0).sum()),
             "resamples": resamples,
@@ -202,22 +208,30 @@ def compare_monitors(
     alphas: tuple[float, ...] = (0.05, 0.1),
     score: str = "success",
     start_frame: int = 0,
+    persistence: int = 1,
     resamples: int = 1000,
     seed: int = 0,
 ) -> MonitorComparison:
     """Calibrate on ``calibration_path``'s successes, report on ``test_path``: margin, then distance.
 
     The distance alarm is left out for a task whose regions measure no distance. See
-    :func:`~energy_margin.evaluation.monitor.calibrate_monitor` for ``score`` and ``start_frame``.
+    :func:`~energy_margin.evaluation.monitor.calibrate_monitor` for ``score``, ``start_frame`` and
+    ``persistence``.
     """
     test = require_valid(test_path, overlaps=True, scores=True)
     scorers = SCORERS if distance_scores(test) is not None else ("margin",)
     calibrations: list[MonitorCalibration] = []
     for scorer in scorers:
         for alpha in alphas:
-            calibrations.append(
-                calibrate_monitor(calibration_path, alpha=alpha, scorer=scorer, score=score, start_frame=start_frame)
+            found = calibrate_monitor(
+                calibration_path,
+                alpha=alpha,
+                scorer=scorer,
+                score=score,
+                start_frame=start_frame,
+                persistence=persistence,
             )
+            calibrations.append(found)
     evaluations = [evaluate_monitor(found, test_path, resamples=resamples, seed=seed) for found in calibrations]
     test_seed = test.metadata.get("seed")
     return MonitorComparison(
@@ -258,9 +272,20 @@ def format_table(result: MonitorComparison | dict[str, Any]) -> str:
             f"{cells[0]:22s} {cells[1]:22s} {cells[2]:22s} {cells[3]}"
         )
     first = result["evaluations"][0]
+    frames_below = (
+        "the first monitored frame" if first["persistence"] == 1 else f"{first['persistence']} monitored frames"
+    )
     lines.append(
-        f"score {first['score']} from frame {first['start_frame']}; test set: {first['n_failed']} failed, "
+        f"score {first['score']} from frame {first['start_frame']}, alarm at {frames_below} below the threshold; "
+        f"test set: {first['n_failed']} failed, "
         f"{first['n_successful']} successful; 95 % intervals over {first['resamples']} resamples of the test "
         f"trajectories (seed {first['seed']})"
     )
+    for found in result["evaluations"]:
+        if not found["can_fire"]:
+            lines.append(
+                f"the {found['scorer']} alarm at alpha {found['alpha']:g} cannot fire: its threshold is 0 "
+                f"(a calibration success scores 0 at {found['persistence']} or more monitored frames); "
+                "raise --persistence or --start-frame"
+            )
     return "\n".join(lines)
