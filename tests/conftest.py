@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +18,12 @@ from tiny_scene import TINY_MODEL, TINY_SCENE, write_tiny_scene
 
 # Helper modules shared by test files: their asserts report the compared values too.
 pytest.register_assert_rewrite("example_runs")
+
+# A run started as a background job of a non-interactive shell (`cmd &`, `nohup`) inherits SIGINT
+# ignored, and so would every command the tests start, which the Ctrl-C tests then cannot stop:
+# give this process Python's own handler back, so that its children start with the default.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # The smallest dataset the pipeline tests need: 2 objects, 2 trajectories, 3 frames.
 TINY = {"n_objects": 2, "n_trajectories": 2, "n_frames": 3, "seed": 0}
