@@ -36,8 +36,9 @@ from typing import Any
 
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import InvalidParameterError
-from energy_margin.evaluation.monitor import SCORES, calibrate_monitor
+from energy_margin.evaluation.monitor import calibrate_monitor
 from energy_margin.evaluation.monitor_report import evaluate_monitor
+from energy_margin.evaluation.monitor_select import select_alarm
 from energy_margin.runs.versions import engine_versions
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -77,44 +78,6 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
     return path
 
 
-def _select(
-    path: Path, scorer: str, alpha: float, frames: int, persistences: int
-) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
-    """The (score, start frame, persistence) whose alarm detects most failures early on the selection set."""
-    table = []
-    for score in SCORES:
-        for start in range(frames // 2 + 1):
-            for persistence in range(1, persistences + 1):
-                try:
-                    found = calibrate_monitor(
-                        path, alpha=alpha, scorer=scorer, score=score, start_frame=start, persistence=persistence
-                    )
-                except InvalidParameterError:
-                    continue
-                result = evaluate_monitor(found, path, resamples=1)
-                table.append(
-                    {
-                        "score": score,
-                        "start_frame": start,
-                        "persistence": persistence,
-                        "early_detection_rate": result.early_detection_rate,
-                        "lead_time_s": result.lead_time_s,
-                    }
-                )
-    if not table:
-        return None, table
-    best = max(
-        table,
-        key=lambda row: (
-            row["early_detection_rate"] or 0.0,
-            row["lead_time_s"] or 0.0,
-            -row["start_frame"],
-            -row["persistence"],
-        ),
-    )
-    return best, table
-
-
 def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) -> dict[str, Any]:
     seeds = {"selection": args.selection_seed, "calibration": args.calibration_seed, "test": args.test_seed}
     paths = {role: _make_set(folder, f"{name}-{role}", scene, seed, args) for role, seed in seeds.items()}
@@ -122,13 +85,21 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
     for alpha in ALPHAS:
         per_scorer: dict[str, Any] = {}
         for scorer in ("margin", "distance"):
-            best, table = _select(paths["selection"], scorer, alpha, args.frames, args.persistence)
-            if best is None:
-                per_scorer[scorer] = {"refused": "too few successes in the selection set", "selection": table}
-                continue
             try:
-                chosen = {key: best[key] for key in ("score", "start_frame", "persistence")}
-                found = calibrate_monitor(paths["calibration"], alpha=alpha, scorer=scorer, **chosen)
+                best = select_alarm(paths["selection"], alpha=alpha, scorer=scorer, max_persistence=args.persistence)
+            except InvalidParameterError as error:
+                per_scorer[scorer] = {"refused": f"selection set: {error}"}
+                continue
+            table = best.candidates
+            try:
+                found = calibrate_monitor(
+                    paths["calibration"],
+                    alpha=alpha,
+                    scorer=scorer,
+                    score=best.score,
+                    start_frame=best.start_frame,
+                    persistence=best.persistence,
+                )
             except InvalidParameterError as error:
                 per_scorer[scorer] = {"refused": str(error), "selection": table}
                 continue
@@ -139,8 +110,8 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
                 "selection": table,
             }
             print(
-                f"{name} alpha {alpha:.2f} {scorer:8s} score {best['score']:7s} from frame {best['start_frame']}, "
-                f"persistence {best['persistence']}: "
+                f"{name} alpha {alpha:.2f} {scorer:8s} score {best.score:7s} from frame {best.start_frame}, "
+                f"persistence {best.persistence}: "
                 f"detection {result.detection_rate} early {result.early_detection_rate} lead "
                 f"{result.lead_time_s} s, false alarms {result.false_alarm_rate} (n = {found.n_successes})",
                 flush=True,

@@ -69,3 +69,25 @@ def test_persistence_is_recorded_and_checked(
     assert main([*argv, "--persistence", str(frames + 1)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("energy-margin: error: --persistence")
+
+
+def test_select_chooses_on_a_third_set(
+    analysed: tuple[Path, Path], copy_dataset: Callable[[str], Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    calibration, test = analysed
+    selection = copy_dataset("select")
+    assert main(["analyze", str(selection), "--iterations", "5", "--no-progress"]) == 0
+    capsys.readouterr()
+    argv = ["monitor", str(calibration), str(test), "--alpha", "0.5", "--resamples", "20", "--select", str(selection)]
+    assert main([*argv, "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert [choice["selection_dataset"] for choice in result["choices"]] == [str(selection)] * 2
+    for choice, found in zip(result["choices"], result["evaluations"], strict=True):
+        assert (found["score"], found["start_frame"], found["persistence"]) == (
+            choice["score"],
+            choice["start_frame"],
+            choice["persistence"],
+        )
+    assert main([*argv[:-1], str(selection.parent / "absent")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "absent" in err

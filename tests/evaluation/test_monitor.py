@@ -207,7 +207,7 @@ def test_the_table_says_when_the_margin_alarm_cannot_fire(labelled: Path) -> Non
     assert "the margin alarm at alpha 0.5 cannot fire: its threshold is 0" in format_table(result)
     two = compare_monitors(labelled, labelled, alphas=(0.5,), score="min", persistence=2, resamples=20)
     assert two.evaluations[0]["can_fire"] and two.evaluations[0]["threshold"] == 0.5
-    assert "alarm at 2 monitored frames below the threshold" in format_table(two)
+    assert "min 0+ x2" in format_table(two)  # the watched score, from frame 0, at the second frame below
 
 
 def test_a_margin_calibration_needs_scores(tiny_dataset: Path) -> None:

@@ -21,10 +21,11 @@ EXAMPLES = (
     "energy-margin monitor runs/calib runs/test --alpha 0.05 0.1",
     "energy-margin monitor runs/calib runs/test --score success --start-frame 4 --save alarm.json --json",
     "energy-margin monitor runs/calib runs/test --persistence 3",
+    "energy-margin monitor runs/calib runs/test --select runs/select",
 )
 
 #: Keyword arguments of the library named by another option.
-PARAMETER_FLAGS = {"alphas": "--alpha"}
+PARAMETER_FLAGS = {"alphas": "--alpha", "selection": "--select"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,6 +55,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="alarm at the Mth monitored frame below the threshold, calibrated to match (default 1: the first)",
     )
     parser.add_argument(
+        "--select",
+        metavar="DATASET",
+        default=None,
+        help="a third scored dataset on which to choose each alarm's score, start frame and persistence (1 to 3), "
+        "instead of --score, --start-frame and --persistence",
+    )
+    parser.add_argument(
         "--resamples",
         type=positive_int,
         default=1000,
@@ -78,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
         score=args.score,
         start_frame=args.start_frame,
         persistence=args.persistence,
+        selection=args.select,
         resamples=args.resamples,
         seed=args.seed,
     )

@@ -52,9 +52,11 @@ __all__ = [
     "LiveAlarm",
     "MonitorCalibration",
     "alarm_frames",
+    "alarm_measures",
     "calibrate_grid",
     "calibrate_monitor",
     "conformal_rank",
+    "failure_frames",
     "load_calibration",
     "monitored_grid",
     "worst_scores",
@@ -131,6 +133,49 @@ def alarm_frames(grid: np.ndarray, threshold: float, *, start_frame: int = 0, pe
     _check_window(grid, start_frame, persistence)
     counted = np.cumsum(grid[:, start_frame:] < threshold, axis=1) >= persistence
     return np.where(counted.any(axis=1), counted.argmax(axis=1) + start_frame, -1)
+
+
+def failure_frames(captured: np.ndarray, success: np.ndarray) -> np.ndarray:
+    """The frame at which failure becomes certain by the labels, per trajectory; -1 for a success.
+
+    Args:
+        captured: capture label of every frame (k-hat 0), shape (T, K), bool.
+        success: success label of every trajectory, shape (T,), bool.
+
+    Returns:
+        Shape (T,), int: for a failed trajectory the first frame from which ``captured`` stays
+        False to the end (K - 1 when its last frame is captured), -1 for a successful one.
+
+    """
+    captured = np.asarray(captured, dtype=bool)
+    frames = captured.shape[1]
+    # Frames captured at or after each frame, counted from the end.
+    later = np.cumsum(captured[:, ::-1], axis=1)[:, ::-1]
+    never_again = later == 0
+    first = np.where(never_again.any(axis=1), never_again.argmax(axis=1), frames - 1)
+    return np.where(np.asarray(success, dtype=bool), -1, first)
+
+
+def alarm_measures(alarms: np.ndarray, failures: np.ndarray, times: np.ndarray) -> dict[str, float | None]:
+    """The four measures of one set of trajectories (``None`` where undefined).
+
+    Args:
+        alarms: alarm frame per trajectory, shape (T,), -1 for none (``monitor.alarm_frames``).
+        failures: failure frame per trajectory, shape (T,), -1 for a success (:func:`failure_frames`).
+        times: time of every frame, shape (T, K), s.
+
+    """
+    failed = failures >= 0
+    fired = alarms >= 0
+    rows = np.arange(alarms.size)
+    detected = failed & fired
+    lead = times[rows, failures] - times[rows, alarms]
+    return {
+        "detection_rate": float(fired[failed].mean()) if failed.any() else None,
+        "early_detection_rate": float((detected & (alarms <= failures))[failed].mean()) if failed.any() else None,
+        "lead_time_s": float(lead[detected].mean()) if detected.any() else None,
+        "false_alarm_rate": float(fired[~failed].mean()) if (~failed).any() else None,
+    }
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -19,7 +19,7 @@ one dataset for each alpha and reports both on another.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,9 +33,12 @@ from energy_margin.evaluation.monitor import (
     SCORERS,
     MonitorCalibration,
     alarm_frames,
+    alarm_measures,
     calibrate_monitor,
+    failure_frames,
     monitored_grid,
 )
+from energy_margin.evaluation.monitor_select import select_alarm
 from energy_margin.runs.results import TypedResult, plain_result
 
 __all__ = [
@@ -49,49 +52,6 @@ __all__ = [
 ]
 
 _MEASURES = ("detection_rate", "early_detection_rate", "lead_time_s", "false_alarm_rate")
-
-
-def failure_frames(captured: np.ndarray, success: np.ndarray) -> np.ndarray:
-    """The frame at which failure becomes certain by the labels, per trajectory; -1 for a success.
-
-    Args:
-        captured: capture label of every frame (k-hat 0), shape (T, K), bool.
-        success: success label of every trajectory, shape (T,), bool.
-
-    Returns:
-        Shape (T,), int: for a failed trajectory the first frame from which ``captured`` stays
-        False to the end (K - 1 when its last frame is captured), -1 for a successful one.
-
-    """
-    captured = np.asarray(captured, dtype=bool)
-    frames = captured.shape[1]
-    # Frames captured at or after each frame, counted from the end.
-    later = np.cumsum(captured[:, ::-1], axis=1)[:, ::-1]
-    never_again = later == 0
-    first = np.where(never_again.any(axis=1), never_again.argmax(axis=1), frames - 1)
-    return np.where(np.asarray(success, dtype=bool), -1, first)
-
-
-def alarm_measures(alarms: np.ndarray, failures: np.ndarray, times: np.ndarray) -> dict[str, float | None]:
-    """The four measures of one set of trajectories (``None`` where undefined).
-
-    Args:
-        alarms: alarm frame per trajectory, shape (T,), -1 for none (``monitor.alarm_frames``).
-        failures: failure frame per trajectory, shape (T,), -1 for a success (:func:`failure_frames`).
-        times: time of every frame, shape (T, K), s.
-
-    """
-    failed = failures >= 0
-    fired = alarms >= 0
-    rows = np.arange(alarms.size)
-    detected = failed & fired
-    lead = times[rows, failures] - times[rows, alarms]
-    return {
-        "detection_rate": float(fired[failed].mean()) if failed.any() else None,
-        "early_detection_rate": float((detected & (alarms <= failures))[failed].mean()) if failed.any() else None,
-        "lead_time_s": float(lead[detected].mean()) if detected.any() else None,
-        "false_alarm_rate": float(fired[~failed].mean()) if (~failed).any() else None,
-    }
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -189,6 +149,9 @@ class MonitorComparison(TypedResult):
         calibrations: one :class:`~energy_margin.evaluation.monitor.MonitorCalibration` dictionary
             per scorer and alpha.
         evaluations: one :class:`MonitorEvaluation` dictionary per scorer and alpha, same order.
+        choices: with a selection set, one
+            :class:`~energy_margin.evaluation.monitor_select.AlarmChoice` dictionary per scorer and
+            alpha, same order, without its candidates; empty without one.
 
     """
 
@@ -199,6 +162,7 @@ class MonitorComparison(TypedResult):
     task: str
     calibrations: list[dict[str, Any]]
     evaluations: list[dict[str, Any]]
+    choices: list[dict[str, Any]] = field(default_factory=list)
 
 
 def compare_monitors(
@@ -209,6 +173,8 @@ def compare_monitors(
     score: str = "success",
     start_frame: int = 0,
     persistence: int = 1,
+    selection: Path | str | None = None,
+    max_persistence: int = 3,
     resamples: int = 1000,
     seed: int = 0,
 ) -> MonitorComparison:
@@ -216,20 +182,28 @@ def compare_monitors(
 
     The distance alarm is left out for a task whose regions measure no distance. See
     :func:`~energy_margin.evaluation.monitor.calibrate_monitor` for ``score``, ``start_frame`` and
-    ``persistence``.
+    ``persistence``. With ``selection``, a third analysed dataset, each alarm's score, start frame
+    and persistence (up to ``max_persistence``) are chosen on it instead, per scorer and alpha
+    (:func:`~energy_margin.evaluation.monitor_select.select_alarm`).
     """
     test = require_valid(test_path, overlaps=True, scores=True)
     scorers = SCORERS if distance_scores(test) is not None else ("margin",)
     calibrations: list[MonitorCalibration] = []
+    choices: list[dict[str, Any]] = []
     for scorer in scorers:
         for alpha in alphas:
+            watched, first, frames_below = score, start_frame, persistence
+            if selection is not None:
+                choice = select_alarm(selection, alpha=alpha, scorer=scorer, max_persistence=max_persistence)
+                watched, first, frames_below = choice.score, choice.start_frame, choice.persistence
+                choices.append({key: value for key, value in choice.to_dict().items() if key != "candidates"})
             found = calibrate_monitor(
                 calibration_path,
                 alpha=alpha,
                 scorer=scorer,
-                score=score,
-                start_frame=start_frame,
-                persistence=persistence,
+                score=watched,
+                start_frame=first,
+                persistence=frames_below,
             )
             calibrations.append(found)
     evaluations = [evaluate_monitor(found, test_path, resamples=resamples, seed=seed) for found in calibrations]
@@ -242,6 +216,7 @@ def compare_monitors(
         task=calibrations[0].task,
         calibrations=[found.to_dict() for found in calibrations],
         evaluations=[found.to_dict() for found in evaluations],
+        choices=choices,
     )
 
 
@@ -256,8 +231,8 @@ def format_table(result: MonitorComparison | dict[str, Any]) -> str:
     """A text table of :func:`compare_monitors`: one row per scorer and alpha."""
     result = plain_result(result)
     header = (
-        f"{'alarm':10s} {'alpha':>5s} {'n':>3s} {'threshold':>10s}  {'detection':22s} {'early detection':22s} "
-        f"{'lead time s':22s} false alarms"
+        f"{'alarm':10s} {'alpha':>5s} {'watched':19s} {'n':>3s} {'threshold':>10s}  {'detection':22s} "
+        f"{'early detection':22s} {'lead time s':22s} false alarms"
     )
     lines = [
         f"{result['task']}: calibrated on the successes of {result['calibration_dataset']} (seed "
@@ -267,19 +242,24 @@ def format_table(result: MonitorComparison | dict[str, Any]) -> str:
     ]
     for calibration, found in zip(result["calibrations"], result["evaluations"], strict=True):
         cells = [_cell(found[name], found[f"{name}_low"], found[f"{name}_high"]) for name in _MEASURES]
+        watched = f"{found['score']} {found['start_frame']}+ x{found['persistence']}"
         lines.append(
-            f"{found['scorer']:10s} {found['alpha']:5.2f} {calibration['n_successes']:3d} {found['threshold']:10.4g}  "
-            f"{cells[0]:22s} {cells[1]:22s} {cells[2]:22s} {cells[3]}"
+            f"{found['scorer']:10s} {found['alpha']:5.2f} {watched:19s} {calibration['n_successes']:3d} "
+            f"{found['threshold']:10.4g}  {cells[0]:22s} {cells[1]:22s} {cells[2]:22s} {cells[3]}"
         )
     first = result["evaluations"][0]
-    frames_below = (
-        "the first monitored frame" if first["persistence"] == 1 else f"{first['persistence']} monitored frames"
-    )
     lines.append(
-        f"score {first['score']} from frame {first['start_frame']}, alarm at {frames_below} below the threshold; "
-        f"test set: {first['n_failed']} failed, "
-        f"{first['n_successful']} successful; 95 % intervals over {first['resamples']} resamples of the test "
-        f"trajectories (seed {first['seed']})"
+        "watched: the score, from its first monitored frame (+), alarmed at that many frames below the threshold (x)"
+    )
+    if result.get("choices"):
+        chosen = result["choices"][0]
+        lines.append(
+            f"chosen on {chosen['selection_dataset']} (seed {chosen['selection_seed']}): the most failures detected "
+            "at or before their failure frame there"
+        )
+    lines.append(
+        f"test set: {first['n_failed']} failed, {first['n_successful']} successful; 95 % intervals over "
+        f"{first['resamples']} resamples of the test trajectories (seed {first['seed']})"
     )
     for found in result["evaluations"]:
         if not found["can_fire"]:

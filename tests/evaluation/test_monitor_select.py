@@ -1,0 +1,76 @@
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from energy_margin.errors import InvalidParameterError
+from energy_margin.evaluation.monitor_report import compare_monitors, format_table
+from energy_margin.evaluation.monitor_select import AlarmChoice, select_alarm
+from score_files import write_scores
+
+# Trajectory 0 succeeds; trajectory 1 fails from frame 1 (its capture label is lost there).
+CAPTURED = np.array([[True, True, True], [True, False, False]])
+IN_SUCCESS = np.array([[False, True, True], [False, False, False]])
+# The failure's capture score drops below the success's worst (0.7) at frame 0; its success score
+# stays above the success's worst (0.5) until frame 2, after the failure frame.
+CAPTURE = np.array([[0.9, 0.8, 0.7], [0.6, 0.3, 0.1]])
+SUCCESS = np.array([[0.5, 0.6, 0.9], [0.7, 0.7, 0.0]])
+
+
+@pytest.fixture
+def selection(tiny_dataset: Path, rewrite_frames: Callable[..., None]) -> Path:
+    rewrite_frames(
+        tiny_dataset,
+        captured=CAPTURED,
+        in_success=IN_SUCCESS,
+        frame_time=np.array([[0.0, 0.5, 1.0], [0.0, 0.5, 1.0]]),
+    )
+    write_scores(tiny_dataset, CAPTURE, SUCCESS)
+    return tiny_dataset
+
+
+def test_the_choice_detects_the_failure_earliest(selection: Path) -> None:
+    choice = select_alarm(selection, alpha=0.5)
+    assert isinstance(choice, AlarmChoice)
+    # capture from frame 0 fires at frame 0 (lead 0.5 s); success only at frame 2; min at frame 1 (lead 0).
+    assert (choice.score, choice.start_frame, choice.persistence) == ("capture", 0, 1)
+    assert (choice.early_detection_rate, choice.lead_time_s) == (1.0, 0.5)
+    assert (choice.selection_dataset, choice.selection_seed, choice.alpha) == (str(selection), 0, 0.5)
+    tried = {(row["score"], row["start_frame"], row["persistence"]): row for row in choice.candidates}
+    # Three scores; from frame 0 persistence 1 to 3, from frame 1 (K / 2) 1 to 2.
+    assert len(tried) == 15
+    assert tried[("success", 0, 1)]["early_detection_rate"] == 0.0
+    assert tried[("min", 0, 1)]["lead_time_s"] == 0.0
+    json.dumps(choice.to_dict())
+
+
+def test_ties_go_to_the_earlier_frame_and_smaller_persistence(selection: Path, rewrite_frames) -> None:
+    # Every score of the failure below every score of the success: every candidate detects at its
+    # first monitored frame, so the lead decides (frame 0) and then the smaller persistence.
+    write_scores(selection, np.array([[0.9, 0.9, 0.9], [0.1, 0.1, 0.1]]), np.array([[0.9, 0.9, 0.9], [0.1, 0.1, 0.1]]))
+    choice = select_alarm(selection, alpha=0.5, max_persistence=2)
+    assert (choice.score, choice.start_frame, choice.persistence) == ("success", 0, 1)
+    assert max(row["persistence"] for row in choice.candidates) == 2
+
+
+def test_a_selection_set_with_too_few_successes_is_refused(selection: Path) -> None:
+    with pytest.raises(InvalidParameterError, match=r"^alpha 0.1 needs at least 9 successful calibration roll-outs"):
+        select_alarm(selection, alpha=0.1)
+    with pytest.raises(InvalidParameterError, match=r"^max_persistence"):
+        select_alarm(selection, alpha=0.5, max_persistence=0)
+
+
+def test_compare_with_a_selection_set_calibrates_the_choice(selection: Path, copy_dataset) -> None:
+    result = compare_monitors(selection, selection, alphas=(0.5,), selection=selection, resamples=20)
+    margin = result.evaluations[0]
+    assert (margin["score"], margin["start_frame"], margin["persistence"]) == ("capture", 0, 1)
+    assert [choice["scorer"] for choice in result.choices] == ["margin", "distance"]
+    assert "candidates" not in result.choices[0]
+    assert f"chosen on {selection} (seed 0)" in format_table(result)
+    # Without one, the given settings and no choices.
+    plain = compare_monitors(selection, selection, alphas=(0.5,), resamples=20)
+    assert plain.choices == [] and plain.evaluations[0]["score"] == "success"
