@@ -91,3 +91,6 @@ def test_select_chooses_on_a_third_set(
     assert main([*argv[:-1], str(selection.parent / "absent")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "absent" in err
+    assert main([*argv[:-1], str(calibration)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("energy-margin: error: --select is the calibration set")

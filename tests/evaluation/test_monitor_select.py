@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -64,8 +65,10 @@ def test_a_selection_set_with_too_few_successes_is_refused(selection: Path) -> N
         select_alarm(selection, alpha=0.5, max_persistence=0)
 
 
-def test_compare_with_a_selection_set_calibrates_the_choice(selection: Path, copy_dataset) -> None:
-    result = compare_monitors(selection, selection, alphas=(0.5,), selection=selection, resamples=20)
+def test_compare_with_a_selection_set_calibrates_the_choice(selection: Path, tmp_path: Path) -> None:
+    calibration = tmp_path / "calibration"
+    shutil.copytree(selection, calibration)
+    result = compare_monitors(calibration, calibration, alphas=(0.5,), selection=selection, resamples=20)
     margin = result.evaluations[0]
     assert (margin["score"], margin["start_frame"], margin["persistence"]) == ("capture", 0, 1)
     assert [choice["scorer"] for choice in result.choices] == ["margin", "distance"]
@@ -74,3 +77,5 @@ def test_compare_with_a_selection_set_calibrates_the_choice(selection: Path, cop
     # Without one, the given settings and no choices.
     plain = compare_monitors(selection, selection, alphas=(0.5,), resamples=20)
     assert plain.choices == [] and plain.evaluations[0]["score"] == "success"
+    with pytest.raises(InvalidParameterError, match=r"^selection is the calibration set"):
+        compare_monitors(calibration, selection, alphas=(0.5,), selection=calibration / ".." / "calibration")

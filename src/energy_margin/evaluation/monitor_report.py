@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.data.validation import require_valid
-from energy_margin.errors import check_int, check_seed
+from energy_margin.errors import InvalidParameterError, check_int, check_seed
 from energy_margin.evaluation.baselines import distance_scores
 from energy_margin.evaluation.bootstrap import percentile_interval
 from energy_margin.evaluation.monitor import (
@@ -185,7 +185,15 @@ def compare_monitors(
     ``persistence``. With ``selection``, a third analysed dataset, each alarm's score, start frame
     and persistence (up to ``max_persistence``) are chosen on it instead, per scorer and alpha
     (:func:`~energy_margin.evaluation.monitor_select.select_alarm`).
+
+    Raises:
+        InvalidParameterError: ``selection`` is the calibration set, or a bad option.
+
     """
+    if selection is not None and Path(selection).resolve() == Path(calibration_path).resolve():
+        raise InvalidParameterError(
+            "selection", "is the calibration set: choose on a set of its own, or the false-alarm guarantee is spent"
+        )
     test = require_valid(test_path, overlaps=True, scores=True)
     scorers = SCORERS if distance_scores(test) is not None else ("margin",)
     calibrations: list[MonitorCalibration] = []
