@@ -274,6 +274,6 @@ def format_table(result: MonitorComparison | dict[str, Any]) -> str:
             lines.append(
                 f"the {found['scorer']} alarm at alpha {found['alpha']:g} cannot fire: its threshold is 0 "
                 f"(a calibration success scores 0 at {found['persistence']} or more monitored frames); "
-                "raise --persistence or --start-frame"
+                "calibrate with a larger persistence or a later start frame, or choose them on a selection set"
             )
     return "\n".join(lines)
