@@ -34,9 +34,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from energy_margin.data.scores_file import load_scores
+from energy_margin.data.validation import require_valid
 from energy_margin.errors import InvalidParameterError
-from energy_margin.evaluation.monitor import calibrate_monitor
+from energy_margin.evaluation.monitor import calibrate_monitor, failure_frames, monitored_grid
 from energy_margin.evaluation.monitor_report import evaluate_monitor
 from energy_margin.evaluation.monitor_select import select_alarm
 from energy_margin.runs.versions import engine_versions
@@ -121,7 +124,31 @@ def _scene(name: str, scene: list[str], folder: Path, args: argparse.Namespace) 
     # so it counts sets analysed by an earlier run in --work too).
     analysis_s = sum(float(load_scores(path)["runtime_s"].sum()) for path in paths.values())
     frames = sum(int(load_scores(path)["frame"].size) for path in paths.values())
-    return {"seeds": seeds, "analysis_s": analysis_s, "analysed_frames": frames, **rows}
+    return {
+        "seeds": seeds,
+        "analysis_s": analysis_s,
+        "analysed_frames": frames,
+        "test_profile": _profile(paths["test"]),
+        **rows,
+    }
+
+
+def _profile(path: Path) -> dict[str, Any]:
+    """When the test set's failures become certain, and the margin's mean scores per frame, by outcome."""
+    dataset = require_valid(path, overlaps=True, scores=True)
+    success = dataset.success_labels()
+    failures = failure_frames(dataset.arrays["captured"], success)
+    profile: dict[str, Any] = {
+        "failure_frame_counts": np.bincount(failures[failures >= 0], minlength=dataset.n_frames).tolist(),
+        "frame_time_s": np.asarray(dataset.arrays["frame_time"], dtype=float).mean(axis=0).round(3).tolist(),
+    }
+    for score in ("success", "capture"):
+        grid = monitored_grid(dataset, path, score=score)
+        profile[f"mean_{score}_score"] = {
+            "successes": grid[success].mean(axis=0).round(3).tolist(),
+            "failures": grid[~success].mean(axis=0).round(3).tolist(),
+        }
+    return profile
 
 
 def _cpu_s() -> float:
