@@ -130,7 +130,6 @@ def analyze(
 
     """
     check_seed(seed)
-    make_executor(executor, workers=workers, address=address)  # a bad executor is refused before loading
     dataset = require_valid(path, overlaps=True, scores=False)
     return analyze_dataset(
         dataset,
