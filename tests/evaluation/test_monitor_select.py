@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from energy_margin.errors import InvalidParameterError
+from energy_margin.evaluation import monitor
 from energy_margin.evaluation.monitor_report import compare_monitors, format_table
-from energy_margin.evaluation.monitor_select import AlarmChoice, select_alarm
+from energy_margin.evaluation.monitor_select import AlarmChoice, select_alarm, select_alarms
 from score_files import write_scores
 
 # Trajectory 0 succeeds; trajectory 1 fails from frame 1 (its capture label is lost there).
@@ -79,3 +80,25 @@ def test_compare_with_a_selection_set_calibrates_the_choice(selection: Path, tmp
     assert plain.choices == [] and plain.evaluations[0]["score"] == "success"
     with pytest.raises(InvalidParameterError, match=r"^selection is the calibration set"):
         compare_monitors(calibration, selection, alphas=(0.5,), selection=calibration / ".." / "calibration")
+
+
+@pytest.mark.parametrize("scorer", ["margin", "distance"])
+def test_several_alphas_load_the_set_and_build_its_grids_once(
+    selection: Path, monkeypatch: pytest.MonkeyPatch, scorer: str
+) -> None:
+    alphas = (0.5, 0.6)
+    one_by_one = [select_alarm(selection, alpha=alpha, scorer=scorer) for alpha in alphas]
+    built: list[str] = []
+    for name in ("load_scores", "distance_scores"):
+        original = getattr(monitor, name)
+
+        def counted(*args, _original=original, _name=name, **kwargs):  # type: ignore[no-untyped-def]
+            built.append(_name)
+            return _original(*args, **kwargs)
+
+        monkeypatch.setattr(monitor, name, counted)
+    together = select_alarms(selection, alphas=alphas, scorer=scorer)
+    assert [choice.to_dict() for choice in together] == [choice.to_dict() for choice in one_by_one]
+    assert built == ["load_scores" if scorer == "margin" else "distance_scores"]
+    with pytest.raises(InvalidParameterError, match=r"^alpha 0.1 needs"):
+        select_alarms(selection, alphas=(0.5, 0.1), scorer=scorer)

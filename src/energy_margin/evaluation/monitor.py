@@ -59,6 +59,7 @@ __all__ = [
     "failure_frames",
     "load_calibration",
     "monitored_grid",
+    "monitored_grids",
     "worst_scores",
     "write_calibration",
 ]
@@ -313,15 +314,17 @@ def calibrate_grid(
     )
 
 
-def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin", score: str = "success") -> np.ndarray:
-    """The per-frame score the monitor watches, shape (T, K), of an analysed dataset.
+def monitored_grids(dataset: Dataset, path: Path | str, *, scorer: str = "margin") -> dict[str, np.ndarray]:
+    """Every score the monitor can watch of an analysed dataset, each shape (T, K), by name.
+
+    Keys are :data:`SCORES`: ``success``, ``capture`` and ``min`` (their frame-wise minimum). The
+    grids are built once here, for callers that try several scores.
 
     Raises:
         EnergyMarginError: ``scorer="distance"`` on a task whose regions measure no distance.
 
     """
     check_choice("scorer", scorer, SCORERS)
-    check_choice("score", score, SCORES)
     if scorer == "margin":
         scores = load_scores(path)
         capture = score_grid(dataset, scores, "capture_score")
@@ -331,7 +334,18 @@ def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin"
         if distances is None:
             raise EnergyMarginError(f"the regions of task {dataset.metadata['task']} measure no distance")
         capture, success = distances
-    return {"success": success, "capture": capture, "min": np.minimum(capture, success)}[score]
+    return {"success": success, "capture": capture, "min": np.minimum(capture, success)}
+
+
+def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin", score: str = "success") -> np.ndarray:
+    """The per-frame score the monitor watches, shape (T, K), of an analysed dataset.
+
+    Raises:
+        EnergyMarginError: ``scorer="distance"`` on a task whose regions measure no distance.
+
+    """
+    check_choice("score", score, SCORES)
+    return monitored_grids(dataset, path, scorer=scorer)[score]
 
 
 def calibrate_monitor(

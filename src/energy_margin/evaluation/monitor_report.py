@@ -38,7 +38,7 @@ from energy_margin.evaluation.monitor import (
     failure_frames,
     monitored_grid,
 )
-from energy_margin.evaluation.monitor_select import select_alarm
+from energy_margin.evaluation.monitor_select import AlarmChoice, select_alarms
 from energy_margin.runs.results import TypedResult, plain_result
 
 __all__ = [
@@ -184,7 +184,7 @@ def compare_monitors(
     :func:`~energy_margin.evaluation.monitor.calibrate_monitor` for ``score``, ``start_frame`` and
     ``persistence``. With ``selection``, a third analysed dataset, each alarm's score, start frame
     and persistence (up to ``max_persistence``) are chosen on it instead, per scorer and alpha
-    (:func:`~energy_margin.evaluation.monitor_select.select_alarm`).
+    (:func:`~energy_margin.evaluation.monitor_select.select_alarms`).
 
     Raises:
         InvalidParameterError: ``selection`` is the calibration set, or a bad option.
@@ -199,10 +199,12 @@ def compare_monitors(
     calibrations: list[MonitorCalibration] = []
     choices: list[dict[str, Any]] = []
     for scorer in scorers:
-        for alpha in alphas:
+        chosen: list[AlarmChoice | None] = [None] * len(alphas)
+        if selection is not None:
+            chosen = list(select_alarms(selection, alphas=alphas, scorer=scorer, max_persistence=max_persistence))
+        for alpha, choice in zip(alphas, chosen, strict=True):
             watched, first, frames_below = score, start_frame, persistence
-            if selection is not None:
-                choice = select_alarm(selection, alpha=alpha, scorer=scorer, max_persistence=max_persistence)
+            if choice is not None:
                 watched, first, frames_below = choice.score, choice.start_frame, choice.persistence
                 choices.append({key: value for key, value in choice.to_dict().items() if key != "candidates"})
             found = calibrate_monitor(

@@ -9,7 +9,8 @@ successes (split-conformal at ``alpha``) and kept by how many of the set's faile
 detects at or before their failure frame (ties: the longer mean lead time, then the earlier first
 frame, then the smaller persistence, then the order of
 :data:`~energy_margin.evaluation.monitor.SCORES`). Choosing on the calibration set itself would
-spend its guarantee; on a separate set it is kept.
+spend its guarantee; on a separate set it is kept. :func:`select_alarms` chooses at several
+alphas, the set loaded and its grids built once.
 """
 
 from __future__ import annotations
@@ -30,11 +31,11 @@ from energy_margin.evaluation.monitor import (
     calibrate_grid,
     conformal_rank,
     failure_frames,
-    monitored_grid,
+    monitored_grids,
 )
 from energy_margin.runs.results import TypedResult
 
-__all__ = ["AlarmChoice", "select_alarm"]
+__all__ = ["AlarmChoice", "select_alarm", "select_alarms"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,17 +84,75 @@ def select_alarm(path: Path | str, *, alpha: float, scorer: str = "margin", max_
         InvalidParameterError: ``alpha`` needs more successes than the selection set has, or a bad option.
 
     """
+    return select_alarms(path, alphas=(alpha,), scorer=scorer, max_persistence=max_persistence)[0]
+
+
+def select_alarms(
+    path: Path | str, *, alphas: tuple[float, ...], scorer: str = "margin", max_persistence: int = 3
+) -> list[AlarmChoice]:
+    """:func:`select_alarm` at each of ``alphas``, the selection set loaded and its grids built once.
+
+    Returns:
+        One :class:`AlarmChoice` per alpha, in the order of ``alphas``.
+
+    Raises:
+        InvalidParameterError: an alpha needs more successes than the selection set has (checked
+            for every alpha before any work), or a bad option.
+
+    """
     check_choice("scorer", scorer, SCORERS)
     check_int("max_persistence", max_persistence, minimum=1)
     dataset = require_valid(path, overlaps=True, scores=True if scorer == "margin" else None)
     success = dataset.success_labels()
+    for alpha in alphas:
+        conformal_rank(int(success.sum()), alpha)  # too few successes for alpha: one line, before any work
     failures = failure_frames(dataset.arrays["captured"], success)
     times = np.asarray(dataset.arrays["frame_time"], dtype=float)
-    frames = dataset.n_frames
-    conformal_rank(int(success.sum()), alpha)  # too few successes for alpha: one line, before any work
+    grids = monitored_grids(dataset, path, scorer=scorer)
+    seed = dataset.metadata.get("seed")
+    choices: list[AlarmChoice] = []
+    for alpha in alphas:
+        candidates = _candidates(grids, success, failures, times, alpha=alpha, max_persistence=max_persistence)
+        best = max(
+            candidates,
+            key=lambda row: (
+                row["early_detection_rate"] or 0.0,
+                row["lead_time_s"] or 0.0,
+                -row["start_frame"],
+                -row["persistence"],
+            ),
+        )
+        choices.append(
+            AlarmChoice(
+                scorer=scorer,
+                alpha=float(alpha),
+                score=best["score"],
+                start_frame=best["start_frame"],
+                persistence=best["persistence"],
+                early_detection_rate=best["early_detection_rate"],
+                lead_time_s=best["lead_time_s"],
+                selection_dataset=str(path),
+                selection_seed=seed if isinstance(seed, int) else None,
+                candidates=candidates,
+            )
+        )
+    return choices
+
+
+def _candidates(
+    grids: dict[str, np.ndarray],
+    success: np.ndarray,
+    failures: np.ndarray,
+    times: np.ndarray,
+    *,
+    alpha: float,
+    max_persistence: int,
+) -> list[dict[str, Any]]:
+    """Every score, first frame 0 .. K / 2 and persistence, calibrated at ``alpha`` and measured, in order."""
     candidates: list[dict[str, Any]] = []
     for score in SCORES:
-        grid = monitored_grid(dataset, path, scorer=scorer, score=score)
+        grid = grids[score]
+        frames = grid.shape[1]
         for start in range(frames // 2 + 1):
             for persistence in range(1, min(max_persistence, frames - start) + 1):
                 found = calibrate_grid(grid, success, alpha=alpha, start_frame=start, persistence=persistence)
@@ -108,25 +167,4 @@ def select_alarm(path: Path | str, *, alpha: float, scorer: str = "margin", max_
                         "lead_time_s": measured["lead_time_s"],
                     }
                 )
-    best = max(
-        candidates,
-        key=lambda row: (
-            row["early_detection_rate"] or 0.0,
-            row["lead_time_s"] or 0.0,
-            -row["start_frame"],
-            -row["persistence"],
-        ),
-    )
-    seed = dataset.metadata.get("seed")
-    return AlarmChoice(
-        scorer=scorer,
-        alpha=float(alpha),
-        score=best["score"],
-        start_frame=best["start_frame"],
-        persistence=best["persistence"],
-        early_detection_rate=best["early_detection_rate"],
-        lead_time_s=best["lead_time_s"],
-        selection_dataset=str(path),
-        selection_seed=seed if isinstance(seed, int) else None,
-        candidates=candidates,
-    )
+    return candidates
