@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,9 +21,9 @@ from energy_margin.errors import InvalidParameterError, check_positive_int
 from energy_margin.planning.costs import CostModel
 from energy_margin.planning.density import Features, ObjectPositions
 from energy_margin.planning.nodes import CostField
-from energy_margin.planning.propagate import _propagate_rows
+from energy_margin.planning.propagate import _Expansion, _propagate_rows
 from energy_margin.planning.tree import Expansion, TreeBudget, _batch_propagator, _Bounds, _Growth
-from energy_margin.sim.base import CompiledModel, Simulator, require
+from energy_margin.sim.base import CompiledModel, Propagator, Simulator, require
 from energy_margin.tasks.base import Task
 from energy_margin.world.state import FrameState
 
@@ -108,42 +109,78 @@ def grow_together(
                                cost_model, features, propagator, bounds)  # fmt: skip
         growth.start(budget.expansion_limit, stops[j] if stops is not None else None, check_every)
         growths.append(growth)
-    # Each row runs on its root's model; one model for all (None) when every root shares the first simulator.
-    shared = all(simulator is lead for simulator in simulators)
-    models = None if shared else [require(simulator, CompiledModel, purpose="trees of several roll-outs").model
-                                  for simulator in simulators]  # fmt: skip
-    check = getattr(propagator, "check_models", None)
-    if models is not None and check is not None:
-        check(models)  # before anything is grown: IncompatibleModelsError
-    control_steps = growths[0].bounds.control_steps if growths else None
+    models = _row_models(simulators, lead, propagator)
     physics = np.zeros(n)
-    while True:
-        rounds = [(j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None]
-        if not rounds:
-            break
-        tick = time.perf_counter()
-        owners = np.concatenate([np.full(len(round_), j) for j, round_ in rounds])
-        rows = [(j, expansion) for j, round_ in rounds for expansion in round_]
-        times = np.array([start_times[j] + growths[j].tree.times[expansion[1]] for j, expansion in rows])
-        states = np.stack([growths[j].tree.states[expansion[1]] for j, expansion in rows])
-        outcomes = _propagate_rows(
-            propagator,
-            task,
-            np.stack([np.asarray(drives[j], dtype=float) for j, _ in rows]),
-            states,
-            times,
-            [expansion for _, expansion in rows],
-            control_steps,
-            None if models is None else [models[j] for j, _ in rows],
-        )
-        spent = time.perf_counter() - tick
-        at = 0
-        for j, round_ in rounds:
-            growths[j].offer(round_, outcomes[at : at + len(round_)])
-            at += len(round_)
-        physics += spent * np.bincount(owners, minlength=n) / owners.size
+    while rounds := [
+        (j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None
+    ]:
+        physics += _propagate_together(propagator, task, growths, rounds, drives, start_times, models)
     elapsed = time.perf_counter() - started
+    # Each tree's total_s is the group's wall time over the trees (``field`` measures from its ``started``).
     return [
         growth.tree.field(growth.expansions, float(physics[j]), time.perf_counter() - elapsed / n)
         for j, growth in enumerate(growths)
     ]
+
+
+def _row_models(simulators: Sequence[Simulator], lead: Simulator, propagator: Propagator) -> list[Any] | None:
+    """Each root's compiled model, checked to run in one call; ``None`` when every root shares ``lead``.
+
+    Raises:
+        IncompatibleModelsError: models the propagator cannot run in one call, before anything is grown.
+
+    """
+    if all(simulator is lead for simulator in simulators):
+        return None
+    models = [require(simulator, CompiledModel, purpose="trees of several roll-outs").model for simulator in simulators]
+    check = getattr(propagator, "check_models", None)
+    if check is not None:
+        check(models)
+    return models
+
+
+def _propagate_together(
+    propagator: Propagator,
+    task: Task,
+    growths: list[_Growth],
+    rounds: list[tuple[int, list[_Expansion]]],
+    drives: Sequence[np.ndarray],
+    start_times: Sequence[float],
+    models: list[Any] | None,
+) -> np.ndarray:
+    """Propagate one round of every growing tree in one call and hand each tree its outcomes.
+
+    Args:
+        propagator: the batched propagator every row runs on.
+        task: the task (its script drives each row's robot).
+        growths: every tree's growth, by tree index.
+        rounds: (tree index, that tree's expansions of this round), for every tree still growing.
+        drives: each root's drive parameters, shape (n_drive,).
+        start_times: each root's time within its roll-out, s.
+        models: each root's model (``None``: all rows on the propagator's own model).
+
+    Returns:
+        Each tree's share (by propagations) of the call's wall time, s, shape (n_trees,).
+
+    """
+    tick = time.perf_counter()
+    owners = np.concatenate([np.full(len(round_), j) for j, round_ in rounds])
+    rows = [(j, expansion) for j, round_ in rounds for expansion in round_]
+    times = np.array([start_times[j] + growths[j].tree.times[expansion[1]] for j, expansion in rows])
+    states = np.stack([growths[j].tree.states[expansion[1]] for j, expansion in rows])
+    outcomes = _propagate_rows(
+        propagator,
+        task,
+        np.stack([np.asarray(drives[j], dtype=float) for j, _ in rows]),
+        states,
+        times,
+        [expansion for _, expansion in rows],
+        growths[0].bounds.control_steps,
+        None if models is None else [models[j] for j, _ in rows],
+    )
+    spent = time.perf_counter() - tick
+    at = 0
+    for j, round_ in rounds:
+        growths[j].offer(round_, outcomes[at : at + len(round_)])
+        at += len(round_)
+    return spent * np.bincount(owners, minlength=len(growths)) / owners.size
