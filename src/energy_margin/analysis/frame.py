@@ -170,14 +170,7 @@ def analyze_frames(
     if config.batch < 2:
         raise InvalidParameterError("config", "needs batch > 1 to grow frames together")
     recorded_task, task = task, with_contacts(task, config.contacts)
-    given: Sequence[Simulator | None] = simulators if simulators is not None else [None] * len(frames)
-    chosen: list[Simulator] = []
-    checked: set[int] = set()  # a simulator shared by a roll-out's frames is checked (and pruned) once
-    for frame, friction, drive, simulator in zip(frames, frictions, drives, given, strict=True):
-        if simulator is None or id(simulator) not in checked:
-            simulator = _frame_simulator(recorded_task, task, frame, friction, drive, config, simulator)
-            checked.add(id(simulator))
-        chosen.append(simulator)
+    chosen = _frame_simulators(recorded_task, task, frames, frictions, drives, config, simulators)
     lam = config.likelihood_lambda if config.likelihood_lambda is not None else task.config.likelihood_lambda
     started = time.perf_counter()
     fields = grow_trees_together(
@@ -212,7 +205,18 @@ def analyze_frames(
             horizon=config.continuation_horizon,
         )  # fmt: skip
         continued = [one.success_score for one in found]
-    runtime = (time.perf_counter() - started) / len(frames)
+    return _scored_together(task, frames, fields, continued, lam, (time.perf_counter() - started) / len(frames))
+
+
+def _scored_together(
+    task: Task,
+    frames: Sequence[FrameState],
+    fields: list[CostField],
+    continued: list[float | None],
+    lam: float,
+    runtime: float,
+) -> list[tuple[FrameScores, CostField]]:
+    """Each frame's scores from its tree (its success score from continuations where given) and field."""
     results = []
     for frame, field, continued_score in zip(frames, fields, continued, strict=True):
         capture, success = score_field(task, frame, field, lam)
@@ -222,6 +226,27 @@ def analyze_frames(
         )
         results.append((scores, field))
     return results
+
+
+def _frame_simulators(
+    recorded_task: Task,
+    task: Task,
+    frames: Sequence[FrameState],
+    frictions: Sequence[float],
+    drives: Sequence[np.ndarray],
+    config: AnalyzerConfig,
+    simulators: Sequence[Simulator] | None,
+) -> list[Simulator]:
+    """Each frame's simulator (:func:`_frame_simulator`); one shared by a roll-out's frames is checked once."""
+    given: Sequence[Simulator | None] = simulators if simulators is not None else [None] * len(frames)
+    chosen: list[Simulator] = []
+    checked: set[int] = set()  # a simulator shared by a roll-out's frames is checked (and pruned) once
+    for frame, friction, drive, simulator in zip(frames, frictions, drives, given, strict=True):
+        if simulator is None or id(simulator) not in checked:
+            simulator = _frame_simulator(recorded_task, task, frame, friction, drive, config, simulator)
+            checked.add(id(simulator))
+        chosen.append(simulator)
+    return chosen
 
 
 def _frame_simulator(
