@@ -51,11 +51,9 @@ def grow_together(
 ) -> list[CostField]:
     """Grow one tree per root in lockstep: each round of every tree still growing is one batched call.
 
-    Every tree is the one :func:`grow` grows alone from the same arguments with ``batch`` (its
-    parents, controls and seed are its own; a propagation does not depend on the others in its
-    call), so only the wall time changes: a device engine steps all the trees' worlds together.
-    The roots may come from several roll-outs of one scene: each has its own simulator (its
-    friction, its masses) and drive, and every call propagates each row on its root's model.
+    Every tree is the one :func:`grow` grows alone from the same arguments with ``batch``; only the
+    wall time changes. The roots may come from several roll-outs of one scene: every call
+    propagates each row on its root's model (its friction, its masses) with its drive.
 
     Args:
         simulators: each root's simulator, of one scene (the first one's batched propagator runs
@@ -90,14 +88,7 @@ def grow_together(
     """
     started = time.perf_counter()
     n = len(roots)
-    lists = (simulators, drives, rngs, make_expansions, start_times)
-    if any(len(values) != n for values in lists) or (stops is not None and len(stops) != n):
-        raise InvalidParameterError(
-            "roots", "simulators, drives, rngs, make_expansions, start_times and stops need one entry per root"
-        )
-    check_positive_int("check_every", check_every)
-    if batch < 2:
-        raise InvalidParameterError("batch", f"must be >= 2 to grow trees together, got {batch}")
+    _check_lists(n, (simulators, drives, rngs, make_expansions, start_times), stops, batch, check_every)
     features = features if features is not None else ObjectPositions()
     lead = propagating if propagating is not None else simulators[0]
     propagator = _batch_propagator(lead, cost_model, batch, 1)
@@ -121,6 +112,19 @@ def grow_together(
         growth.tree.field(growth.expansions, float(physics[j]), time.perf_counter() - elapsed / n)
         for j, growth in enumerate(growths)
     ]
+
+
+def _check_lists(
+    n: int, lists: tuple[Sequence[object], ...], stops: Sequence[object] | None, batch: int, check_every: int
+) -> None:
+    """One entry per root in every list, ``batch`` >= 2 and ``check_every`` >= 1, or one line naming it."""
+    if any(len(values) != n for values in lists) or (stops is not None and len(stops) != n):
+        raise InvalidParameterError(
+            "roots", "simulators, drives, rngs, make_expansions, start_times and stops need one entry per root"
+        )
+    check_positive_int("check_every", check_every)
+    if batch < 2:
+        raise InvalidParameterError("batch", f"must be >= 2 to grow trees together, got {batch}")
 
 
 def _row_models(simulators: Sequence[Simulator], lead: Simulator, propagator: Propagator) -> list[Any] | None:
