@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.continuation import continued_success
+from energy_margin.analysis.continuation_rule import PILOT_TRAJECTORIES
+from energy_margin.analysis.continuation_rule import choose as choose_continuation
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset, load_dataset
@@ -50,6 +52,7 @@ SCENES = {
     "pushing_scene": ("pushing/pushing.toml", None),
     "panda_tray": ("panda_tray/panda_tray.toml", "panda_tray/write_model.py"),
     "gym_pusher": ("gym_pusher/gym_pusher.toml", None),
+    "fetch": ("fetch/fetch.toml", "fetch/write_model.py"),
 }
 #: Built-in tasks: name -> ``generate`` options.
 TASKS = {"pushing": ["--task", "pushing", "--objects", "10"], "scooping": ["--task", "scooping", "--objects", "5"]}
@@ -147,6 +150,14 @@ def _measure(dataset: Dataset, expansions: int, ks: list[int]) -> dict[str, Any]
             "seconds_per_frame": seconds[k],
             "frames_with_success_above_0": int(np.count_nonzero(grid > 0)),
         }
+    # analyze's default rule (continuation_rule): the pilot is the first-half frames of the first
+    # roll-outs, their tree's own success scores; continuations where the trees reach no success.
+    pilot = success[0][:PILOT_TRAJECTORIES, : -(-dataset.n_frames // 2)]
+    rows = [{"success_score": value} for value in pilot.ravel()]
+    chosen = choose_continuation(rows)
+    auto = methods["tree"] if chosen.continuation == 0 else methods[f"continuation_{chosen.continuation}"]
+    methods["auto"] = {**auto, **chosen.to_dict()}
+    methods["tree"]["unreached_share_all"] = float(np.mean(success[0][:, : -(-dataset.n_frames // 2)] == 0.0))
     baselines = {"chance": dict.fromkeys(EARLY, float(np.mean(labels)))}
     grids = baseline_grids(dataset)
     if "distance" in grids:

@@ -40,6 +40,9 @@ def _command(directory: Path, workers: int) -> list[str]:
         str(directory),
         "--expansions",
         str(EXPANSIONS),
+        # The tree's own score by name: no pilot, so rows reach the journal as the pool grows them.
+        "--continuation",
+        "0",
         "--no-progress",
         "--workers",
         str(workers),
@@ -99,7 +102,7 @@ def reference(source: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[tu
     """Scores of an uninterrupted run (in this process) of the same dataset."""
     target = tmp_path_factory.mktemp("resume-reference") / "data"
     shutil.copytree(source, target)
-    analyze(target, AnalyzerConfig(expansions=EXPANSIONS), seed=0, workers=2, progress=False)
+    analyze(target, AnalyzerConfig(expansions=EXPANSIONS, continuation=0), seed=0, workers=2, progress=False)
     table = _table(target)
     assert sorted(table) == [(t, k) for t in range(SHAPE["n_trajectories"]) for k in range(SHAPE["n_frames"])]
     return table
@@ -258,7 +261,7 @@ def test_workers_exit_when_the_parent_is_killed(
 
 # ---------------------------------------------------------------- torn journals (in process)
 
-SMALL = AnalyzerConfig(expansions=20)
+SMALL = AnalyzerConfig(expansions=20, continuation=0)
 
 
 @pytest.fixture(scope="module")

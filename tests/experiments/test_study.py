@@ -187,7 +187,8 @@ def test_lambda_rescoring_equals_a_direct_analysis_at_that_lambda(
     rescored = rescore_lambdas(tiny_dataset, tmp_path / "lambda", [0.5, 50.0], config=config, seed=4, progress=False)
     direct_dir = tmp_path / "direct"
     shutil.copytree(tiny_dataset, direct_dir)
-    analyze(direct_dir, AnalyzerConfig(expansions=8, likelihood_lambda=50.0), seed=4, progress=False)
+    # The tree's own success score, as every lambda of a re-scoring scores it.
+    analyze(direct_dir, AnalyzerConfig(expansions=8, likelihood_lambda=50.0, continuation=0), seed=4, progress=False)
     direct = load_scores(direct_dir)
     for column in ("capture_score", "success_score", "nodes", "expansions", "seed", "trajectory", "frame"):
         assert np.array_equal(rescored[50.0][column], direct[column]), column
@@ -195,7 +196,11 @@ def test_lambda_rescoring_equals_a_direct_analysis_at_that_lambda(
     # The lambda directory is what analyze at that lambda writes: analyze finds it finished.
     counting = CountingAnalyzeFrame()
     monkeypatch.setattr(frame_module, "analyze_frame", counting)
-    analyze(tmp_path / "lambda" / "est-8-lambda-50", AnalyzerConfig(expansions=8, likelihood_lambda=50.0), seed=4)
+    analyze(
+        tmp_path / "lambda" / "est-8-lambda-50",
+        AnalyzerConfig(expansions=8, likelihood_lambda=50.0, continuation=0),
+        seed=4,
+    )
     assert counting.calls == 0
     with pytest.raises(EnergyMarginError, match="converge"):
         rescore_lambdas(tiny_dataset, tmp_path / "x", [1.0], config=AnalyzerConfig(converge=0.01), progress=False)

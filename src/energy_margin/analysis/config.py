@@ -75,7 +75,10 @@ class AnalyzerConfig:
         duration_scale: factor on the task's longest perturbation propagation (1: the task's own).
         continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
             (an engine that :attr:`~energy_margin.sim.Engine.continues`: MuJoCo's;
-            :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score.
+            :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score;
+            ``None``: chosen for each dataset by ``analyze``
+            (:mod:`energy_margin.analysis.continuation_rule`: 16 where the trees of a pilot reach
+            no success, else 0); a frame analysed alone takes ``None`` as 0.
         continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
 
     """
@@ -104,7 +107,7 @@ class AnalyzerConfig:
     analysis_model: str = constrained("pruned", Constraint("choice", choices=ANALYSIS_MODELS))
     wrench_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
     duration_scale: float = constrained(1.0, Constraint("float", minimum=0.0, exclusive=True))
-    continuation: int = constrained(0, Constraint("int", minimum=0))
+    continuation: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
     continuation_horizon: float | None = constrained(
         None, Constraint("float", minimum=0.0, exclusive=True, optional=True)
     )
@@ -133,6 +136,14 @@ class AnalyzerConfig:
         if self.continuation and not get_engine(self.engine).continues:
             able = " or ".join(repr(name) for name, engine in ENGINE_REGISTRY.items() if engine.continues)
             raise InvalidParameterError("continuation", f"needs the {able} engine, not {self.engine!r}")
+
+    def fixed_continuation(self) -> AnalyzerConfig:
+        """These settings with ``continuation=None`` taken as 0, for protocols that compare analyses.
+
+        A budget sweep, a design search or the paper's reproduction compares scores across runs,
+        so every run scores success one way, stated, not as each dataset's pilot would choose.
+        """
+        return self if self.continuation is not None else dataclasses.replace(self, continuation=0)
 
     @property
     def budget(self) -> TreeBudget:

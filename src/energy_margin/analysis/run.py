@@ -8,12 +8,15 @@ interrupted run resumes where it stopped. Frame ``i`` (trajectory-major order) u
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
 
 from energy_margin._renamed import renamed_keys
-from energy_margin.analysis.executors import make_executor
+from energy_margin.analysis.continuation_rule import ContinuationChoice, pilot_frames
+from energy_margin.analysis.continuation_rule import choose as choose_continuation
+from energy_margin.analysis.executors import Executor, make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
@@ -22,8 +25,9 @@ from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import run_versions
-from energy_margin.runs.files import atomic_write_text
+from energy_margin.runs.files import atomic_write_text, read_json, write_json
 from energy_margin.runs.progress import Progress
+from energy_margin.sim import get_engine
 from energy_margin.tasks import with_contacts
 
 __all__ = [
@@ -32,6 +36,7 @@ __all__ = [
     "analyze_dataset",
     "lambda_note",
     "open_analysis",
+    "resolved_continuation",
     "run_description",
     "write_scores",
 ]
@@ -61,7 +66,7 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
 
 # Analyzer settings added after the first release take their defaults in an analysis.json without
 # them (:func:`_comparable`), except these, whose behaviour before is not the new default.
-_EARLIER_BEHAVIOUR = {"converge_rule": "window", "analysis_model": "full"}
+_EARLIER_BEHAVIOUR = {"converge_rule": "window", "analysis_model": "full", "continuation": 0}
 
 
 def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:
@@ -94,6 +99,7 @@ ANALYSIS_RUN = RunSpec(
     compared=("analyzer", "seed", "dataset", "task_config"),
     shared_directory=True,
     normalize=_normalize,
+    kept=("continuation_choice",),
 )
 
 
@@ -181,12 +187,19 @@ def analyze_dataset(
         if done is None:
             return scores_path
         total = dataset.n_trajectories * dataset.n_frames
-        pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
         if done and progress is True:
             print(f"resuming: {len(done)} of {total} frames already scored", file=sys.stderr, flush=True)
         bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
         try:
             with scores_journal(directory) as journal:
+                config, pilot = _resolve_continuation(dataset, config, seed, runner, directory / CONFIG_FILE)
+                # The pilot's rows are this run's own (same frames, seeds and settings): kept, not grown again.
+                for key, row in pilot.items():
+                    if key not in done:
+                        journal.append(row)
+                        done[key] = row
+                        bar.update(1)
+                pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
                 for row in runner.run(dataset, config, seed, pending):
                     journal.append(row)
                     done[(row["trajectory"], row["frame"])] = row
@@ -194,6 +207,42 @@ def analyze_dataset(
         finally:
             bar.close()
         return write_scores(directory, done)
+
+
+def _resolve_continuation(
+    dataset: Dataset, config: AnalyzerConfig, seed: int, runner: Executor, record: Path
+) -> tuple[AnalyzerConfig, dict[tuple[int, int], dict[str, Any]]]:
+    """``config`` with its continuation decided, and the pilot's rows to keep.
+
+    ``continuation=None`` (recorded as ``null`` in ``analysis.json``: the same inputs decide the same)
+    applies :mod:`~energy_margin.analysis.continuation_rule` on an engine that continues (0 on
+    another): the decision already in ``record`` (a resumed run), or the pilot's, then written to
+    ``record`` as ``continuation_choice``. The pilot's rows are kept when it leaves the tree's own score.
+    """
+    if config.continuation is not None:
+        return config, {}
+    tree_only = dataclasses.replace(config, continuation=0)
+    if not get_engine(config.engine).continues:
+        return tree_only, {}
+    description = read_json(record, what="analysis settings")
+    if isinstance(description.get("continuation_choice"), dict):
+        decided = ContinuationChoice.from_dict(description["continuation_choice"])
+        return dataclasses.replace(config, continuation=decided.continuation), {}
+    rows = list(runner.run(dataset, tree_only, seed, pilot_frames(dataset)))
+    choice = choose_continuation(rows)
+    write_json(record, {**description, "continuation_choice": choice.to_dict()})
+    if choice.continuation:
+        return dataclasses.replace(config, continuation=choice.continuation), {}
+    return tree_only, {(row["trajectory"], row["frame"]): row for row in rows}
+
+
+def resolved_continuation(description: dict[str, Any]) -> int:
+    """The continuations drawn per frame by the analysis ``analysis.json`` describes (0: the tree's own)."""
+    analyzer = description.get("analyzer") or {}
+    if analyzer.get("continuation") is not None:
+        return int(analyzer["continuation"])
+    choice = description.get("continuation_choice")
+    return int(choice["continuation"]) if isinstance(choice, dict) else 0
 
 
 def lambda_note(dataset: Dataset, config: AnalyzerConfig) -> str | None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, DEVICES, AnalyzerConfig
@@ -23,10 +24,12 @@ from energy_margin.cli.common import (
     positive_int,
     say_notes,
 )
+from energy_margin.data.scores_file import CONFIG_FILE
 from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.costs import COST_MODELS
 from energy_margin.planning.density import PROJECTIONS
 from energy_margin.planning.methods import METHODS
+from energy_margin.runs.files import read_json
 from energy_margin.sim import check_engine_device
 from energy_margin.tasks.base import CONTACT_MODELS
 
@@ -141,11 +144,12 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--continuation",
-        type=non_negative_int,
+        type=_continuation,
         default=default("continuation"),
-        metavar="K",
+        metavar="K|auto",
         help="success continuation: score success by the fraction of K nodes, drawn by likelihood, whose "
-        "unperturbed scripted motion ends in the success region (mujoco engines; default 0: the tree's own)",
+        "unperturbed scripted motion ends in the success region (mujoco engines); 0: the tree's own score; "
+        "default auto: 16 where the trees of a pilot (the first-half frames of 5 roll-outs) reach no success, else 0",
     )
     parser.add_argument(
         "--continuation-horizon",
@@ -154,6 +158,11 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="longest continuation past its node, s (default: to the end of the task's motion)",
     )
+
+
+def _continuation(text: str) -> int | None:
+    """``auto`` (None: analyze's rule decides) or an integer >= 0."""
+    return None if text == "auto" else non_negative_int(text)
 
 
 def _add_run(parser: argparse.ArgumentParser) -> None:
@@ -276,7 +285,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
     if getattr(args, "calibration", None) is not None:
         calibrated = calibrated_settings(args)
         # Lambda was chosen for the success score of the calibration's continuation: the same one.
-        if args.continuation and args.continuation != calibrated["continuation"]:
+        if args.continuation is not None and args.continuation != calibrated["continuation"]:
             raise EnergyMarginError(
                 f"--calibration chose lambda with --continuation {int(calibrated['continuation'])}: "
                 f"leave --continuation out or give the same, not {args.continuation}"
@@ -319,11 +328,23 @@ def tree_options_given(args: argparse.Namespace) -> list[str]:
     return given
 
 
+def continuation_note(choice: dict[str, Any] | None) -> str | None:
+    """The note on a success continuation the default rule turned on (``None``: it did not)."""
+    if not choice or not choice.get("continuation"):
+        return None
+    return (
+        f"note: success is scored by continuing the motion ({choice['continuation']} draws per frame): "
+        f"{100 * choice['unreached_share']:.0f}% of the pilot's {choice['pilot_frames']} first-half frames score "
+        "success 0 with the tree's own score (their trees end before the motion reaches the success region); "
+        "--continuation 0 keeps the tree's own score"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
     if getattr(args, "model", None) is not None:
         return run_learned(args)
-    from energy_margin.analysis.run import analyze_dataset, lambda_note
+    from energy_margin.analysis.run import analyze_dataset, lambda_note, resolved_continuation
     from energy_margin.data.provenance import dataset_note
     from energy_margin.data.validation import require_valid
 
@@ -345,7 +366,10 @@ def run(args: argparse.Namespace) -> int:
     if Path(path).is_file():
         scores = load_scores(Path(path).parent)
         say_notes(rejection_note(scores))
-        unreached = unreached_success_share(scores) if not config.continuation else None
+        recorded = read_json(Path(path).parent / CONFIG_FILE, what="analysis settings")
+        if recorded["analyzer"].get("continuation") is None:  # the default rule decided
+            say_notes(continuation_note(recorded.get("continuation_choice")))
+        unreached = unreached_success_share(scores) if not resolved_continuation(recorded) else None
         if unreached is not None and unreached >= UNREACHED_SHARE:
             say_notes(
                 f"note: {100 * unreached:.0f}% of the first-half frames score success 0: their trees end before the "

@@ -72,8 +72,8 @@ class TreeScorer:
 
     def settings(self) -> dict[str, Any]:
         """``{"kind": "margin", "analyzer": ...}``."""
-        return {"kind": "margin", "analyzer": self.analyzer.to_dict()}
+        return {"kind": "margin", "analyzer": self.analyzer.fixed_continuation().to_dict()}
 
     def score(self, directory: Path, *, seed: int, workers: int) -> None:
         """``analyze`` the dataset (its journal resumes an interrupted analysis)."""
-        analyze(directory, self.analyzer, seed=seed, workers=workers, progress=False)
+        analyze(directory, self.analyzer.fixed_continuation(), seed=seed, workers=workers, progress=False)

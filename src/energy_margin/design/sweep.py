@@ -184,7 +184,8 @@ def task_settings(
     check_choice("engine", engine, ENGINES)
     check_engine(task, engine, records=True)
     # AnalyzerConfig raises InvalidParameterError naming the field.
-    return n_objects, dataclasses.replace(analyzer if analyzer is not None else AnalyzerConfig(), engine=engine)
+    chosen = analyzer if analyzer is not None else AnalyzerConfig()
+    return n_objects, dataclasses.replace(chosen, engine=engine).fixed_continuation()
 
 
 def _objects(task: Task, n_objects: int | None) -> int:

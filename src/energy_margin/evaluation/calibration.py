@@ -242,7 +242,8 @@ def _checked_options(
     config = config if config is not None else AnalyzerConfig()
     if config.converge is not None:
         raise EnergyMarginError("calibrate grows trees that do not depend on lambda: `converge` must be off")
-    return config
+    # Lambda is calibrated for one success score, stated: continuation None (analyze's rule) is 0 here.
+    return config if config.continuation is not None else dataclasses.replace(config, continuation=0)
 
 
 def _grid_and_growth(

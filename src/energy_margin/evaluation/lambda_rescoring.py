@@ -77,8 +77,9 @@ class LambdaRescorer(FrameAnalyzer):
         friction, drive = float(dataset.arrays["friction"][trajectory]), dataset.arrays["drive"][trajectory]
         simulator = self._simulator(friction, drive)
         start_time = float(dataset.arrays["frame_time"][trajectory, frame_index])
+        samples = config.continuation or 0
         return lambda lam: continued_success(
-            simulator, self.task, frame, field, drive, lam=lam, samples=config.continuation, seed=self.seeds[index],
+            simulator, self.task, frame, field, drive, lam=lam, samples=samples, seed=self.seeds[index],
             start_time=start_time, horizon=config.continuation_horizon, batched_states=config.batch > 1,
             threads=config.threads,
         ).success_score  # fmt: skip
@@ -126,6 +127,7 @@ def rescore_lambdas(
     values = [check_float("lambdas", lam, minimum=0.0) for lam in lambdas]
     if not values or len(set(values)) != len(values):
         raise InvalidParameterError("lambdas", f"must be distinct finite values >= 0, got {list(lambdas)!r}")
+    config = config.fixed_continuation()  # one success score for every lambda, stated
     if config.converge is not None:
         raise EnergyMarginError("re-scoring lambda needs trees that do not depend on it: converge must be off")
     source, root = Path(directory), Path(root)

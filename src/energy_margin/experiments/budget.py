@@ -364,7 +364,7 @@ def analyze_configuration(
     copy_dataset(directory, work)
     fields = {**base.to_dict(), "expansions": budget, "nodes": None, "method": method}
     try:
-        config = AnalyzerConfig(**fields)
+        config = AnalyzerConfig(**fields).fixed_continuation()
     except ValueError as error:
         raise EnergyMarginError(str(error)) from None
     analyze(work, config, seed=seed, workers=workers, progress=progress)

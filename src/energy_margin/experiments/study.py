@@ -344,7 +344,7 @@ class _Study:
         scores = analyze_configuration(
             state.directory,
             work,
-            self.base,
+            self.base.fixed_continuation(),
             method=method,
             budget=budget,
             seed=meta["seed"],
@@ -379,7 +379,7 @@ class _Study:
             state.directory,
             result_root(state.directory),
             values,
-            config=dataclasses.replace(self.base, method=method, expansions=budget, nodes=None),
+            config=dataclasses.replace(self.base.fixed_continuation(), method=method, expansions=budget, nodes=None),
             seed=meta["seed"],
             workers=meta["workers"],
             progress=self.progress,

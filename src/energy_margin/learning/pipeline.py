@@ -316,7 +316,7 @@ def _plan(
     check_float("holdout", holdout, minimum=0.0, maximum=1.0, exclusive_minimum=True, exclusive_maximum=True)
     check_int("success_frames", success_frames, minimum=1)
     resolved, config, sets = _task_and_sets(task, scene, objects)
-    analyzer = AnalyzerConfig() if expansions is None else AnalyzerConfig(expansions=expansions)
+    analyzer = (AnalyzerConfig() if expansions is None else AnalyzerConfig(expansions=expansions)).fixed_continuation()
     check_engine(resolved, analyzer.engine)
     fit_seed, seeds = pipeline_seeds(seed, len(sets))
     return _Plan(

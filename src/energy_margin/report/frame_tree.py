@@ -69,6 +69,7 @@ def analyser_settings(directory: Path) -> dict[str, Any]:
     """The analyzer settings of ``analysis.json`` in a dataset directory, with later fields defaulted."""
     from energy_margin._renamed import renamed_keys
     from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import resolved_continuation
     from energy_margin.data.scores_file import CONFIG_FILE
     from energy_margin.runs.files import read_json
 
@@ -77,6 +78,7 @@ def analyser_settings(directory: Path) -> dict[str, Any]:
     if not isinstance(analyzer, dict):
         raise EnergyMarginError(f"{directory / CONFIG_FILE}: no 'analyzer' settings")
     settings = {**AnalyzerConfig().to_dict(), **renamed_keys(analyzer)}
+    settings["continuation"] = resolved_continuation(description)  # the default rule's decision, where it decided
     known = set(AnalyzerConfig().to_dict())
     return {key: value for key, value in settings.items() if key in known}
 

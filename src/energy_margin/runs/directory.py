@@ -68,6 +68,9 @@ class RunSpec:
             other things too, such as a summary); ``None``: the file is the settings.
         normalize: fills in settings of a file written by an earlier release before the
             comparison: ``normalize(settings, earlier)``, ``earlier`` for the stored ones.
+        kept: top-level entries of a settings file that is the settings (``settings_key``
+            ``None``) that a resumed run keeps as they were: what the run decided while running
+            (``analyze``'s continuation choice), not settings.
 
     """
 
@@ -79,6 +82,7 @@ class RunSpec:
     shared_directory: bool = False
     settings_key: str | None = None
     normalize: Callable[[dict[str, Any], bool], dict[str, Any]] | None = None
+    kept: tuple[str, ...] = ()
 
 
 @dataclass
@@ -129,7 +133,8 @@ def _document(
     """The settings file's content: the settings, with the versions beside them (and ``extra``)."""
     record = {VERSIONS_KEY: versions} if versions else {}
     if spec.settings_key is None:
-        return {**settings, **record}
+        kept = {key: (extra or {})[key] for key in spec.kept if key in (extra or {})}
+        return {**settings, **kept, **record}
     return {**(extra or {}), **record, spec.settings_key: settings}
 
 
@@ -294,8 +299,9 @@ def _check(path: Path, spec: RunSpec, settings: dict[str, Any], *, overwrite: bo
         previous, beside = _stored(spec, settings_path)
         reason = "its settings file cannot be read" if previous is None else difference(spec, previous, settings)
         if reason is None:
-            if spec.settings_key is None and previous is not None and VERSIONS_KEY in previous:
-                beside = {VERSIONS_KEY: previous[VERSIONS_KEY]}
+            if spec.settings_key is None and previous is not None:
+                recorded = {VERSIONS_KEY: previous[VERSIONS_KEY]} if VERSIONS_KEY in previous else {}
+                beside = {**recorded, **{key: previous[key] for key in spec.kept if key in previous}}
             return True, beside
         if not overwrite:
             raise EnergyMarginError(
