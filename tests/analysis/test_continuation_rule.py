@@ -166,3 +166,31 @@ def test_protocols_that_compare_analyses_score_success_one_way() -> None:
     assert AnalyzerConfig(continuation=8).fixed_continuation().continuation == 8
     # A design search records (and analyses with) the tree's own success score unless told otherwise.
     assert TreeScorer().settings()["analyzer"]["continuation"] == 0
+
+
+@pytest.mark.parametrize("recorded", [0, "absent"], ids=["given", "earlier-release"])
+def test_the_rule_defers_to_an_analysis_whose_continuation_was_given(
+    far_goal: Path, monkeypatch: pytest.MonkeyPatch, recorded: object
+) -> None:
+    # The tree's own score by name (or by a release before the rule, whose analysis.json has no
+    # continuation): analyze at the default finds that analysis finished, it neither refuses nor regrows.
+    analyze(far_goal, AnalyzerConfig(**SMALL, continuation=0), seed=1, progress=False)
+    if recorded == "absent":
+        description = _recorded(far_goal)
+        del description["analyzer"]["continuation"]
+        (far_goal / "analysis.json").write_text(json.dumps(description))
+    finished = _scores(far_goal)
+    analysed: list[int] = []
+    original = FrameAnalyzer.__call__
+
+    def counted(self, index):  # type: ignore[no-untyped-def]
+        analysed.append(index)
+        return original(self, index)
+
+    monkeypatch.setattr(FrameAnalyzer, "__call__", counted)
+    analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
+    assert analysed == [] and _scores(far_goal) == finished
+    assert resolved_continuation(_recorded(far_goal)) == 0
+    # Other settings: another analysis, which the rule decides for (here: it continues).
+    analyze(far_goal, AnalyzerConfig(expansions=12), seed=1, progress=False, overwrite=True)
+    assert resolved_continuation(_recorded(far_goal)) == AUTO_SAMPLES

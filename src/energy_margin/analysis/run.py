@@ -24,7 +24,7 @@ from energy_margin.data.scores_file import CONFIG_FILE, JOURNAL_FILE, SCORES_FIL
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_seed
 from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
-from energy_margin.runs.directory import run_versions
+from energy_margin.runs.directory import difference, run_versions
 from energy_margin.runs.files import atomic_write_text, read_json, write_json
 from energy_margin.runs.progress import Progress
 from energy_margin.sim import get_engine
@@ -180,6 +180,7 @@ def analyze_dataset(
     if problem is not None:
         raise EnergyMarginError(problem)
     directory = Path(path)
+    config = _earlier_continuation(directory, dataset, config, seed)
     description = run_description(dataset, config, seed)
     scores_path = directory / SCORES_FILE
     run, done = open_analysis(directory, description, dataset, overwrite=overwrite)
@@ -207,6 +208,27 @@ def analyze_dataset(
         finally:
             bar.close()
         return write_scores(directory, done)
+
+
+def _earlier_continuation(directory: Path, dataset: Dataset, config: AnalyzerConfig, seed: int) -> AnalyzerConfig:
+    """``config``, its rule deferring to an analysis in ``directory`` of the same settings with a continuation given.
+
+    An analysis recorded with its continuation given (by name, or by a release before the rule,
+    whose files read as 0) is the one the rule resumes or finds finished, not another run to refuse.
+    """
+    if config.continuation is not None or not (directory / CONFIG_FILE).is_file():
+        return config
+    try:
+        previous = read_json(directory / CONFIG_FILE, what="analysis settings")
+    except EnergyMarginError:
+        return config  # open_run says why it cannot be read
+    analyzer = previous.get("analyzer") if isinstance(previous, dict) else None
+    given = _comparable(analyzer, earlier=True).get("continuation") if isinstance(analyzer, dict) else None
+    if not isinstance(given, int) or isinstance(given, bool):
+        return config
+    candidate = dataclasses.replace(config, continuation=given)
+    same = difference(ANALYSIS_RUN, previous, run_description(dataset, candidate, seed)) is None
+    return candidate if same else config
 
 
 def _resolve_continuation(
