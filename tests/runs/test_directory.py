@@ -102,6 +102,20 @@ def test_settings_under_a_key_keep_what_sits_beside_them(tmp_path: Path) -> None
     assert stored == {"settings": {"n": 3, "seed": 0}, "summary": {"rate": 0.5}, "versions": run_versions()}
 
 
+def test_a_resumed_run_keeps_what_it_decided_while_running(tmp_path: Path) -> None:
+    spec = RunSpec(contents="scores", settings_file="run.json", compared=("seed",), kept=("choice",))
+    with run_directory(tmp_path, spec, {"seed": 0}):
+        stored = json.loads((tmp_path / "run.json").read_text())
+        (tmp_path / "run.json").write_text(json.dumps({**stored, "choice": 16, "other": 1}))
+    with run_directory(tmp_path, spec, {"seed": 0}) as run:
+        assert run.resumed
+    # The kept entry survives the resumed run's rewrite; what is not kept does not.
+    assert json.loads((tmp_path / "run.json").read_text()) == {"seed": 0, "choice": 16, "versions": run_versions()}
+    # Another run (overwritten) starts without it.
+    with run_directory(tmp_path, spec, {"seed": 1}, overwrite=True):
+        assert "choice" not in json.loads((tmp_path / "run.json").read_text())
+
+
 def test_normalize_fills_settings_of_an_earlier_release() -> None:
     spec = RunSpec(
         contents="scores",

@@ -117,9 +117,12 @@ def analyze(
     """Score every frame of the dataset at ``path`` and write ``scores.csv`` beside it.
 
     The dataset is loaded and checked (:func:`~energy_margin.data.validation.require_valid`), then
-    analysed by :func:`analyze_dataset`. The resolved configuration goes to ``analysis.json``. Rows are appended to
-    ``scores.journal.csv`` as frames finish; ``scores.csv`` (sorted by trajectory and frame) is
-    written atomically at the end. Running again after an interruption skips finished frames.
+    analysed by :func:`analyze_dataset`. With ``config.continuation`` ``None`` (the default) the
+    success continuation is decided first (:mod:`~energy_margin.analysis.continuation_rule`: a pilot
+    of the first-half frames of five roll-outs). The resolved configuration goes to
+    ``analysis.json``. Rows are appended to ``scores.journal.csv`` as frames finish; ``scores.csv``
+    (sorted by trajectory and frame) is written atomically at the end. Running again after an
+    interruption skips finished frames.
 
     Args:
         path: dataset directory.
