@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -24,50 +22,21 @@ from typing import Any
 
 from energy_margin.analysis.continuation_rule import choose, pilot_frames
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
-from energy_margin.data.dataset import load_dataset
 from energy_margin.runs.versions import engine_versions
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from success_continuation import SCENES, TASKS, _generate, _task_options  # the scene sets of that benchmark
 
 __all__: list[str] = []
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-#: Scene name -> its scene file under examples/ (its model written by the example's write_model.py when absent).
-SCENES = {
-    "pushing_scene": "pushing/pushing.toml",
-    "jaco": "jaco/jaco.toml",
-    "fetch": "fetch/fetch.toml",
-    "planar_manipulator": "planar_manipulator/planar_manipulator.toml",
-    "panda_tray": "panda_tray/panda_tray.toml",
-    "gym_pusher": "gym_pusher/gym_pusher.toml",
-}
-#: Built-in tasks: name -> ``generate`` options.
-TASKS = {"pushing": ["--task", "pushing", "--objects", "10"], "scooping": ["--task", "scooping", "--objects", "5"]}
+#: Every example scene file the success-continuation benchmark writes, and both built-in tasks.
+DEFAULT_SCENES = ("pushing_scene", "jaco", "fetch", "planar_manipulator", "panda_tray", "gym_pusher", *TASKS)
 GENERATION_SEED = 13
 ANALYSIS_SEED = 0
 
 
-def _scene_options(name: str, folder: Path) -> list[str]:
-    """``generate``'s options for a built-in task, or an example's scene file beside its model."""
-    if name in TASKS:
-        return TASKS[name]
-    source = EXAMPLES / SCENES[name]
-    writer = source.parent / "write_model.py"
-    if not writer.is_file():
-        return ["--scene", str(source)]
-    out = folder / name
-    subprocess.run([sys.executable, str(writer), "--out", str(out)], check=True, capture_output=True)
-    for extra in source.parent.glob("*.npz"):  # a motion file the writer does not write itself
-        if not (out / extra.name).exists():
-            shutil.copy(extra, out / extra.name)
-    shutil.copy(source, out / source.name)
-    return ["--scene", str(out / source.name)]
-
-
 def _measure(name: str, folder: Path, trajectories: int) -> dict[str, Any]:
-    data = folder / f"{name}-data"
-    command = [sys.executable, "-m", "energy_margin", "generate", *_scene_options(name, folder)]
-    command += ["--trajectories", str(trajectories), "--frames", "10", "--seed", str(GENERATION_SEED)]
-    subprocess.run([*command, "--out", str(data)], check=True, capture_output=True)
-    dataset = load_dataset(data)
+    dataset = _generate(_task_options(name, folder), GENERATION_SEED, trajectories, folder / f"{name}-data")
     # analyze's pilot: the default settings with the tree's own success score, analyze's frame seeds.
     analyzer = FrameAnalyzer(dataset, AnalyzerConfig(continuation=0), ANALYSIS_SEED)
     started = time.perf_counter()
@@ -80,7 +49,7 @@ def _measure(name: str, folder: Path, trajectories: int) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--scenes", nargs="+", default=[*SCENES, *TASKS], choices=[*SCENES, *TASKS])
+    parser.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES), choices=[*SCENES, *TASKS])
     parser.add_argument("--trajectories", type=int, default=5)
     args = parser.parse_args()
     results: dict[str, Any] = {

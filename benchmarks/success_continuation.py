@@ -53,6 +53,8 @@ SCENES = {
     "panda_tray": ("panda_tray/panda_tray.toml", "panda_tray/write_model.py"),
     "gym_pusher": ("gym_pusher/gym_pusher.toml", None),
     "fetch": ("fetch/fetch.toml", "fetch/write_model.py"),
+    "jaco": ("jaco/jaco.toml", "jaco/write_model.py"),
+    "planar_manipulator": ("planar_manipulator/planar_manipulator.toml", "planar_manipulator/write_model.py"),
 }
 #: Built-in tasks: name -> ``generate`` options.
 TASKS = {"pushing": ["--task", "pushing", "--objects", "10"], "scooping": ["--task", "scooping", "--objects", "5"]}

@@ -16,7 +16,6 @@ import pytest
 from energy_margin.analysis import continuation_rule
 from energy_margin.analysis.config import AnalyzerConfig
 from energy_margin.analysis.continuation_rule import AUTO_SAMPLES, ContinuationChoice, choose, pilot_frames
-from energy_margin.analysis.frame import FrameAnalyzer
 from energy_margin.analysis.run import analyze, resolved_continuation
 from energy_margin.cli import main
 from energy_margin.data.generate import generate_dataset
@@ -85,42 +84,23 @@ def test_analyze_continues_where_the_pilot_reaches_no_success(far_goal: Path, tm
     )
 
 
-def test_a_resumed_run_keeps_the_recorded_decision_without_a_pilot(
-    far_goal: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_a_resumed_run_keeps_the_recorded_decision_without_a_pilot(far_goal: Path, count_frames: list[int]) -> None:
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
     finished = _scores(far_goal)
     (far_goal / "scores.csv").unlink()  # interrupted before scores.csv: the journal holds every row
-    analysed: list[int] = []
-    original = FrameAnalyzer.__call__
-
-    def counted(self, index):  # type: ignore[no-untyped-def]
-        analysed.append(index)
-        return original(self, index)
-
-    monkeypatch.setattr(FrameAnalyzer, "__call__", counted)
+    count_frames.clear()
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
-    assert analysed == [] and _scores(far_goal) == finished
+    assert count_frames == [] and _scores(far_goal) == finished
     # A finished run again: found, not refused, nothing grown.
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
-    assert analysed == []
+    assert count_frames == []
 
 
-def test_where_the_trees_reach_success_the_pilot_rows_are_the_runs_own(
-    copy_dataset, monkeypatch: pytest.MonkeyPatch
-) -> None:  # type: ignore[no-untyped-def]
+def test_where_the_trees_reach_success_the_pilot_rows_are_the_runs_own(copy_dataset, count_frames: list[int]) -> None:  # type: ignore[no-untyped-def]
     auto, plain = copy_dataset("auto"), copy_dataset("plain")
-    analysed: list[int] = []
-    original = FrameAnalyzer.__call__
-
-    def counted(self, index):  # type: ignore[no-untyped-def]
-        analysed.append(index)
-        return original(self, index)
-
-    monkeypatch.setattr(FrameAnalyzer, "__call__", counted)
     analyze(auto, AnalyzerConfig(**SMALL), seed=1, progress=False)
     # Every frame grown once: the pilot's four, then the other two.
-    assert sorted(analysed) == list(range(6))
+    assert sorted(count_frames) == list(range(6))
     recorded = _recorded(auto)
     assert resolved_continuation(recorded) == 0
     assert recorded["continuation_choice"]["unreached_share"] < 0.9
@@ -170,7 +150,7 @@ def test_protocols_that_compare_analyses_score_success_one_way() -> None:
 
 @pytest.mark.parametrize("recorded", [0, "absent"], ids=["given", "earlier-release"])
 def test_the_rule_defers_to_an_analysis_whose_continuation_was_given(
-    far_goal: Path, monkeypatch: pytest.MonkeyPatch, recorded: object
+    far_goal: Path, count_frames: list[int], recorded: object
 ) -> None:
     # The tree's own score by name (or by a release before the rule, whose analysis.json has no
     # continuation): analyze at the default finds that analysis finished, it neither refuses nor regrows.
@@ -180,16 +160,9 @@ def test_the_rule_defers_to_an_analysis_whose_continuation_was_given(
         del description["analyzer"]["continuation"]
         (far_goal / "analysis.json").write_text(json.dumps(description))
     finished = _scores(far_goal)
-    analysed: list[int] = []
-    original = FrameAnalyzer.__call__
-
-    def counted(self, index):  # type: ignore[no-untyped-def]
-        analysed.append(index)
-        return original(self, index)
-
-    monkeypatch.setattr(FrameAnalyzer, "__call__", counted)
+    count_frames.clear()
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
-    assert analysed == [] and _scores(far_goal) == finished
+    assert count_frames == [] and _scores(far_goal) == finished
     assert resolved_continuation(_recorded(far_goal)) == 0
     # Other settings: another analysis, which the rule decides for (here: it continues).
     analyze(far_goal, AnalyzerConfig(expansions=12), seed=1, progress=False, overwrite=True)

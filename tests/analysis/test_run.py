@@ -38,20 +38,6 @@ def _assert_same_columns(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> 
         assert np.array_equal(a[name], b[name]), name
 
 
-@pytest.fixture
-def count_frames(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """Record the index of every frame the analyzer computes (in this process)."""
-    calls: list[int] = []
-    original = FrameAnalyzer.__call__
-
-    def counting(self: FrameAnalyzer, index: int) -> dict[str, Any]:
-        calls.append(index)
-        return original(self, index)
-
-    monkeypatch.setattr(FrameAnalyzer, "__call__", counting)
-    return calls
-
-
 # ---------------------------------------------------------------- seeds
 
 
