@@ -93,6 +93,15 @@ def test_a_table_block_lists_every_matching_record_and_write_fills_it(tmp_path: 
     assert "'| 1000 | 0.900 |'" in str(edited)
 
 
+def test_a_table_keeps_the_records_a_where_pattern_matches(tmp_path: Path) -> None:
+    rows = "comparison,d\nest - rrt,0.1\nest lambda 5 - lambda 50,0.2\nest - distance,0.3\n"
+    (tmp_path / "d.csv").write_text(rows, encoding="utf-8")
+    kept = figures.records("d.csv", None, "comparison=est?-?*", tmp_path)
+    assert [row["d"] for row in kept] == ["0.1", "0.3"]
+    assert [row["d"] for row in figures.records("d.csv", None, "comparison=*lambda*", tmp_path)] == ["0.2"]
+    assert figures.records("d.csv", None, "comparison=est", tmp_path) == []
+
+
 def test_a_table_cell_may_stand_for_an_empty_or_zero_value() -> None:
     rows = [{"budget": "0", "s": ""}, {"budget": "10", "s": "0.5"}]
     assert figures.table_rows("| {budget:.0f|–} | {s:.1f|} |", rows) == "\n| – |  |\n| 10 | 0.5 |\n\n"

@@ -27,7 +27,8 @@ A table of a results file is a block generated from a template: its lines withou
     <!-- /table -->
 
 * the records: a CSV file's rows, or the list a JSON file holds at ``#/pointer``; ``where
-  COLUMN=VALUE,...`` keeps the matching ones;
+  COLUMN=VALUE,...`` keeps the matching ones (a VALUE is a file-name pattern: ``*`` stands for
+  any text, ``?`` for one character, a space included: ``comparison=*lambda*``);
 * ``{column:spec}`` formats a cell as a figure marker does; ``{column:spec|X}`` writes ``X``
   when the cell is empty or zero (``–`` for a baseline's budget).
 
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import fnmatch
 import json
 import re
 import sys
@@ -168,7 +170,7 @@ def records(path: str, key: str | None, where: str | None, root: Path = ROOT) ->
     if not isinstance(found, list) or not all(isinstance(row, dict) for row in found):
         raise FigureError(f"{key or 'the file'} is not a list of records")
     wanted = dict(pair.split("=", 1) for pair in where.split(",")) if where else {}
-    return [row for row in found if all(str(row.get(k)) == v for k, v in wanted.items())]
+    return [row for row in found if all(fnmatch.fnmatchcase(str(row.get(k)), v) for k, v in wanted.items())]
 
 
 def table_rows(template: str, rows: list[dict[str, Any]]) -> str:

@@ -277,6 +277,20 @@ time.sleep(60)
 """
 
 
+def test_a_study_of_another_task_adds_to_out(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+    quick = {**SMALL, "n_trajectories": 2, "n_frames": 2, "methods": ["est"], "lambdas": [], "bootstrap": 5}
+    run_study(out, log=lambda line: None, **quick)
+    specs = {**TINY_TASK, "scooping": StudyTask(objects=2, seed=3)}
+    run_study(out, log=lambda line: None, **{**quick, "tasks": ["scooping"], "task_specs": specs})
+    settings = json.loads((out / SETTINGS_FILE).read_text())
+    assert sorted(settings["tasks"]) == ["pushing", "scooping"]
+    assert (out / "pushing" / "study.csv").is_file() and (out / "scooping" / "study.csv").is_file()
+    # A task studied before still decides: its entry changed is another study, refused.
+    with pytest.raises(EnergyMarginError, match=r"tasks\.scooping\.seed: 2 there, 4 now"):
+        run_study(out, log=lambda line: None, **{**quick, "tasks": ["scooping"], "task_specs": specs, "seed": 4})
+
+
 def test_overwrite_replaces_a_study_of_another_seed(tmp_path: Path) -> None:
     out = tmp_path / "study"
     quick = {**SMALL, "methods": ["est"], "lambdas": []}

@@ -11,9 +11,8 @@ positive rate) baselines. Differences (EST minus every other tree method at the 
 minus ``distance``) get **paired** intervals: the same resampled trajectories score both sides, and
 the interval is the 2.5-97.5 percentile of the per-resample differences.
 
-The likelihood lambda is swept by re-scoring, not regrowing
-(:mod:`energy_margin.evaluation.lambda_rescoring`): every frame's tree is grown once
-(``lambda_method`` at ``lambda_budget``) and scored with every lambda of the grid, each lambda in
+Lambda is swept by re-scoring (:mod:`energy_margin.evaluation.lambda_rescoring`): each tree grown
+once (``lambda_method`` at ``lambda_budget``) is scored with every lambda of the grid, each in
 ``OUT/<task>/lambda/<method>-<budget>-lambda-<value>/``, exactly what ``analyze`` would write there.
 
 ``OUT`` is a run (:func:`energy_margin.runs.open_run`): ``OUT/study_settings.json`` is written
@@ -25,11 +24,9 @@ changes a task's entry is refused unless ``overwrite``. The questions and the ta
 :mod:`~energy_margin.experiments.study_display`.
 
 Outputs (rewritten as configurations finish): ``OUT/study.csv`` (AP with intervals),
-``OUT/study_differences.csv``, ``OUT/study_lambda.csv``, ``OUT/study.json`` (all of them with the
-settings and positive rates) and, with matplotlib, ``OUT/study_<task>.png`` and
-``OUT/study_lambda_<task>.png`` (drawn once the tables are written); the same files of one task
-alone in ``OUT/<task>/``, so studies of different tasks (or budgets) in one ``OUT`` keep each
-task's latest tables.
+``OUT/study_differences.csv``, ``OUT/study_lambda.csv``, ``OUT/study.json`` (with the settings and
+positive rates), with matplotlib ``OUT/study_<task>.png`` and ``OUT/study_lambda_<task>.png``; the
+same files of each task alone in ``OUT/<task>/``, its latest tables.
 """
 
 from __future__ import annotations
@@ -140,20 +137,28 @@ DEFAULT_BUDGETS = (30, 100, 300)
 SETTINGS_FILE = "study_settings.json"
 
 
-def study_run(tasks: Iterable[str], *, earlier_release: bool = False) -> RunSpec:
+def study_run(tasks: Iterable[str], *, earlier_release: bool = False, studied: Iterable[str] = ()) -> RunSpec:
     """The run of a study in ``OUT`` whose outputs may concern ``tasks``.
 
-    Only the per-task entries decide a different study (``"tasks"``); ``overwrite`` removes the
-    tables, the figures and the folders of those tasks, and the settings file. ``earlier_release``:
-    ``OUT`` holds a study written before the settings file existed, which resumes.
+    Only the entries of the tasks ``studied`` there before decide a different study (a new task adds
+    its entry); ``overwrite`` removes the tables, figures and folders of ``tasks`` and the settings
+    file. ``earlier_release``: ``OUT`` holds a study from before the settings file, which resumes.
     """
-    names = list(dict.fromkeys(tasks))
+    names, before = list(dict.fromkeys(tasks)), set(studied)
+
+    def studied_entries(settings: dict[str, Any], earlier: bool) -> dict[str, Any]:
+        entries = settings.get("tasks")
+        if not before or not isinstance(entries, dict):
+            return settings
+        return {**settings, "tasks": {t: e for t, e in entries.items() if t in before}}
+
     return RunSpec(
         contents="a study",
         settings_file=SETTINGS_FILE,
         outputs=(*TABLE_FILES, *(f for t in names for f in (f"study_{t}.png", f"study_lambda_{t}.png", t))),
         compared=("tasks",),
         shared_directory=earlier_release,
+        normalize=studied_entries,
     )
 
 
@@ -170,7 +175,8 @@ def _open_study(out: Path, settings: dict[str, Any], known: Iterable[str], *, ov
             previous = stored["tasks"]
     merged = {**settings, "tasks": {**previous, **settings["tasks"]}}
     earlier = not settings_path.exists() and (out / TABLE_FILES[3]).is_file()
-    run = open_run(out, study_run([*known, *previous], earlier_release=earlier), merged, overwrite=overwrite)
+    spec = study_run([*known, *previous], earlier_release=earlier, studied=previous)
+    run = open_run(out, spec, merged, overwrite=overwrite)
     if not run.resumed and previous:
         # A replaced study keeps none of the tasks studied before.
         run.settings = json.loads(json.dumps(settings, sort_keys=True))
