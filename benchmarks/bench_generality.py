@@ -93,7 +93,17 @@ def main(argv: list[str] | None = None) -> int:
         if not (directory / "scores.csv").exists():
             started = time.perf_counter()
             code = cli_main(
-                ["analyze", str(directory), "--expansions", str(args.expansions), "--workers", str(args.workers)]
+                # The tree's own success score, as calibrate scores the calibrated side.
+                [
+                    "analyze",
+                    str(directory),
+                    "--expansions",
+                    str(args.expansions),
+                    "--workers",
+                    str(args.workers),
+                    "--continuation",
+                    "0",
+                ]
             )
             if code:
                 return code

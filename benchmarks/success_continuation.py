@@ -35,8 +35,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.continuation import continued_success
-from energy_margin.analysis.continuation_rule import PILOT_TRAJECTORIES
-from energy_margin.analysis.continuation_rule import choose as choose_continuation
+from energy_margin.analysis.continuation_rule import AUTO_SAMPLES
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset, load_dataset
@@ -84,9 +83,11 @@ def _generate(options: list[str], seed: int, trajectories: int, out: Path) -> Da
     return load_dataset(out)
 
 
-def _scores(dataset: Dataset, expansions: int, ks: list[int]) -> tuple[dict[int, np.ndarray], dict[int, float]]:
-    """Success scores (T, 5) of the first five frames per K (0: the tree's own) and seconds per frame."""
-    task, frames = dataset.task, max(EARLY.values())
+def _scores(
+    dataset: Dataset, expansions: int, ks: list[int], frames: int
+) -> tuple[dict[int, np.ndarray], dict[int, float]]:
+    """Success scores (T, frames) of the first ``frames`` frames per K (0: the tree's own) and seconds per frame."""
+    task = dataset.task
     seeds = frame_seeds(ANALYSIS_SEED, dataset.n_trajectories * dataset.n_frames)
     config = AnalyzerConfig(expansions=expansions)
     lam = task.config.likelihood_lambda
@@ -133,14 +134,18 @@ def _check_equivalence(dataset: Dataset, expansions: int, k: int, expected: floa
 
 
 def _early_aps(labels: np.ndarray, grid: np.ndarray) -> dict[str, float | None]:
-    return {
+    """Early-success APs; with every frame of the trajectories scored, success from the last 3 too."""
+    aps = {
         name: average_precision(labels, trajectory_success_score(grid[:, :frames], last=LAST))
         for name, frames in EARLY.items()
     }
+    if grid.shape[1] > max(EARLY.values()):
+        aps["last3"] = average_precision(labels, trajectory_success_score(grid, last=LAST))
+    return aps
 
 
-def _measure(dataset: Dataset, expansions: int, ks: list[int]) -> dict[str, Any]:
-    success, seconds = _scores(dataset, expansions, ks)
+def _measure(dataset: Dataset, expansions: int, ks: list[int], frames: int) -> dict[str, Any]:
+    success, seconds = _scores(dataset, expansions, ks, frames)
     _check_equivalence(dataset, expansions, ks[-1], float(success[ks[-1]][0, 0]))
     labels = dataset.success_labels()
     methods: dict[str, Any] = {}
@@ -152,40 +157,90 @@ def _measure(dataset: Dataset, expansions: int, ks: list[int]) -> dict[str, Any]
             "seconds_per_frame": seconds[k],
             "frames_with_success_above_0": int(np.count_nonzero(grid > 0)),
         }
-    # analyze's default rule (continuation_rule): the pilot is the first-half frames of the first
-    # roll-outs, their tree's own success scores; continuations where the trees reach no success.
-    pilot = success[0][:PILOT_TRAJECTORIES, : -(-dataset.n_frames // 2)]
-    rows = [{"success_score": value} for value in pilot.ravel()]
-    chosen = choose_continuation(rows)
-    auto = methods["tree"] if chosen.continuation == 0 else methods[f"continuation_{chosen.continuation}"]
-    methods["auto"] = {**auto, **chosen.to_dict()}
+    # analyze's default (continuation_rule): AUTO_SAMPLES continuations per frame on MuJoCo.
+    if AUTO_SAMPLES in ks:
+        methods["auto"] = {**methods[f"continuation_{AUTO_SAMPLES}"], "continuation": AUTO_SAMPLES}
     methods["tree"]["unreached_share_all"] = float(np.mean(success[0][:, : -(-dataset.n_frames // 2)] == 0.0))
-    baselines = {"chance": dict.fromkeys(EARLY, float(np.mean(labels)))}
+    questions = [name for name in (*EARLY, "last3") if name in methods["tree"]]
+    baselines: dict[str, Any] = {"chance": dict.fromkeys(questions, float(np.mean(labels)))}
     grids = baseline_grids(dataset)
     if "distance" in grids:
-        baselines["distance"] = _early_aps(labels, grids["distance"][1][:, : max(EARLY.values())])
+        baselines["distance"] = _early_aps(labels, grids["distance"][1][:, :frames])
     return {"success_rate": float(np.mean(labels)), "methods": methods, "baselines": baselines}
 
 
-def choose(results: dict[str, Any]) -> dict[str, Any]:
-    """K of the best mean early-success AP over the scenes on the selection seed (ties: the smaller K).
-
-    Each scene's AP of a K is the mean of its first-3 and first-5 APs (a scene whose labels hold a
-    single class is left out); K = 0 is the tree's own success score. The check seeds are not read.
-    """
-    seed = str(results["selection_seed"])
+def _mean_aps(results: dict[str, Any], seeds: list[str]) -> dict[str, float]:
+    """Mean early-success AP per K (0: the tree's own) over the scenes' sets of ``seeds``."""
     means: dict[str, float] = {}
     for k in [0, *results["ks"]]:
         name = "tree" if k == 0 else f"continuation_{k}"
         aps = [
             ap
             for scene in results["scenes"].values()
+            for seed in seeds
             for ap in (scene[seed]["methods"][name][early] for early in EARLY)
             if ap is not None
         ]
         means[str(k)] = float(np.mean(aps)) if aps else float("nan")
+    return means
+
+
+def choose(results: dict[str, Any]) -> dict[str, Any]:
+    """K of the best mean early-success AP over the scenes on the selection seed (ties: the smaller K).
+
+    Each scene's AP of a K is the mean of its first-3 and first-5 APs (a scene whose labels hold a
+    single class is left out); K = 0 is the tree's own success score. The check seeds are read only
+    for the report: their mean APs, and each question where the chosen K is more than 0.01 below
+    the tree's own score; ``time_ratio``: the chosen K's seconds per frame over the tree's, the
+    smallest and largest over every set.
+    """
+    means = _mean_aps(results, [str(results["selection_seed"])])
     chosen = max(means, key=lambda k: (means[k], -int(k)))
-    return {"rule": choose.__doc__.splitlines()[0] if choose.__doc__ else "", "mean_ap": means, "chosen_k": int(chosen)}
+    checks = [str(seed) for seed in results["check_seeds"]]
+    behind = [
+        {"scene": name, "seed": int(seed), "question": question, "difference": continued - tree}
+        for name, scene in results["scenes"].items()
+        for seed in checks
+        for question in (*EARLY, "last3")
+        if question in scene[seed]["methods"]["tree"] and chosen != "0"
+        for tree, continued in [
+            (scene[seed]["methods"]["tree"][question], scene[seed]["methods"][f"continuation_{chosen}"][question])
+        ]
+        if tree is not None and continued is not None and continued < tree - 0.01
+    ]
+    ratios = [
+        scene[seed]["methods"][f"continuation_{chosen}"]["seconds_per_frame"]
+        / scene[seed]["methods"]["tree"]["seconds_per_frame"]
+        for scene in results["scenes"].values()
+        for seed in scene
+        if chosen != "0"
+    ]
+    return {
+        "rule": choose.__doc__.splitlines()[0] if choose.__doc__ else "",
+        "mean_ap": means,
+        "chosen_k": int(chosen),
+        "check_mean_ap": _mean_aps(results, checks) if checks else {},
+        "check_behind": behind,
+        "time_ratio": {"min": min(ratios), "max": max(ratios)} if ratios else {},
+    }
+
+
+def rows(results: dict[str, Any]) -> list[dict[str, Any]]:
+    """One flat record per scene and generation seed (for the docs' tables): APs, seconds per frame."""
+    found = []
+    for scene, seeds in results["scenes"].items():
+        for seed, measured in seeds.items():
+            record: dict[str, Any] = {
+                "scene": scene,
+                "seed": int(seed),
+                "use": "choose" if seed == str(results["selection_seed"]) else "check",
+            }
+            for name, values in [*measured["methods"].items(), *measured["baselines"].items()]:
+                for key, value in values.items():
+                    if key in (*EARLY, "last3", "seconds_per_frame"):
+                        record[f"{name}_{key}"] = value
+            found.append(record)
+    return found
 
 
 def main() -> None:
@@ -198,18 +253,24 @@ def main() -> None:
     parser.add_argument("--expansions", type=int, default=80)
     parser.add_argument("--ks", type=int, nargs="+", default=[8, 16])
     parser.add_argument("--seeds", type=int, nargs="+", default=[11, 12], help="choose on the first, check on the rest")
-    parser.add_argument("--choose-only", action="store_true", help="add the choice of K to an existing --out file")
+    parser.add_argument(
+        "--choose-only", action="store_true", help="add the choice of K and the rows to an existing --out file"
+    )
+    parser.add_argument(
+        "--all-frames", action="store_true", help="score every frame: success from the last 3 frames too (last3)"
+    )
     args = parser.parse_args()
     if args.choose_only:
         results = json.loads(args.out.read_text())
         results["selection"] = choose(results)
+        results["rows"] = rows(results)
         args.out.write_text(json.dumps(results, indent=2) + "\n")
         return
     results: dict[str, Any] = {
         "command": "python benchmarks/success_continuation.py " + " ".join(sys.argv[1:]),
         "trajectories": args.trajectories,
         "frames": 10,
-        "frames_scored": max(EARLY.values()),
+        "frames_scored": 10 if args.all_frames else max(EARLY.values()),
         "expansions": args.expansions,
         "analysis_seed": ANALYSIS_SEED,
         "ks": args.ks,
@@ -225,11 +286,12 @@ def main() -> None:
             for seed in args.seeds:
                 started = time.perf_counter()
                 dataset = _generate(options, seed, args.trajectories, Path(folder) / f"{name}-{seed}")
-                measured = _measure(dataset, args.expansions, args.ks)
+                measured = _measure(dataset, args.expansions, args.ks, results["frames_scored"])
                 measured["wall_s"] = time.perf_counter() - started
                 results["scenes"][name][str(seed)] = measured
                 print(name, seed, json.dumps(measured), flush=True)
     results["selection"] = choose(results)
+    results["rows"] = rows(results)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
 
 

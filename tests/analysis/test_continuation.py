@@ -224,8 +224,8 @@ def test_analyze_says_when_the_trees_reach_no_success_early(tmp_path: Path, caps
     assert main(["generate", "--scene", str(scene), "--trajectories", "2", "--frames", "4", "--seed", "0",
                  "--out", str(data)]) == 0  # fmt: skip
     capsys.readouterr()
-    # The tree's own score, asked for by name (by default the pilot's trees reach no success and
-    # analyze continues: tests/analysis/test_continuation_rule.py).
+    # The tree's own score, asked for by name (by default analyze continues:
+    # tests/analysis/test_continuation_rule.py).
     assert main(["analyze", str(data), "--expansions", "10", "--continuation", "0", "--no-progress"]) == 0
     notes = [line for line in capsys.readouterr().err.splitlines() if "score success 0" in line]
     assert len(notes) == 1 and "100% of the first-half frames" in notes[0] and "--continuation 16" in notes[0]

@@ -1,21 +1,18 @@
-"""The default success continuation: continued where the trees of a pilot reach no success, else the tree's own.
+"""The default success continuation: 16 draws per frame where the engine continues, else the tree's own.
 
 The tiny scene's pusher carries the boxes into the goal only after about 1.1 s, beyond the reach of
-small trees (every pilot frame scores success 0: the rule continues); the tiny pushing dataset's
-trees reach its success region on some first-half frames (the rule leaves the tree's own score).
+small trees: the tree's own success score is 0 on every early frame, the continued one is not.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 
-from energy_margin.analysis import continuation_rule
 from energy_margin.analysis.config import AnalyzerConfig
-from energy_margin.analysis.continuation_rule import AUTO_SAMPLES, ContinuationChoice, choose, pilot_frames
+from energy_margin.analysis.continuation_rule import AUTO_SAMPLES, default_continuation, recorded_choice
 from energy_margin.analysis.run import analyze, resolved_continuation
 from energy_margin.cli import main
 from energy_margin.data.generate import generate_dataset
@@ -44,37 +41,33 @@ def _scores(path: Path) -> list[tuple[float, float]]:
     return list(zip(scores["capture_score"].tolist(), scores["success_score"].tolist(), strict=True))
 
 
-def test_the_pilot_is_the_first_half_of_the_first_roll_outs() -> None:
-    assert pilot_frames(SimpleNamespace(n_trajectories=2, n_frames=3)) == [0, 1, 3, 4]  # type: ignore[arg-type]
-    many = pilot_frames(SimpleNamespace(n_trajectories=9, n_frames=10))  # type: ignore[arg-type]
-    assert len(many) == continuation_rule.PILOT_TRAJECTORIES * 5
-    assert many[:6] == [0, 1, 2, 3, 4, 10] and max(many) == 44
+def test_the_default_continues_on_an_engine_that_can() -> None:
+    assert default_continuation("mujoco") == AUTO_SAMPLES
+    pytest.importorskip("pybullet")
+    assert default_continuation("pybullet") == 0
 
 
-def test_the_rule_continues_at_the_share_of_unreached_frames() -> None:
-    def rows(zeros: int, total: int = 10) -> list[dict[str, float]]:
-        return [{"success_score": 0.0 if i < zeros else 0.01} for i in range(total)]
-
-    chosen = choose(rows(9))
-    assert isinstance(chosen, ContinuationChoice)
-    assert (chosen.continuation, chosen.unreached_share, chosen.pilot_frames) == (AUTO_SAMPLES, 0.9, 10)
-    assert choose(rows(8)).continuation == 0
-    assert choose([]).continuation == 0
+def test_a_recorded_decision_is_read_from_either_release() -> None:
+    assert recorded_choice({"continuation_choice": {"continuation": 16}}) == 16
+    # An earlier release's pilot rule recorded its share and threshold beside the decision.
+    earlier = {"continuation": 0, "unreached_share": 0.4, "pilot_frames": 25, "threshold": 0.9}
+    assert recorded_choice({"continuation_choice": earlier}) == 0
+    assert recorded_choice({}) is None and recorded_choice({"continuation_choice": None}) is None
 
 
-def test_analyze_continues_where_the_pilot_reaches_no_success(far_goal: Path, tmp_path: Path) -> None:
+def test_analyze_continues_by_default(far_goal: Path, tmp_path: Path, count_frames: list[int]) -> None:
     import shutil
 
     explicit = tmp_path / "explicit"
     shutil.copytree(far_goal, explicit)
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
+    # Every frame grown once, in order: nothing before the run decides.
+    assert count_frames == list(range(8))
     recorded = _recorded(far_goal)
-    # The settings say "the rule" (the same inputs decide the same), the decision sits beside them.
+    # The settings say "the default", the decision sits beside them.
     assert recorded["analyzer"]["continuation"] is None
     assert resolved_continuation(recorded) == AUTO_SAMPLES
-    assert recorded["continuation_choice"] == {
-        "continuation": AUTO_SAMPLES, "unreached_share": 1.0, "pilot_frames": 4, "threshold": 0.9,
-    }  # fmt: skip
+    assert recorded["continuation_choice"] == {"continuation": AUTO_SAMPLES}
     # The scores are those of the continuation asked for by name, to the bit.
     analyze(explicit, AnalyzerConfig(**SMALL, continuation=AUTO_SAMPLES), seed=1, progress=False)
     assert _scores(far_goal) == _scores(explicit)
@@ -84,7 +77,7 @@ def test_analyze_continues_where_the_pilot_reaches_no_success(far_goal: Path, tm
     )
 
 
-def test_a_resumed_run_keeps_the_recorded_decision_without_a_pilot(far_goal: Path, count_frames: list[int]) -> None:
+def test_a_resumed_run_keeps_the_recorded_decision(far_goal: Path, count_frames: list[int]) -> None:
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
     finished = _scores(far_goal)
     (far_goal / "scores.csv").unlink()  # interrupted before scores.csv: the journal holds every row
@@ -96,37 +89,46 @@ def test_a_resumed_run_keeps_the_recorded_decision_without_a_pilot(far_goal: Pat
     assert count_frames == []
 
 
-def test_where_the_trees_reach_success_the_pilot_rows_are_the_runs_own(copy_dataset, count_frames: list[int]) -> None:  # type: ignore[no-untyped-def]
-    auto, plain = copy_dataset("auto"), copy_dataset("plain")
-    analyze(auto, AnalyzerConfig(**SMALL), seed=1, progress=False)
-    # Every frame grown once: the pilot's four, then the other two.
-    assert sorted(count_frames) == list(range(6))
-    recorded = _recorded(auto)
-    assert resolved_continuation(recorded) == 0
-    assert recorded["continuation_choice"]["unreached_share"] < 0.9
+def test_a_run_an_earlier_release_decided_keeps_its_decision(copy_dataset, count_frames: list[int]) -> None:  # type: ignore[no-untyped-def]
+    # Begun by the earlier pilot rule, which left the tree's own score, and interrupted: resumed as it was.
+    earlier, plain = copy_dataset("earlier"), copy_dataset("plain")
+    analyze(earlier, AnalyzerConfig(**SMALL), seed=1, progress=False)
+    description = _recorded(earlier)
+    description["continuation_choice"] = {
+        "continuation": 0,
+        "unreached_share": 0.5,
+        "pilot_frames": 4,
+        "threshold": 0.9,
+    }
+    (earlier / "analysis.json").write_text(json.dumps(description))
+    (earlier / "scores.csv").unlink()
+    (earlier / "scores.journal.csv").unlink()
+    count_frames.clear()
+    analyze(earlier, AnalyzerConfig(**SMALL), seed=1, progress=False)
+    assert sorted(count_frames) == list(range(6)) and resolved_continuation(_recorded(earlier)) == 0
     analyze(plain, AnalyzerConfig(**SMALL, continuation=0), seed=1, progress=False)
-    assert _scores(auto) == _scores(plain)
+    assert _scores(earlier) == _scores(plain)
     assert "continuation_choice" not in _recorded(plain)
 
 
-def test_an_engine_that_cannot_continue_runs_no_pilot(tiny_dataset: Path) -> None:
-    from energy_margin.analysis.executors import make_executor
+def test_an_engine_that_cannot_continue_keeps_the_trees_own_score(tiny_dataset: Path) -> None:
     from energy_margin.analysis.run import _resolve_continuation
-    from energy_margin.data.dataset import load_dataset
 
     pytest.importorskip("pybullet")
-    config = AnalyzerConfig(**SMALL, engine="pybullet")
-    record = tiny_dataset / "analysis.json"  # not read: the engine decides
-    resolved, pilot = _resolve_continuation(load_dataset(tiny_dataset), config, 0, make_executor(), record)
-    assert (resolved.continuation, pilot) == (0, {})
+    record = tiny_dataset / "analysis.json"
+    record.write_text(json.dumps({"analyzer": {"continuation": None}}))
+    resolved = _resolve_continuation(AnalyzerConfig(**SMALL, engine="pybullet"), record)
+    assert resolved.continuation == 0 and _recorded(tiny_dataset)["continuation_choice"] == {"continuation": 0}
 
 
-def test_the_command_line_says_when_the_rule_continues(far_goal: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_command_line_continues_by_default_and_quietly(far_goal: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", str(far_goal), "--expansions", "10", "--no-progress"]) == 0
     err = capsys.readouterr().err
-    notes = [line for line in err.splitlines() if "continuing the motion" in line]
-    assert len(notes) == 1 and "100% of the pilot's 4 first-half frames" in notes[0] and "--continuation 0" in notes[0]
-    assert "score success 0: their trees end" not in err
+    # The default is no news: no note on it (the one on unranked early success is for the tree's own score;
+    # the scene's unset lambda has its own).
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "lambda is unset" in notes[0]
+    assert resolved_continuation(_recorded(far_goal)) == AUTO_SAMPLES
     again = ["analyze", str(far_goal), "--expansions", "10", "--continuation", "auto", "--no-progress"]
     assert main(again) == 0
     assert resolved_continuation(_recorded(far_goal)) == AUTO_SAMPLES
@@ -164,6 +166,6 @@ def test_the_rule_defers_to_an_analysis_whose_continuation_was_given(
     analyze(far_goal, AnalyzerConfig(**SMALL), seed=1, progress=False)
     assert count_frames == [] and _scores(far_goal) == finished
     assert resolved_continuation(_recorded(far_goal)) == 0
-    # Other settings: another analysis, which the rule decides for (here: it continues).
+    # Other settings: another analysis, which the default decides for (it continues).
     analyze(far_goal, AnalyzerConfig(expansions=12), seed=1, progress=False, overwrite=True)
     assert resolved_continuation(_recorded(far_goal)) == AUTO_SAMPLES

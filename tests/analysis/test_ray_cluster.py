@@ -30,7 +30,7 @@ pytestmark = pytest.mark.slow
 
 RAY = Path(sys.executable).with_name("ray")
 DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "expansions", "seed")
-# The tree's own score by name: no pilot, so rows reach the journal as the cluster grows them.
+# The tree's own score by name: the trees alone, the quickest rows to reach the journal.
 CONFIG = AnalyzerConfig(expansions=400, continuation=0)
 SEED = 3
 

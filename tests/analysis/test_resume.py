@@ -40,7 +40,7 @@ def _command(directory: Path, workers: int) -> list[str]:
         str(directory),
         "--expansions",
         str(EXPANSIONS),
-        # The tree's own score by name: no pilot, so rows reach the journal as the pool grows them.
+        # The tree's own score by name: the trees alone, the quickest rows to reach the journal.
         "--continuation",
         "0",
         "--no-progress",

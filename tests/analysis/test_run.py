@@ -18,7 +18,7 @@ from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.directory import run_versions
 from energy_margin.tasks import all_inside
 
-# The tree's own score by name: frames are grown in order, with no pilot first (test_continuation_rule.py).
+# The tree's own score by name: the trees alone, without the default continuation (test_continuation_rule.py).
 SMALL = AnalyzerConfig(expansions=30, continuation=0)
 DETERMINISTIC = ("trajectory", "frame", "capture_score", "success_score", "nodes", "expansions", "seed")
 

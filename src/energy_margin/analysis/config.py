@@ -76,9 +76,8 @@ class AnalyzerConfig:
         continuation: nodes drawn by likelihood whose unperturbed scripted motion scores success
             (an engine that :attr:`~energy_margin.sim.Engine.continues`: MuJoCo's;
             :mod:`energy_margin.analysis.continuation`); 0: the tree's own success score;
-            ``None``: chosen for each dataset by ``analyze``
-            (:mod:`energy_margin.analysis.continuation_rule`: 16 where the trees of a pilot reach
-            no success, else 0); a frame analysed alone takes ``None`` as 0.
+            ``None``: ``analyze``'s default (:mod:`energy_margin.analysis.continuation_rule`: 16
+            on an engine that continues, else 0); a frame analysed alone takes ``None`` as 0.
         continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
 
     """
@@ -141,7 +140,7 @@ class AnalyzerConfig:
         """These settings with ``continuation=None`` taken as 0, for protocols that compare analyses.
 
         A budget sweep, a design search or the paper's reproduction compares scores across runs,
-        so every run scores success one way, stated, not as each dataset's pilot would choose.
+        so every run scores success one way, stated: the tree's own success score unless a K is given.
         """
         return self if self.continuation is not None else dataclasses.replace(self, continuation=0)
 

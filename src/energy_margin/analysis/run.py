@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin._renamed import renamed_keys
-from energy_margin.analysis.continuation_rule import ContinuationChoice, pilot_frames
-from energy_margin.analysis.continuation_rule import choose as choose_continuation
-from energy_margin.analysis.executors import Executor, make_executor
+from energy_margin.analysis.continuation_rule import default_continuation, recorded_choice
+from energy_margin.analysis.executors import make_executor
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import check_engine
@@ -27,7 +26,6 @@ from energy_margin.runs import RunDirectory, RunSpec, open_run, progress_bar
 from energy_margin.runs.directory import difference, run_versions
 from energy_margin.runs.files import atomic_write_text, read_json, write_json
 from energy_margin.runs.progress import Progress
-from energy_margin.sim import get_engine
 from energy_margin.tasks import with_contacts
 
 __all__ = [
@@ -118,9 +116,9 @@ def analyze(
 
     The dataset is loaded and checked (:func:`~energy_margin.data.validation.require_valid`), then
     analysed by :func:`analyze_dataset`. With ``config.continuation`` ``None`` (the default) the
-    success continuation is decided first (:mod:`~energy_margin.analysis.continuation_rule`: a pilot
-    of the first-half frames of five roll-outs). The resolved configuration goes to
-    ``analysis.json``. Rows are appended to ``scores.journal.csv`` as frames finish; ``scores.csv``
+    success continuation is the engine's default (:mod:`~energy_margin.analysis.continuation_rule`:
+    16 draws per frame where the engine continues), recorded in ``analysis.json`` with the
+    configuration. Rows are appended to ``scores.journal.csv`` as frames finish; ``scores.csv``
     (sorted by trajectory and frame) is written atomically at the end. Running again after an
     interruption skips finished frames.
 
@@ -196,13 +194,7 @@ def analyze_dataset(
         bar = progress_bar(total, desc="analyze", initial=len(done), enabled=progress)
         try:
             with scores_journal(directory) as journal:
-                config, pilot = _resolve_continuation(dataset, config, seed, runner, directory / CONFIG_FILE)
-                # The pilot's rows are this run's own (same frames, seeds and settings): kept, not grown again.
-                for key, row in pilot.items():
-                    if key not in done:
-                        journal.append(row)
-                        done[key] = row
-                        bar.update(1)
+                config = _resolve_continuation(config, directory / CONFIG_FILE)
                 pending = [i for i in range(total) if divmod(i, dataset.n_frames) not in done]
                 for row in runner.run(dataset, config, seed, pending):
                     journal.append(row)
@@ -234,40 +226,34 @@ def _earlier_continuation(directory: Path, dataset: Dataset, config: AnalyzerCon
     return candidate if same else config
 
 
-def _resolve_continuation(
-    dataset: Dataset, config: AnalyzerConfig, seed: int, runner: Executor, record: Path
-) -> tuple[AnalyzerConfig, dict[tuple[int, int], dict[str, Any]]]:
-    """``config`` with its continuation decided, and the pilot's rows to keep.
+def _resolve_continuation(config: AnalyzerConfig, record: Path) -> AnalyzerConfig:
+    """``config`` with its continuation decided.
 
-    ``continuation=None`` (recorded as ``null`` in ``analysis.json``: the same inputs decide the same)
-    applies :mod:`~energy_margin.analysis.continuation_rule` on an engine that continues (0 on
-    another): the decision already in ``record`` (a resumed run), or the pilot's, then written to
-    ``record`` as ``continuation_choice``. The pilot's rows are kept when it leaves the tree's own score.
+    ``continuation=None`` (recorded as ``null`` in ``analysis.json``) takes the decision already in
+    ``record`` (a resumed run, an earlier release's pilot rule included), or else the engine's
+    default (:func:`~energy_margin.analysis.continuation_rule.default_continuation`), then written
+    to ``record`` as ``continuation_choice``.
     """
     if config.continuation is not None:
-        return config, {}
-    tree_only = dataclasses.replace(config, continuation=0)
-    if not get_engine(config.engine).continues:
-        return tree_only, {}
+        return config
     description = read_json(record, what="analysis settings")
-    if isinstance(description.get("continuation_choice"), dict):
-        decided = ContinuationChoice.from_dict(description["continuation_choice"])
-        return dataclasses.replace(config, continuation=decided.continuation), {}
-    rows = list(runner.run(dataset, tree_only, seed, pilot_frames(dataset)))
-    choice = choose_continuation(rows)
-    write_json(record, {**description, "continuation_choice": choice.to_dict()})
-    if choice.continuation:
-        return dataclasses.replace(config, continuation=choice.continuation), {}
-    return tree_only, {(row["trajectory"], row["frame"]): row for row in rows}
+    decided = recorded_choice(description)
+    if decided is None:
+        decided = default_continuation(config.engine)
+        write_json(record, {**description, "continuation_choice": {"continuation": decided}})
+    return dataclasses.replace(config, continuation=decided)
 
 
 def resolved_continuation(description: dict[str, Any]) -> int:
-    """The continuations drawn per frame by the analysis ``analysis.json`` describes (0: the tree's own)."""
+    """The continuations drawn per frame by the analysis ``analysis.json`` describes (0: the tree's own).
+
+    Given by name, recorded as decided by default, or (a record of neither) an earlier release's: 0.
+    """
     analyzer = description.get("analyzer") or {}
     if analyzer.get("continuation") is not None:
         return int(analyzer["continuation"])
-    choice = description.get("continuation_choice")
-    return int(choice["continuation"]) if isinstance(choice, dict) else 0
+    decided = recorded_choice(description)
+    return decided if decided is not None else 0
 
 
 def lambda_note(dataset: Dataset, config: AnalyzerConfig) -> str | None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, DEVICES, AnalyzerConfig
@@ -149,7 +148,7 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
         metavar="K|auto",
         help="success continuation: score success by the fraction of K nodes, drawn by likelihood, whose "
         "unperturbed scripted motion ends in the success region (mujoco engines); 0: the tree's own score; "
-        "default auto: 16 where the trees of a pilot (the first-half frames of 5 roll-outs) reach no success, else 0",
+        "default auto: 16 where the engine continues, else 0",
     )
     parser.add_argument(
         "--continuation-horizon",
@@ -328,18 +327,6 @@ def tree_options_given(args: argparse.Namespace) -> list[str]:
     return given
 
 
-def continuation_note(choice: dict[str, Any] | None) -> str | None:
-    """The note on a success continuation the default rule turned on (``None``: it did not)."""
-    if not choice or not choice.get("continuation"):
-        return None
-    return (
-        f"note: success is scored by continuing the motion ({choice['continuation']} draws per frame): "
-        f"{100 * choice['unreached_share']:.0f}% of the pilot's {choice['pilot_frames']} first-half frames score "
-        "success 0 with the tree's own score (their trees end before the motion reaches the success region); "
-        "--continuation 0 keeps the tree's own score"
-    )
-
-
 def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
     if getattr(args, "model", None) is not None:
@@ -367,8 +354,6 @@ def run(args: argparse.Namespace) -> int:
         scores = load_scores(Path(path).parent)
         say_notes(rejection_note(scores))
         recorded = read_json(Path(path).parent / CONFIG_FILE, what="analysis settings")
-        if recorded["analyzer"].get("continuation") is None:  # the default rule decided
-            say_notes(continuation_note(recorded.get("continuation_choice")))
         unreached = unreached_success_share(scores) if not resolved_continuation(recorded) else None
         if unreached is not None and unreached >= UNREACHED_SHARE:
             say_notes(
