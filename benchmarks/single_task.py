@@ -1,0 +1,84 @@
+"""The home page's single task, step by step: generate, analyze and evaluate pushing with 10 objects.
+
+Runs the three commands of docs/index.md ("A single task, step by step") as a user types them, in a
+temporary folder, and writes what they measured: the commands, ``evaluate --json``'s output, the
+analysis's wall time, the versions and the machine. The same set is analysed again with the tree's
+own success score (``--continuation 0``, what ``reproduce``, ``budget`` and ``study`` score) and
+evaluated, under ``tree_success``.
+
+    python benchmarks/single_task.py --out docs/figures/pushing_10.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_analysis import machine
+from energy_margin.runs.versions import engine_versions
+
+__all__: list[str] = []
+
+COMMANDS = (
+    "energy-margin generate --task pushing --objects 10 --trajectories 20 --frames 10 --seed 0 --out runs/push10",
+    "energy-margin analyze runs/push10 --expansions 300 --workers 2 --seed 0",
+    "energy-margin evaluate runs/push10 --json",
+)
+TREE_SUCCESS = (
+    "energy-margin analyze runs/push10-tree --expansions 300 --workers 2 --seed 0 --continuation 0",
+    "energy-margin evaluate runs/push10-tree --json",
+)
+
+
+def _run(command: str, cwd: Path) -> str:
+    """One command of the page, run with this interpreter's package; its standard output."""
+    words = command.split()
+    found = subprocess.run(
+        [sys.executable, "-m", "energy_margin", *words[1:]], cwd=cwd, capture_output=True, text=True, check=False
+    )
+    if found.returncode != 0:
+        raise SystemExit(f"{command} exited {found.returncode}: {found.stderr[-2000:]}")
+    return found.stdout
+
+
+def _dataset_only(folder: str, names: list[str]) -> set[str]:
+    """What a copy of an analysed dataset leaves out: the analysis's files."""
+    return {name for name in names if name.startswith(("scores", "analysis"))}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as work:
+        _run(COMMANDS[0], Path(work))
+        started = time.perf_counter()
+        _run(COMMANDS[1], Path(work))
+        analyze_s = time.perf_counter() - started
+        evaluated = json.loads(_run(COMMANDS[2], Path(work)))
+        shutil.copytree(Path(work) / "runs/push10", Path(work) / "runs/push10-tree", ignore=_dataset_only)
+        _run(TREE_SUCCESS[0], Path(work))
+        tree_success = json.loads(_run(TREE_SUCCESS[1], Path(work)))
+    results = {
+        "commands": list(COMMANDS),
+        "date": datetime.date.today().isoformat(),
+        "machine": machine(),
+        "versions": engine_versions("mujoco"),
+        "analyze_wall_s": round(analyze_s),
+        "evaluate": evaluated,
+        "tree_success_commands": ["cp -r runs/push10 runs/push10-tree (the dataset's files)", *TREE_SUCCESS],
+        "tree_success": tree_success,
+    }
+    args.out.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.out}: analyze {analyze_s:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
