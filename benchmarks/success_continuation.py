@@ -197,24 +197,18 @@ def choose(results: dict[str, Any]) -> dict[str, Any]:
     means = _mean_aps(results, [str(results["selection_seed"])])
     chosen = max(means, key=lambda k: (means[k], -int(k)))
     checks = [str(seed) for seed in results["check_seeds"]]
-    behind = [
-        {"scene": name, "seed": int(seed), "question": question, "difference": continued - tree}
-        for name, scene in results["scenes"].items()
-        for seed in checks
-        for question in (*EARLY, "last3")
-        if question in scene[seed]["methods"]["tree"] and chosen != "0"
-        for tree, continued in [
-            (scene[seed]["methods"]["tree"][question], scene[seed]["methods"][f"continuation_{chosen}"][question])
-        ]
-        if tree is not None and continued is not None and continued < tree - 0.01
-    ]
-    ratios = [
-        scene[seed]["methods"][f"continuation_{chosen}"]["seconds_per_frame"]
-        / scene[seed]["methods"]["tree"]["seconds_per_frame"]
-        for scene in results["scenes"].values()
-        for seed in scene
-        if chosen != "0"
-    ]
+    behind, ratios = [], []
+    if chosen != "0":
+        for name, scene in results["scenes"].items():
+            for seed, measured in scene.items():
+                tree, continued = measured["methods"]["tree"], measured["methods"][f"continuation_{chosen}"]
+                ratios.append(continued["seconds_per_frame"] / tree["seconds_per_frame"])
+                for question in (*EARLY, "last3"):
+                    before, after = tree.get(question), continued.get(question)
+                    if seed in checks and before is not None and after is not None and after < before - 0.01:
+                        behind.append(
+                            {"scene": name, "seed": int(seed), "question": question, "difference": after - before}
+                        )
     return {
         "rule": choose.__doc__.splitlines()[0] if choose.__doc__ else "",
         "mean_ap": means,
@@ -260,13 +254,14 @@ def main() -> None:
         "--all-frames", action="store_true", help="score every frame: success from the last 3 frames too (last3)"
     )
     args = parser.parse_args()
+    results: dict[str, Any]
     if args.choose_only:
         results = json.loads(args.out.read_text())
         results["selection"] = choose(results)
         results["rows"] = rows(results)
         args.out.write_text(json.dumps(results, indent=2) + "\n")
         return
-    results: dict[str, Any] = {
+    results = {
         "command": "python benchmarks/success_continuation.py " + " ".join(sys.argv[1:]),
         "trajectories": args.trajectories,
         "frames": 10,
