@@ -1,10 +1,10 @@
 """The home page's single task, step by step: generate, analyze and evaluate pushing with 10 objects.
 
 Runs the three commands of docs/index.md ("A single task, step by step") as a user types them, in a
-temporary folder, and writes what they measured: the commands, ``evaluate --json``'s output, the
-analysis's wall time, the versions and the machine. The same set is analysed again with the tree's
-own success score (``--continuation 0``, what ``reproduce``, ``budget`` and ``study`` score) and
-evaluated, under ``tree_success``.
+temporary folder and in this process (``engine_versions.run_cli``), and writes what they measured:
+the commands, ``evaluate --json``'s output, the analysis's wall time, the versions and the machine.
+The same set is analysed again with the tree's own success score (``--continuation 0``, what
+``reproduce``, ``budget`` and ``study`` score) and evaluated, under ``tree_success``.
 
     python benchmarks/single_task.py --out docs/figures/pushing_10.json
 """
@@ -12,17 +12,17 @@ evaluated, under ``tree_success``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import shutil
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 from bench_analysis import machine
 from energy_margin.runs.versions import engine_versions
+from engine_versions import run_cli
 
 __all__: list[str] = []
 
@@ -37,15 +37,9 @@ TREE_SUCCESS = (
 )
 
 
-def _run(command: str, cwd: Path) -> str:
-    """One command of the page, run with this interpreter's package; its standard output."""
-    words = command.split()
-    found = subprocess.run(
-        [sys.executable, "-m", "energy_margin", *words[1:]], cwd=cwd, capture_output=True, text=True, check=False
-    )
-    if found.returncode != 0:
-        raise SystemExit(f"{command} exited {found.returncode}: {found.stderr[-2000:]}")
-    return found.stdout
+def _run(command: str) -> str:
+    """One command of the page as typed, run in this process (in the current folder); its standard output."""
+    return run_cli(command.split()[1:])
 
 
 def _dataset_only(folder: str, names: list[str]) -> set[str]:
@@ -57,15 +51,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as work:
-        _run(COMMANDS[0], Path(work))
+    out = args.out.resolve()
+    with tempfile.TemporaryDirectory() as work, contextlib.chdir(work):
+        _run(COMMANDS[0])
         started = time.perf_counter()
-        _run(COMMANDS[1], Path(work))
+        _run(COMMANDS[1])
         analyze_s = time.perf_counter() - started
-        evaluated = json.loads(_run(COMMANDS[2], Path(work)))
-        shutil.copytree(Path(work) / "runs/push10", Path(work) / "runs/push10-tree", ignore=_dataset_only)
-        _run(TREE_SUCCESS[0], Path(work))
-        tree_success = json.loads(_run(TREE_SUCCESS[1], Path(work)))
+        evaluated = json.loads(_run(COMMANDS[2]))
+        shutil.copytree("runs/push10", "runs/push10-tree", ignore=_dataset_only)
+        _run(TREE_SUCCESS[0])
+        tree_success = json.loads(_run(TREE_SUCCESS[1]))
     results = {
         "commands": list(COMMANDS),
         "date": datetime.date.today().isoformat(),
@@ -76,8 +71,8 @@ def main() -> None:
         "tree_success_commands": ["cp -r runs/push10 runs/push10-tree (the dataset's files)", *TREE_SUCCESS],
         "tree_success": tree_success,
     }
-    args.out.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
-    print(f"wrote {args.out}: analyze {analyze_s:.0f} s")
+    out.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {out}: analyze {analyze_s:.0f} s")
 
 
 if __name__ == "__main__":
