@@ -6,6 +6,11 @@ quotes the file through ``tools/figures.py``).
 
     python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json
     python benchmarks/time_reproduce.py --quick --out docs/figures/reproduce_quick.json
+
+``--keep DIR`` also copies the reproduction's tables (``table1.json``, ``table1.md``,
+``ablation.json``, ``ablation.md``, ``stages.json``) into DIR, so pages can quote them:
+
+    python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json --keep docs/figures/reproduce
 """
 
 from __future__ import annotations
@@ -24,6 +29,9 @@ import time
 from pathlib import Path
 
 from energy_margin.runs.versions import engine_versions
+
+#: The reproduction's own tables, copied by ``--keep``.
+KEPT = ("table1.json", "table1.md", "ablation.json", "ablation.md", "stages.json")
 
 
 def cpu_name() -> str:
@@ -48,6 +56,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="time reproduce --quick")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    parser.add_argument("--keep", type=Path, default=None, help="a folder to copy the reproduction's tables into")
     args = parser.parse_args()
     command = ["energy-margin", "reproduce", *(["--quick"] if args.quick else []), "--workers", str(args.workers)]
     executable = shutil.which("energy-margin") or str(Path(sys.executable).with_name("energy-margin"))
@@ -62,6 +71,10 @@ def main() -> None:
             env={**os.environ, "ENERGY_MARGIN_PROGRESS": "0"},
         )
         wall = time.perf_counter() - started
+        if found.returncode == 0 and args.keep is not None:
+            args.keep.mkdir(parents=True, exist_ok=True)
+            for name in KEPT:
+                shutil.copyfile(Path(work) / "reproduce" / name, args.keep / name)
     if found.returncode != 0:
         raise SystemExit(f"{' '.join(command)} exited {found.returncode}: {found.stderr.strip()[-2000:]}")
     announced = re.search(r"expected about ([0-9.]+) (min|s|h)", found.stdout + found.stderr)
