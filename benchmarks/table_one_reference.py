@@ -2,9 +2,9 @@
 
 On their 10-object pushing frames and their 5-box scooping frames (``../shared/reference``), as
 docs/results/robustness.md states the commands: import the frames without their scores, analyse
-them (MuJoCo, 300 expansions, the tree's own success, analysis seed 0), draw five paper-protocol
-copies (perturbation seed 0), analyse each with the same seed, and evaluate with their Table I
-protocol (``--weights uniform --success-frames 10``). Pushing is analysed twice, with this
+them (MuJoCo, 300 expansions, the tree's own success, analysis seed 0; the pushing true states
+also with seeds 1 and 2), draw five paper-protocol copies (perturbation seed 0), analyse each
+with the same seed, and evaluate with their Table I protocol (``--weights uniform --success-frames 10``). Pushing is analysed twice, with this
 project's nominal push and with the pusher coasting as in their planner (``--drive coast``);
 scooping's trees are grown once and scored at several λ (``rescore_lambdas``, the scores
 ``analyze --lambda λ`` gives). Their own scores (``ao_est.csv`` of their original run and of
@@ -46,6 +46,8 @@ EXPANSIONS = 300
 PROTOCOL = {"weights": "uniform", "success_frames": 10}
 #: Scooping's λ [1/J]: the task's own, and down to theirs converted (600) and below.
 SCOOPING_LAMBDAS = (10_000.0, 3_000.0, 1_000.0, 600.0, 100.0)
+#: Analysis seeds of the pushing true states beside seed 0.
+OTHER_SEEDS = (1, 2)
 FOLDERS = {"pushing": "planepush-10objects", "scooping": "gripper-5objects"}
 
 
@@ -98,9 +100,9 @@ def _paper_copies(path: Path, workers: int) -> list[Path]:
     return perturb_dataset(path, repeats=REPEATS, seed=0, out=out, protocol="paper", workers=workers, overwrite=True)
 
 
-def _analysed(path: Path, workers: int) -> Path:
-    """``analyze PATH --expansions 300 --seed 0 --continuation 0`` (resumes a finished or partial run)."""
-    analyze(path, AnalyzerConfig(expansions=EXPANSIONS, continuation=0), seed=0, workers=workers, progress=False)
+def _analysed(path: Path, workers: int, seed: int = 0) -> Path:
+    """``analyze PATH --expansions 300 --seed S --continuation 0`` (resumes a finished or partial run)."""
+    analyze(path, AnalyzerConfig(expansions=EXPANSIONS, continuation=0), seed=seed, workers=workers, progress=False)
     return path
 
 
@@ -121,6 +123,11 @@ def pushing(work: Path, workers: int) -> dict[str, Any]:
         true = _analysed(_imported(folder, work / f"push10-{drive}", drive=drive), workers)
         copies = [_analysed(copy, workers) for copy in _paper_copies(true, workers)]
         rows[drive] = {"true": _true_row(true), "paper": _copies_row(true, copies)}
+        # How far the tree's own randomness moves the true states' AP: other analysis seeds.
+        rows[drive]["true_by_seed"] = {"0": rows[drive]["true"]}
+        for seed in OTHER_SEEDS:
+            again = _analysed(_imported(folder, work / f"push10-{drive}-seed{seed}", drive=drive), workers, seed)
+            rows[drive]["true_by_seed"][str(seed)] = _true_row(again)
         print(f"pushing, {drive}: done", flush=True)
     rows["theirs"] = _theirs(folder, work / "push10")
     return rows
