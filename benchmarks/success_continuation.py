@@ -11,7 +11,9 @@ Early success as ``evaluate`` and the study define it: the trajectory's success 
 weighted mean of the last 3 frame success scores (weights 1, 2, 3) among its first 3 (first 5)
 frames, its AP scikit-learn's against the trajectory's success label. Baselines: ``chance`` (the
 positive rate) and ``distance`` (the signed distance of the worst object to the success region).
-Seconds per frame: tree growth plus the continuations, wall time on one process.
+Seconds per frame: tree growth plus the continuations, wall time on one process. ``paired``: each
+K's AP minus the tree's own and minus the distance baseline's, with paired 95 % intervals over
+1000 resamples of the trajectories (``evaluate``'s verdict statistics, resample seed 0).
 
     python benchmarks/success_continuation.py --out docs/figures/success_continuation.json
     python benchmarks/success_continuation.py --scenes gym_pusher scooping \
@@ -40,6 +42,7 @@ from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_se
 from energy_margin.analysis.scores import trajectory_success_score
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.evaluation.baselines import baseline_grids
+from energy_margin.evaluation.bootstrap import Questions, paired_difference, score_questions
 from energy_margin.evaluation.metrics import average_precision
 from energy_margin.runs.versions import engine_versions
 
@@ -60,6 +63,9 @@ TASKS = {"pushing": ["--task", "pushing", "--objects", "10"], "scooping": ["--ta
 EARLY = {"first3": 3, "first5": 5}
 LAST = 3
 ANALYSIS_SEED = 0
+#: Bootstrap resamples of the trajectories behind the paired intervals, and their seed.
+RESAMPLES = 1000
+RESAMPLE_SEED = 0
 
 
 def _task_options(name: str, folder: Path) -> list[str]:
@@ -144,6 +150,38 @@ def _early_aps(labels: np.ndarray, grid: np.ndarray) -> dict[str, float | None]:
     return aps
 
 
+def paired(
+    dataset: Dataset, success: dict[int, np.ndarray], distance: np.ndarray | None
+) -> dict[str, dict[str, float | None]]:
+    """Each K's early-success AP minus the tree's own (K = 0) and minus ``distance``'s, paired intervals.
+
+    Args:
+        dataset: the scored dataset (its success labels).
+        success: success scores per K (0: the tree's own), each shape (T, frames scored).
+        distance: the distance baseline's success scores, shape (T, frames scored), or ``None``.
+
+    Returns:
+        ``"continuation_K_minus_tree"``, ``"tree_minus_distance"``, ``"continuation_K_minus_distance"``
+        -> question -> difference, with ``question_low`` and ``question_high``.
+    """
+    frames = success[0].shape[1]
+    spans: dict[str, tuple[int | None, int | None]] = {name: (0, count) for name, count in EARLY.items()}
+    if frames > max(EARLY.values()):
+        spans["last3"] = (None, None)
+    questions = Questions(dataset, LAST, capture_windows={}, success_spans=spans)
+    drawn = np.random.default_rng(RESAMPLE_SEED).integers(0, len(success[0]), size=(RESAMPLES, len(success[0])))
+    unused = np.zeros_like(success[0])  # no capture question is asked
+    scored = {k: score_questions(questions, unused, grid, drawn) for k, grid in success.items()}
+    ks = [k for k in success if k != 0]
+    result = {f"continuation_{k}_minus_tree": paired_difference(scored[k], scored[0]) for k in ks}
+    if distance is not None:
+        baseline = score_questions(questions, unused, distance, drawn)
+        result["tree_minus_distance"] = paired_difference(scored[0], baseline)
+        for k in ks:
+            result[f"continuation_{k}_minus_distance"] = paired_difference(scored[k], baseline)
+    return result
+
+
 def _measure(dataset: Dataset, expansions: int, ks: list[int], frames: int) -> dict[str, Any]:
     success, seconds = _scores(dataset, expansions, ks, frames)
     _check_equivalence(dataset, expansions, ks[-1], float(success[ks[-1]][0, 0]))
@@ -164,9 +202,15 @@ def _measure(dataset: Dataset, expansions: int, ks: list[int], frames: int) -> d
     questions = [name for name in (*EARLY, "last3") if name in methods["tree"]]
     baselines: dict[str, Any] = {"chance": dict.fromkeys(questions, float(np.mean(labels)))}
     grids = baseline_grids(dataset)
-    if "distance" in grids:
-        baselines["distance"] = _early_aps(labels, grids["distance"][1][:, :frames])
-    return {"success_rate": float(np.mean(labels)), "methods": methods, "baselines": baselines}
+    distance = grids["distance"][1][:, :frames] if "distance" in grids else None
+    if distance is not None:
+        baselines["distance"] = _early_aps(labels, distance)
+    return {
+        "success_rate": float(np.mean(labels)),
+        "methods": methods,
+        "baselines": baselines,
+        "paired": paired(dataset, success, distance),
+    }
 
 
 def _mean_aps(results: dict[str, Any], seeds: list[str]) -> dict[str, float]:
@@ -233,6 +277,8 @@ def rows(results: dict[str, Any]) -> list[dict[str, Any]]:
                 for key, value in values.items():
                     if key in (*EARLY, "last3", "seconds_per_frame"):
                         record[f"{name}_{key}"] = value
+            for name, values in measured.get("paired", {}).items():
+                record.update({f"{name}_{key}": value for key, value in values.items()})
             found.append(record)
     return found
 
