@@ -129,7 +129,7 @@ def pushing(work: Path, workers: int) -> dict[str, Any]:
             again = _analysed(_imported(folder, work / f"push10-{drive}-seed{seed}", drive=drive), workers, seed)
             rows[drive]["true_by_seed"][str(seed)] = _true_row(again)
         print(f"pushing, {drive}: done", flush=True)
-    rows["theirs"] = _theirs(folder, work / "push10")
+    rows["theirs"] = _theirs(folder, work / "push10-theirs")
     return rows
 
 
@@ -151,7 +151,7 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
             key: {"true": _true_row(dirs[0]), "paper": _copies_row(dirs[0], dirs[1:])} for key, dirs in scored.items()
         }
     }
-    rows["theirs"] = _theirs(folder, work / "scoop5")
+    rows["theirs"] = _theirs(folder, work / "scoop5-theirs")
     return rows
 
 
