@@ -44,6 +44,7 @@ from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import Questions, paired_difference, score_questions
 from energy_margin.evaluation.metrics import average_precision
+from energy_margin.evaluation.verdict import word
 from energy_margin.runs.versions import engine_versions
 
 __all__: list[str] = []
@@ -264,7 +265,11 @@ def choose(results: dict[str, Any]) -> dict[str, Any]:
 
 
 def rows(results: dict[str, Any]) -> list[dict[str, Any]]:
-    """One flat record per scene and generation seed (for the docs' tables): APs, seconds per frame."""
+    """One flat record per scene and generation seed (for the docs' tables).
+
+    APs and seconds per frame per method, and each paired difference with its interval and its
+    word (``ahead``, ``level``, ``behind``: the interval above, around or below 0).
+    """
     found = []
     for scene, seeds in results["scenes"].items():
         for seed, measured in seeds.items():
@@ -279,6 +284,10 @@ def rows(results: dict[str, Any]) -> list[dict[str, Any]]:
                         record[f"{name}_{key}"] = value
             for name, values in measured.get("paired", {}).items():
                 record.update({f"{name}_{key}": value for key, value in values.items()})
+                for question in (*EARLY, "last3"):
+                    if question in values:
+                        found_word = word(values[question], values[f"{question}_low"], values[f"{question}_high"])
+                        record[f"{name}_{question}_word"] = found_word
             found.append(record)
     return found
 

@@ -54,3 +54,19 @@ def test_a_scorer_against_itself_is_exactly_level(bench) -> None:
     entry = found["continuation_8_minus_tree"]
     assert "last3" not in entry  # five frames scored: early success only
     assert [entry[key] for key in ("first3", "first3_low", "first3_high", "first5_low", "first5_high")] == [0] * 5
+
+
+def test_the_rows_say_each_paired_difference_in_a_word(bench) -> None:
+    measured = {
+        "methods": {"tree": {"first3": 0.5}},
+        "baselines": {},
+        "paired": {
+            "continuation_16_minus_tree": {"first3": 0.2, "first3_low": 0.05, "first3_high": 0.3},
+            "tree_minus_distance": {"first3": -0.1, "first3_low": -0.2, "first3_high": 0.01},
+        },
+    }
+    found = bench.rows({"scenes": {"pushing": {"12": measured}}, "selection_seed": 11})
+    assert found[0]["use"] == "check"
+    assert found[0]["continuation_16_minus_tree_first3_word"] == "ahead"
+    assert found[0]["tree_minus_distance_first3_word"] == "level"
+    assert found[0]["continuation_16_minus_tree_first3_low"] == 0.05
