@@ -4,8 +4,9 @@ On their 10-object pushing frames and their 5-box scooping frames (``../shared/r
 docs/results/robustness.md states the commands: import the frames without their scores, analyse
 them (MuJoCo, 300 expansions, the tree's own success, analysis seed 0; the pushing true states
 also with seeds 1 and 2), draw five paper-protocol copies (perturbation seed 0), analyse each
-with the same seed, and evaluate with their Table I protocol (``--weights uniform --success-frames 10``). Pushing is analysed twice, with this
-project's nominal push and with the pusher coasting as in their planner (``--drive coast``);
+with the same seed, and evaluate with their Table I protocol (``--weights uniform
+--success-frames 10``). Pushing is analysed twice, with this project's nominal push and with the
+pusher coasting as in their planner (``--drive coast``);
 scooping's trees are grown once and scored at several λ (``rescore_lambdas``, the scores
 ``analyze --lambda λ`` gives). Their own scores (``ao_est.csv`` of their original run and of
 their perturbed runs 1-5) are evaluated the same way. Every stage resumes from ``--work``.
