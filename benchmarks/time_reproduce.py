@@ -7,8 +7,8 @@ quotes the file through ``tools/figures.py``).
     python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json
     python benchmarks/time_reproduce.py --quick --out docs/figures/reproduce_quick.json
 
-``--keep DIR`` also copies the reproduction's tables (``table1.json``, ``table1.md``,
-``ablation.json``, ``ablation.md``, ``stages.json``) into DIR, so pages can quote them:
+``--keep DIR`` also copies the reproduction's tables (``table1.json``, ``ablation.json``,
+``stages.json``) into DIR, so pages can quote them:
 
     python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json --keep docs/figures/reproduce
 """
@@ -31,7 +31,7 @@ from pathlib import Path
 from energy_margin.runs.versions import engine_versions
 
 #: The reproduction's own tables, copied by ``--keep``.
-KEPT = ("table1.json", "table1.md", "ablation.json", "ablation.md", "stages.json")
+KEPT = ("table1.json", "ablation.json", "stages.json")
 
 
 def cpu_name() -> str:
