@@ -95,6 +95,8 @@ def analyze(out: Path, workers: int, seed: int, iterations: int) -> None:
             str(seed),
             "--engine",
             "mujoco",
+            "--continuation",  # the tree's own success score, as the figures were measured
+            "0",
         ]
         try:
             run_cli(["analyze", str(target), *settings, "--no-progress"])

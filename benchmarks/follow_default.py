@@ -61,8 +61,11 @@ def _without_follow(scene: Path, out: Path) -> Path:
 def _analyse(src: Path, dataset: Path, expansions: int, seed: int) -> float:
     """Analyse ``dataset`` with the code at ``src`` (unless it holds scores); its frames' summed tree time, s."""
     if not (dataset / "scores.csv").is_file():
+        # The tree's own success score, as the figures were measured (a source that continues the
+        # motion by default is told not to; an older one never does).
+        own = ["--continuation", "0"] if "--continuation" in _cli(src, "analyze", "--help") else []
         _cli(src, "analyze", str(dataset), "--expansions", str(expansions), "--workers", "1", "--seed", str(seed),
-             "--no-progress")  # fmt: skip
+             "--no-progress", *own)  # fmt: skip
     return round(float(load_scores(dataset)["runtime_s"].sum()), 1)
 
 
