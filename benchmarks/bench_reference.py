@@ -120,6 +120,8 @@ def main() -> None:
         skip(f"the authors' code and frames are not at {SHARED} (../shared/reference from the project root)")
     python = authors_python(args.authors_venv)
 
+    from mujoco import __version__ as mujoco_version
+
     # The machine line of the other benchmarks (run from benchmarks/, so it is importable).
     from bench_analysis import machine
     from energy_margin import AnalyzerConfig, analyze_frame
@@ -206,7 +208,19 @@ def main() -> None:
     print(f"theirs: {their_mean:.3f} s per frame; ours: {our_mean:.3f} s per frame (physics {physics:.3f} s)")
     print(f"ratio (theirs / ours): {their_mean / our_mean:.1f}x")
     if args.json is not None:
-        summary = {"theirs_s": their_mean, "ours_s": our_mean, "ratio": their_mean / our_mean, "frames": frames}
+        summary = {
+            "theirs_s": their_mean,
+            "ours_s": our_mean,
+            "ratio": their_mean / our_mean,
+            "frames": frames,
+            "expansions": args.expansions,
+            "analyzer": dict(analyzer),
+            "task": dict(task_config),
+            "machine": machine(),
+            "load_before": round(load_before[0], 2),
+            "load_after": round(load_after[0], 2),
+            "mujoco": mujoco_version,
+        }
         args.json.write_text(json.dumps({"summary": summary, "theirs": theirs, "ours": ours}, indent=2) + "\n")
 
 
