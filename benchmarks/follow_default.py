@@ -15,6 +15,7 @@ the sets already analysed in ``--work``. ``analysis_s``: the frames' tree time s
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import re
@@ -58,12 +59,18 @@ def _without_follow(scene: Path, out: Path) -> Path:
     return path
 
 
+@functools.cache
+def _continues(src: Path) -> bool:
+    """Whether the code at ``src`` knows ``analyze --continuation`` (asked once per source)."""
+    return "--continuation" in _cli(src, "analyze", "--help")
+
+
 def _analyse(src: Path, dataset: Path, expansions: int, seed: int) -> float:
     """Analyse ``dataset`` with the code at ``src`` (unless it holds scores); its frames' summed tree time, s."""
     if not (dataset / "scores.csv").is_file():
         # The tree's own success score, as the figures were measured (a source that continues the
         # motion by default is told not to; an older one never does).
-        own = ["--continuation", "0"] if "--continuation" in _cli(src, "analyze", "--help") else []
+        own = ["--continuation", "0"] if _continues(src) else []
         _cli(src, "analyze", str(dataset), "--expansions", str(expansions), "--workers", "1", "--seed", str(seed),
              "--no-progress", *own)  # fmt: skip
     return round(float(load_scores(dataset)["runtime_s"].sum()), 1)

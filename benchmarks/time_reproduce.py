@@ -51,6 +51,20 @@ def minutes_and_seconds(seconds: float) -> str:
     return f"{whole // 60} min {whole % 60:02d} s"
 
 
+def timed_run(command: str, load_before: float, wall: float, versions: dict[str, str]) -> dict[str, object]:
+    """What a timed command's results file records: the command, date, machine, load, versions, wall time."""
+    return {
+        "command": command,
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{os.cpu_count()}-core {cpu_name()}",
+        "load_before": round(load_before, 2),
+        "load_after": round(os.getloadavg()[0], 2),
+        "versions": versions,
+        "wall_s": round(wall, 1),
+        "wall": minutes_and_seconds(wall),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true", help="time reproduce --quick")
@@ -79,14 +93,7 @@ def main() -> None:
         raise SystemExit(f"{' '.join(command)} exited {found.returncode}: {found.stderr.strip()[-2000:]}")
     announced = re.search(r"expected about ([0-9.]+) (min|s|h)", found.stdout + found.stderr)
     figures = {
-        "command": " ".join(command),
-        "date": datetime.date.today().isoformat(),
-        "machine": f"{os.cpu_count()}-core {cpu_name()}",
-        "load_before": round(load_before, 2),
-        "load_after": round(os.getloadavg()[0], 2),
-        "versions": engine_versions(),
-        "wall_s": round(wall, 1),
-        "wall": minutes_and_seconds(wall),
+        **timed_run(" ".join(command), load_before, wall, engine_versions()),
         "announced": None if announced is None else f"{announced.group(1)} {announced.group(2)}",
     }
     args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")

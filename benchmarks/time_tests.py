@@ -11,7 +11,6 @@ and the versions, as JSON (the README and docs/index.md quote the file through
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import re
@@ -22,7 +21,7 @@ from pathlib import Path
 
 from energy_margin import __version__
 from energy_margin.runs.versions import engine_versions
-from time_reproduce import cpu_name, minutes_and_seconds
+from time_reproduce import timed_run
 
 __all__: list[str] = []
 
@@ -54,17 +53,8 @@ def main() -> None:
         raise SystemExit(
             "\n".join([f"{' '.join(COMMAND)} exited {found.returncode}: {closing or found.stderr[-2000:]}", *failed])
         )
-    figures = {
-        "command": " ".join(COMMAND),
-        "date": datetime.date.today().isoformat(),
-        "machine": f"{os.cpu_count()}-core {cpu_name()}",
-        "load_before": round(load_before, 2),
-        "load_after": round(os.getloadavg()[0], 2),
-        "versions": {"energy_margin": __version__, **engine_versions()},
-        **tally,
-        "wall_s": round(wall, 1),
-        "wall": minutes_and_seconds(wall),
-    }
+    versions = {"energy_margin": __version__, **engine_versions()}
+    figures = {**timed_run(" ".join(COMMAND), load_before, wall, versions), **tally}
     args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
     print(json.dumps(figures, indent=2))
 
