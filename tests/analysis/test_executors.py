@@ -7,8 +7,10 @@ import multiprocessing
 import os
 import shutil
 import sys
+import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -172,6 +174,31 @@ def test_stopping_early_terminates_the_pool(tiny_dataset: Path) -> None:
     assert set(first) == set(COLUMNS)
     assert multiprocessing.active_children()  # the pool is still working on the other frames
     stream.close()  # the consumer stops: the pool must not be drained
+    assert _children_gone(10.0), multiprocessing.active_children()
+
+
+def _large_result(size: int) -> bytes:
+    return b"x" * size
+
+
+def _stop_while_results_stream(size: int) -> bool:
+    """Stop a pool whose workers are sending ``size``-byte results; True when it stopped within 10 s."""
+    pool = ProcessPoolExecutor(2)
+    pending = {pool.submit(_large_result, size) for _ in range(4)}
+    for _ in range(20):
+        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        pending |= {pool.submit(_large_result, size) for _ in done}
+    stopper = threading.Thread(target=executors.stop_pool, args=(pool,), kwargs={"finished": False}, daemon=True)
+    stopper.start()
+    stopper.join(10.0)
+    return not stopper.is_alive()
+
+
+def test_stopping_a_pool_mid_result_does_not_hang() -> None:
+    # A worker terminated while writing a 200 kB result leaves half a message in the pipe; the
+    # pool's manager thread used to wait for the rest forever (three hangs in three tries).
+    for attempt in range(8):
+        assert _stop_while_results_stream(200_000), f"stop_pool hung on attempt {attempt}"
     assert _children_gone(10.0), multiprocessing.active_children()
 
 

@@ -175,8 +175,18 @@ def stop_pool(pool: ProcessPoolExecutor, *, finished: bool) -> None:
         pool.shutdown(wait=True)
         return
     with _sigint_ignored():
-        for process in list(getattr(pool, "_processes", {}).values()):
+        processes = list(getattr(pool, "_processes", {}).values())
+        for process in processes:
             process.terminate()
+        for process in processes:
+            process.join()
+        # A worker stopped half-way through sending its result leaves a partial message in the
+        # result pipe, and the pool's manager thread would wait for the rest of it forever. With
+        # every worker gone, closing this process's end of the pipe (the last writer) turns that
+        # wait into end-of-file, which the manager reads as a broken pool and shuts down.
+        writer = getattr(getattr(pool, "_result_queue", None), "_writer", None)
+        if writer is not None:
+            writer.close()
         pool.shutdown(wait=True, cancel_futures=True)
 
 
