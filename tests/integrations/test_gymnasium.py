@@ -312,3 +312,43 @@ def test_live_calls_simulate_the_analysis_model_and_score_as_the_full_one(hold: 
             assert report.applied and report.robot_geoms > 0 and report.robot_still == (hold == "still")
     # The arm touches itself nowhere in these trees: the same scores to the last bit.
     assert scores["pruned"] == scores["full"]
+
+
+def test_the_held_command_is_set_once_per_propagation_and_steps_as_set_every_period(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import energy_margin.planning.propagate as propagate
+
+    read, command = propagate._read, propagate.command_robot
+    seen: dict[str, dict[str, list]] = {}
+    for variant in ("once", "every period"):
+        record: dict[str, list] = {"positions": [], "commands": [], "scores": []}
+        seen[variant] = record
+
+        def reading(simulator: object, *, needs_energy: bool, record: dict[str, list] = record) -> object:
+            outcome = read(simulator, needs_energy=needs_energy)
+            record["positions"].append(outcome.pos.copy())
+            return outcome
+
+        def commanding(*arguments: object, record: dict[str, list] = record) -> None:
+            record["commands"].append(1)
+            command(*arguments)
+
+        monkeypatch.setattr(propagate, "_read", reading)
+        monkeypatch.setattr(propagate, "command_robot", commanding)
+        wrapper = wrapped(every=1)
+        if variant == "every period":  # the behaviour before: the scene's default control period
+            wrapper.scorer.task.control_period = 0.01
+        else:
+            assert wrapper.scorer.task.control_period is None
+        wrapper.reset(seed=2)
+        for action in actions(3):
+            margin = wrapper.step(action)[4]["energy_margin"]
+            record["scores"].append((margin["capture_score"], margin["success_score"], margin["nodes"]))
+    once, every = seen["once"], seen["every period"]
+    # One command per propagation instead of one per step, and the same tree states to the last bit.
+    assert len(once["commands"]) == len(once["positions"]) > 0
+    assert len(every["commands"]) > 2 * len(every["positions"])
+    assert once["scores"] == every["scores"]
+    assert len(once["positions"]) == len(every["positions"])
+    assert all(np.array_equal(a, b) for a, b in zip(once["positions"], every["positions"], strict=True))

@@ -52,6 +52,24 @@ def test_only_capabilities_are_checked() -> None:
         require(_Plain(), int, purpose="a test")
 
 
+def test_a_capability_one_instance_holds_is_not_granted_to_its_class() -> None:
+    class _Commanded:
+        def set_model_command(self, command: ModelCommand) -> None:
+            del command
+
+    class _Sometimes:
+        """A class whose instances may be given the member one by one."""
+
+    for _ in range(2):  # the second call takes the class's checked answer
+        simulator = _Commanded()
+        assert require(simulator, ModelCommands, purpose="a test") is simulator
+    given = _Sometimes()
+    given.set_model_command = lambda command: None  # type: ignore[attr-defined]
+    assert require(given, ModelCommands, purpose="a test") is given
+    with pytest.raises(MissingCapabilityError, match="_Sometimes has no set_model_command"):
+        require(_Sometimes(), ModelCommands, purpose="a test")
+
+
 def test_model_commands_go_through_the_capability(make_block_scene: Callable[..., Scene]) -> None:
     with pytest.raises(EnergyMarginError, match=r"^task 'x' needs a simulator with MuJoCo model commands"):
         ModelCommand(ctrl=np.zeros(0)).apply_to(_Plain(), purpose="task 'x'")

@@ -44,7 +44,7 @@ from energy_margin.runs.files import atomic_path
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.sim.mujoco_audit import WARNINGS_ARRAY, WarningLog, warning_numbers
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
-from energy_margin.tasks.scene_model import resolve_scene
+from energy_margin.tasks.scene_model import LoadedScene, resolve_scene
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.world.state import FrameState
 
@@ -83,6 +83,13 @@ class HeldCommandTask(SceneTask):
     """A scene task whose robot holds one command (the last one applied) while the tree grows."""
 
     held: ModelCommand = ModelCommand(ctrl=None, mocap_pos=None, mocap_quat=None)
+
+    def __init__(self, *, loaded: LoadedScene) -> None:
+        super().__init__(loaded=loaded)
+        # The held command depends on neither the time nor the state (no generalized forces, no
+        # servo targets): set once per propagation, it steps exactly as when set again every
+        # control period, and the propagation is one ``mj_step`` call instead of one per period.
+        self.control_period = None
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
         """The held command, whatever the time."""

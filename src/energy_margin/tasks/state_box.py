@@ -78,10 +78,10 @@ class StateBox:
         """
         low: np.ndarray = self._low  # type: ignore[attr-defined]
         high: np.ndarray = self._high  # type: ignore[attr-defined]
-        if np.any(object_pos < low) or np.any(object_pos > high):
+        if (object_pos < low).any() or (object_pos > high).any():
             return False
         linear = object_vel[:, :3]
-        return bool(np.max(np.einsum("ij,ij->i", linear, linear)) <= self.max_speed**2)
+        return bool(np.einsum("ij,ij->i", linear, linear).max() <= self.max_speed**2)
 
     def violations(self, object_pos: np.ndarray, object_vel: np.ndarray) -> list[Violation]:
         """Every object outside the box or faster than ``max_speed`` (NaN counts as outside), by object.
