@@ -3,7 +3,7 @@
 Usage (in a virtual environment with the stack, on the MuJoCo version it needs)::
 
     python benchmarks/live_step_profile.py --stack robosuite|metaworld|pusher [--steps 30] [--budget 0.05]
-        [--seed 0] [--out docs/figures/live_step_profile_STACK.json]
+        [--seed 0] [--out docs/figures/live_step_profile.json]
 
 The stacks are those of ``bench_live_stacks.py`` (the same environments, policies and scene tables);
 one environment is scored at the live defaults (``AnalyzerConfig()``: the analysis model, one
@@ -17,7 +17,11 @@ of the scorer's own ``MjData``, where every propagation of the tree steps, and r
   a step the shares of collision detection (broad and narrow phase) and of the constraint solver
   (MuJoCo's timers; MuJoCo 3.3.0, Meta-World's, counts them but records no durations: a dash);
 * the *physics ceiling*: the expansions a ``--budget`` call would reach if everything but the
-  physics steps cost nothing (budget / (steps per expansion x seconds per step)).
+  physics steps cost nothing (budget / (steps per expansion x seconds per step)), and what the rest
+  of a call (the tree's own work: reading states, regions, the density estimate) costs per expansion.
+
+``--out`` keeps one row per stack in the file (a later run of a stack replaces its row), each with
+the machine line and the settings it ran with.
 """
 
 from __future__ import annotations
@@ -107,6 +111,7 @@ def profile(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         "collision_share": spent["collision"] / spent["step"] if timed else None,
         "constraint_share": spent["constraint"] / spent["step"] if timed else None,
         "physics_ceiling": args.budget / (steps_per_expansion * seconds_per_step),
+        "other_ms_per_expansion": 1000.0 * (sum(call_s) - spent["wall"]) / sum(expansions),
     }
 
 
@@ -130,18 +135,28 @@ def main() -> None:
     print(f"{args.steps} calls of {args.budget} s\n")
     print(
         "| expansions (median) | ms (median) | steps / expansion | µs / step | physics share | collision "
-        "| constraint | physics ceiling |"
+        "| constraint | physics ceiling | other ms / expansion |"
     )
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     print(
         f"| {row['expansions_median']:.0f} | {row['ms_median']:.1f} | {row['steps_per_expansion']:.1f} | "
         f"{row['us_per_step']:.1f} | {row['physics_share']:.0%} | {_share(row['collision_share'])} | "
-        f"{_share(row['constraint_share'])} | {row['physics_ceiling']:.0f} |"
+        f"{_share(row['constraint_share'])} | {row['physics_ceiling']:.0f} | {row['other_ms_per_expansion']:.3f} |"
     )
     if args.out:
-        settings = {"steps": args.steps, "budget_s": args.budget, "seed": args.seed}
-        args.out.write_text(json.dumps({"machine": machine, "settings": settings, "rows": [row]}, indent=2) + "\n")
+        write_row(args.out, {**row, "machine": machine, "steps": args.steps, "budget_s": args.budget, "seed": args.seed})
         print(f"wrote {args.out}")
+
+
+def write_row(path: Path, row: dict[str, Any]) -> None:
+    """Put ``row`` into the results file at ``path``, in place of an earlier row of its stack.
+
+    Each stack runs in its own environment, so one file gathers the stacks' rows run by run.
+    """
+    rows = json.loads(path.read_text())["rows"] if path.exists() else []
+    rows = [kept for kept in rows if kept["stack"] != row["stack"]] + [row]
+    rows.sort(key=lambda kept: sorted(STACKS).index(kept["stack"]))
+    path.write_text(json.dumps({"rows": rows}, indent=2) + "\n")
 
 
 if __name__ == "__main__":
