@@ -144,7 +144,8 @@ def main() -> None:
         f"{_share(row['constraint_share'])} | {row['physics_ceiling']:.0f} | {row['other_ms_per_expansion']:.3f} |"
     )
     if args.out:
-        write_row(args.out, {**row, "machine": machine, "steps": args.steps, "budget_s": args.budget, "seed": args.seed})
+        settings = {"steps": args.steps, "budget_s": args.budget, "seed": args.seed}
+        write_row(args.out, {**row, "machine": machine, **settings})
         print(f"wrote {args.out}")
 
 
