@@ -6,11 +6,21 @@ import argparse
 import json
 from pathlib import Path
 
+import mujoco
 import pytest
 
 from bench_modules import load_benchmark
 
 pytest.importorskip("gymnasium")
+
+
+def _timers_record_durations() -> bool:
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, 50)
+    return data.timer[mujoco.mjtTimer.mjTIMER_STEP].duration > 0.0
 
 
 def test_the_account_of_a_live_call_adds_up(tmp_path: Path) -> None:
@@ -23,10 +33,14 @@ def test_the_account_of_a_live_call_adds_up(tmp_path: Path) -> None:
     assert row["timestep"] == pytest.approx(0.01)
     assert 1.0 <= row["steps_per_expansion"] <= 10.0
     assert row["us_per_step"] > 0.0
-    # Stepping is part of each call, and the stages MuJoCo times are part of each step.
+    # Stepping is part of each call, and the stages MuJoCo times are part of each step (where this
+    # MuJoCo records their durations; MuJoCo 3.3.0 counts them only).
     assert 0.0 < row["physics_share"] < 1.0
-    assert 0.0 < row["collision_share"] < 1.0 and 0.0 < row["constraint_share"] < 1.0
-    assert row["collision_share"] + row["constraint_share"] < 1.0
+    if _timers_record_durations():
+        assert 0.0 < row["collision_share"] < 1.0 and 0.0 < row["constraint_share"] < 1.0
+        assert row["collision_share"] + row["constraint_share"] < 1.0
+    else:
+        assert row["collision_share"] is None and row["constraint_share"] is None
     # Nothing costs less than its physics: the calls reached no more expansions than the ceiling.
     assert row["expansions_median"] <= row["physics_ceiling"]
     assert row["other_ms_per_expansion"] > 0.0
