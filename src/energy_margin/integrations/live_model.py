@@ -86,9 +86,8 @@ class HeldCommandTask(SceneTask):
 
     def __init__(self, *, loaded: LoadedScene) -> None:
         super().__init__(loaded=loaded)
-        # The held command depends on neither the time nor the state (no generalized forces, no
-        # servo targets): set once per propagation, it steps exactly as when set again every
-        # control period, and the propagation is one ``mj_step`` call instead of one per period.
+        # The held command depends on neither time nor state: set once per propagation, it steps
+        # exactly as when set every control period, in one ``mj_step`` call instead of one per period.
         self.control_period = None
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
