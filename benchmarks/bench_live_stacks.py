@@ -45,8 +45,10 @@ from bench_analysis import machine as describe_machine  # the machine line of th
 __all__: list[str] = []
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The variant whose held command is set again every control period of the scene (the behaviour before).
+EVERY_PERIOD = "pruned, command set every control period"
 VARIANTS: dict[str, dict[str, Any]] = {
-    "pruned, command set every control period": {"analysis_model": "pruned"},
+    EVERY_PERIOD: {"analysis_model": "pruned"},
     "full": {"analysis_model": "full"},
     "pruned": {"analysis_model": "pruned"},
     "full, batch 8, 2 threads": {"analysis_model": "full", "batch": 8, "threads": 2},
@@ -146,10 +148,8 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     }
     # The behaviour before the held command was set once per propagation: set again every control
     # period of the scene (the same tree states, tests/integrations/test_gymnasium.py).
-    for name in VARIANTS:
-        if name.endswith("every control period"):
-            task = wrappers[name].scorer.task
-            task.control_period = task.loaded.spec.motion.control_period
+    task = wrappers[EVERY_PERIOD].scorer.task
+    task.control_period = task.loaded.spec.motion.control_period
     observations = [wrapper.reset(seed=args.seed)[0] for wrapper in wrappers.values()]
     act = actor(next(iter(wrappers.values())).env)
     reached: dict[str, list[int]] = {name: [] for name in VARIANTS}
@@ -181,16 +181,33 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     return {"stack": args.stack, "rows": rows}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def stack_arguments(description: str, *, steps: int) -> argparse.Namespace:
+    """The command line of a live-stack benchmark: ``--stack``, ``--steps`` (default ``steps``), ``--budget``,
+    ``--seed``, ``--out``."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--stack", choices=sorted(STACKS), required=True)
-    parser.add_argument("--steps", type=int, default=60)
+    parser.add_argument("--steps", type=int, default=steps)
     parser.add_argument("--budget", type=float, default=0.05)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path)
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def machine_line() -> str:
+    """The machine line of the other benchmarks and the load average before the run; printed."""
     machine = f"{describe_machine()}; load average {os.getloadavg()[0]:.2f} before"
     print(f"machine: {machine}")
+    return machine
+
+
+def run_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The settings a results file records: steps, budget, seed."""
+    return {"steps": args.steps, "budget_s": args.budget, "seed": args.seed}
+
+
+def main() -> None:
+    args = stack_arguments(__doc__, steps=60)
+    machine = machine_line()
     with tempfile.TemporaryDirectory() as workdir:
         results = measure(args, Path(workdir))
     budget_ms = 1000 * args.budget
@@ -203,8 +220,8 @@ def main() -> None:
             f"{row['expansions_min']}–{row['expansions_max']} | {row['ms_median']:.1f} | {row['ms_max']:.1f} |"
         )
     if args.out:
-        settings = {"steps": args.steps, "budget_s": args.budget, "seed": args.seed}
-        args.out.write_text(json.dumps({"machine": machine, "settings": settings, **results}, indent=2) + "\n")
+        figures = {"machine": machine, "settings": run_settings(args), **results}
+        args.out.write_text(json.dumps(figures, indent=2) + "\n")
         print(f"wrote {args.out}")
 
 

@@ -7,9 +7,9 @@ Usage (in a virtual environment with the stack, on the MuJoCo version it needs):
 
 The stacks are those of ``bench_live_stacks.py`` (the same environments, policies and scene tables);
 one environment is scored at the live defaults (``AnalyzerConfig()``: the analysis model, one
-expansion at a time) after every step. Around each call it reads MuJoCo's timers (``MjData.timer``)
-of the scorer's own ``MjData``, where every propagation of the tree steps, and reports, over the
-``--steps`` calls:
+expansion at a time) after every step. Around each propagation of the tree it reads MuJoCo's timers
+(``MjData.timer``) of the scorer's own ``MjData``, where the propagation steps, and reports, over
+the ``--steps`` calls:
 
 * the expansions reached and the call's wall time (medians);
 * physics steps per expansion and microseconds per physics step (the timers' step count and time);
@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
 import tempfile
@@ -41,8 +40,7 @@ import mujoco
 from energy_margin.analysis.frame import AnalyzerConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
-from bench_live_stacks import STACKS  # the same environments, policies and scene tables
+from bench_live_stacks import STACKS, machine_line, run_settings, stack_arguments  # the same stacks and options
 
 __all__: list[str] = []
 
@@ -120,15 +118,8 @@ def _share(share: float | None) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--stack", choices=sorted(STACKS), required=True)
-    parser.add_argument("--steps", type=int, default=30)
-    parser.add_argument("--budget", type=float, default=0.05)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path)
-    args = parser.parse_args()
-    machine = f"{describe_machine()}; load average {os.getloadavg()[0]:.2f} before"
-    print(f"machine: {machine}")
+    args = stack_arguments(__doc__, steps=30)
+    machine = machine_line()
     with tempfile.TemporaryDirectory() as workdir:
         row = profile(args, Path(workdir))
     print(f"\n{args.stack} (MuJoCo {row['mujoco']}, time step {row['timestep']} s): ", end="")
@@ -144,8 +135,7 @@ def main() -> None:
         f"{_share(row['constraint_share'])} | {row['physics_ceiling']:.0f} | {row['other_ms_per_expansion']:.3f} |"
     )
     if args.out:
-        settings = {"steps": args.steps, "budget_s": args.budget, "seed": args.seed}
-        write_row(args.out, {**row, "machine": machine, **settings})
+        write_row(args.out, {**row, "machine": machine, **run_settings(args)})
         print(f"wrote {args.out}")
 
 
