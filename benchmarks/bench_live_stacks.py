@@ -13,10 +13,12 @@ Usage (in a virtual environment with the stack, on the MuJoCo version it needs):
 One environment per variant, all made with the same seed and stepped in lockstep with the same
 actions, so every variant scores the same states; the variants score one after the other at every
 step (``--steps`` scored steps, each with a ``--budget`` second wall-clock budget). Variants:
-``pruned, command set every control period`` (the analysis model with the robot's held command set
-again every control period of the scene, as live calls did before they set it once per propagation),
-``full`` (``analysis_model="full"``, one expansion at a time), ``pruned`` (the analysis model, the
-live default), and both with ``batch=8, threads=2`` (expansions propagated eight at a time through
+``pruned, tree costed at every check`` (the analysis model, with the tree's new nodes costed at
+every deadline check, as when the deadline was a stopping rule that is handed the cost field),
+``pruned, command set every control period`` (that, and the robot's held command set again every
+control period of the scene, as live calls did before they set it once per propagation), ``full``
+(``analysis_model="full"``, one expansion at a time), ``pruned`` (the analysis model, the live
+default), and both with ``batch=8, threads=2`` (expansions propagated eight at a time through
 ``mujoco.rollout`` on two threads; the deadline is checked between rounds).
 It prints, per variant, the expansions reached (median, mean, range) and the call's wall time
 (median, maximum).
@@ -25,19 +27,21 @@ It prints, per variant, the expansions reached (median, mean, range) and the cal
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import json
 import os
 import statistics
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
+from energy_margin.planning.tree import _Growth
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
@@ -45,10 +49,14 @@ from bench_analysis import machine as describe_machine  # the machine line of th
 __all__: list[str] = []
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The variant whose held command is set again every control period of the scene (the behaviour before).
+#: The variant whose held command is set again every control period of the scene, and whose tree is
+#: costed at every deadline check (the behaviour before both changes).
 EVERY_PERIOD = "pruned, command set every control period"
+#: The variants whose tree's new nodes are costed at every deadline check (the behaviour before).
+COSTED = "pruned, tree costed at every check"
 VARIANTS: dict[str, dict[str, Any]] = {
     EVERY_PERIOD: {"analysis_model": "pruned"},
+    COSTED: {"analysis_model": "pruned"},
     "full": {"analysis_model": "full"},
     "pruned": {"analysis_model": "pruned"},
     "full, batch 8, 2 threads": {"analysis_model": "full", "batch": 8, "threads": 2},
@@ -150,6 +158,7 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
     # period of the scene (the same tree states, tests/integrations/test_gymnasium.py).
     task = wrappers[EVERY_PERIOD].scorer.task
     task.control_period = task.loaded.spec.motion.control_period
+    costed = {EVERY_PERIOD, COSTED}
     observations = [wrapper.reset(seed=args.seed)[0] for wrapper in wrappers.values()]
     act = actor(next(iter(wrappers.values())).env)
     reached: dict[str, list[int]] = {name: [] for name in VARIANTS}
@@ -158,7 +167,8 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         action = act(observations[0])
         observations = []
         for name, wrapper in wrappers.items():
-            observation, _, terminated, truncated, info = wrapper.step(action)
+            with costing_at_every_check(name in costed):
+                observation, _, terminated, truncated, info = wrapper.step(action)
             observations.append(observation)
             reached[name].append(int(info["energy_margin"]["expansions"]))
             seconds[name].append(float(info["energy_margin"]["ms"]) / 1000.0)
@@ -179,6 +189,30 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
             }
         )
     return {"stack": args.stack, "rows": rows}
+
+
+@contextlib.contextmanager
+def costing_at_every_check(on: bool) -> Iterator[None]:
+    """With ``on``, growth costs the tree's new nodes at every deadline check (reads the cost field).
+
+    As when the deadline was a stopping rule handed the cost field after every expansion; the tree
+    and its scores are the same either way (``tests/analysis/test_live.py``).
+    """
+    if not on:
+        yield
+        return
+    offer = _Growth.offer
+
+    def costing_offer(growth: _Growth, round_: Any, outcomes: Any) -> None:
+        offer(growth, round_, outcomes)
+        if growth.deadline is not None:
+            growth.tree.view(growth.expansions)
+
+    _Growth.offer = costing_offer  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        _Growth.offer = offer  # type: ignore[method-assign]
 
 
 def stack_arguments(description: str, *, steps: int) -> argparse.Namespace:

@@ -5,10 +5,11 @@ import time
 import numpy as np
 import pytest
 
-from energy_margin.analysis import frame, live
+from energy_margin.analysis import frame
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.analysis.live import score_state
 from energy_margin.errors import InvalidParameterError
+from energy_margin.planning import tree
 from energy_margin.tasks import get_task
 
 
@@ -30,12 +31,12 @@ def test_wall_clock_budget_is_respected(pushing_state, monkeypatch: pytest.Monke
     options = {"friction": trajectory.friction, "drive": trajectory.drive, "simulator": simulator}
     checks: list[float] = []
     reached: list[bool] = []
+    offer = tree._Growth.offer
 
-    class TimedDeadline(live.Deadline):
-        def __call__(self, field) -> bool:
-            reached.append(super().__call__(field))
-            checks.append(time.perf_counter())
-            return reached[-1]
+    def timed_offer(growth, round_, outcomes) -> None:  # the deadline is checked at the end of an offer
+        offer(growth, round_, outcomes)
+        checks.append(time.perf_counter())
+        reached.append(growth.stopped)
 
     scoring: list[float] = []
     score_field = frame.score_field
@@ -46,7 +47,7 @@ def test_wall_clock_budget_is_respected(pushing_state, monkeypatch: pytest.Monke
         scoring.append(time.perf_counter() - started)
         return scores
 
-    monkeypatch.setattr(live, "Deadline", TimedDeadline)
+    monkeypatch.setattr(tree._Growth, "offer", timed_offer)
     monkeypatch.setattr(frame, "score_field", timed_score_field)
     budget = 0.03
     result = score_state(task, trajectory.initial, budget_s=budget, seed=1, **options)
@@ -112,3 +113,26 @@ def test_analyze_frame_stop_rule_beside_convergence(pushing_state) -> None:
         task, trajectory.initial, config=config, stop=lambda field: field.expansions >= 4, check_every=2, **common
     )
     assert scores.expansions == 4
+
+
+def test_a_deadline_grows_the_tree_a_field_rule_grows(pushing_state) -> None:
+    # A deadline is checked without costing the tree; the tree and its costs are those of a
+    # stopping rule that reads the field after every expansion, to the last bit.
+    task, trajectory, simulator = pushing_state
+    common = {"friction": trajectory.friction, "drive": trajectory.drive, "seed": 4, "simulator": simulator}
+    config = AnalyzerConfig(expansions=60)
+    viewed: list[int] = []
+
+    def never(field) -> bool:
+        viewed.append(field.costs.size)
+        return False
+
+    _, by_rule = analyze_frame(task, trajectory.initial, config=config, stop=never, check_every=1, **common)
+    far = time.perf_counter() + 3600.0
+    _, by_deadline = analyze_frame(task, trajectory.initial, config=config, deadline=far, **common)
+    assert len(viewed) == 60 and by_rule.expansions == by_deadline.expansions == 60
+    for name in ("costs", "object_pos", "object_vel", "parents", "times", "states"):
+        np.testing.assert_array_equal(getattr(by_rule, name), getattr(by_deadline, name), err_msg=name)
+    # A deadline already passed still lets the first round run, then ends growth.
+    _, passed = analyze_frame(task, trajectory.initial, config=config, deadline=time.perf_counter() - 1.0, **common)
+    assert passed.expansions == 1

@@ -9,6 +9,7 @@ workers, on the order in which frames finish, or on which frames grow together.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -65,6 +66,7 @@ def analyze_frame(
     simulator: Simulator | None = None,
     stop: Callable[[CostField], bool] | None = None,
     check_every: int | None = None,
+    deadline: float | None = None,
 ) -> tuple[FrameScores, CostField]:
     """Grow a tree (``config.method``, EST by default) from ``frame`` and score it.
 
@@ -83,6 +85,8 @@ def analyze_frame(
             convergence rule of ``config.converge`` says so (the budget stays the upper bound).
         check_every: expansions between two calls of ``stop``, >= 1 (``config.converge_every``
             when ``None``); the convergence rule keeps its own period.
+        deadline: a ``time.perf_counter()`` reading, s: growth ends at the first round that ends
+            after it (a wall-clock budget; :attr:`TreeBudget.deadline`), or ``None``.
 
     Returns:
         The scores and the energy-cost field.
@@ -101,7 +105,7 @@ def analyze_frame(
         frame,
         np.asarray(drive, dtype=float),
         np.random.default_rng(seed),
-        budget=config.budget,
+        budget=config.budget if deadline is None else dataclasses.replace(config.budget, deadline=deadline),
         cost_model=make_cost_model(config.cost),
         features=make_features(config.projection, simulator.scene),
         n_projections=config.n_projections,

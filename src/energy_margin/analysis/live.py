@@ -28,14 +28,12 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.errors import check_positive_float, check_positive_int
-from energy_margin.planning import CostField
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
 from energy_margin.world.state import FrameState
 
 __all__ = [
     "MAX_EXPANSIONS",
-    "Deadline",
     "LiveScore",
     "score_state",
 ]
@@ -70,20 +68,6 @@ class LiveScore:
     stopped_by: str
     rejected: int = -1
     diverged: int = -1
-
-
-class Deadline:
-    """Early-stopping rule of a wall-clock budget: stop once ``time.perf_counter()`` passes ``at``."""
-
-    def __init__(self, at: float) -> None:
-        self.at = at
-        self.reached = False
-
-    def __call__(self, field: CostField) -> bool:
-        """Whether the deadline has passed (the field is not looked at)."""
-        del field
-        self.reached = time.perf_counter() >= self.at
-        return self.reached
 
 
 def score_state(
@@ -132,7 +116,7 @@ def score_state(
     check_positive_int("max_expansions", max_expansions)
     base = config if config is not None else AnalyzerConfig()
     settings = dataclasses.replace(base, expansions=int(max_expansions), nodes=None, engine=engine)
-    deadline = Deadline(started + budget_s) if budget_s is not None else None
+    deadline = started + budget_s if budget_s is not None else None
     scores, _ = analyze_frame(
         task,
         state,
@@ -142,8 +126,7 @@ def score_state(
         config=settings,
         start_time=start_time,
         simulator=simulator,
-        stop=deadline,
-        check_every=1,
+        deadline=deadline,
     )
     return LiveScore(
         capture=scores.capture_score,
@@ -151,7 +134,7 @@ def score_state(
         expansions=scores.expansions,
         nodes=scores.nodes,
         seconds=time.perf_counter() - started,
-        stopped_by="budget" if deadline is not None and deadline.reached else "max_expansions",
+        stopped_by="budget" if deadline is not None and scores.expansions < max_expansions else "max_expansions",
         rejected=scores.rejected,
         diverged=scores.diverged,
     )

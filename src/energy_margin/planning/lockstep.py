@@ -98,7 +98,7 @@ def grow_together(
         bounds = _Bounds.of(simulators[j], task, cost_model, wrench_scale, duration_scale)
         growth = _Growth.plant(simulators[j], task, roots[j], drives[j], rngs[j], make_expansions[j], budget,
                                cost_model, features, propagator, bounds)  # fmt: skip
-        growth.start(budget.expansion_limit, stops[j] if stops is not None else None, check_every)
+        growth.start(budget, stops[j] if stops is not None else None, check_every)
         growths.append(growth)
     models = _row_models(simulators, lead, propagator)
     physics = np.zeros(n)

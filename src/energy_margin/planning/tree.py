@@ -61,12 +61,15 @@ class TreeBudget:
         expansions: number of expansions (accepted or rejected), or ``None``.
         nodes: number of accepted children of the root, or ``None``.
         max_expansions: hard cap on expansions when only ``nodes`` is given.
+        deadline: a ``time.perf_counter()`` reading, s: growth ends at the first round that ends
+            after it (checked after every round, without costing the tree), or ``None``.
 
     """
 
     expansions: int | None = constrained(300, Constraint("int", minimum=0, optional=True))
     nodes: int | None = constrained(None, Constraint("int", minimum=0, optional=True))
     max_expansions: int = constrained(100_000, Constraint("int", minimum=0))
+    deadline: float | None = constrained(None, Constraint("float", optional=True))
 
     def __post_init__(self) -> None:
         if self.expansions is None and self.nodes is None:
@@ -220,7 +223,7 @@ def grow(
     propagator = _batch_propagator(simulator, cost_model, batch, threads)
     growth = _Growth.plant(simulator, task, root, drive, rng, make_expansion, budget, cost_model, features,
                            propagator, bounds)  # fmt: skip
-    expansions, physics_s = growth.run(budget.expansion_limit, batch, start_time, stop, check_every)
+    expansions, physics_s = growth.run(budget, batch, start_time, stop, check_every)
     return growth.tree.field(expansions, physics_s, started)
 
 
@@ -316,6 +319,7 @@ class _Growth:
     bounds: _Bounds
 
     limit: int = 0
+    deadline: float | None = None
     stop: Callable[[CostField], bool] | None = None
     check_every: int = 1
     expansions: int = 0
@@ -349,11 +353,16 @@ class _Growth:
         return cls(simulator, task, drive, tree, expansion, controls, features, root_pos, propagator, bounds)
 
     def run(
-        self, limit: int, batch: int, start_time: float, stop: Callable[[CostField], bool] | None, check_every: int
+        self,
+        budget: TreeBudget,
+        batch: int,
+        start_time: float,
+        stop: Callable[[CostField], bool] | None,
+        check_every: int,
     ) -> tuple[int, float]:
         """Expand until the budget, the capacity or ``stop`` ends growth: (expansions, physics wall time in s)."""
         physics_s = 0.0
-        self.start(limit, stop, check_every)
+        self.start(budget, stop, check_every)
         while (round_ := self.next_round(batch)) is not None:
             tick = time.perf_counter()
             outcomes = self._propagate(round_, start_time)
@@ -361,9 +370,10 @@ class _Growth:
             self.offer(round_, outcomes)
         return self.expansions, physics_s
 
-    def start(self, limit: int, stop: Callable[[CostField], bool] | None, check_every: int) -> None:
+    def start(self, budget: TreeBudget, stop: Callable[[CostField], bool] | None, check_every: int) -> None:
         """Set the budget and the stopping rule before the first :meth:`next_round`."""
-        self.limit, self.stop, self.check_every = limit, stop, check_every
+        self.limit, self.deadline = budget.expansion_limit, budget.deadline
+        self.stop, self.check_every = stop, check_every
         self.expansions, self.next_check, self.stopped = 0, check_every, False
 
     def next_round(self, batch: int) -> list[_Expansion] | None:
@@ -386,6 +396,8 @@ class _Growth:
         if self.stop is not None and self.expansions >= self.next_check:
             self.next_check += self.check_every
             self.stopped = bool(self.stop(self.tree.view(self.expansions)))
+        if self.deadline is not None and not self.stopped:
+            self.stopped = time.perf_counter() >= self.deadline
 
     def _propagate(self, round_: list[_Expansion], start_time: float) -> list[Outcome]:
         """The outcomes of a round, one at a time or batched."""

@@ -1,0 +1,35 @@
+"""benchmarks/bench_live_stacks.py: its variant as before, whose tree is costed at every deadline check."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench_modules import load_benchmark
+from energy_margin.analysis.live import score_state
+from energy_margin.planning.nodes import _Tree
+from energy_margin.tasks import get_task
+
+
+def test_costing_at_every_check_reads_the_field_and_keeps_the_scores(monkeypatch: pytest.MonkeyPatch) -> None:
+    bench = load_benchmark("bench_live_stacks")
+    task = get_task("pushing")
+    trajectory = task.sample_trajectory(np.random.default_rng(2), 3)
+    views: list[int] = []
+    view = _Tree.view
+
+    def counted_view(nodes, expansions):
+        views.append(expansions)
+        return view(nodes, expansions)
+
+    monkeypatch.setattr(_Tree, "view", counted_view)
+    options = {"friction": trajectory.friction, "drive": trajectory.drive, "budget_s": 60.0, "max_expansions": 15}
+    now = score_state(task, trajectory.initial, seed=3, **options)
+    assert views == []
+    with bench.costing_at_every_check(True):
+        before = score_state(task, trajectory.initial, seed=3, **options)
+    assert views == list(range(1, 16))
+    with bench.costing_at_every_check(False):
+        score_state(task, trajectory.initial, seed=3, **options)
+    assert len(views) == 15  # off: no field read, and the patch is undone on leaving
+    assert (now.capture, now.success, now.nodes) == (before.capture, before.success, before.nodes)
