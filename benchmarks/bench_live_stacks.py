@@ -12,14 +12,18 @@ Usage (in a virtual environment with the stack, on the MuJoCo version it needs):
 
 One environment per variant, all made with the same seed and stepped in lockstep with the same
 actions, so every variant scores the same states; the variants score one after the other at every
-step (``--steps`` scored steps, each with a ``--budget`` second wall-clock budget). Variants:
-``pruned, tree costed at every check`` (the analysis model, with the tree's new nodes costed at
-every deadline check, as when the deadline was a stopping rule that is handed the cost field),
-``pruned, command set every control period`` (that, and the robot's held command set again every
-control period of the scene, as live calls did before they set it once per propagation), ``full``
-(``analysis_model="full"``, one expansion at a time), ``pruned`` (the analysis model, the live
-default), and both with ``batch=8, threads=2`` (expansions propagated eight at a time through
-``mujoco.rollout`` on two threads; the deadline is checked between rounds).
+step (``--steps`` scored steps, each with a ``--budget`` second wall-clock budget). Variants, the
+first three the live default as it was before each of three changes (each undoes its change and the
+later ones; all grow the same trees and give the same scores):
+``pruned, before: command every period`` (the robot's held command set again every control period
+of the scene, as before it was set once per propagation), ``pruned, before: tree costed at every
+check`` (the tree's new nodes costed at every deadline check, as when the deadline was a stopping
+rule handed the cost field), ``pruned, before: regions placed with the objects`` (a region that
+follows the robot built at each state with the objects written into the kinematics, though no
+object moves what it is attached to); then ``full`` (``analysis_model="full"``, one expansion at a
+time), ``pruned`` (the analysis model, the live default), and both with ``batch=8, threads=2``
+(expansions propagated eight at a time through ``mujoco.rollout`` on two threads; the deadline is
+checked between rounds).
 It prints, per variant, the expansions reached (median, mean, range) and the call's wall time
 (median, maximum).
 """
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import importlib.util
 import json
 import os
@@ -49,14 +54,19 @@ from bench_analysis import machine as describe_machine  # the machine line of th
 __all__: list[str] = []
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The variant whose held command is set again every control period of the scene, and whose tree is
-#: costed at every deadline check (the behaviour before both changes).
-EVERY_PERIOD = "pruned, command set every control period"
-#: The variants whose tree's new nodes are costed at every deadline check (the behaviour before).
-COSTED = "pruned, tree costed at every check"
+#: The live default before each change, oldest first: each variant undoes its change and the later ones.
+EVERY_PERIOD = "pruned, before: command every period"
+COSTED = "pruned, before: tree costed at every check"
+PLACED = "pruned, before: regions placed with the objects"
+BEFORE: dict[str, set[str]] = {
+    EVERY_PERIOD: {"every period", "costed", "placed"},
+    COSTED: {"costed", "placed"},
+    PLACED: {"placed"},
+}
 VARIANTS: dict[str, dict[str, Any]] = {
     EVERY_PERIOD: {"analysis_model": "pruned"},
     COSTED: {"analysis_model": "pruned"},
+    PLACED: {"analysis_model": "pruned"},
     "full": {"analysis_model": "full"},
     "pruned": {"analysis_model": "pruned"},
     "full, batch 8, 2 threads": {"analysis_model": "full", "batch": 8, "threads": 2},
@@ -154,11 +164,14 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         )
         for name, settings in VARIANTS.items()
     }
-    # The behaviour before the held command was set once per propagation: set again every control
-    # period of the scene (the same tree states, tests/integrations/test_gymnasium.py).
-    task = wrappers[EVERY_PERIOD].scorer.task
-    task.control_period = task.loaded.spec.motion.control_period
-    costed = {EVERY_PERIOD, COSTED}
+    for name, undone in BEFORE.items():
+        task = wrappers[name].scorer.task
+        if "every period" in undone:  # the held command set again every control period of the scene
+            task.control_period = task.loaded.spec.motion.control_period
+        if "placed" in undone:  # every region built with the objects written into the kinematics
+            follow = {key: dataclasses.replace(one, placed_by_objects=True) for key, one in task.loaded.follow.items()}
+            task.loaded = dataclasses.replace(task.loaded, follow=follow)
+    costed = {name for name, undone in BEFORE.items() if "costed" in undone}
     observations = [wrapper.reset(seed=args.seed)[0] for wrapper in wrappers.values()]
     act = actor(next(iter(wrappers.values())).env)
     reached: dict[str, list[int]] = {name: [] for name in VARIANTS}

@@ -1,6 +1,8 @@
-"""benchmarks/bench_live_stacks.py: its variant as before, whose tree is costed at every deadline check."""
+"""benchmarks/bench_live_stacks.py: its variants, as before and now, on the Pusher."""
 
 from __future__ import annotations
+
+import argparse
 
 import numpy as np
 import pytest
@@ -33,3 +35,12 @@ def test_costing_at_every_check_reads_the_field_and_keeps_the_scores(monkeypatch
         score_state(task, trajectory.initial, seed=3, **options)
     assert len(views) == 15  # off: no field read, and the patch is undone on leaving
     assert (now.capture, now.success, now.nodes) == (before.capture, before.success, before.nodes)
+
+
+def test_every_variant_scores_the_pusher(tmp_path) -> None:
+    pytest.importorskip("gymnasium")
+    bench = load_benchmark("bench_live_stacks")
+    args = argparse.Namespace(stack="pusher", steps=2, budget=0.01, seed=0)
+    rows = bench.measure(args, tmp_path)["rows"]
+    assert [row["variant"] for row in rows] == list(bench.VARIANTS)
+    assert all(row["expansions_min"] >= 1 and row["ms_median"] > 0.0 for row in rows)

@@ -13,6 +13,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.propagate import _propagate_one, _propagate_round
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import get_task
+from energy_margin.tasks.regions import build_region
 from energy_margin.tasks.scene_file import read_scene_file
 from energy_margin.tasks.scene_model import load_scene
 from energy_margin.tasks.scene_sections import region_names
@@ -180,7 +181,9 @@ def test_welds_to_mocap_bodies_and_tendons_move_bodies_with_the_robot(element: s
 
     model = mujoco.MjModel.from_xml_string(WELDED_MODEL)
     robot = [joint for joint in range(model.njnt)]
-    follow = region_follow("capture", {"type": "distance", **_table(element), "max": 0.1}, None, model, robot)
+    follow = region_follow(
+        "capture", {"type": "distance", **_table(element), "max": 0.1}, None, model, robot, object_joints=()
+    )
     assert follow.follows and follow.moving[0].mover == mover
 
 
@@ -385,3 +388,39 @@ def test_examples_writing_their_scene_from_python_keep_both_sets_at_the_analysed
         text = path.read_text().replace("\\n", "\n")
         for name in ("capture", "success"):
             assert text.count(f"[{name}]\nfollow = false\n") == text.count(f"[{name}]\n") == 1, (path, name)
+
+
+@pytest.mark.parametrize(
+    ("region", "placed"),
+    [
+        ('{ type = "distance", site = "tip", max = 0.1 }', False),  # on the arm
+        ('{ type = "distance", site = "shelf_top", max = 0.1 }', False),  # on the world
+        ('{ type = "height", body = "lid", min = 0.0, max = 0.1 }', True),  # on box_a's free joint
+        (
+            '{ type = "all", of = [{ type = "distance", site = "tip", max = 0.3 }, '
+            '{ type = "distance", body = "box_b", max = 0.3 }] }',
+            True,
+        ),
+    ],
+)
+def test_a_region_is_built_without_the_objects_only_where_no_object_places_it(
+    tmp_path: Path, region: str, placed: bool
+) -> None:
+    task = get_task("scene", {"scene_file": str(_arm(tmp_path, success=f"region = {region}\n"))})
+    assert task.loaded.follow["success"].placed_by_objects is placed
+    rng = np.random.default_rng(0)
+    positions = rng.uniform(-0.4, 0.4, size=(64, 2, 3))
+    # Objects moved away from the model's start, and the arm turned: the region is where the frame puts it.
+    frame = FrameState(
+        object_pos=np.array([[0.2, 0.1, 0.15], [-0.1, 0.2, 0.05]]),
+        object_quat=np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
+        object_vel=np.zeros((2, 6)),
+        robot_q=np.array([0.7, -0.4, 0.05]),  # shoulder, elbow, the marker's slide
+        robot_v=np.zeros(3),
+    )
+    region = task.success_region_at(frame)
+    with_objects = build_region(task.loaded.spec.success, task.frame_lookup(frame, objects=True))
+    np.testing.assert_array_equal(region.contains(positions), with_objects.contains(positions))
+    without = build_region(task.loaded.spec.success, task.frame_lookup(frame, objects=False))
+    # Left out where they place the region, the objects would move it: the check can fail.
+    assert np.array_equal(without.contains(positions), region.contains(positions)) is not placed

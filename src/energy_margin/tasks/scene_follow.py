@@ -12,7 +12,7 @@ moving region at the analysed frame).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -59,6 +59,9 @@ class RegionFollow:
         follows: the region is built at every tree state's own robot configuration.
         stated: the file writes ``NAME.follow`` (else ``follows`` is the default of its anchors).
         anchors: the elements the region is attached to.
+        placed_by_objects: an object's joint lies between an anchor and the world (else the
+            anchors' poses are the same whatever the objects' coordinates, and the region is built
+            without them).
 
     """
 
@@ -66,6 +69,7 @@ class RegionFollow:
     follows: bool
     stated: bool
     anchors: tuple[Anchor, ...]
+    placed_by_objects: bool = True
 
     @property
     def moving(self) -> tuple[Anchor, ...]:
@@ -165,12 +169,18 @@ def _driven_joints(model: mujoco.MjModel, robot_joints: Sequence[int], welded: M
 
 
 def region_follow(
-    name: str, table: Mapping[str, Any], stated: bool | None, model: mujoco.MjModel, robot_joints: Sequence[int]
+    name: str,
+    table: Mapping[str, Any],
+    stated: bool | None,
+    model: mujoco.MjModel,
+    robot_joints: Sequence[int],
+    *,
+    object_joints: Collection[int],
 ) -> RegionFollow:
     """Whether the region ``table`` of set ``name`` follows the robot (``stated``: the file's ``follow``).
 
     Left out (``stated`` is ``None``), it follows when one of the elements it names is moved by the
-    robot (:func:`robot_mover`).
+    robot (:func:`robot_mover`). ``object_joints``: every joint of the objects.
     """
     anchors = []
     for kind, element, key in region_names(table, f"{name}.region"):
@@ -181,7 +191,22 @@ def region_follow(
         static = mover is None and _static(model, body)
         anchors.append(Anchor(kind, element, key, _name(model, mujoco.mjtObj.mjOBJ_BODY, body), mover, static))
     follows = stated if stated is not None else any(anchor.mover is not None for anchor in anchors)
-    return RegionFollow(name=name, follows=bool(follows), stated=stated is not None, anchors=tuple(anchors))
+    placed = any(_below_joints(model, anchor.body, object_joints) for anchor in anchors)
+    return RegionFollow(name, bool(follows), stated is not None, tuple(anchors), placed_by_objects=placed)
+
+
+def _below_joints(model: mujoco.MjModel, body_name: str, joints: Collection[int]) -> bool:
+    """Whether one of ``joints`` lies on the way from body ``body_name`` to the world.
+
+    A body's pose depends on the joints up its kinematic tree only.
+    """
+    body = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body_name))
+    while body > 0:
+        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+        if any(joint in joints for joint in range(first, first + count)):
+            return True
+        body = int(model.body_parentid[body])
+    return False
 
 
 def node_frames(

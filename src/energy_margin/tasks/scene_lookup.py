@@ -60,30 +60,30 @@ def lookup_frame(
     data: mujoco.MjData,
     frame: FrameState | None,
     command_at: Callable[[np.ndarray, float], ModelCommand | None],
+    *,
+    objects: bool = True,
 ) -> SceneFrameLookup:
     """Poses of bodies, sites and geoms at ``frame``, computed in ``data`` (overwritten).
 
     Args:
         loaded: the scene.
         model_index: the scene's :class:`~energy_margin.sim.mujoco_index.ModelIndex`.
-        data: kinematics data of the scene's model, reset here.
+        data: kinematics data of the scene's model, overwritten here.
         frame: the frame; ``None`` for the model's start configuration.
         command_at: the task's model command at a drive and a time (s): without a frame, it
             places the mocap bodies where it puts them at time 0.
+        objects: write the frame's objects; ``False`` leaves them at the model's start, for
+            elements whose poses no object's coordinates move (:attr:`RegionFollow.placed_by_objects`).
 
     """
     model = loaded.model
-    mujoco.mj_resetData(model, data)
+    if frame is None:
+        mujoco.mj_resetData(model, data)
+    # Kinematics reads the joint positions and the mocap poses only, and a frame writes them all.
     data.qpos[:] = loaded.initial_qpos
     if frame is not None:
-        index = model_index
-        if index.upright:
-            zeros = np.zeros((loaded.n_objects, 3))
-            yaw = yaw_from_quat(np.asarray(frame.object_quat, dtype=float))
-            index.write_objects(data.qpos, data.qvel, frame.object_pos, zeros, yaw, zeros[:, 0])
-        else:
-            data.qpos[index.pos_index] = frame.object_pos
-            data.qpos[index.quat_index] = frame.object_quat
+        if objects:
+            _write_objects(loaded, model_index, data, frame)
         joints = len(loaded.robot_joints)
         data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
         nmocap = int(model.nmocap)
@@ -97,3 +97,14 @@ def lookup_frame(
             data.mocap_quat[:] = command.mocap_quat
     mujoco.mj_kinematics(model, data)
     return SceneFrameLookup(loaded, data, loaded.object_geoms)
+
+
+def _write_objects(loaded: LoadedScene, index: ModelIndex, data: mujoco.MjData, frame: FrameState) -> None:
+    """The frame's object positions and orientations into ``data.qpos``."""
+    if index.upright:
+        zeros = np.zeros((loaded.n_objects, 3))
+        yaw = yaw_from_quat(np.asarray(frame.object_quat, dtype=float))
+        index.write_objects(data.qpos, data.qvel, frame.object_pos, zeros, yaw, zeros[:, 0])
+    else:
+        data.qpos[index.pos_index] = frame.object_pos
+        data.qpos[index.quat_index] = frame.object_quat

@@ -251,7 +251,14 @@ def resolve_scene(
     _check_region_names(spec, model)
     # A follow the file leaves out is resolved here: true where the region rides on a body the robot moves.
     follow = {
-        name: region_follow(name, table, None if f"{name}.follow" in spec.defaulted else stated, model, robot)
+        name: region_follow(
+            name,
+            table,
+            None if f"{name}.follow" in spec.defaulted else stated,
+            model,
+            robot,
+            object_joints=object_joint_ids,
+        )
         for name, table, stated in (
             ("capture", spec.capture, spec.capture_follows),
             ("success", spec.success, spec.success_follows),

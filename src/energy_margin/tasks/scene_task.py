@@ -319,23 +319,27 @@ class SceneTask(Task):
 
     # -- regions ---------------------------------------------------------------------------
 
-    def frame_lookup(self, frame: FrameState | None) -> SceneFrameLookup:
+    def frame_lookup(self, frame: FrameState | None, *, objects: bool = True) -> SceneFrameLookup:
         """Poses of bodies, sites and geoms at ``frame`` (the model's start configuration for ``None``).
 
         The lookup holds the scene's kinematics data, which the next call overwrites: regions copy
-        what they keep when they are built.
+        what they keep when they are built. ``objects=False`` leaves the frame's objects out, for
+        elements whose poses they do not move.
         """
-        return lookup_frame(self.loaded, self._index, self._kinematics, frame, self.model_command)
+        return lookup_frame(self.loaded, self._index, self._kinematics, frame, self.model_command, objects=objects)
 
-    def _set(self, table: dict[str, Any], at_least: int | None, frame: FrameState | None) -> Region:
-        region = build_region(table, self.frame_lookup(frame))
+    def _set(self, name: str, frame: FrameState | None) -> Region:
+        spec = self.loaded.spec
+        table, at_least = (
+            (spec.capture, spec.capture_at_least) if name == "capture" else (spec.success, spec.success_at_least)
+        )
+        region = build_region(table, self.frame_lookup(frame, objects=self.loaded.follow[name].placed_by_objects))
         result: Region = AtLeast(at_least, region) if at_least is not None else region
         return result
 
     def capture_region(self, root: FrameState) -> Region:
         """The capture set with body and site frames taken at ``root``."""
-        spec = self.loaded.spec
-        return self._set(spec.capture, spec.capture_at_least, root)
+        return self._set("capture", root)
 
     def capture_inside(
         self,
@@ -398,14 +402,12 @@ class SceneTask(Task):
     def success_region(self) -> Region:
         """The success set with body and site frames at the model's start configuration."""
         if self._success is None:
-            spec = self.loaded.spec
-            self._success = self._set(spec.success, spec.success_at_least, None)
+            self._success = self._set("success", None)
         return self._success
 
     def success_region_at(self, root: FrameState) -> Region:
         """The success set with body and site frames taken at ``root``."""
-        spec = self.loaded.spec
-        return self._set(spec.success, spec.success_at_least, root)
+        return self._set("success", root)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
         """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias.
