@@ -215,8 +215,10 @@ class ModelIndex:
             if self.axis_mask is not None:
                 yaw = np.where(self.axis_mask[:, 3], yaw, 0.0)
             half_yaw = 0.5 * yaw
-            zeros = np.zeros_like(half_yaw)
-            return np.stack([np.cos(half_yaw), zeros, zeros, np.sin(half_yaw)], axis=-1)
+            quat = np.zeros((*half_yaw.shape, 4))
+            quat[..., 0] = np.cos(half_yaw)
+            quat[..., 3] = np.sin(half_yaw)
+            return quat
         return qpos[..., self.quat_index]
 
     def objects_of(self, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
