@@ -124,6 +124,8 @@ def main() -> None:
                 "physics_s": mean_physics,
                 "overhead_s": overhead,
                 "overhead_per_physics": overhead / mean_physics,
+                "physics_share": mean_physics / mean_runtime,
+                "overhead_share": overhead / mean_runtime,
                 "nodes": statistics.fmean(nodes),
             }
         )
