@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/bench_integrations.py [--steps 10000] [--calls 200] [--repeats 7] [--seed 0]
+        [--out docs/figures/integrations_cost.json]
 
 Everything runs in this one process, one after another:
 
@@ -21,7 +22,10 @@ Everything runs in this one process, one after another:
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,6 +34,9 @@ from typing import Any
 import numpy as np
 
 from energy_margin.errors import EnergyMarginError
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine  # the machine line of the other benchmarks
 
 CAPTURE = {"type": "distance", "body": "tips_arm", "max": 0.1}
 SUCCESS = {"type": "distance", "body": "goal", "max": 0.1}
@@ -71,14 +78,30 @@ def latencies(env: Any, calls: int, seed: int) -> list[dict[str, Any]]:
     return found
 
 
-def describe(name: str, margins: list[dict[str, Any]], budget_ms: float | None) -> str:
+def summary(name: str, margins: list[dict[str, Any]], budget_ms: float | None) -> dict[str, Any]:
+    """Latency and expansions of ``margins`` (``within_*``: shares of calls within the budget, ``None`` without one)."""
     ms = np.array([m["ms"] for m in margins])
     expansions = np.array([m["expansions"] for m in margins])
-    within = "-" if budget_ms is None else f"{np.mean(ms <= budget_ms):.3f}"
-    kept = "-" if budget_ms is None else f"{np.mean(ms <= 1.1 * budget_ms):.3f}"
+    return {
+        "scorer": name,
+        "calls": len(ms),
+        "mean_ms": float(ms.mean()),
+        "median_ms": float(np.median(ms)),
+        "p95_ms": float(np.percentile(ms, 95)),
+        "max_ms": float(np.max(ms)),
+        "within_budget": None if budget_ms is None else float(np.mean(ms <= budget_ms)),
+        "within_1_1_budget": None if budget_ms is None else float(np.mean(ms <= 1.1 * budget_ms)),
+        "expansions_mean": float(expansions.mean()),
+    }
+
+
+def describe(row: dict[str, Any]) -> str:
+    """A printed table row of :func:`summary`."""
+    within = "-" if row["within_budget"] is None else f"{row['within_budget']:.3f}"
+    kept = "-" if row["within_1_1_budget"] is None else f"{row['within_1_1_budget']:.3f}"
     return (
-        f"| {name} | {len(ms)} | {ms.mean():.2f} | {np.median(ms):.2f} | {np.percentile(ms, 95):.2f} | "
-        f"{np.max(ms):.2f} | {within} | {kept} | {expansions.mean():.0f} |"
+        f"| {row['scorer']} | {row['calls']} | {row['mean_ms']:.2f} | {row['median_ms']:.2f} | {row['p95_ms']:.2f} | "
+        f"{row['max_ms']:.2f} | {within} | {kept} | {row['expansions_mean']:.0f} |"
     )
 
 
@@ -114,11 +137,14 @@ def main() -> None:
     parser.add_argument("--calls", type=int, default=200, help="scoring calls timed per setting")
     parser.add_argument("--repeats", type=int, default=7, help="timed passes of each setting, in turn")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, help="results file (JSON)")
     args = parser.parse_args()
     try:
         import gymnasium  # noqa: F401
     except ImportError:
         raise SystemExit("bench_integrations needs Gymnasium: pip install 'energy-margin[gymnasium]'") from None
+    load_before = os.getloadavg()[0]
+    print(f"machine: {machine()}; load average {load_before:.2f} before")
     actions = np.random.default_rng(args.seed).uniform(-2, 2, size=(args.steps, 7))
     # The three environments are built first, warmed up by one pass, then timed in turn (plain,
     # wrapped, recording, plain, ...) so that a slower period of the machine hits all three.
@@ -133,9 +159,13 @@ def main() -> None:
     print(f"Gymnasium Pusher-v5, {args.steps} steps, median of {args.repeats} runs taken in turn")
     print("| setting | us per step | ratio to the plain environment |")
     print("|---|---|---|")
-    print(f"| plain environment | {plain:.1f} | 1.000 |")
-    print(f"| MarginWrapper, scoring off | {off:.1f} | {off / plain:.3f} |")
-    print(f"| MarginWrapper, scoring off, recording | {recording:.1f} | {recording / plain:.3f} |")
+    steps = [
+        {"setting": "plain environment", "us_per_step": plain, "ratio": 1.0},
+        {"setting": "MarginWrapper, scoring off", "us_per_step": off, "ratio": off / plain},
+        {"setting": "MarginWrapper, scoring off, recording", "us_per_step": recording, "ratio": recording / plain},
+    ]
+    for row in steps:
+        print(f"| {row['setting']} | {row['us_per_step']:.1f} | {row['ratio']:.3f} |")
     print()
     print(f"Scoring latency per call ({args.calls} calls each, every=1, random actions)")
     print("| scorer | calls | mean ms | median ms | p95 ms | max ms | <= budget | <= 1.1 x budget | expansions |")
@@ -143,16 +173,19 @@ def main() -> None:
     from energy_margin.integrations.live_model import LiveModelScorer
 
     reserve = LiveModelScorer.tree_budget
+    calls = []
     for budget in (0.01, 0.05):
         margins = latencies(_env(every=1, budget_s=budget, max_expansions=100_000), args.calls, args.seed)
-        print(describe(f"tree, budget {budget * 1000:.0f} ms", margins, budget * 1000))
+        calls.append(summary(f"tree, budget {budget * 1000:.0f} ms", margins, budget * 1000))
+        print(describe(calls[-1]))
         # Before: the tree given the whole budget, no reserve for the call's own overrun.
         LiveModelScorer.tree_budget = lambda self: self.options.budget_s  # type: ignore[method-assign]
         try:
             margins = latencies(_env(every=1, budget_s=budget, max_expansions=100_000), args.calls, args.seed)
         finally:
             LiveModelScorer.tree_budget = reserve  # type: ignore[method-assign]
-        print(describe(f"tree, budget {budget * 1000:.0f} ms, no reserve", margins, budget * 1000))
+        calls.append(summary(f"tree, budget {budget * 1000:.0f} ms, no reserve", margins, budget * 1000))
+        print(describe(calls[-1]))
     with tempfile.TemporaryDirectory() as scratch:
         try:
             model = learned_model(Path(scratch), args.seed)
@@ -160,7 +193,14 @@ def main() -> None:
             print(f"| learned margin | could not be fitted: {error} |")
         else:
             margins = latencies(_env(every=1, model=model), args.calls, args.seed)
-            print(describe("learned margin (boosting)", margins, None))
+            calls.append(summary("learned margin (boosting)", margins, None))
+            print(describe(calls[-1]))
+    if args.out:
+        run = {"steps": args.steps, "calls": args.calls, "repeats": args.repeats, "seed": args.seed}
+        results = {"machine": machine(), "load_before": load_before, "load_after": os.getloadavg()[0],
+                   "settings": run, "steps": steps, "calls": calls}  # fmt: skip
+        args.out.write_text(json.dumps(results, indent=2) + "\n")
+        print(f"wrote {args.out}")
 
 
 if __name__ == "__main__":
