@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_live.py DIR [--frames 30] [--budgets 0.02 0.05 0.1] [--expansions 10 25 50 100]
-        [--model MODEL] [--seed 0] [--json]
+        [--model MODEL] [--seed 0] [--json] [--out FILE]
 
 DIR is an analysed dataset (``scores.csv`` from ``analyze`` with its default 300 expansions). For
 a random sample of its frames (``--seed``) this script, in one process, one frame after another:
@@ -20,7 +20,7 @@ a random sample of its frames (``--seed``) this script, in one process, one fram
 
 It prints, per budget, the expansions reached (median, range), the seconds used (median, max) and
 the mean absolute difference of both scores to the full analysis (and how often both sides of 0.5
-agree); per cap, the same with the CPU seconds per call.
+agree); per cap, the same with the CPU seconds per call. ``--out`` writes the results (JSON) to a file.
 """
 
 from __future__ import annotations
@@ -28,9 +28,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,8 +42,12 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.learning.margin_model import load_margin_model
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_analysis import machine  # the machine line of the other benchmarks
+
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
+    load_before = os.getloadavg()[0]
     dataset = load_dataset(args.dataset)
     scores = load_scores(args.dataset)
     analysis = json.loads((dataset.path / "analysis.json").read_text()) if dataset.path else {}
@@ -138,13 +143,16 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "full_seconds_mean": statistics.fmean(full_s),
         "full_cpu_seconds_median": statistics.median(full_cpu_s),
         "simulator_build_seconds_median": statistics.median(build_s),
-        "budgets": {},
-        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}",
+        "budgets": [],
+        "machine": machine(),
+        "load_before": load_before,
+        "load_after": os.getloadavg()[0],
     }
     for budget, values in live.items():
         expansions = [v[0] for v in values]
         seconds = [v[1] for v in values]
-        result["budgets"][str(budget)] = {
+        result["budgets"].append({
+            "budget_s": budget,
             "expansions_median": statistics.median(expansions),
             "expansions_min": min(expansions),
             "expansions_max": max(expansions),
@@ -152,9 +160,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "seconds_max": max(seconds),
             "capture_abs_diff_mean": statistics.fmean(v[2] for v in values),
             "success_abs_diff_mean": statistics.fmean(v[3] for v in values),
-        }
-    result["expansions"] = {
-        str(cap): {
+        })  # fmt: skip
+    result["expansions"] = [
+        {
+            "expansions": cap,
             "seconds_median": statistics.median(v[0] for v in values),
             "cpu_seconds_median": statistics.median(v[1] for v in values),
             "capture_abs_diff_mean": statistics.fmean(v[2] for v in values),
@@ -163,7 +172,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "success_agree_at_half": statistics.fmean(float(v[5]) for v in values),
         }
         for cap, values in capped.items()
-    }
+    ]
     if model is not None:
         tick = time.perf_counter()
         model.predict(task, states)
@@ -187,8 +196,11 @@ def main() -> None:
     parser.add_argument("--model", default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--out", type=Path, help="results file (JSON)")
     args = parser.parse_args()
     result = measure(args)
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
     if args.json:
         print(json.dumps(result, sort_keys=True))
         return
@@ -199,16 +211,17 @@ def main() -> None:
         f"simulator build {result['simulator_build_seconds_median']:.4f} s"
     )
     print("budget_s  expansions (median, min-max)  seconds (median, max)  |Δcapture|  |Δsuccess|")
-    for budget, row in result["budgets"].items():
+    for row in result["budgets"]:
         print(
-            f"{float(budget):8.3f}  {row['expansions_median']:10.1f} ({row['expansions_min']}-{row['expansions_max']})"
-            f"        {row['seconds_median']:.4f}, {row['seconds_max']:.4f}        "
+            f"{row['budget_s']:8.3f}  {row['expansions_median']:10.1f} "
+            f"({row['expansions_min']}-{row['expansions_max']})        "
+            f"{row['seconds_median']:.4f}, {row['seconds_max']:.4f}        "
             f"{row['capture_abs_diff_mean']:.3f}       {row['success_abs_diff_mean']:.3f}"
         )
     print("cap  seconds (median)  CPU s (median)  |Δcapture|  |Δsuccess|  agree@0.5 capture, success")
-    for cap, row in result["expansions"].items():
+    for row in result["expansions"]:
         print(
-            f"{int(cap):3d}  {row['seconds_median']:16.4f}  {row['cpu_seconds_median']:14.4f}  "
+            f"{row['expansions']:3d}  {row['seconds_median']:16.4f}  {row['cpu_seconds_median']:14.4f}  "
             f"{row['capture_abs_diff_mean']:10.3f}  {row['success_abs_diff_mean']:10.3f}  "
             f"{row['capture_agree_at_half']:.2f}, {row['success_agree_at_half']:.2f}"
         )
