@@ -138,7 +138,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "task": task.name,
         "n_objects": dataset.n_objects,
         "frames": len(rows),
-        "full_iterations": config.iterations,
+        "full_expansions": config.expansions,
         "full_seconds_median": statistics.median(full_s),
         "full_seconds_mean": statistics.fmean(full_s),
         "full_cpu_seconds_median": statistics.median(full_cpu_s),
@@ -206,7 +206,7 @@ def main() -> None:
         return
     print(
         f"{result['task']} n_o={result['n_objects']}, {result['frames']} frames; {result['machine']}\n"
-        f"full analysis ({result['full_iterations']} expansions): median {result['full_seconds_median']:.3f} s "
+        f"full analysis ({result['full_expansions']} expansions): median {result['full_seconds_median']:.3f} s "
         f"(mean {result['full_seconds_mean']:.3f} s, CPU median {result['full_cpu_seconds_median']:.3f} s); "
         f"simulator build {result['simulator_build_seconds_median']:.4f} s"
     )

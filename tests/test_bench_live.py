@@ -18,7 +18,7 @@ def test_budgets_and_caps_are_rows_of_the_results_file(tmp_path: Path) -> None:
     assert main(["analyze", str(data), "--expansions", "12", "--continuation", "0", "--no-progress"]) == 0
     args = argparse.Namespace(dataset=str(data), frames=3, budgets=[0.005], expansions=[4, 12], model=None, seed=0)
     result = bench.measure(args)
-    assert result["frames"] == 3 and result["full_iterations"] == 12
+    assert result["frames"] == 3 and result["full_expansions"] == 12
     [budget] = result["budgets"]
     assert budget["budget_s"] == 0.005 and 1 <= budget["expansions_min"] <= budget["expansions_max"] < 2000
     caps = result["expansions"]
