@@ -10,6 +10,7 @@ import pytest
 from energy_margin import compat
 from energy_margin.sim.mujoco_audit import (
     LOG_FILE,
+    PHYSICS_WARNINGS,
     EnergyAudit,
     WarningLog,
     describe_warnings,
@@ -72,6 +73,13 @@ def test_a_blow_up_is_read_from_the_warning_counters() -> None:
     assert raised.get("mjWARN_BADQACC", 0) >= 1
     assert warning_numbers(data).sum() == sum(raised.values())
     assert describe_warnings(raised).startswith("MuJoCo warned mjWARN_BADQACC")
+    # Each count in its warning's place, and a copy: the counters go on without it.
+    numbers = warning_numbers(data)
+    assert dict(zip(PHYSICS_WARNINGS, numbers.tolist(), strict=True)) == {
+        name: raised.get(name, 0) for name in PHYSICS_WARNINGS
+    }
+    data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number += 1
+    assert warning_numbers(data).sum() == numbers.sum() + 1
 
 
 @pytest.mark.skipif(not compat.has_warning_hook(), reason="these MuJoCo bindings cannot take its warnings")

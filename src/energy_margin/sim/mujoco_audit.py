@@ -45,9 +45,13 @@ def raised_warnings(data: mujoco.MjData) -> dict[str, int]:
     return raised
 
 
+#: The indices of :data:`PHYSICS_WARNINGS` among MuJoCo's warnings.
+_PHYSICS_WARNING_INDICES = np.array([int(getattr(mujoco.mjtWarning, name)) for name in PHYSICS_WARNINGS])
+
+
 def warning_numbers(data: mujoco.MjData) -> np.ndarray:
     """How many times MuJoCo raised each of :data:`PHYSICS_WARNINGS` on ``data`` since its reset, shape (7,)."""
-    return np.array([data.warning[getattr(mujoco.mjtWarning, name)].number for name in PHYSICS_WARNINGS], dtype=int)
+    return np.asarray(data.warning.number, dtype=int)[_PHYSICS_WARNING_INDICES]
 
 
 def describe_warnings(raised: dict[str, int]) -> str:
