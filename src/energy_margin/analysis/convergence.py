@@ -2,7 +2,7 @@
 
 :class:`ScoresConverged` scores the cost field every few expansions (Algorithm 1, :func:`score_field`)
 and says when neither score will move by more than a tolerance; :class:`EitherStop` or-s it with a
-caller's own rule (a wall-clock deadline). :func:`frame_seeds` spawns the per-frame seeds.
+caller's own rule. :func:`frame_seeds` spawns the per-frame seeds.
 """
 
 from __future__ import annotations

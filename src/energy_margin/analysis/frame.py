@@ -80,9 +80,10 @@ def analyze_frame(
         start_time: time of the frame within its roll-out, s.
         simulator: a simulator of the frame's scene under ``config.contacts`` (the scene of
             ``with_contacts(task, config.contacts)``), to reuse one across frames.
-        stop: a further early-stopping rule (e.g. a wall-clock deadline), called with the cost
-            field so far every ``check_every`` expansions; growth ends when it or the
-            convergence rule of ``config.converge`` says so (the budget stays the upper bound).
+        stop: a further early-stopping rule of the caller's, called with the cost field so far every
+            ``check_every`` expansions; growth ends when it or the convergence rule of
+            ``config.converge`` says so (the budget stays the upper bound). A wall-clock budget is
+            ``deadline``, which reads no field.
         check_every: expansions between two calls of ``stop``, >= 1 (``config.converge_every``
             when ``None``); the convergence rule keeps its own period.
         deadline: a ``time.perf_counter()`` reading, s: growth ends at the first round that ends
