@@ -1,8 +1,9 @@
 """Time ``energy-margin reproduce`` (the quick start's main job) on this machine and write the figures.
 
 Runs the command in a fresh output directory, records the wall time, what the command announced,
-the machine, its load before the run and the engine versions, and writes them as JSON (the README
-quotes the file through ``tools/figures.py``).
+the machine, its load before the run, the engine versions and the stages' own times (from the run's
+``stages.json``: every stage, their sum, the paper protocol's and the report's), and writes them as
+JSON (the README quotes the file through ``tools/figures.py``).
 
     python benchmarks/time_reproduce.py --out docs/figures/reproduce_full.json
     python benchmarks/time_reproduce.py --quick --out docs/figures/reproduce_quick.json
@@ -65,6 +66,28 @@ def timed_run(command: str, load_before: float, wall: float, versions: dict[str,
     }
 
 
+def stage_figures(stages: list[dict[str, object]]) -> dict[str, object]:
+    """The stages of a run's ``stages.json``, their sum and the paper protocol's and the report's, s."""
+
+    def total(chosen: list[dict[str, object]]) -> float:
+        return round(sum(float(stage["seconds"]) for stage in chosen), 1)  # type: ignore[arg-type]
+
+    return {
+        "stages": [{"stage": stage["stage"], "seconds": round(float(stage["seconds"]), 2)} for stage in stages],  # type: ignore[arg-type]
+        "stages_s": total(stages),
+        "paper_protocol_stages_s": total([stage for stage in stages if "paper protocol" in str(stage["stage"])]),
+        "report_stage_s": total([stage for stage in stages if str(stage["stage"]).startswith("report")]),
+    }
+
+
+def announced_minutes(announced: str | None) -> float | None:
+    """``"75 s"``, ``"27 min"`` or ``"1.5 h"`` in minutes, to one decimal (``None`` stays ``None``)."""
+    if announced is None:
+        return None
+    value, unit = announced.split()
+    return round(float(value) * {"s": 1 / 60, "min": 1.0, "h": 60.0}[unit], 1)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true", help="time reproduce --quick")
@@ -85,6 +108,8 @@ def main() -> None:
             env={**os.environ, "ENERGY_MARGIN_PROGRESS": "0"},
         )
         wall = time.perf_counter() - started
+        stages_file = Path(work) / "reproduce" / "stages.json"
+        stages = json.loads(stages_file.read_text()) if stages_file.is_file() else []
         if found.returncode == 0 and args.keep is not None:
             args.keep.mkdir(parents=True, exist_ok=True)
             for name in KEPT:
@@ -92,9 +117,12 @@ def main() -> None:
     if found.returncode != 0:
         raise SystemExit(f"{' '.join(command)} exited {found.returncode}: {found.stderr.strip()[-2000:]}")
     announced = re.search(r"expected about ([0-9.]+) (min|s|h)", found.stdout + found.stderr)
+    said = None if announced is None else f"{announced.group(1)} {announced.group(2)}"
     figures = {
         **timed_run(" ".join(command), load_before, wall, engine_versions()),
-        "announced": None if announced is None else f"{announced.group(1)} {announced.group(2)}",
+        "announced": said,
+        "announced_min": announced_minutes(said),
+        **stage_figures(stages),
     }
     args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
     print(json.dumps(figures, indent=2))
