@@ -13,8 +13,10 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.planning.propagate import _propagate_one, _propagate_round
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import get_task
-from energy_margin.tasks.regions import build_region
+from energy_margin.tasks.region_types import FrameRegions
+from energy_margin.tasks.regions import build_region, builds_stacked
 from energy_margin.tasks.scene_file import read_scene_file
+from energy_margin.tasks.scene_follow import node_frames
 from energy_margin.tasks.scene_model import load_scene
 from energy_margin.tasks.scene_sections import region_names
 from energy_margin.world.state import FrameState
@@ -424,3 +426,62 @@ def test_a_region_is_built_without_the_objects_only_where_no_object_places_it(
     without = build_region(task.loaded.spec.success, task.frame_lookup(frame, objects=False))
     # Left out where they place the region, the objects would move it: the check can fail.
     assert np.array_equal(without.contains(positions), region.contains(positions)) is not placed
+
+
+@pytest.mark.parametrize(
+    ("region", "stacked"),
+    [
+        ('{ type = "distance", site = "tip", min = 0.02, max = 0.25 }', True),
+        (
+            '{ type = "all", of = [{ type = "distance", body = "fore", max = 0.3 }, { type = "speed", max = 0.5 }] }',
+            True,
+        ),
+        (
+            '{ type = "any", of = [{ type = "not", region = { type = "distance", site = "tip", max = 0.3 } }, '
+            '{ type = "distance", body = "box_b", max = 0.2 }] }',
+            True,
+        ),
+        ('{ type = "box", site = "tip", center = [0.0, 0.0, 0.0], half_size = [0.15, 0.15, 0.15] }', False),
+        (
+            '{ type = "all", of = [{ type = "distance", site = "tip", max = 0.3 }, '
+            '{ type = "box", site = "tip", center = [0.0, 0.0, 0.0], half_size = [0.2, 0.2, 0.2] }] }',
+            False,
+        ),
+    ],
+)
+def test_the_regions_of_many_states_are_one_stacked_region_that_tests_as_one_per_state(
+    tmp_path: Path, region: str, stacked: bool
+) -> None:
+    path = _arm(tmp_path, success=WORLD_BOX)
+    tip_box = 'region = { type = "box", site = "tip", center = [0.0, 0.0, 0.0], half_size = [0.1, 0.1, 0.1] }\n'
+    path.write_text(path.read_text().replace(tip_box, f"at_least = 1\nregion = {region}\n"))
+    task = get_task("scene", {"scene_file": str(path)})
+    assert builds_stacked(task.loaded.spec.capture) is stacked
+    rng = np.random.default_rng(7)
+    count = 40
+    states = [
+        FrameState(
+            object_pos=rng.uniform(-0.3, 0.3, size=(2, 3)),
+            object_quat=np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
+            object_vel=rng.uniform(-1.0, 1.0, size=(2, 6)),
+            robot_q=rng.uniform(-1.5, 1.5, size=3),
+            robot_v=np.zeros(3),
+        )
+        for _ in range(count)
+    ]
+    positions = rng.uniform(-0.3, 0.3, size=(count, 2, 3)) + np.array([0.0, -0.15, 0.05])  # about the arm
+    velocities = rng.uniform(-1.0, 1.0, size=(count, 2, 6))
+    together = task.capture_regions(states)
+    one_by_one = FrameRegions([task.capture_region(state) for state in states])
+    assert isinstance(together, FrameRegions) is not stacked
+    inside = together.contains(positions, velocities)
+    np.testing.assert_array_equal(inside, one_by_one.contains(positions, velocities))
+    assert 0 < inside.sum() < inside.size  # the test can tell the rows apart
+    np.testing.assert_array_equal(together.signed_distance(positions), one_by_one.signed_distance(positions))
+    # A tree's states: capture_inside measures every state against the region at its own pose.
+    robot_q = np.stack([state.robot_q for state in states])
+    nodes = node_frames(states[0], positions, velocities, None, robot_q)
+    expected = np.all(
+        FrameRegions([task.capture_region(node) for node in nodes]).contains(positions, velocities), axis=-1
+    )
+    np.testing.assert_array_equal(task.capture_inside(states[0], positions, velocities, None, robot_q), expected)

@@ -64,6 +64,7 @@ __all__ = [
     "RegionType",
     "SpeedRegion",
     "build_region",
+    "builds_stacked",
     "distance_region",
     "height_region",
     "register_region_type",
@@ -231,6 +232,9 @@ class RegionType:
         build: makes the region from the validated table and a lookup of body and site frames.
         one_of: groups of keys of which at most one may be given.
         require_one_of: keys of which exactly one must be given (empty: no such rule).
+        stacks: built from a lookup of stacked poses (origins (M, 1, 3), rotations (M, 1, 3, 3)),
+            the region measures row m of positions (M, n, 3) against pose m with the very
+            arithmetic of a region built from pose m alone (so M states' regions are one region).
 
     """
 
@@ -240,6 +244,7 @@ class RegionType:
     build: Callable[[Mapping[str, Any], FrameLookup, Callable[[Mapping[str, Any]], Any]], Any]
     one_of: tuple[tuple[str, ...], ...] = ()
     require_one_of: tuple[str, ...] = ()
+    stacks: bool = False
 
 
 def _frame(table: Mapping[str, Any], lookup: FrameLookup) -> dict[str, np.ndarray]:
@@ -351,8 +356,9 @@ for _type in (
         _build_distance,
         (("body", "site"),),
         ("body", "site"),
+        stacks=True,
     ),
-    RegionType("speed", {"max": "number", "angular_max": "number"}, ("max",), _build_speed),
+    RegionType("speed", {"max": "number", "angular_max": "number"}, ("max",), _build_speed, stacks=True),
     RegionType(
         "contact",
         {"geom": "geom", "body": "body", "margin": "number"},
@@ -361,9 +367,9 @@ for _type in (
         (("geom", "body"),),
         ("geom", "body"),
     ),
-    RegionType("all", {"of": "regions"}, ("of",), _build_all),
-    RegionType("any", {"of": "regions"}, ("of",), _build_any),
-    RegionType("not", {"region": "region"}, ("region",), _build_not),
+    RegionType("all", {"of": "regions"}, ("of",), _build_all, stacks=True),
+    RegionType("any", {"of": "regions"}, ("of",), _build_any, stacks=True),
+    RegionType("not", {"region": "region"}, ("region",), _build_not, stacks=True),
 ):
     register_region_type(_type)
 
@@ -372,3 +378,11 @@ def build_region(table: Mapping[str, Any], lookup: FrameLookup) -> Any:
     """The region of a validated region table, with body and site frames from ``lookup``."""
     region_type = REGION_TYPES[table["type"]]
     return region_type.build(table, lookup, lambda part: build_region(part, lookup))
+
+
+def builds_stacked(table: Mapping[str, Any]) -> bool:
+    """Whether the region of a validated table, and every region in it, stacks (:attr:`RegionType.stacks`)."""
+    region_type = REGION_TYPES[table["type"]]
+    parts = [part for key, kind in region_type.keys.items() if kind == "regions" for part in table.get(key, ())]
+    parts += [table[key] for key, kind in region_type.keys.items() if kind == "region" and key in table]
+    return region_type.stacks and all(builds_stacked(part) for part in parts)

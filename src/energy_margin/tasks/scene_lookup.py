@@ -1,12 +1,14 @@
-"""Poses of a scene's named bodies, sites and geoms in one frame's kinematics.
+"""Poses of a scene's named bodies, sites and geoms in one frame's kinematics, or in many frames' stacked.
 
 :class:`SceneFrameLookup` is the ``FrameLookup`` a scene's regions are built with
-(:func:`~energy_margin.tasks.regions.build_region`).
+(:func:`~energy_margin.tasks.regions.build_region`); :class:`StackedFrameLookup` holds the poses of
+many frames, row by row, for the region types that measure each row against its own pose
+(:attr:`~energy_margin.tasks.regions.RegionType.stacks`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import mujoco
@@ -18,7 +20,7 @@ from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.tasks.scene_model import LoadedScene
 from energy_margin.world.state import FrameState, yaw_from_quat
 
-__all__ = ["SceneFrameLookup", "lookup_frame"]
+__all__ = ["SceneFrameLookup", "StackedFrameLookup", "lookup_frame", "lookup_frames"]
 
 
 class SceneFrameLookup:
@@ -40,18 +42,79 @@ class SceneFrameLookup:
     def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Origin (3,) m and rotation matrix (3, 3) of body, site or geom ``name``."""
         if (kind, name) not in self._poses:
-            index = mujoco.mj_name2id(self.model, self._KINDS[kind], name)
-            if index < 0:
-                spec = self.loaded.spec
-                raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
-            data = self.data
-            positions, matrices = {
-                "body": (data.xpos, data.xmat),
-                "site": (data.site_xpos, data.site_xmat),
-                "geom": (data.geom_xpos, data.geom_xmat),
-            }[kind]
+            index = _element(self.loaded, kind, name)
+            positions, matrices = _poses(self.data, kind)
             self._poses[(kind, name)] = (positions[index].copy(), matrices[index].reshape(3, 3).copy())
         return self._poses[(kind, name)]
+
+
+class StackedFrameLookup:
+    """Poses of named elements at M frames, stacked: row m is frame m's (a ``FrameLookup`` of stacked poses).
+
+    ``lookup(kind, name)`` returns origins (M, 1, 3), m, and rotations (M, 1, 3, 3): a region built
+    from them broadcasts over the objects of positions (M, n, 3) and measures row m against frame m's
+    pose, as :class:`~energy_margin.tasks.region_types.FrameRegions` measures row m against a region
+    built at frame m alone (for the region types whose ``stacks`` is true). ``data`` holds the last
+    frame's kinematics only.
+    """
+
+    def __init__(
+        self, loaded: LoadedScene, data: mujoco.MjData, poses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
+    ) -> None:
+        self.loaded = loaded
+        self.model = loaded.model
+        self.data = data
+        self.object_geoms = loaded.object_geoms
+        self._poses = poses
+
+    def __call__(self, kind: str, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Origins (M, 1, 3) m and rotations (M, 1, 3, 3) of body, site or geom ``name``."""
+        return self._poses[(kind, name)]
+
+
+def _element(loaded: LoadedScene, kind: str, name: str) -> int:
+    """The id of body, site or geom ``name``; one line naming the file where the model has none."""
+    index = int(mujoco.mj_name2id(loaded.model, SceneFrameLookup._KINDS[kind], name))
+    if index < 0:
+        spec = loaded.spec
+        raise EnergyMarginError(f"{spec.path}: no {kind} {name!r} in {spec.mjcf.name}")
+    return index
+
+
+def _poses(data: mujoco.MjData, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (k, 3) and rotation matrices (k, 9) of every body, site or geom in ``data``."""
+    return {
+        "body": (data.xpos, data.xmat),
+        "site": (data.site_xpos, data.site_xmat),
+        "geom": (data.geom_xpos, data.geom_xmat),
+    }[kind]
+
+
+def lookup_frames(
+    loaded: LoadedScene,
+    model_index: ModelIndex,
+    data: mujoco.MjData,
+    frames: Sequence[FrameState],
+    elements: Sequence[tuple[str, str]],
+    *,
+    objects: bool = True,
+) -> StackedFrameLookup:
+    """The poses of ``elements`` (``(kind, name)`` pairs) at every one of ``frames``, stacked.
+
+    Each frame's kinematics is :func:`lookup_frame`'s, computed in ``data`` (overwritten), so row m
+    holds the very numbers a lookup at frame m alone gives.
+    """
+    ids = {key: _element(loaded, *key) for key in dict.fromkeys(elements)}
+    count = len(frames)
+    poses = {key: (np.empty((count, 1, 3)), np.empty((count, 1, 3, 3))) for key in ids}
+    for row, frame in enumerate(frames):
+        _place(loaded, model_index, data, frame, objects=objects)
+        for (kind, name), index in ids.items():
+            positions, matrices = _poses(data, kind)
+            origins, rotations = poses[(kind, name)]
+            origins[row, 0] = positions[index]
+            rotations[row, 0] = matrices[index].reshape(3, 3)
+    return StackedFrameLookup(loaded, data, poses)
 
 
 def lookup_frame(
@@ -77,26 +140,35 @@ def lookup_frame(
 
     """
     model = loaded.model
-    if frame is None:
-        mujoco.mj_resetData(model, data)
-    # Kinematics reads the joint positions and the mocap poses only, and a frame writes them all.
-    data.qpos[:] = loaded.initial_qpos
     if frame is not None:
-        if objects:
-            _write_objects(loaded, model_index, data, frame)
-        joints = len(loaded.robot_joints)
-        data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
-        nmocap = int(model.nmocap)
-        if nmocap:
-            data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)
-            data.mocap_quat[:] = frame.robot_q[joints + 3 * nmocap :].reshape(-1, 4)
+        _place(loaded, model_index, data, frame, objects=objects)
     else:
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = loaded.initial_qpos
         command = command_at(np.ones(2), 0.0)
         if command is not None and command.mocap_pos is not None:
             data.mocap_pos[:] = command.mocap_pos
             data.mocap_quat[:] = command.mocap_quat
-    mujoco.mj_kinematics(model, data)
+        mujoco.mj_kinematics(model, data)
     return SceneFrameLookup(loaded, data, loaded.object_geoms)
+
+
+def _place(loaded: LoadedScene, index: ModelIndex, data: mujoco.MjData, frame: FrameState, *, objects: bool) -> None:
+    """The kinematics of ``frame`` in ``data`` (its objects too with ``objects``).
+
+    Kinematics reads the joint positions and the mocap poses only, and this writes them all.
+    """
+    model = loaded.model
+    data.qpos[:] = loaded.initial_qpos
+    if objects:
+        _write_objects(loaded, index, data, frame)
+    joints = len(loaded.robot_joints)
+    data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
+    nmocap = int(model.nmocap)
+    if nmocap:
+        data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)
+        data.mocap_quat[:] = frame.robot_q[joints + 3 * nmocap :].reshape(-1, 4)
+    mujoco.mj_kinematics(model, data)
 
 
 def _write_objects(loaded: LoadedScene, index: ModelIndex, data: mujoco.MjData, frame: FrameState) -> None:

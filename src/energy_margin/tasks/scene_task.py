@@ -17,15 +17,12 @@ import numpy as np
 from energy_margin.errors import InvalidDataError, InvalidParameterError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
-from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits, all_inside
+from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits
 from energy_margin.tasks.motion import RobotState, Trajectory
-from energy_margin.tasks.region_types import FrameRegions
-from energy_margin.tasks.regions import AtLeast, build_region
 from energy_margin.tasks.scene_defaults import object_armature
-from energy_margin.tasks.scene_follow import node_frames
 from energy_margin.tasks.scene_layout import draw_layout
-from energy_margin.tasks.scene_lookup import SceneFrameLookup, lookup_frame
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
+from energy_margin.tasks.scene_regions import SceneRegions
 from energy_margin.tasks.scene_spec import BOUNDS_MARGIN
 from energy_margin.tasks.scene_task_config import BASE_FIELDS, SceneTaskConfig, design_config_class, design_overrides
 from energy_margin.tasks.state_box import StateBox, box_around_model
@@ -40,7 +37,7 @@ _LAYOUT_ATTEMPTS = 200
 _PLACEMENT_TOLERANCE = 1e-3
 
 
-class SceneTask(Task):
+class SceneTask(SceneRegions, Task):
     """The task a scene file declares (see ``docs/howto/scenes.md``)."""
 
     name = "scene"
@@ -316,98 +313,6 @@ class SceneTask(Task):
             mocap_pos=None if mocap is None else mocap[0],
             mocap_quat=None if mocap is None else mocap[1],
         )
-
-    # -- regions ---------------------------------------------------------------------------
-
-    def frame_lookup(self, frame: FrameState | None, *, objects: bool = True) -> SceneFrameLookup:
-        """Poses of bodies, sites and geoms at ``frame`` (the model's start configuration for ``None``).
-
-        The lookup holds the scene's kinematics data, which the next call overwrites: regions copy
-        what they keep when they are built. ``objects=False`` leaves the frame's objects out, for
-        elements whose poses they do not move.
-        """
-        return lookup_frame(self.loaded, self._index, self._kinematics, frame, self.model_command, objects=objects)
-
-    def _set(self, name: str, frame: FrameState | None) -> Region:
-        spec = self.loaded.spec
-        table, at_least = (
-            (spec.capture, spec.capture_at_least) if name == "capture" else (spec.success, spec.success_at_least)
-        )
-        region = build_region(table, self.frame_lookup(frame, objects=self.loaded.follow[name].placed_by_objects))
-        result: Region = AtLeast(at_least, region) if at_least is not None else region
-        return result
-
-    def capture_region(self, root: FrameState) -> Region:
-        """The capture set with body and site frames taken at ``root``."""
-        return self._set("capture", root)
-
-    def capture_inside(
-        self,
-        root: FrameState,
-        object_pos: np.ndarray,
-        object_vel: np.ndarray,
-        object_quat: np.ndarray | None = None,
-        robot_q: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """Which reached states have every object captured; a region that follows, in each state's own.
-
-        A region in the frame of a body the robot moves (a paddle's band) moves on with it in the
-        tree's states, so an object that stays in the moving band would leave one frozen at the
-        analysed frame: such a region follows unless the file says ``capture.follow = false``
-        (:mod:`~energy_margin.tasks.scene_follow`), built at every state's own ``robot_q``.
-
-        Raises:
-            InvalidParameterError: a following region and no robot configuration per state.
-        """
-        if not self.loaded.spec.capture_follows:
-            return super().capture_inside(root, object_pos, object_vel, object_quat)
-        states = self._node_states("capture", root, object_pos, object_vel, object_quat, robot_q)
-        # One region per state, measured row by row: the mechanism of capture_regions.
-        return all_inside(self.capture_regions(states), object_pos, object_vel, object_quat)
-
-    def success_inside(
-        self,
-        root: FrameState,
-        object_pos: np.ndarray,
-        object_vel: np.ndarray,
-        object_quat: np.ndarray | None = None,
-        robot_q: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """As :meth:`capture_inside`, for the success region and ``success.follow`` (a tray the robot carries)."""
-        if not self.loaded.spec.success_follows:
-            return super().success_inside(root, object_pos, object_vel, object_quat)
-        states = self._node_states("success", root, object_pos, object_vel, object_quat, robot_q)
-        regions = FrameRegions([self.success_region_at(state) for state in states])
-        return all_inside(regions, object_pos, object_vel, object_quat)
-
-    def _node_states(
-        self,
-        name: str,
-        root: FrameState,
-        object_pos: np.ndarray,
-        object_vel: np.ndarray,
-        object_quat: np.ndarray | None,
-        robot_q: np.ndarray | None,
-    ) -> list[FrameState]:
-        if robot_q is None:
-            raise InvalidParameterError(
-                "robot_q",
-                f"is needed for {self.loaded.spec.path}: its {name} region follows the robot "
-                f"({self.loaded.follow[name].describe()}), so every state's robot coordinates are needed; "
-                f"pass them, or write {name}.follow = false in the scene file to freeze the region at the "
-                "analysed frame",
-            )
-        return node_frames(root, object_pos, object_vel, object_quat, robot_q)
-
-    def success_region(self) -> Region:
-        """The success set with body and site frames at the model's start configuration."""
-        if self._success is None:
-            self._success = self._set("success", None)
-        return self._success
-
-    def success_region_at(self, root: FrameState) -> Region:
-        """The success set with body and site frames taken at ``root``."""
-        return self._set("success", root)
 
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
         """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias.
