@@ -13,17 +13,18 @@ Usage (in a virtual environment with the stack, on the MuJoCo version it needs):
 One environment per variant, all made with the same seed and stepped in lockstep with the same
 actions, so every variant scores the same states; the variants score one after the other at every
 step (``--steps`` scored steps, each with a ``--budget`` second wall-clock budget). Variants, the
-first three the live default as it was before each of three changes (each undoes its change and the
+first four the live default as it was before each of four changes (each undoes its change and the
 later ones; all grow the same trees and give the same scores):
 ``pruned, before: command every period`` (the robot's held command set again every control period
 of the scene, as before it was set once per propagation), ``pruned, before: tree costed at every
 check`` (the tree's new nodes costed at every deadline check, as when the deadline was a stopping
 rule handed the cost field), ``pruned, before: regions placed with the objects`` (a region that
 follows the robot built at each state with the objects written into the kinematics, though no
-object moves what it is attached to); then ``full`` (``analysis_model="full"``, one expansion at a
-time), ``pruned`` (the analysis model, the live default), and both with ``batch=8, threads=2``
-(expansions propagated eight at a time through ``mujoco.rollout`` on two threads; the deadline is
-checked between rounds).
+object moves what it is attached to), ``pruned, before: one region per state`` (a following region
+built as one region per tree state rather than one over stacked poses); then ``full``
+(``analysis_model="full"``, one expansion at a time), ``pruned`` (the analysis model, the live
+default), and both with ``batch=8, threads=2`` (expansions propagated eight at a time through
+``mujoco.rollout`` on two threads; the deadline is checked between rounds).
 It prints, per variant, the expansions reached (median, mean, range) and the call's wall time
 (median, maximum).
 """
@@ -47,6 +48,7 @@ import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.planning.tree import _Growth
+from energy_margin.tasks import scene_regions
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_analysis import machine as describe_machine  # the machine line of the other benchmarks
@@ -58,15 +60,18 @@ ROOT = Path(__file__).resolve().parents[1]
 EVERY_PERIOD = "pruned, before: command every period"
 COSTED = "pruned, before: tree costed at every check"
 PLACED = "pruned, before: regions placed with the objects"
+ONE_PER_STATE = "pruned, before: one region per state"
 BEFORE: dict[str, set[str]] = {
-    EVERY_PERIOD: {"every period", "costed", "placed"},
-    COSTED: {"costed", "placed"},
-    PLACED: {"placed"},
+    EVERY_PERIOD: {"every period", "costed", "placed", "one per state"},
+    COSTED: {"costed", "placed", "one per state"},
+    PLACED: {"placed", "one per state"},
+    ONE_PER_STATE: {"one per state"},
 }
 VARIANTS: dict[str, dict[str, Any]] = {
     EVERY_PERIOD: {"analysis_model": "pruned"},
     COSTED: {"analysis_model": "pruned"},
     PLACED: {"analysis_model": "pruned"},
+    ONE_PER_STATE: {"analysis_model": "pruned"},
     "full": {"analysis_model": "full"},
     "pruned": {"analysis_model": "pruned"},
     "full, batch 8, 2 threads": {"analysis_model": "full", "batch": 8, "threads": 2},
@@ -171,7 +176,7 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         if "placed" in undone:  # every region built with the objects written into the kinematics
             follow = {key: dataclasses.replace(one, placed_by_objects=True) for key, one in task.loaded.follow.items()}
             task.loaded = dataclasses.replace(task.loaded, follow=follow)
-    costed = {name for name, undone in BEFORE.items() if "costed" in undone}
+    undoing = {name: BEFORE.get(name, set()) for name in VARIANTS}
     observations = [wrapper.reset(seed=args.seed)[0] for wrapper in wrappers.values()]
     act = actor(next(iter(wrappers.values())).env)
     reached: dict[str, list[int]] = {name: [] for name in VARIANTS}
@@ -180,7 +185,10 @@ def measure(args: argparse.Namespace, workdir: Path) -> dict[str, Any]:
         action = act(observations[0])
         observations = []
         for name, wrapper in wrappers.items():
-            with costing_at_every_check(name in costed):
+            with (
+                costing_at_every_check("costed" in undoing[name]),
+                one_region_per_state("one per state" in undoing[name]),
+            ):
                 observation, _, terminated, truncated, info = wrapper.step(action)
             observations.append(observation)
             reached[name].append(int(info["energy_margin"]["expansions"]))
@@ -226,6 +234,20 @@ def costing_at_every_check(on: bool) -> Iterator[None]:
         yield
     finally:
         _Growth.offer = offer  # type: ignore[method-assign]
+
+
+@contextlib.contextmanager
+def one_region_per_state(on: bool) -> Iterator[None]:
+    """With ``on``, a scene's set is built as one region per frame or tree state, never over stacked poses."""
+    if not on:
+        yield
+        return
+    stacked = scene_regions.builds_stacked
+    scene_regions.builds_stacked = lambda table: False  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        scene_regions.builds_stacked = stacked  # type: ignore[assignment]
 
 
 def stack_arguments(description: str, *, steps: int) -> argparse.Namespace:

@@ -44,3 +44,27 @@ def test_every_variant_scores_the_pusher(tmp_path) -> None:
     rows = bench.measure(args, tmp_path)["rows"]
     assert [row["variant"] for row in rows] == list(bench.VARIANTS)
     assert all(row["expansions_min"] >= 1 and row["ms_median"] > 0.0 for row in rows)
+
+
+def test_one_region_per_state_builds_no_stacked_region(tmp_path) -> None:
+    from energy_margin.tasks.region_types import FrameRegions
+
+    bench = load_benchmark("bench_live_stacks")
+    scene = tmp_path / "scene.toml"
+    model = tmp_path / "model.xml"
+    model.write_text(
+        "<mujoco><worldbody><body name='arm'><joint name='slide' type='slide'/><geom size='.05'/></body>"
+        "<body name='box'><freejoint/><geom type='box' size='.02 .02 .02' pos='.3 0 .02'/></body></worldbody>"
+        "<actuator><position joint='slide'/></actuator></mujoco>"
+    )
+    scene.write_text(
+        'schema_version = 1\nmjcf = "model.xml"\n[objects]\nbodies = ["box"]\n[motion]\nduration = 1.0\n'
+        '[capture]\nregion = { type = "distance", body = "arm", max = 0.5 }\n'
+        '[success]\nregion = { type = "distance", body = "arm", max = 0.1 }\n'
+    )
+    task = get_task("scene", {"scene_file": str(scene)})
+    frames = [task.initial_frame(np.array([[0.3, 0.0, 0.02]]), np.array([[1.0, 0, 0, 0]]), np.ones(2))] * 3
+    assert not isinstance(task.capture_regions(frames), FrameRegions)
+    with bench.one_region_per_state(True):
+        assert isinstance(task.capture_regions(frames), FrameRegions)
+    assert not isinstance(task.capture_regions(frames), FrameRegions)
