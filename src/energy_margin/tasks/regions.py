@@ -182,8 +182,11 @@ class IntervalRegion:
         return (value >= self.low) & (value <= self.high)
 
 
-def height_region(reference: float, low: float, high: float) -> IntervalRegion:
-    """Height z - ``reference`` (m) between ``low`` and ``high``."""
+def height_region(reference: float | np.ndarray, low: float, high: float) -> IntervalRegion:
+    """Height z - ``reference`` between ``low`` and ``high``, m.
+
+    ``reference`` is a number, or an array broadcast against the heights (one per row of stacked poses).
+    """
     return IntervalRegion(lambda positions: positions[..., 2] - reference, low, high)
 
 
@@ -264,7 +267,8 @@ def _build_cylinder(table: Mapping[str, Any], lookup: FrameLookup, _: Callable[[
 
 
 def _build_height(table: Mapping[str, Any], lookup: FrameLookup, _: Callable[[Mapping[str, Any]], Any]) -> Any:
-    reference = float(lookup("body", table["body"])[0][2]) if "body" in table else float(table.get("plane", 0.0))
+    # A body's height: a number, or one per row of stacked poses (M, 1).
+    reference = lookup("body", table["body"])[0][..., 2] if "body" in table else float(table.get("plane", 0.0))
     return height_region(reference, table.get("min", 0.0), table.get("max", np.inf))
 
 
@@ -348,6 +352,7 @@ for _type in (
         (),
         _build_height,
         (("plane", "body"),),
+        stacks=True,
     ),
     RegionType(
         "distance",
