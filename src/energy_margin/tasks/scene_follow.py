@@ -12,7 +12,7 @@ moving region at the analysed frame).
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -161,11 +161,19 @@ def _driven_joints(model: mujoco.MjModel, robot_joints: Sequence[int], welded: M
                 if int(model.wrap_type[wrap]) == int(mujoco.mjtWrap.mjWRAP_JOINT)
             )
     for body in welded:
-        while body > 0:
-            first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
-            driven.update(range(first, first + count))
-            body = int(model.body_parentid[body])
+        driven.update(_joints_to_world(model, body))
     return driven & robot
+
+
+def _joints_to_world(model: mujoco.MjModel, body: int) -> Iterator[int]:
+    """The joints from ``body`` up its kinematic tree to the world, nearest first.
+
+    A body's pose depends on these joints only.
+    """
+    while body > 0:
+        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
+        yield from range(first, first + count)
+        body = int(model.body_parentid[body])
 
 
 def region_follow(
@@ -191,22 +199,12 @@ def region_follow(
         static = mover is None and _static(model, body)
         anchors.append(Anchor(kind, element, key, _name(model, mujoco.mjtObj.mjOBJ_BODY, body), mover, static))
     follows = stated if stated is not None else any(anchor.mover is not None for anchor in anchors)
-    placed = any(_below_joints(model, anchor.body, object_joints) for anchor in anchors)
+    placed = any(
+        joint in object_joints
+        for anchor in anchors
+        for joint in _joints_to_world(model, int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, anchor.body)))
+    )
     return RegionFollow(name, bool(follows), stated is not None, tuple(anchors), placed_by_objects=placed)
-
-
-def _below_joints(model: mujoco.MjModel, body_name: str, joints: Collection[int]) -> bool:
-    """Whether one of ``joints`` lies on the way from body ``body_name`` to the world.
-
-    A body's pose depends on the joints up its kinematic tree only.
-    """
-    body = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body_name))
-    while body > 0:
-        first, count = int(model.body_jntadr[body]), int(model.body_jntnum[body])
-        if any(joint in joints for joint in range(first, first + count)):
-            return True
-        body = int(model.body_parentid[body])
-    return False
 
 
 def node_frames(
