@@ -104,14 +104,13 @@ def lookup_frames(
     Each frame's kinematics is :func:`lookup_frame`'s, computed in ``data`` (overwritten), so row m
     holds the very numbers a lookup at frame m alone gives.
     """
-    ids = {key: _element(loaded, *key) for key in dict.fromkeys(elements)}
     count = len(frames)
-    poses = {key: (np.empty((count, 1, 3)), np.empty((count, 1, 3, 3))) for key in ids}
+    poses = {key: (np.empty((count, 1, 3)), np.empty((count, 1, 3, 3))) for key in dict.fromkeys(elements)}
+    # Each element's row in data's pose arrays (views, which kinematics fills in place), and its stacks.
+    sources = [(*_poses(data, kind), _element(loaded, kind, name), *poses[(kind, name)]) for kind, name in poses]
     for row, frame in enumerate(frames):
         _place(loaded, model_index, data, frame, objects=objects)
-        for (kind, name), index in ids.items():
-            positions, matrices = _poses(data, kind)
-            origins, rotations = poses[(kind, name)]
+        for positions, matrices, index, origins, rotations in sources:
             origins[row, 0] = positions[index]
             rotations[row, 0] = matrices[index].reshape(3, 3)
     return StackedFrameLookup(loaded, data, poses)
@@ -163,7 +162,7 @@ def _place(loaded: LoadedScene, index: ModelIndex, data: mujoco.MjData, frame: F
     if objects:
         _write_objects(loaded, index, data, frame)
     joints = len(loaded.robot_joints)
-    data.qpos[model.jnt_qposadr[list(loaded.robot_joints)]] = frame.robot_q[:joints]
+    data.qpos[index.robot_qpos] = frame.robot_q[:joints]
     nmocap = int(model.nmocap)
     if nmocap:
         data.mocap_pos[:] = frame.robot_q[joints : joints + 3 * nmocap].reshape(-1, 3)

@@ -66,8 +66,7 @@ class SceneRegions(_Base):
     def _set(self, name: str, frame: FrameState | None) -> Region:
         table, at_least = self._table(name)
         region = build_region(table, self.frame_lookup(frame, objects=self.loaded.follow[name].placed_by_objects))
-        result: Region = AtLeast(at_least, region) if at_least is not None else region
-        return result
+        return _counted(at_least, region)
 
     def _sets(self, name: str, frames: Sequence[FrameState]) -> Region:
         """Set ``name`` at every one of ``frames``: row f of positions (F, n, 3) against frame f's."""
@@ -77,9 +76,7 @@ class SceneRegions(_Base):
         elements = [(kind, element) for kind, element, _ in region_names(table, f"{name}.region")]
         placed = self.loaded.follow[name].placed_by_objects
         lookup = lookup_frames(self.loaded, self._index, self._kinematics, frames, elements, objects=placed)
-        region = build_region(table, lookup)
-        result: Region = AtLeast(at_least, region) if at_least is not None else region
-        return result
+        return _counted(at_least, build_region(table, lookup))
 
     def capture_region(self, root: FrameState) -> Region:
         """The capture set with body and site frames taken at ``root``."""
@@ -159,3 +156,8 @@ class SceneRegions(_Base):
     def success_region_at(self, root: FrameState) -> Region:
         """The success set with body and site frames taken at ``root``."""
         return self._set("success", root)
+
+
+def _counted(at_least: int | None, region: Region) -> Region:
+    """``region`` as a set: every object inside it, or at least ``at_least`` of them."""
+    return AtLeast(at_least, region) if at_least is not None else region
