@@ -4,9 +4,11 @@ Runs the three commands of docs/index.md ("A single task, step by step") as a us
 temporary folder and in this process (``engine_versions.run_cli``), and writes what they measured:
 the commands, ``evaluate --json``'s output, the analysis's wall time, the versions and the machine.
 The same set is analysed again with the tree's own success score (``--continuation 0``, what
-``reproduce``, ``budget`` and ``study`` score) and evaluated, under ``tree_success``.
+``reproduce``, ``budget`` and ``study`` score) and evaluated, under ``tree_success``. ``--seed S``
+runs the same commands with generation and analysis seed S (docs/results/results.md's other sets).
 
     python benchmarks/single_task.py --out docs/figures/pushing_10.json
+    python benchmarks/single_task.py --seed 1 --out docs/figures/pushing_10_seed1.json
 """
 
 from __future__ import annotations
@@ -37,6 +39,11 @@ TREE_SUCCESS = (
 )
 
 
+def seeded(commands: tuple[str, ...], seed: int) -> list[str]:
+    """The commands with generation and analysis seed ``seed`` (the page's are seed 0)."""
+    return [command.replace("--seed 0", f"--seed {seed}") for command in commands]
+
+
 def _run(command: str) -> str:
     """One command of the page as typed, run in this process (in the current folder); its standard output."""
     return run_cli(command.split()[1:])
@@ -50,25 +57,27 @@ def _dataset_only(folder: str, names: list[str]) -> set[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    parser.add_argument("--seed", type=int, default=0, help="generation and analysis seed (default 0, the page's)")
     args = parser.parse_args()
     out = args.out.resolve()
+    commands, tree_commands = seeded(COMMANDS, args.seed), seeded(TREE_SUCCESS, args.seed)
     with tempfile.TemporaryDirectory() as work, contextlib.chdir(work):
-        _run(COMMANDS[0])
+        _run(commands[0])
         started = time.perf_counter()
-        _run(COMMANDS[1])
+        _run(commands[1])
         analyze_s = time.perf_counter() - started
-        evaluated = json.loads(_run(COMMANDS[2]))
+        evaluated = json.loads(_run(commands[2]))
         shutil.copytree("runs/push10", "runs/push10-tree", ignore=_dataset_only)
-        _run(TREE_SUCCESS[0])
-        tree_success = json.loads(_run(TREE_SUCCESS[1]))
+        _run(tree_commands[0])
+        tree_success = json.loads(_run(tree_commands[1]))
     results = {
-        "commands": list(COMMANDS),
+        "commands": commands,
         "date": datetime.date.today().isoformat(),
         "machine": machine(),
         "versions": engine_versions("mujoco"),
         "analyze_wall_s": round(analyze_s),
         "evaluate": evaluated,
-        "tree_success_commands": ["cp -r runs/push10 runs/push10-tree (the dataset's files)", *TREE_SUCCESS],
+        "tree_success_commands": ["cp -r runs/push10 runs/push10-tree (the dataset's files)", *tree_commands],
         "tree_success": tree_success,
     }
     out.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
