@@ -178,6 +178,7 @@ def main() -> None:
                     "success_score": scores.success_score,
                     "runtime_s": scores.runtime_s,
                     "physics_s": scores.physics_s,
+                    "expansions": scores.expansions,
                 }
         elapsed = time.monotonic() - began
         load_after = os.getloadavg()
@@ -214,6 +215,8 @@ def main() -> None:
             "ratio": their_mean / our_mean,
             "frames": frames,
             "expansions": args.expansions,
+            # Below ``expansions`` where the analyzer stops early (``converge``); theirs always run all.
+            "ours_expansions_mean": statistics.fmean(ours[i]["expansions"] for i in frames),
             "analyzer": dict(analyzer),
             "task": dict(task_config),
             "machine": machine(),
