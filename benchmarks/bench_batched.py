@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_batched.py [--objects 10] [--expansions 300] [--batches 8 16 32]
-        [--threads 1 2] [--trajectories 2] [--frames 5] [--task pushing]
+        [--threads 1 2] [--trajectories 2] [--frames 5] [--task pushing] [--out FILE]
 
 Everything runs in this one process. A small dataset is generated in memory; every frame is analysed
 with every setting in turn (settings interleaved frame by frame, so a change of machine load hits
@@ -12,12 +12,14 @@ B > 1 propagates B expansions per round through ``mujoco.rollout`` on 1 or more 
 gives the mean per-frame wall time, the part inside the simulator, the speed-up against B = 1 and
 the mean capture and success scores (the Monte Carlo and RRT baselines are timed at B = 1 too);
 the load average before and after is printed because other processes on the machine change the
-multithreaded numbers most.
+multithreaded numbers most. ``--out`` writes the rows, the machine and both load averages as JSON.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
+import json
 import os
 import statistics
 import sys
@@ -48,6 +50,7 @@ def main() -> None:
     parser.add_argument(
         "--methods", nargs="*", default=["montecarlo", "rrt"], help="further methods timed at B = 1 (EST always)"
     )
+    parser.add_argument("--out", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args()
     task = get_task(args.task)
     settings: list[tuple[int, int, str]] = [(1, 1, "est")]
@@ -60,7 +63,8 @@ def main() -> None:
     success: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
 
     print(f"machine: {machine()}")
-    print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    load_before = os.getloadavg()
+    print(f"load average before: {' '.join(f'{v:.2f}' for v in load_before)}")
     print(
         f"{args.task}, n_o = {args.objects}, {args.expansions} expansions, "
         f"{args.trajectories} trajectories x {args.frames} frames, one process, settings interleaved"
@@ -88,18 +92,48 @@ def main() -> None:
                 physics[setting].append(scores.physics_s)
                 capture[setting].append(scores.capture_score)
                 success[setting].append(scores.success_score)
-    print(f"load average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    load_after = os.getloadavg()
+    print(f"load average after: {' '.join(f'{v:.2f}' for v in load_after)}")
     print()
     reference = statistics.fmean(times[(1, 1, "est")])
     print("| method | B | threads | per frame [s] | physics [s] | speed-up vs EST B=1 | mean capture | mean success |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    rows = []
     for setting in settings:
         mean = statistics.fmean(times[setting])
+        rows.append(
+            {
+                "method": setting[2],
+                "batch": setting[0],
+                "threads": setting[1],
+                "per_frame_s": mean,
+                "per_frame_sd": statistics.pstdev(times[setting]),
+                "physics_s": statistics.fmean(physics[setting]),
+                "speedup": reference / mean,
+                "capture_mean": statistics.fmean(capture[setting]),
+                "success_mean": statistics.fmean(success[setting]),
+            }
+        )
         print(
             f"| {setting[2]} | {setting[0]} | {setting[1]} | {mean:.3f} ± {statistics.pstdev(times[setting]):.3f} "
             f"| {statistics.fmean(physics[setting]):.3f} | {reference / mean:.2f}x "
             f"| {statistics.fmean(capture[setting]):.3f} | {statistics.fmean(success[setting]):.3f} |"
         )
+    if args.out is not None:
+        results = {
+            "command": "python benchmarks/bench_batched.py " + " ".join(sys.argv[1:]),
+            "date": datetime.date.today().isoformat(),
+            "machine": machine(),
+            "load_before": round(load_before[0], 2),
+            "load_after": round(load_after[0], 2),
+            "task": args.task,
+            "objects": args.objects,
+            "expansions": args.expansions,
+            "frames": args.trajectories * args.frames,
+            "rows": rows,
+        }
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
 
 
 if __name__ == "__main__":
