@@ -32,7 +32,10 @@ def test_both_engines_meet_the_stated_tolerances(bench) -> None:
             assert checks["slide"]["friction_work_mj"] == pytest.approx(analytic["friction_work_mj"], rel=0.10)
             assert checks["slide"]["slide_mm"] == pytest.approx(analytic["slide_mm"], rel=0.10)
             assert checks["push_x"][0] > 30.0
-        assert found["engines"][engine]["penetration_mm"] == pytest.approx(30.0, abs=2.0)
+    # Bullet reports the shortest separating translation; MuJoCo 3.3.0 (the oldest supported) reports
+    # no contact of the two overlapping cylinders, 3.9.0 and 4.0.0 the same 30 mm.
+    assert found["engines"]["pybullet"]["penetration_mm"] == pytest.approx(30.0, abs=2.0)
+    assert found["engines"]["mujoco"]["penetration_mm"] in (None, pytest.approx(30.0, abs=2.0))
     for name in bench.OBJECTS:
         mujoco, bullet = found["engines"]["mujoco"][name]["push_x"], found["engines"]["pybullet"][name]["push_x"]
         assert bullet[0] == pytest.approx(mujoco[0], abs=2.0)
