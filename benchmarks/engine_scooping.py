@@ -1,0 +1,132 @@
+"""Scooping in MuJoCo and in PyBullet: what each engine's roll-outs lift, and one frame's analysis time.
+
+A smoke comparison of the two engines on the scooping task at its defaults (5 boxes): the same
+generation seed in each engine (``generate --task scooping --objects 5 --trajectories 4 --frames 5
+--seed 0 --engine E``), then, per engine, the boxes whose centre ends at least ``success_height``
+above resting on the table (lifted), their heights above the table top, the successful
+trajectories, and the time to analyse each trajectory's middle frame with 300 expansions (the
+tree's own success, one process). The roll-outs of a scoop are chaotic: trajectory by trajectory
+the engines' outcomes differ, so the counts, not the trajectories, are compared.
+
+    python benchmarks/engine_scooping.py --work runs/engine-scooping --out docs/figures/engine_scooping.json
+
+Without PyBullet it prints one ``skip:`` line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import importlib.util
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench_analysis import machine
+from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.data.dataset import Dataset
+from energy_margin.data.generate import generate_dataset
+from energy_margin.runs.versions import engine_versions
+from energy_margin.sim import make_simulator
+
+__all__ = ["lifted"]
+
+ENGINES = ("mujoco", "pybullet")
+SIZE = {"n_objects": 5, "n_trajectories": 4, "n_frames": 5, "seed": 0}
+EXPANSIONS = 300
+
+
+def lifted(heights: np.ndarray, *, resting: float, success_height: float) -> np.ndarray:
+    """Which boxes are lifted: centre at least ``success_height`` above ``resting``.
+
+    Args:
+        heights: centre heights of the boxes, m, any shape.
+        resting: centre height of a box resting on the table, m.
+        success_height: how far above resting a lifted box is, m.
+    """
+    return np.asarray(heights) >= resting + success_height
+
+
+def _generated(work: Path, engine: str) -> Dataset:
+    """``generate --task scooping ... --engine E`` (kept when already there)."""
+    out = work / f"scoop-{engine}"
+    return generate_dataset("scooping", out=out, engine=engine, overwrite=True, **SIZE)
+
+
+def _outcomes(dataset: Dataset) -> dict[str, Any]:
+    """Lifted boxes at the last frame, their heights above the table top, successful trajectories."""
+    config = dataset.task.config
+    resting = config.table_top + config.box_half_edge
+    heights = dataset.arrays["object_pos"][:, -1, :, 2]
+    up = lifted(heights, resting=resting, success_height=config.success_height)
+    above_table = heights[up] - config.table_top
+    return {
+        "boxes": int(heights.size),
+        "lifted": int(up.sum()),
+        "lifted_height_min_cm": float(100 * above_table.min()) if up.any() else None,
+        "lifted_height_max_cm": float(100 * above_table.max()) if up.any() else None,
+        "successful_trajectories": int(np.sum(dataset.arrays["in_success"][:, -1])),
+        "trajectories": int(dataset.n_trajectories),
+    }
+
+
+def _analysis_times(dataset: Dataset, engine: str) -> list[float]:
+    """Wall time [s] of each trajectory's middle frame, 300 expansions, the tree's own success."""
+    config = AnalyzerConfig(engine=engine, expansions=EXPANSIONS, continuation=0)
+    middle = dataset.n_frames // 2
+    seeds = frame_seeds(0, dataset.n_trajectories)
+    times = []
+    for trajectory in range(dataset.n_trajectories):
+        friction = float(dataset.arrays["friction"][trajectory])
+        drive = dataset.arrays["drive"][trajectory]
+        simulator = make_simulator(dataset.task.build_scene(dataset.n_objects, friction, drive), engine)
+        scores, _ = analyze_frame(
+            dataset.task,
+            dataset.frame(trajectory, middle),
+            friction=friction,
+            drive=drive,
+            seed=seeds[trajectory],
+            config=config,
+            start_time=float(dataset.arrays["frame_time"][trajectory, middle]),
+            simulator=simulator,
+        )
+        times.append(scores.runtime_s)
+    return times
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--work", type=Path, required=True, help="where the generated sets go")
+    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    args = parser.parse_args()
+    if importlib.util.find_spec("pybullet") is None:
+        print("skip: PyBullet is not installed (pip install 'energy-margin[pybullet]')")
+        return
+    engines: dict[str, Any] = {}
+    for engine in ENGINES:
+        dataset = _generated(args.work, engine)
+        times = _analysis_times(dataset, engine)
+        engines[engine] = {
+            **_outcomes(dataset),
+            "frame_s": times,
+            "frame_s_min": min(times),
+            "frame_s_max": max(times),
+        }
+        print(f"{engine}: {json.dumps(engines[engine])}", flush=True)
+    figures = {
+        "command": "python benchmarks/engine_scooping.py --work WORK --out FILE",
+        "date": datetime.date.today().isoformat(),
+        "machine": machine(),
+        "versions": {**engine_versions(), **engine_versions("pybullet")},
+        "size": SIZE,
+        "expansions": EXPANSIONS,
+        "engines": engines,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
