@@ -5,10 +5,12 @@ temporary folder and in this process (``engine_versions.run_cli``), and writes w
 the commands, ``evaluate --json``'s output, the analysis's wall time, the versions and the machine.
 The same set is analysed again with the tree's own success score (``--continuation 0``, what
 ``reproduce``, ``budget`` and ``study`` score) and evaluated, under ``tree_success``. ``--seed S``
-runs the same commands with generation and analysis seed S (docs/results/results.md's other sets).
+runs the same commands with generation and analysis seed S (docs/results/results.md's other sets);
+``--cost NAME`` adds ``--cost NAME`` to both analyses (its cost-model table).
 
     python benchmarks/single_task.py --out docs/figures/pushing_10.json
     python benchmarks/single_task.py --seed 1 --out docs/figures/pushing_10_seed1.json
+    python benchmarks/single_task.py --cost energy --out docs/figures/pushing_10_energy.json
 """
 
 from __future__ import annotations
@@ -39,9 +41,15 @@ TREE_SUCCESS = (
 )
 
 
-def seeded(commands: tuple[str, ...], seed: int) -> list[str]:
-    """The commands with generation and analysis seed ``seed`` (the page's are seed 0)."""
-    return [command.replace("--seed 0", f"--seed {seed}") for command in commands]
+def seeded(commands: tuple[str, ...], seed: int, cost: str | None = None) -> list[str]:
+    """The commands with generation and analysis seed ``seed`` (the page's are seed 0).
+
+    With ``cost``, every ``analyze`` command also gets ``--cost COST`` (the default is ``wrench``).
+    """
+    with_seed = [command.replace("--seed 0", f"--seed {seed}") for command in commands]
+    if cost is None:
+        return with_seed
+    return [f"{command} --cost {cost}" if command.split()[1] == "analyze" else command for command in with_seed]
 
 
 def _run(command: str) -> str:
@@ -58,9 +66,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
     parser.add_argument("--seed", type=int, default=0, help="generation and analysis seed (default 0, the page's)")
+    parser.add_argument("--cost", help="the analyses' cost model (default: analyze's own, wrench)")
     args = parser.parse_args()
     out = args.out.resolve()
-    commands, tree_commands = seeded(COMMANDS, args.seed), seeded(TREE_SUCCESS, args.seed)
+    commands, tree_commands = seeded(COMMANDS, args.seed, args.cost), seeded(TREE_SUCCESS, args.seed, args.cost)
     with tempfile.TemporaryDirectory() as work, contextlib.chdir(work):
         _run(commands[0])
         started = time.perf_counter()
