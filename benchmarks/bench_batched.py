@@ -36,6 +36,37 @@ from energy_margin.tasks import get_task
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_analysis import machine
 
+Setting = tuple[int, int, str]
+
+
+def summary_rows(
+    settings: list[Setting],
+    times: dict[Setting, list[float]],
+    physics: dict[Setting, list[float]],
+    capture: dict[Setting, list[float]],
+    success: dict[Setting, list[float]],
+) -> list[dict[str, float | int | str]]:
+    """One row per (batch, threads, method) setting: mean time per frame [s] and its spread, physics
+    time [s], the speed-up against the EST at B = 1 (the first setting) and the mean scores."""
+    reference = statistics.fmean(times[settings[0]])
+    rows: list[dict[str, float | int | str]] = []
+    for setting in settings:
+        mean = statistics.fmean(times[setting])
+        rows.append(
+            {
+                "method": setting[2],
+                "batch": setting[0],
+                "threads": setting[1],
+                "per_frame_s": mean,
+                "per_frame_sd": statistics.pstdev(times[setting]),
+                "physics_s": statistics.fmean(physics[setting]),
+                "speedup": reference / mean,
+                "capture_mean": statistics.fmean(capture[setting]),
+                "success_mean": statistics.fmean(success[setting]),
+            }
+        )
+    return rows
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -53,14 +84,14 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args()
     task = get_task(args.task)
-    settings: list[tuple[int, int, str]] = [(1, 1, "est")]
+    settings: list[Setting] = [(1, 1, "est")]
     settings += [(batch, threads, "est") for batch in args.batches for threads in args.threads]
     settings += [(1, 1, method) for method in args.methods]
     configs = {s: AnalyzerConfig(expansions=args.expansions, batch=s[0], threads=s[1], method=s[2]) for s in settings}
-    times: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
-    physics: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
-    capture: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
-    success: dict[tuple[int, int, str], list[float]] = {s: [] for s in settings}
+    times: dict[Setting, list[float]] = {s: [] for s in settings}
+    physics: dict[Setting, list[float]] = {s: [] for s in settings}
+    capture: dict[Setting, list[float]] = {s: [] for s in settings}
+    success: dict[Setting, list[float]] = {s: [] for s in settings}
 
     print(f"machine: {machine()}")
     load_before = os.getloadavg()
@@ -95,29 +126,14 @@ def main() -> None:
     load_after = os.getloadavg()
     print(f"load average after: {' '.join(f'{v:.2f}' for v in load_after)}")
     print()
-    reference = statistics.fmean(times[(1, 1, "est")])
+    rows = summary_rows(settings, times, physics, capture, success)
     print("| method | B | threads | per frame [s] | physics [s] | speed-up vs EST B=1 | mean capture | mean success |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    rows = []
-    for setting in settings:
-        mean = statistics.fmean(times[setting])
-        rows.append(
-            {
-                "method": setting[2],
-                "batch": setting[0],
-                "threads": setting[1],
-                "per_frame_s": mean,
-                "per_frame_sd": statistics.pstdev(times[setting]),
-                "physics_s": statistics.fmean(physics[setting]),
-                "speedup": reference / mean,
-                "capture_mean": statistics.fmean(capture[setting]),
-                "success_mean": statistics.fmean(success[setting]),
-            }
-        )
+    for row in rows:
         print(
-            f"| {setting[2]} | {setting[0]} | {setting[1]} | {mean:.3f} ± {statistics.pstdev(times[setting]):.3f} "
-            f"| {statistics.fmean(physics[setting]):.3f} | {reference / mean:.2f}x "
-            f"| {statistics.fmean(capture[setting]):.3f} | {statistics.fmean(success[setting]):.3f} |"
+            f"| {row['method']} | {row['batch']} | {row['threads']} | {row['per_frame_s']:.3f} ± "
+            f"{row['per_frame_sd']:.3f} | {row['physics_s']:.3f} | {row['speedup']:.2f}x "
+            f"| {row['capture_mean']:.3f} | {row['success_mean']:.3f} |"
         )
     if args.out is not None:
         results = {
