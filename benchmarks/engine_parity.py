@@ -39,14 +39,12 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.reference import import_reference
 from energy_margin.data.scores_file import load_scores
-from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
+from table_one_reference import PROTOCOL, protocol_row
 
 __all__ = ["agreement"]
 
-#: Their Table I protocol: every frame of a trajectory weighs the same in its success score.
-PROTOCOL = {"weights": "uniform", "success_frames": 10}
 FOLDERS = {"pushing": "planepush-10objects", "scooping": "gripper-5objects"}
 EXPANSIONS = {"pushing": 300, "scooping": 30}
 #: Their simulation's time step [s] (the project's pushing task steps at 1/120 s).
@@ -83,21 +81,6 @@ def _analysed(path: Path, *, engine: str, expansions: int, seed: int, workers: i
     config = AnalyzerConfig(engine=engine, expansions=expansions, continuation=0)
     analyze(path, config, seed=seed, workers=workers, progress=False)
     return path
-
-
-def _row(path: Path) -> dict[str, Any]:
-    """AP at k̂ = 0 and 2 under their protocol, from the first half, positive rates and time per frame."""
-    result = evaluate(path, resamples=0, **PROTOCOL)
-    return {
-        "capture_ap": result.capture_ap,
-        "capture_ap_window2": result.capture_ap_window2,
-        "success_ap": result.success_ap,
-        "success_ap_first_half": result.success_ap_first_half,
-        "capture_positive_rate": result.capture_positive_rate,
-        "success_positive_rate": result.success_positive_rate,
-        "runtime_per_frame_s": result.runtime_per_frame_s,
-        "physics_per_frame_s": result.physics_per_frame_s,
-    }
 
 
 def _grid(scores: dict[str, np.ndarray], column: str) -> np.ndarray:
@@ -156,7 +139,7 @@ def pushing(work: Path, workers: int) -> dict[str, Any]:
         paths[engine, drive, seed, timestep] = path
         meta = json.loads((path / "dataset.json").read_text(encoding="utf-8"))
         dt = meta["task_config"]["timestep"]
-        runs.append({"engine": engine, "drive": drive, "seed": seed, "timestep_s": dt, **_row(path)})
+        runs.append({"engine": engine, "drive": drive, "seed": seed, "timestep_s": dt, **protocol_row(path)})
         print(f"pushing, {engine} {drive} seed {seed}, time step 1/{round(1 / dt)} s: done", flush=True)
     agreed = _agreements(paths["mujoco", "nominal", 0, None], paths["pybullet", "nominal", 0, None])
     return {"expansions": EXPANSIONS["pushing"], "runs": runs, "agreement": agreed}
@@ -169,7 +152,7 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
     for engine in ("mujoco", "pybullet"):
         path = _imported("scooping", work / f"scoop5-{engine}")
         paths[engine] = _analysed(path, engine=engine, expansions=EXPANSIONS["scooping"], seed=0, workers=workers)
-        rows[engine] = _row(path)
+        rows[engine] = protocol_row(path)
         print(f"scooping, {engine}: done", flush=True)
     mujoco, pybullet = rows["mujoco"]["runtime_per_frame_s"], rows["pybullet"]["runtime_per_frame_s"]
     return {

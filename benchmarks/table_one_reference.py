@@ -39,7 +39,7 @@ from energy_margin.robustness.perturb import perturb_dataset
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
 
-__all__: list[str] = []
+__all__ = ["PROTOCOL", "protocol_row"]
 
 REPEATS = 5
 EXPANSIONS = 300
@@ -58,8 +58,11 @@ def _spread(values: list[float]) -> dict[str, Any]:
     return {"mean": float(array.mean()), "std": float(array.std()), "values": [float(v) for v in array]}
 
 
-def _true_row(path: Path) -> dict[str, Any]:
-    """AP at k̂ = 0 and 2 under their protocol (and from the first half), positive rates, time per frame."""
+def protocol_row(path: Path) -> dict[str, Any]:
+    """AP at k̂ = 0 and 2 under their protocol (and from the first half), positive rates, time per frame.
+
+    Also the physics time per frame (a later field: files written before it lack the key).
+    """
     result = evaluate(path, resamples=0, **PROTOCOL)
     return {
         "capture_ap": result.capture_ap,
@@ -70,6 +73,7 @@ def _true_row(path: Path) -> dict[str, Any]:
         "success_positive_rate": result.success_positive_rate,
         "runtime_per_frame_s": result.runtime_per_frame_s,
         "runtime_per_frame_std_s": result.runtime_per_frame_std_s,
+        "physics_per_frame_s": result.physics_per_frame_s,
     }
 
 
@@ -110,8 +114,8 @@ def _analysed(path: Path, workers: int, seed: int = 0) -> Path:
 def _theirs(folder: Path, work: Path) -> dict[str, Any]:
     """Their own scores: the original run on true states, and their perturbed runs 1-5."""
     original = "original" if (folder / "original").is_dir() else "original-data"
-    true = _true_row(_imported(folder, work / f"theirs-{original}", scores=original))
-    runs = [_true_row(_imported(folder, work / f"theirs-{r}", scores=str(r))) for r in range(1, REPEATS + 1)]
+    true = protocol_row(_imported(folder, work / f"theirs-{original}", scores=original))
+    runs = [protocol_row(_imported(folder, work / f"theirs-{r}", scores=str(r))) for r in range(1, REPEATS + 1)]
     perturbed = {key: _spread([run[key] for run in runs]) for key in ("capture_ap", "success_ap")}
     return {"true": true, "paper": perturbed}
 
@@ -123,12 +127,12 @@ def pushing(work: Path, workers: int) -> dict[str, Any]:
     for drive in ("nominal", "coast"):
         true = _analysed(_imported(folder, work / f"push10-{drive}", drive=drive), workers)
         copies = [_analysed(copy, workers) for copy in _paper_copies(true, workers)]
-        rows[drive] = {"true": _true_row(true), "paper": _copies_row(true, copies)}
+        rows[drive] = {"true": protocol_row(true), "paper": _copies_row(true, copies)}
         # How far the tree's own randomness moves the true states' AP: other analysis seeds.
         rows[drive]["true_by_seed"] = {"0": rows[drive]["true"]}
         for seed in OTHER_SEEDS:
             again = _analysed(_imported(folder, work / f"push10-{drive}-seed{seed}", drive=drive), workers, seed)
-            rows[drive]["true_by_seed"][str(seed)] = _true_row(again)
+            rows[drive]["true_by_seed"][str(seed)] = protocol_row(again)
         print(f"pushing, {drive}: done", flush=True)
     rows["theirs"] = _theirs(folder, work / "push10-theirs")
     return rows
@@ -149,7 +153,8 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
         print(f"scooping, {source.name}: scored at every lambda", flush=True)
     rows: dict[str, Any] = {
         "lambdas": {
-            key: {"true": _true_row(dirs[0]), "paper": _copies_row(dirs[0], dirs[1:])} for key, dirs in scored.items()
+            key: {"true": protocol_row(dirs[0]), "paper": _copies_row(dirs[0], dirs[1:])}
+            for key, dirs in scored.items()
         }
     }
     rows["theirs"] = _theirs(folder, work / "scoop5-theirs")
