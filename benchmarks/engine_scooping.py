@@ -25,11 +25,10 @@ from typing import Any
 import numpy as np
 
 from bench_analysis import machine
-from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.runs.versions import engine_versions
-from energy_margin.sim import make_simulator
 
 __all__ = ["lifted"]
 
@@ -50,7 +49,7 @@ def lifted(heights: np.ndarray, *, resting: float, success_height: float) -> np.
 
 
 def _generated(work: Path, engine: str) -> Dataset:
-    """``generate --task scooping ... --engine E`` (kept when already there)."""
+    """``generate --task scooping ... --engine E``, generated anew on every run (its outcomes are measured)."""
     out = work / f"scoop-{engine}"
     return generate_dataset("scooping", out=out, engine=engine, overwrite=True, **SIZE)
 
@@ -73,27 +72,14 @@ def _outcomes(dataset: Dataset) -> dict[str, Any]:
 
 
 def _analysis_times(dataset: Dataset, engine: str) -> list[float]:
-    """Wall time [s] of each trajectory's middle frame, 300 expansions, the tree's own success."""
-    config = AnalyzerConfig(engine=engine, expansions=EXPANSIONS, continuation=0)
-    middle = dataset.n_frames // 2
-    seeds = frame_seeds(0, dataset.n_trajectories)
-    times = []
-    for trajectory in range(dataset.n_trajectories):
-        friction = float(dataset.arrays["friction"][trajectory])
-        drive = dataset.arrays["drive"][trajectory]
-        simulator = make_simulator(dataset.task.build_scene(dataset.n_objects, friction, drive), engine)
-        scores, _ = analyze_frame(
-            dataset.task,
-            dataset.frame(trajectory, middle),
-            friction=friction,
-            drive=drive,
-            seed=seeds[trajectory],
-            config=config,
-            start_time=float(dataset.arrays["frame_time"][trajectory, middle]),
-            simulator=simulator,
-        )
-        times.append(scores.runtime_s)
-    return times
+    """Wall time [s] of each trajectory's middle frame, 300 expansions, the tree's own success.
+
+    Each frame as ``analyze --seed 0`` scores it (:class:`FrameAnalyzer`: its per-frame seed, one
+    simulator per roll-out).
+    """
+    analyzer = FrameAnalyzer(dataset, AnalyzerConfig(engine=engine, expansions=EXPANSIONS, continuation=0), seed=0)
+    middles = [trajectory * dataset.n_frames + dataset.n_frames // 2 for trajectory in range(dataset.n_trajectories)]
+    return [analyzer(index)["runtime_s"] for index in middles]
 
 
 def main() -> None:
