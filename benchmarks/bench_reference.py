@@ -104,6 +104,23 @@ def run_theirs(python: Path, start: int, count: int, iterations: int, seed: int,
     return rows
 
 
+def frame_rows(theirs: dict[int, dict], ours: dict[int, dict], frames: list[int]) -> list[dict[str, float | int]]:
+    """One record per frame scored by both sides: each side's time and scores, ours with its expansions."""
+    return [
+        {
+            "frame": index,
+            "theirs_s": theirs[index]["runtime_s"],
+            "ours_s": ours[index]["runtime_s"],
+            "their_capture": theirs[index]["capture_score"],
+            "our_capture": ours[index]["capture_score"],
+            "their_success": theirs[index]["success_score"],
+            "our_success": ours[index]["success_score"],
+            "our_expansions": ours[index]["expansions"],
+        }
+        for index in frames
+    ]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=20, help="frames to score on each side (default 20)")
@@ -224,7 +241,9 @@ def main() -> None:
             "load_after": round(load_after[0], 2),
             "mujoco": mujoco_version,
         }
-        args.json.write_text(json.dumps({"summary": summary, "theirs": theirs, "ours": ours}, indent=2) + "\n")
+        rows = frame_rows(theirs, ours, frames)
+        document = {"summary": summary, "rows": rows, "theirs": theirs, "ours": ours}
+        args.json.write_text(json.dumps(document, indent=2) + "\n")
 
 
 if __name__ == "__main__":

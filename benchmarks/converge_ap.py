@@ -2,7 +2,8 @@
 
 The table of docs/results/performance.md ("AP before and after"): each set analysed with
 ``analyze``'s budget of 300 expansions and with ``--converge 0.02``, ``--converge 0.03``,
-``--contacts fast`` and ``--contacts fast --converge 0.02`` (the tree's own success,
+``--contacts fast``, ``--contacts fast --converge 0.02``, ``--batch 32`` alone and with
+``--converge 0.02`` and ``0.03`` (the tree's own success,
 ``--continuation 0``, two workers), then evaluated:
 
 * the authors' 200 pushing frames (``import-reference planepush-10objects --no-scores``), analysis
@@ -41,7 +42,7 @@ from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
 
-__all__ = ["SETTINGS", "mean_row", "with_changes"]
+__all__ = ["SETTINGS", "analysed_copy", "mean_row", "with_changes"]
 
 EXPANSIONS = 300
 #: The analyses compared, as ``AnalyzerConfig`` fields beside the budget.
@@ -51,9 +52,13 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "converge_0.03": {"converge": 0.03},
     "fast": {"contacts": "fast"},
     "fast_converge_0.02": {"contacts": "fast", "converge": 0.02},
+    # Batched rounds (``--batch 32``; threads change the time, not the scores) alone and with the budget.
+    "batch32": {"batch": 32},
+    "converge_0.02_batch32": {"converge": 0.02, "batch": 32},
+    "converge_0.03_batch32": {"converge": 0.03, "batch": 32},
 }
 #: Settings a task without a fast contact model (scooping) is analysed with.
-RECORDED_ONLY = ("defaults", "converge_0.02", "converge_0.03")
+RECORDED_ONLY = tuple(name for name, setting in SETTINGS.items() if "contacts" not in setting)
 QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
 THEIR_PROTOCOL = {"weights": "uniform", "success_frames": 10}
 PUSHING_SEEDS = (0, 1, 2)
@@ -73,8 +78,17 @@ def _analysed(
     source: Path, out: Path, setting: str, seed: int, workers: int, protocol: dict[str, Any]
 ) -> dict[str, Any]:
     """One analysis of a copy of ``source`` with ``setting``: AP per question and mean expansions."""
+    return analysed_copy(source, out, SETTINGS[setting], seed, workers, protocol)
+
+
+def analysed_copy(
+    source: Path, out: Path, fields: dict[str, Any], seed: int, workers: int, protocol: dict[str, Any]
+) -> dict[str, Any]:
+    """One analysis of a copy of ``source`` (``AnalyzerConfig`` ``fields`` beside the budget, the tree's
+    own success), resumed where ``out`` has one, then ``evaluate`` with ``protocol``: AP per question,
+    mean expansions and the seed."""
     path = _copy(source, out)
-    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, **SETTINGS[setting])
+    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, **fields)
     analyze(path, config, seed=seed, workers=workers, progress=False)
     result = evaluate(path, resamples=0, **protocol)
     row: dict[str, Any] = {question: getattr(result, question) for question in QUESTIONS}

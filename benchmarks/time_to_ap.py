@@ -68,7 +68,14 @@ QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first
 TOLERANCE = 0.01
 #: Replayed stopping rules and their tolerances: ``analyze --converge TOL --converge-rule RULE``,
 #: and the projected rule on the scores' logit (a candidate, not in ``analyze``).
-RULES = {"projected": (0.01, 0.02, 0.03), "window": (0.01, 0.02, 0.03), "projected-logit": (0.05, 0.1, 0.2)}
+#: ``projected-reached``: the projected rule, except that a success score still 0 at every check
+#: (no node has reached the success region yet) is never settled (a candidate, not in ``analyze``).
+RULES = {
+    "projected": (0.01, 0.02, 0.03),
+    "window": (0.01, 0.02, 0.03),
+    "projected-logit": (0.05, 0.1, 0.2),
+    "projected-reached": (0.01, 0.02, 0.03),
+}
 _DATASET: Dataset | None = None
 
 
@@ -135,13 +142,17 @@ def _replay(rows: list[tuple[int, float, float, float]], rule: str, tolerance: f
         for n, capture, success, _ in rows
         if n % defaults.converge_every == 0 and n <= budget
     ]
-    for i, (now, _, _) in enumerate(history):
+    reached = False
+    for i, (now, _, success) in enumerate(history):
+        reached = reached or success != scale(0.0)
+        if rule == "projected-reached" and not reached:
+            continue
         settled = scores_settled(
             history[: i + 1],
             remaining=budget - now,
             tolerance=tolerance,
             window=defaults.converge_window,
-            rule="projected" if rule == "projected-logit" else rule,
+            rule="projected" if rule.startswith("projected") else rule,
         )
         if settled:
             return now
@@ -377,14 +388,22 @@ def main() -> None:
 
 
 def _done_sets(path: Path | None, settings: dict[str, Any]) -> list[dict[str, Any]]:
-    """The sets an earlier run with the same settings (but the seeds) wrote to ``path``."""
+    """The sets an earlier run with the same settings (but the seeds) wrote to ``path``.
+
+    A set written before a rule of RULES existed is measured again (its traces are not kept).
+    """
     if path is None or not path.exists():
         return []
     earlier = json.loads(path.read_text())
     same = {key: value for key, value in earlier.get("settings", {}).items() if key not in ("seeds", "choose")}
     if same != {key: value for key, value in settings.items() if key not in ("seeds", "choose")}:
         raise SystemExit(f"{path} holds a run with other settings: give another --out or remove it")
-    return [entry for entry in earlier["sets"] if entry["seed"] in settings["seeds"]]
+    rules = {(rule, tolerance) for rule, tolerances in RULES.items() for tolerance in tolerances}
+    return [
+        entry
+        for entry in earlier["sets"]
+        if entry["seed"] in settings["seeds"] and {(row["rule"], row["tolerance"]) for row in entry["rules"]} == rules
+    ]
 
 
 def _write(path: Path | None, document: dict[str, Any]) -> None:

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from bench_modules import load_benchmark
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "bench_reference.py"
 
@@ -37,3 +39,28 @@ def test_without_the_reference_it_skips(tmp_path: Path) -> None:
         f"skip: the authors' code and frames are not at {tmp_path / 'shared' / 'reference'} "
         "(../shared/reference from the project root)"
     ]
+
+
+def test_frame_rows_pair_the_two_sides_frame_by_frame() -> None:
+    module = load_benchmark("bench_reference")
+    theirs = {
+        3: {"runtime_s": 2.0, "capture_score": 0.9, "success_score": 0.1},
+        4: {"runtime_s": 3.0, "capture_score": 0.5, "success_score": 0.6},
+    }
+    ours = {
+        4: {"runtime_s": 0.2, "capture_score": 0.4, "success_score": 0.7, "expansions": 150},
+        3: {"runtime_s": 0.1, "capture_score": 0.8, "success_score": 0.0, "expansions": 300},
+    }
+    rows = module.frame_rows(theirs, ours, [3, 4])
+    assert [row["frame"] for row in rows] == [3, 4]
+    assert rows[0] == {
+        "frame": 3,
+        "theirs_s": 2.0,
+        "ours_s": 0.1,
+        "their_capture": 0.9,
+        "our_capture": 0.8,
+        "their_success": 0.1,
+        "our_success": 0.0,
+        "our_expansions": 300,
+    }
+    assert rows[1]["our_expansions"] == 150 and rows[1]["theirs_s"] == 3.0

@@ -55,3 +55,26 @@ def test_the_cheapest_budget_holding_every_ap_is_chosen(bench) -> None:
     assert found["chosen_expansions"] == 100
     assert found["checks"][0]["holds"] is False
     assert found["checks"][0]["change"]["capture_ap"] == pytest.approx(-0.05)
+
+
+def test_the_reached_rule_waits_for_a_success_score_above_zero(bench) -> None:
+    # Both scores flat from the first check: the projected rule stops at the first check a window back.
+    flat = [(n, 0.9, 0.0, n / 1000) for n in range(0, 301, 25)]
+    assert bench._replay(flat, "projected", 0.02, 300) == 50
+    assert bench._replay(flat, "projected-reached", 0.02, 300) == 300
+    # Success leaves 0 at 100 expansions and stays: settled once a window lies past that move.
+    moved = [(n, 0.9, 0.0 if n < 100 else 0.4, n / 1000) for n in range(0, 301, 25)]
+    assert bench._replay(moved, "projected-reached", 0.02, 300) == 150
+
+
+def test_a_set_measured_before_a_rule_existed_is_measured_again(bench, tmp_path) -> None:
+    import json
+
+    settings = {"task": "pushing", "seeds": [61, 62], "choose": 1, "trajectories": 2}
+    every_rule = [{"rule": rule, "tolerance": t} for rule, ts in bench.RULES.items() for t in ts]
+    sets = [{"seed": 61, "rules": every_rule}, {"seed": 62, "rules": every_rule[:-1]}]
+    path = tmp_path / "found.json"
+    path.write_text(json.dumps({"settings": settings, "sets": sets}))
+    assert [entry["seed"] for entry in bench._done_sets(path, settings)] == [61]
+    with pytest.raises(SystemExit, match="other settings"):
+        bench._done_sets(path, {**settings, "trajectories": 3})

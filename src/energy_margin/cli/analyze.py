@@ -200,7 +200,8 @@ def _add_growth(parser: argparse.ArgumentParser) -> None:
         "--batch",
         type=positive_int,
         default=default("batch"),
-        help=f"expansions per mujoco.rollout round (default {default('batch')})",
+        help=f"expansions per mujoco.rollout round (default {default('batch')}; with --converge it loses AP: "
+        "docs/results/performance.md)",
     )
     parser.add_argument(
         "--threads",
