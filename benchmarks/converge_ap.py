@@ -3,7 +3,9 @@
 The table of docs/results/performance.md ("AP before and after"): each set analysed with
 ``analyze``'s budget of 300 expansions and with ``--converge 0.02``, ``--converge 0.03``,
 ``--contacts fast``, ``--contacts fast --converge 0.02``, ``--batch 32`` alone and with
-``--converge 0.02`` and ``0.03`` (the tree's own success,
+``--converge 0.02`` and ``0.03``, ``--converge 0.02 --converge-rule projected-reached``, and the
+earlier rule ``--converge-rule window --converge 0.01``
+with either contact model (the tree's own success,
 ``--continuation 0``, two workers), then evaluated:
 
 * the authors' 200 pushing frames (``import-reference planepush-10objects --no-scores``), analysis
@@ -56,6 +58,11 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "batch32": {"batch": 32},
     "converge_0.02_batch32": {"converge": 0.02, "batch": 32},
     "converge_0.03_batch32": {"converge": 0.03, "batch": 32},
+    # The projected rule once the success score has left 0 (``--converge-rule projected-reached``).
+    "reached_0.02": {"converge": 0.02, "converge_rule": "projected-reached"},
+    # The earlier rule of the adaptive budget (the levers table), with both contact models.
+    "window_0.01": {"converge": 0.01, "converge_rule": "window"},
+    "fast_window_0.01": {"contacts": "fast", "converge": 0.01, "converge_rule": "window"},
 }
 #: Settings a task without a fast contact model (scooping) is analysed with.
 RECORDED_ONLY = tuple(name for name, setting in SETTINGS.items() if "contacts" not in setting)

@@ -66,10 +66,9 @@ REFERENCE = 300
 STEP = 5
 QUESTIONS = ("capture_ap", "capture_ap_window2", "success_ap", "success_ap_first_half")
 TOLERANCE = 0.01
-#: Replayed stopping rules and their tolerances: ``analyze --converge TOL --converge-rule RULE``,
-#: and the projected rule on the scores' logit (a candidate, not in ``analyze``).
-#: ``projected-reached``: the projected rule, except that a success score still 0 at every check
-#: (no node has reached the success region yet) is never settled (a candidate, not in ``analyze``).
+#: Replayed stopping rules and their tolerances: ``analyze --converge TOL --converge-rule RULE``
+#: (``projected-reached``: the projected rule once the success score has left 0), and the
+#: projected rule on the scores' logit (a candidate, not in ``analyze``).
 RULES = {
     "projected": (0.01, 0.02, 0.03),
     "window": (0.01, 0.02, 0.03),
@@ -142,17 +141,13 @@ def _replay(rows: list[tuple[int, float, float, float]], rule: str, tolerance: f
         for n, capture, success, _ in rows
         if n % defaults.converge_every == 0 and n <= budget
     ]
-    reached = False
-    for i, (now, _, success) in enumerate(history):
-        reached = reached or success != scale(0.0)
-        if rule == "projected-reached" and not reached:
-            continue
+    for i, (now, _, _) in enumerate(history):
         settled = scores_settled(
             history[: i + 1],
             remaining=budget - now,
             tolerance=tolerance,
             window=defaults.converge_window,
-            rule="projected" if rule.startswith("projected") else rule,
+            rule="projected" if rule == "projected-logit" else rule,
         )
         if settled:
             return now

@@ -25,7 +25,10 @@ class _Dataset:
         return self._frame
 
 
-@pytest.mark.parametrize(("rule", "tolerance"), [("projected", 0.02), ("projected", 0.05), ("window", 0.02)])
+@pytest.mark.parametrize(
+    ("rule", "tolerance"),
+    [("projected", 0.02), ("projected", 0.05), ("window", 0.02), ("projected-reached", 0.05)],
+)
 def test_the_replayed_rule_stops_where_the_analyzer_stops(bench, rule: str, tolerance: float) -> None:
     task = get_task("pushing")
     trajectory = task.sample_trajectory(np.random.default_rng(4), 3)

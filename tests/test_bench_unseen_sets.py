@@ -51,3 +51,7 @@ def test_a_missing_ap_gives_no_change(bench) -> None:
     )
     assert rows[1]["success_ap_change"] is None
     assert rows[1]["capture_ap_change"] == 0.0
+
+
+def test_a_run_key_names_the_analysis_and_the_seed(bench) -> None:
+    assert bench.run_key({"analysis": "converge 0.02", "seed": 1}) == "converge_0.02_seed1"

@@ -89,6 +89,29 @@ def test_the_projected_rule_counts_the_nodes_a_node_budget_still_allows(monkeypa
     assert rule(_field(100, nodes=95)) is True
 
 
+def test_the_reached_rule_does_not_stop_before_a_success_score_leaves_zero(monkeypatch: pytest.MonkeyPatch) -> None:
+    flat = [(0.9, 0.0)] * 12
+    checks = [25 * (i + 1) for i in range(12)]
+    budget = TreeBudget(expansions=300)
+    projected = _rule(monkeypatch, flat, tolerance=0.02, window=50, budget=budget)
+    assert [projected(_field(n)) for n in checks].index(True) == checks.index(75)
+    reached = _rule(monkeypatch, flat, tolerance=0.02, window=50, budget=budget, rule="projected-reached")
+    assert not any(reached(_field(n)) for n in checks)
+
+
+def test_the_reached_rule_is_the_projected_rule_once_success_has_left_zero(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Success leaves 0 at 100 expansions, then stays: settled once a window lies past the move.
+    scores = [(0.9, 0.0 if n < 100 else 0.4) for n in range(25, 325, 25)]
+    checks = list(range(25, 325, 25))
+    budget = TreeBudget(expansions=300)
+    reached = _rule(monkeypatch, scores, tolerance=0.02, window=50, budget=budget, rule="projected-reached")
+    assert [reached(_field(n)) for n in checks].index(True) == checks.index(150)
+    # Back at 0 does not undo it: the region was reached once, and the projected rule decides.
+    again = [(0.9, 0.0), (0.9, 0.0), (0.9, 0.1), (0.9, 0.0)]
+    rule = _rule(monkeypatch, again, tolerance=0.02, window=50, budget=budget, rule="projected-reached")
+    assert [rule(_field(n)) for n in checks[:4]] == [False, False, False, True]
+
+
 def test_the_rule_must_be_known() -> None:
     with pytest.raises(InvalidParameterError, match="rule must be one of projected, window"):
         ScoresConverged(None, None, 1.0, tolerance=0.01, window=50, rule="spread")  # type: ignore[arg-type]

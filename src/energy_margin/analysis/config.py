@@ -61,7 +61,9 @@ class AnalyzerConfig:
             of the budget; ``"window"``: once neither moved by more than ``converge`` over the
             last ``converge_window`` expansions. Scores drift slowly down as a tree grows into
             costlier states, and the window rule stops a slow drift early (biased high); the
-            projected rule is the one whose AP holds (docs/results/performance.md).
+            projected rule is the one whose AP holds (docs/results/performance.md);
+            ``"projected-reached"``: the projected rule once the success score has left 0 (a tree
+            that has not reached the success region does not stop; docs/results/budget.md).
         converge_window: expansions the convergence rule looks back over.
         converge_every: expansions between two convergence checks.
         contacts: contact model of the analysis: ``"recorded"`` (the dataset's task settings) or

@@ -28,7 +28,7 @@ __all__ = [
 ]
 
 #: Rules of the adaptive budget (:class:`ScoresConverged`).
-CONVERGE_RULES = ("projected", "window")
+CONVERGE_RULES = ("projected", "window", "projected-reached")
 
 
 def frame_seeds(seed: int, count: int) -> list[int]:
@@ -62,7 +62,10 @@ class ScoresConverged:
       scores, ``remaining`` being the expansions the budget still allows (the accepted nodes it
       still allows when that is fewer): the change the budget's rest would bring at the current
       rate;
-    * ``"window"``: stop when both scores stayed within ``tolerance`` over the last ``window``.
+    * ``"window"``: stop when both scores stayed within ``tolerance`` over the last ``window``;
+    * ``"projected-reached"``: the projected rule, once the success score has left 0 at a check:
+      while no node has reached the success region the score says nothing yet of how likely it
+      is, so a frame whose tree never reaches it spends the whole budget.
     """
 
     def __init__(
@@ -108,9 +111,13 @@ def scores_settled(
         remaining: expansions the budget still allows after the last check.
         tolerance: the score tolerance.
         window: expansions the rule looks back over.
-        rule: ``"projected"`` or ``"window"`` (see :class:`ScoresConverged`).
+        rule: ``"projected"``, ``"window"`` or ``"projected-reached"`` (see :class:`ScoresConverged`).
 
     """
+    if rule == "projected-reached":
+        if all(entry[2] == 0 for entry in history):
+            return False
+        rule = "projected"
     now, capture, success = history[-1]
     earlier = [entry for entry in history if entry[0] <= now - window]
     if not earlier:

@@ -223,8 +223,9 @@ def _add_growth(parser: argparse.ArgumentParser) -> None:
         "--converge-rule",
         choices=CONVERGE_RULES,
         default=default("converge_rule"),
-        help="rule of --converge: projected (default) or window (neither score moved by more than TOL over "
-        "the last 50 expansions; stops earlier, biased high)",
+        help="rule of --converge: projected (default), window (neither score moved by more than TOL over "
+        "the last 50 expansions; stops earlier, biased high) or projected-reached (projected once the success "
+        "score has left 0)",
     )
     parser.add_argument(
         "--contacts",
