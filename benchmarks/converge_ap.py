@@ -24,9 +24,6 @@ Without ``../shared`` the authors' frames are left out.
 
 from __future__ import annotations
 
-import argparse
-import datetime
-import json
 import shutil
 import time
 from pathlib import Path
@@ -34,7 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from bench_analysis import machine
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.generate import generate_dataset
@@ -43,6 +39,7 @@ from energy_margin.data.scores_file import load_scores
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
+from results_document import document_head, work_arguments, write_document
 
 __all__ = ["SETTINGS", "analysed_copy", "mean_row", "with_changes"]
 
@@ -198,10 +195,7 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the sets and their analyses go (resumed)")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
-    parser.add_argument("--workers", type=int, default=2)
+    parser = work_arguments(__doc__)
     args = parser.parse_args()
     started = time.perf_counter()
     sets: dict[str, Any] = {}
@@ -212,17 +206,14 @@ def main() -> None:
     sets["pushing"] = pushing(args.work, args.workers)
     sets["scooping"] = scooping(args.work, args.workers)
     figures = {
-        "command": "python benchmarks/converge_ap.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("converge_ap.py"),
         "versions": engine_versions(),
         "expansions": EXPANSIONS,
         "settings": SETTINGS,
         "wall_s": round(time.perf_counter() - started, 1),
         "sets": sets,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, figures)
     for name, entries in sets.items():
         for setting, entry in entries.items():
             print(name, setting, {key: round(value, 4) for key, value in entry["mean"].items() if value is not None})

@@ -23,8 +23,6 @@ Without ``../shared`` it prints one ``skip:`` line; without PyBullet, one ``skip
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import importlib.util
 import json
 import time
@@ -34,13 +32,13 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from bench_analysis import machine
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.reference import import_reference
 from energy_margin.data.scores_file import load_scores
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
+from results_document import document_head, work_arguments, write_document
 from table_one_reference import PROTOCOL, protocol_row
 
 __all__ = ["agreement"]
@@ -164,10 +162,7 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the sets and their analyses go (resumed)")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
-    parser.add_argument("--workers", type=int, default=2)
+    parser = work_arguments(__doc__)
     parser.add_argument("--tasks", nargs="+", choices=tuple(FOLDERS), default=list(FOLDERS))
     args = parser.parse_args()
     if not REFERENCE_DATA.is_dir():
@@ -180,17 +175,14 @@ def main() -> None:
     measure = {"pushing": pushing, "scooping": scooping}
     found = {task: measure[task](args.work, args.workers) for task in args.tasks}
     figures = {
-        "command": "python benchmarks/engine_parity.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("engine_parity.py"),
         "versions": {**engine_versions(), **engine_versions("pybullet")},
         "protocol": PROTOCOL,
         "workers": args.workers,
         "wall_s": round(time.perf_counter() - started, 1),
         **found,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, figures)
     print(json.dumps(found, indent=1)[:4000])
 
 

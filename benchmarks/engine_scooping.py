@@ -15,8 +15,6 @@ Without PyBullet it prints one ``skip:`` line.
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import importlib.util
 import json
 from pathlib import Path
@@ -24,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from bench_analysis import machine
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.runs.versions import engine_versions
+from results_document import document_head, work_arguments, write_document
 
 __all__ = ["lifted"]
 
@@ -83,9 +81,7 @@ def _analysis_times(dataset: Dataset, engine: str) -> list[float]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the generated sets go")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
+    parser = work_arguments(__doc__, workers=False, work_help="where the generated sets go")
     args = parser.parse_args()
     if importlib.util.find_spec("pybullet") is None:
         print("skip: PyBullet is not installed (pip install 'energy-margin[pybullet]')")
@@ -102,16 +98,13 @@ def main() -> None:
         }
         print(f"{engine}: {json.dumps(engines[engine])}", flush=True)
     figures = {
-        "command": "python benchmarks/engine_scooping.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("engine_scooping.py"),
         "versions": {**engine_versions(), **engine_versions("pybullet")},
         "size": SIZE,
         "expansions": EXPANSIONS,
         "engines": engines,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, figures)
 
 
 if __name__ == "__main__":

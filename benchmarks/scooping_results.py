@@ -15,20 +15,17 @@ Every stage resumes from ``--work``.
 
 from __future__ import annotations
 
-import argparse
-import datetime
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-from bench_analysis import machine
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.generate import generate_dataset
 from energy_margin.evaluation.lambda_rescoring import lambda_directory, rescore_lambdas
 from energy_margin.evaluation.metrics import evaluate
 from energy_margin.runs.versions import engine_versions
+from results_document import document_head, work_arguments, write_document
 
 __all__ = ["evaluation_row"]
 
@@ -91,18 +88,13 @@ def timing(work: Path) -> dict[str, Any]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the sets and their analyses go (resumed)")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
-    parser.add_argument("--workers", type=int, default=2)
+    parser = work_arguments(__doc__)
     args = parser.parse_args()
     started = time.perf_counter()
     rows = lambda_rows(args.work, args.workers)
     one_process = timing(args.work)
     figures = {
-        "command": "python benchmarks/scooping_results.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("scooping_results.py"),
         "versions": engine_versions(),
         "expansions": EXPANSIONS,
         "workers": args.workers,
@@ -111,8 +103,7 @@ def main() -> None:
         "timing": {**TIMING, **one_process},
         "wall_s": round(time.perf_counter() - started, 1),
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, figures)
     for name, entries in rows.items():
         for entry in entries:
             aps = " ".join(f"{entry[q]:.3f}" if entry[q] is not None else "-" for q in QUESTIONS)

@@ -19,8 +19,6 @@ Without ``../shared`` it prints one ``skip:`` line.
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import json
 import time
 from pathlib import Path
@@ -28,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from bench_analysis import machine
 from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.run import analyze
 from energy_margin.data.reference import import_reference
@@ -38,6 +35,7 @@ from energy_margin.robustness.compare import compare_perturbed
 from energy_margin.robustness.perturb import perturb_dataset
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
+from results_document import document_head, work_arguments, write_document
 
 __all__ = ["PROTOCOL", "protocol_row"]
 
@@ -162,10 +160,7 @@ def scooping(work: Path, workers: int) -> dict[str, Any]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the sets and their analyses go (resumed)")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
-    parser.add_argument("--workers", type=int, default=2)
+    parser = work_arguments(__doc__)
     parser.add_argument("--tasks", nargs="+", choices=tuple(FOLDERS), default=list(FOLDERS))
     args = parser.parse_args()
     if not REFERENCE_DATA.is_dir():
@@ -175,9 +170,7 @@ def main() -> None:
     measure = {"pushing": pushing, "scooping": scooping}
     found = {task: measure[task](args.work, args.workers) for task in args.tasks}
     figures = {
-        "command": "python benchmarks/table_one_reference.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("table_one_reference.py"),
         "versions": engine_versions(),
         "expansions": EXPANSIONS,
         "repeats": REPEATS,
@@ -185,8 +178,7 @@ def main() -> None:
         "wall_s": round(time.perf_counter() - started, 1),
         **found,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, figures)
     print(json.dumps({task: found[task] for task in found}, indent=1)[:4000])
 
 

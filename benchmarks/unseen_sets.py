@@ -18,19 +18,16 @@ Without ``../shared`` the authors' frames are left out.
 
 from __future__ import annotations
 
-import argparse
-import datetime
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-from bench_analysis import machine
 from converge_ap import QUESTIONS, analysed_copy
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.reference import import_reference
 from energy_margin.runs.versions import engine_versions
 from engine_versions import REFERENCE_DATA
+from results_document import document_head, work_arguments, write_document
 
 __all__ = ["ANALYSES", "SETS", "run_key", "with_changes"]
 
@@ -110,10 +107,7 @@ def run_key(row: dict[str, Any]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--work", type=Path, required=True, help="where the sets and their analyses go (resumed)")
-    parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
-    parser.add_argument("--workers", type=int, default=2)
+    parser = work_arguments(__doc__)
     args = parser.parse_args()
     started = time.perf_counter()
     rows: list[dict[str, Any]] = []
@@ -131,9 +125,7 @@ def main() -> None:
             )
             print(name, analysis, seed, {key: found[key] for key in (*QUESTIONS, "mean_expansions")}, flush=True)
     document = {
-        "command": "python benchmarks/unseen_sets.py --work WORK --out FILE",
-        "date": datetime.date.today().isoformat(),
-        "machine": machine(),
+        **document_head("unseen_sets.py"),
         "versions": engine_versions(),
         "expansions": 300,
         "sets": {name: {key: value for key, value in spec.items() if key != "runs"} for name, spec in SETS.items()},
@@ -142,8 +134,7 @@ def main() -> None:
         # The same rows by set and run, for quoting: ``by_set/pushing5/converge_0.02_seed1``.
         "by_set": {name: {run_key(row): row for row in rows if row["set"] == name} for name in SETS},
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+    write_document(args.out, document)
 
 
 if __name__ == "__main__":
