@@ -94,7 +94,7 @@ def analysed_copy(
     own success), resumed where ``out`` has one, then ``evaluate`` with ``protocol``: AP per question,
     mean expansions and the seed."""
     path = _copy(source, out)
-    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, **fields)
+    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, capture_gate="none", **fields)
     analyze(path, config, seed=seed, workers=workers, progress=False)
     result = evaluate(path, resamples=0, **protocol)
     row: dict[str, Any] = {question: getattr(result, question) for question in QUESTIONS}

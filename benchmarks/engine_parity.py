@@ -76,7 +76,7 @@ def _imported(task: str, out: Path, *, drive: str = "nominal", timestep: float |
 
 def _analysed(path: Path, *, engine: str, expansions: int, seed: int, workers: int) -> Path:
     """``analyze PATH --engine E --expansions N --seed S --continuation 0`` (resumes)."""
-    config = AnalyzerConfig(engine=engine, expansions=expansions, continuation=0)
+    config = AnalyzerConfig(engine=engine, expansions=expansions, continuation=0, capture_gate="none")
     analyze(path, config, seed=seed, workers=workers, progress=False)
     return path
 

@@ -75,7 +75,9 @@ def _analysis_times(dataset: Dataset, engine: str) -> list[float]:
     Each frame as ``analyze --seed 0`` scores it (:class:`FrameAnalyzer`: its per-frame seed, one
     simulator per roll-out).
     """
-    analyzer = FrameAnalyzer(dataset, AnalyzerConfig(engine=engine, expansions=EXPANSIONS, continuation=0), seed=0)
+    analyzer = FrameAnalyzer(
+        dataset, AnalyzerConfig(engine=engine, expansions=EXPANSIONS, continuation=0, capture_gate="none"), seed=0
+    )
     middles = [trajectory * dataset.n_frames + dataset.n_frames // 2 for trajectory in range(dataset.n_trajectories)]
     return [analyzer(index)["runtime_s"] for index in middles]
 

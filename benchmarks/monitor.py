@@ -77,7 +77,8 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
         _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
     if not (path / "scores.csv").is_file():
         analyse = ["analyze", str(path), "--expansions", str(args.expansions), "--workers", "1", "--no-progress"]
-        _energy_margin(*analyse, "--seed", str(args.analysis_seed), "--continuation", str(args.continuation))
+        options = ["--continuation", str(args.continuation), "--capture-gate", args.capture_gate]
+        _energy_margin(*analyse, "--seed", str(args.analysis_seed), *options)
     return path
 
 
@@ -168,6 +169,12 @@ def main() -> None:
     parser.add_argument("--analysis-seed", type=int, default=0)
     parser.add_argument(
         "--continuation", type=int, default=0, help="analyze's success continuation (K draws; 0: the tree's own score)"
+    )
+    parser.add_argument(
+        "--capture-gate",
+        choices=("current", "none"),
+        default="none",
+        help="analyze's capture gate (default none, the paper's capture score, with which monitor.json was measured)",
     )
     parser.add_argument(
         "--persistence", type=int, default=3, help="the largest persistence the selection tries (1: first frame below)"

@@ -66,7 +66,7 @@ def evaluation_row(path: Path) -> dict[str, Any]:
 
 def lambda_rows(work: Path, workers: int) -> dict[str, Any]:
     """Per set: every λ's evaluation (rows in ``LAMBDAS`` order)."""
-    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0)
+    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, capture_gate="none")
     found: dict[str, Any] = {}
     for name, seed in SETS.items():
         dataset = _generated(work / f"scoop5-{name}", seed, SIZE)
@@ -83,7 +83,13 @@ def timing(work: Path) -> dict[str, Any]:
     """Time per frame of one process (``analyze TIMING --workers 1 --continuation 0``)."""
     size = {key: value for key, value in TIMING.items() if key != "seed"}
     dataset = _generated(work / "scoop5-timing", TIMING["seed"], size)
-    analyze(dataset, AnalyzerConfig(expansions=EXPANSIONS, continuation=0), seed=0, workers=1, progress=False)
+    analyze(
+        dataset,
+        AnalyzerConfig(expansions=EXPANSIONS, continuation=0, capture_gate="none"),
+        seed=0,
+        workers=1,
+        progress=False,
+    )
     return evaluation_row(dataset)
 
 

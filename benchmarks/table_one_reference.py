@@ -105,7 +105,13 @@ def _paper_copies(path: Path, workers: int) -> list[Path]:
 
 def _analysed(path: Path, workers: int, seed: int = 0) -> Path:
     """``analyze PATH --expansions 300 --seed S --continuation 0`` (resumes a finished or partial run)."""
-    analyze(path, AnalyzerConfig(expansions=EXPANSIONS, continuation=0), seed=seed, workers=workers, progress=False)
+    analyze(
+        path,
+        AnalyzerConfig(expansions=EXPANSIONS, continuation=0, capture_gate="none"),
+        seed=seed,
+        workers=workers,
+        progress=False,
+    )
     return path
 
 
@@ -139,7 +145,7 @@ def pushing(work: Path, workers: int) -> dict[str, Any]:
 def scooping(work: Path, workers: int) -> dict[str, Any]:
     """Their scooping frames: trees grown once per frame, scored at every λ of ``SCOOPING_LAMBDAS``."""
     folder = REFERENCE_DATA / FOLDERS["scooping"]
-    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0)
+    config = AnalyzerConfig(expansions=EXPANSIONS, continuation=0, capture_gate="none")
     true = _imported(folder, work / "scoop5")
     copies = _paper_copies(true, workers)
     scored: dict[str, list[Path]] = {}

@@ -106,7 +106,7 @@ def _trace_frame(job: tuple[int, int, int, int, str]) -> dict[str, Any]:
     assert dataset is not None
     lam = dataset.task.config.likelihood_lambda
     trace = _Trace(dataset, trajectory, frame, lam)
-    config = AnalyzerConfig(expansions=max_expansions, method=method)
+    config = AnalyzerConfig(expansions=max_expansions, method=method, capture_gate="none")
     scores, field = analyze_frame(
         dataset.task,
         dataset.frame(trajectory, frame),
@@ -195,7 +195,7 @@ def measure_set(args: argparse.Namespace, seed: int, workdir: Path) -> dict[str,
         friction=float(dataset.arrays["friction"][0]),
         drive=dataset.arrays["drive"][0],
         seed=seeds[0],
-        config=AnalyzerConfig(expansions=args.max_expansions, method=args.method),
+        config=AnalyzerConfig(expansions=args.max_expansions, method=args.method, capture_gate="none"),
         start_time=float(dataset.arrays["frame_time"][0, 0]),
     )
     if tuple(first["rows"][-1][1:3]) != (direct.capture_score, direct.success_score):

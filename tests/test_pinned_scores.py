@@ -8,8 +8,9 @@ One pushing score differs in its last bit between the x86-64 machines the tests 
 second list of MuJoCo 4.0.0 was measured on an AMD EPYC with AVX2 and no AVX-512); each is pinned
 exactly, and a change of the computation moves the scores off both. Pushing is pinned with the
 rim ground contacts of that release (``ground_contact="geometry"``, still the default), whatever
-the default becomes, and success as the tree's own score (``continuation=0``, what the paper's
-reproduction scores), not ``analyze``'s default continuation.
+the default becomes, and as the paper's reproduction scores them: success as the tree's own score
+(``continuation=0``), not ``analyze``'s default continuation, and capture without the capture gate
+(``capture_gate="none"``); the scooping test also checks the gated scores against them.
 """
 
 from __future__ import annotations
@@ -48,7 +49,9 @@ def test_pushing_scores_are_pinned(tmp_path: Path) -> None:
         out=out,
         task_config={"ground_contact": "geometry"},
     )
-    energy_margin.analyze(out, AnalyzerConfig(expansions=30, cost="energy", continuation=0), seed=2, progress=False)
+    energy_margin.analyze(
+        out, AnalyzerConfig(expansions=30, cost="energy", continuation=0, capture_gate="none"), seed=2, progress=False
+    )
     scores = load_scores(out)
     assert [float(v) for v in scores["capture_score"]] in expected["pushing_capture"]
     assert [float(v) for v in scores["success_score"]] == expected["pushing_success"]
@@ -62,8 +65,20 @@ def test_scooping_scores_are_pinned(tmp_path: Path) -> None:
     expected = for_release(PINNED_SCORES, "the scores")
     out = tmp_path / "scoop"
     energy_margin.generate_dataset("scooping", n_objects=3, n_trajectories=1, n_frames=4, seed=2, out=out)
-    energy_margin.analyze(out, AnalyzerConfig(expansions=15, continuation=0), seed=1, progress=False)
+    gated = tmp_path / "gated"
+    energy_margin.generate_dataset("scooping", n_objects=3, n_trajectories=1, n_frames=4, seed=2, out=gated)
+    energy_margin.analyze(
+        out, AnalyzerConfig(expansions=15, continuation=0, capture_gate="none"), seed=1, progress=False
+    )
+    energy_margin.analyze(gated, AnalyzerConfig(expansions=15, continuation=0), seed=1, progress=False)
     scores = load_scores(out)
     assert [float(v) for v in scores["capture_score"]] == expected["scooping_capture"]
+    # Gated (the default), a frame that is not captured scores 0: none of these four is (the scoop
+    # holds three boxes only later), and frame 1 scored 0.04 by its tree alone.
+    captured = energy_margin.load_dataset(gated).arrays["captured"][0]
+    assert captured.tolist() == [False] * 4
+    assert [float(v) for v in load_scores(gated)["capture_score"]] == [
+        value * bool(now) for value, now in zip(expected["scooping_capture"], captured, strict=True)
+    ]
     assert [float(v) for v in scores["success_score"]] == [0.0] * 4
     assert set(scores["nodes"].tolist()) == {16}

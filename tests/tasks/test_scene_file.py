@@ -600,8 +600,10 @@ def test_trees_keep_the_robot_coordinates_of_every_node(make_scene) -> None:
         friction=trajectory.friction,
         drive=trajectory.drive,
         seed=1,
-        config=AnalyzerConfig(expansions=40),
+        # The tree's own score: the start is not captured, which the default's gate would score 0.
+        config=AnalyzerConfig(expansions=40, capture_gate="none"),
     )
+    assert not task.is_captured(trajectory.initial)
     assert field.robot_q is not None and field.robot_q.shape == (field.nodes, 7)
     np.testing.assert_array_equal(field.robot_q[0], trajectory.initial.robot_q)
     # The pusher follows its motion through the tree: deeper nodes are further along +y.

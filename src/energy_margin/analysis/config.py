@@ -8,6 +8,7 @@ from typing import Any
 
 from energy_margin._renamed import renamed_fields
 from energy_margin.analysis.convergence import CONVERGE_RULES
+from energy_margin.analysis.scores import CAPTURE_GATES
 from energy_margin.errors import Constraint, InvalidParameterError, check_fields, constrained
 from energy_margin.planning import TreeBudget
 from energy_margin.planning.costs import COST_MODELS, make_cost_model
@@ -81,6 +82,9 @@ class AnalyzerConfig:
             ``None``: ``analyze``'s default (:mod:`energy_margin.analysis.continuation_rule`: 16
             on an engine that continues, else 0); a frame analysed alone takes ``None`` as 0.
         continuation_horizon: longest continuation, s past its node; ``None``: to the task's duration.
+        capture_gate: ``"current"``: a frame whose own objects are not all in its capture region
+            scores capture 0 (they are lost already; the label at k-hat 0 says so); ``"none"``:
+            the tree's likelihood mass alone, the paper's capture score (``reproduce``).
 
     """
 
@@ -112,6 +116,7 @@ class AnalyzerConfig:
     continuation_horizon: float | None = constrained(
         None, Constraint("float", minimum=0.0, exclusive=True, optional=True)
     )
+    capture_gate: str = constrained("current", Constraint("choice", choices=CAPTURE_GATES))
 
     def __post_init__(self) -> None:
         # Each field's constraint is declared once, beside its default (the command line takes both).

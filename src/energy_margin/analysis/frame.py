@@ -122,7 +122,7 @@ def analyze_frame(
         stop=stop,
         check_every=every,
     )
-    capture, success = score_field(task, frame, field, lam)
+    capture, success = score_field(task, frame, field, lam, capture_gate=config.capture_gate)
     if config.continuation:
         success = continued_success(simulator, task, frame, field, drive, lam=lam, samples=config.continuation,
             seed=seed, start_time=start_time, horizon=config.continuation_horizon, batched_states=config.batch > 1,
@@ -210,7 +210,8 @@ def analyze_frames(
             horizon=config.continuation_horizon,
         )  # fmt: skip
         continued = [one.success_score for one in found]
-    return _scored_together(task, frames, fields, continued, lam, (time.perf_counter() - started) / len(frames))
+    runtime = (time.perf_counter() - started) / len(frames)
+    return _scored_together(task, frames, fields, continued, lam, runtime, capture_gate=config.capture_gate)
 
 
 def _scored_together(
@@ -220,11 +221,13 @@ def _scored_together(
     continued: list[float | None],
     lam: float,
     runtime: float,
+    *,
+    capture_gate: str,
 ) -> list[tuple[FrameScores, CostField]]:
     """Each frame's scores from its tree (its success score from continuations where given) and field."""
     results = []
     for frame, field, continued_score in zip(frames, fields, continued, strict=True):
-        capture, success = score_field(task, frame, field, lam)
+        capture, success = score_field(task, frame, field, lam, capture_gate=capture_gate)
         success = success if continued_score is None else continued_score
         scores = FrameScores(
             capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged

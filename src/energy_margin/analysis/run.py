@@ -64,7 +64,7 @@ def run_description(dataset: Dataset, config: AnalyzerConfig, seed: int) -> dict
 
 # Analyzer settings added after the first release take their defaults in an analysis.json without
 # them (:func:`_comparable`), except these, whose behaviour before is not the new default.
-_EARLIER_BEHAVIOUR = {"converge_rule": "window", "analysis_model": "full", "continuation": 0}
+_EARLIER_BEHAVIOUR = {"converge_rule": "window", "analysis_model": "full", "continuation": 0, "capture_gate": "none"}
 
 
 def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:

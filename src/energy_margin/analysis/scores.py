@@ -7,11 +7,33 @@ import numpy as np
 from energy_margin.errors import InvalidParameterError, check_choice, check_float, check_positive_int
 
 __all__ = [
+    "CAPTURE_GATES",
+    "gate_capture",
     "likelihood",
     "region_score",
     "trajectory_success_score",
     "trajectory_weights",
 ]
+
+
+#: What a frame whose own state is not captured scores for capture (``AnalyzerConfig.capture_gate``).
+CAPTURE_GATES = ("current", "none")
+
+
+def gate_capture(capture: float, captured_now: bool, gate: str) -> float:
+    """The capture score of a frame, gated by whether the frame itself is captured.
+
+    Args:
+        capture: the tree's capture score (eq. 2), in [0, 1].
+        captured_now: whether the frame's own objects lie in its capture region
+            (:meth:`~energy_margin.tasks.Task.is_captured`, the label at k-hat 0).
+        gate: ``"current"``: 0 when the frame is not captured (its objects are out of the capture
+            region already, so no perturbation is needed to lose them), else ``capture``;
+            ``"none"``: ``capture`` as it is (the paper's score).
+
+    """
+    check_choice("capture_gate", gate, CAPTURE_GATES)
+    return capture if captured_now or gate == "none" else 0.0
 
 
 def likelihood(costs: np.ndarray, lam: float) -> np.ndarray:

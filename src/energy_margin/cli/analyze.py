@@ -12,6 +12,7 @@ from pathlib import Path
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, DEVICES, AnalyzerConfig
+from energy_margin.analysis.scores import CAPTURE_GATES
 from energy_margin.cli.common import (
     add_engine,
     add_old_spelling,
@@ -86,6 +87,7 @@ TREE_ONLY = {
     "projection": "--projection",
     "continuation": "--continuation",
     "continuation_horizon": "--continuation-horizon",
+    "capture_gate": "--capture-gate",
 }
 
 
@@ -110,6 +112,13 @@ def _add_budget_and_scoring(parser: argparse.ArgumentParser) -> None:
         ),
     )
     parser.add_argument("--nodes", type=non_negative_int, default=default("nodes"), help="tree nodes per frame")
+    parser.add_argument(
+        "--capture-gate",
+        choices=CAPTURE_GATES,
+        default=default("capture_gate"),
+        help="current (default): a frame whose objects are not all in its capture region scores capture 0 (they "
+        "are lost already); none: the tree's likelihood mass alone, the paper's score (reproduce uses it)",
+    )
     parser.add_argument(
         "--cost",
         choices=COSTS,
@@ -313,6 +322,7 @@ def analyzer_config(args: argparse.Namespace) -> AnalyzerConfig:
         analysis_model=args.analysis_model,
         continuation=continuation,
         continuation_horizon=args.continuation_horizon,
+        capture_gate=args.capture_gate,
     )
 
 

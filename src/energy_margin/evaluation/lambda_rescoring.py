@@ -23,7 +23,7 @@ from energy_margin.analysis.continuation import continued_success
 from energy_margin.analysis.executors import LocalExecutor
 from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, field_membership
 from energy_margin.analysis.run import open_analysis, run_description, write_scores
-from energy_margin.analysis.scores import region_score
+from energy_margin.analysis.scores import gate_capture, region_score
 from energy_margin.data.dataset import Dataset
 from energy_margin.data.dataset_files import copy_dataset
 from energy_margin.data.scores_file import load_scores, scores_journal
@@ -62,10 +62,11 @@ class LambdaRescorer(FrameAnalyzer):
         frame = self.dataset.frame(row["trajectory"], row["frame"])
         # Which nodes are in each set does not depend on lambda: tested once, weighted per lambda.
         captured, successful = field_membership(self.task, frame, field)
+        captured_now = self.task.is_captured(frame)
         continued = self._continuation(index, frame, field) if self.continued_config.continuation else None
         rows = []
         for lam in self.lambdas:
-            capture = region_score(field.costs, captured, lam)
+            capture = gate_capture(region_score(field.costs, captured, lam), captured_now, self.config.capture_gate)
             success = continued(lam) if continued is not None else region_score(field.costs, successful, lam)
             rows.append({**row, "capture_score": capture, "success_score": success})
         return {"trajectory": row["trajectory"], "frame": row["frame"], "rows": rows}

@@ -66,7 +66,7 @@ def _analyze(path: Path, config: ReproduceConfig) -> None:
 
     analyze(
         path,
-        AnalyzerConfig(expansions=config.expansions, engine=config.engine, continuation=0),
+        AnalyzerConfig(expansions=config.expansions, engine=config.engine, continuation=0, capture_gate="none"),
         seed=config.seed,
         workers=config.workers,
         progress=sys.stderr.isatty(),
