@@ -8,8 +8,8 @@ defaults but ``--capture-gate none`` (two workers, analysis seed 0). The gated c
 that score times the frame's own capture label (the label at k̂ = 0), which is what
 ``--capture-gate current`` writes (``tests/analysis/test_capture_gate.py`` checks it on a tree
 analysed both ways), so one tree per frame gives both columns. ``evaluate``'s capture questions at
-k̂ = 0, 2 and 4 and early success (first half, unchanged by the gate), each with the paired verdict
-against the best baseline (1000 resamples, seed 0).
+k̂ = 0, 2 and 4 and early success (first half; the same both ways, the gate does not touch the
+success score), each with the paired verdict against the best baseline (1000 resamples, seed 0).
 
     python benchmarks/capture_gate.py --work runs/capture-gate --out docs/figures/capture_gate.json [--seed 502]
 
@@ -157,12 +157,15 @@ def main() -> None:
         _cli("analyze", str(path), *options)
         found = gated_rows(path)
         document["scenes"][name] = found
-        for window in WINDOWS:
-            entry = found[f"capture_k{window}"]
+        questions = [(f"capture k̂ = {window}", found[f"capture_k{window}"]) for window in WINDOWS]
+        # Early success does not read the capture score: the same with and without the gate.
+        success = found["success_first_half"]
+        questions.append(("early success (first half)", {"none": success, "current": success}))
+        for question, entry in questions:
             document["rows"].append(
                 {
                     "scene": name,
-                    "question": f"capture k̂ = {window}",
+                    "question": question,
                     "none": entry["none"]["ap"],
                     "none_word": entry["none"]["verdict"]["word"],
                     "none_difference": entry["none"]["verdict"]["difference"],
