@@ -102,3 +102,21 @@ def test_command_line_option(copy_dataset: Callable[[str], Path], capsys: pytest
         main(["analyze", str(directory), "--capture-gate", "root"])
     assert raised.value.code == 2
     assert "--capture-gate" in capsys.readouterr().err
+
+
+def test_a_record_from_before_the_gate_grows_its_frames_again_as_they_were(tmp_path: Path) -> None:
+    from energy_margin.report.frame_tree import analysed_tree
+
+    directory = tmp_path / "before"
+    generate_dataset("pushing", out=directory, n_objects=4, n_trajectories=3, n_frames=4, seed=3)
+    analyze(directory, AnalyzerConfig(expansions=40, capture_gate="none", continuation=0), seed=2, progress=False)
+    path = directory / CONFIG_FILE
+    description = json.loads(path.read_text())
+    del description["analyzer"]["capture_gate"]  # written before the setting existed
+    path.write_text(json.dumps(description))
+    rows = load_scores(directory)
+    label = load_dataset(directory).arrays["captured"][rows["trajectory"], rows["frame"]]
+    lost = int(np.flatnonzero(~label & (rows["capture_score"] > 0))[0])
+    tree = analysed_tree(directory, int(rows["trajectory"][lost]), int(rows["frame"][lost]))
+    assert tree.scores.capture_score > 0.0  # the paper's score, as the record was written
+    assert tree.matches_stored

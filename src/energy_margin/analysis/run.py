@@ -34,6 +34,7 @@ __all__ = [
     "analyze_dataset",
     "lambda_note",
     "open_analysis",
+    "recorded_analyzer",
     "resolved_continuation",
     "run_description",
     "write_scores",
@@ -79,6 +80,15 @@ def _comparable(analyzer: dict[str, Any], *, earlier: bool) -> dict[str, Any]:
     if filled.get("converge") is None:
         filled["converge_rule"] = defaults["converge_rule"]
     return filled
+
+
+def recorded_analyzer(analyzer: dict[str, Any]) -> dict[str, Any]:
+    """The analyzer settings an ``analysis.json`` record stands for, every field present.
+
+    A field the file predates takes the behaviour of its time (:data:`_EARLIER_BEHAVIOUR`: the
+    paper's capture score, the full model, ...) or, for the rest, today's default.
+    """
+    return _comparable(analyzer, earlier=True)
 
 
 def _normalize(settings: dict[str, Any], earlier: bool) -> dict[str, Any]:

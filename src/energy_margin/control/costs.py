@@ -247,8 +247,12 @@ def holding_task(task: Task, force: np.ndarray, targets: np.ndarray | None, ctrl
 
 
 def margin_scores(predictions: Predictions, context: CostContext, samples: Sequence[int]) -> np.ndarray:
-    """Capture plus success score of the predicted end states of ``samples``, shape (len(samples),)."""
-    config = AnalyzerConfig(expansions=context.margin_expansions)
+    """Capture plus success score of the predicted end states of ``samples``, shape (len(samples),).
+
+    The capture score is the tree's own (``capture_gate="none"``), with which the closed-loop
+    results were measured: a planning cost, not a frame scored against its label.
+    """
+    config = AnalyzerConfig(expansions=context.margin_expansions, capture_gate="none")
     n_objects = predictions.object_pos.shape[2]
     seeds = context.seed_sequence.spawn(len(samples))
     totals = np.empty(len(samples))

@@ -27,7 +27,8 @@ def _frame_scores(
     seed: np.random.SeedSequence,
 ) -> tuple[list[float], list[float]]:
     """Capture and success scores of the recorded frames from a short analysis."""
-    config = AnalyzerConfig(expansions=settings.score_expansions)
+    # The tree's own capture score, with which the recorded episodes' scores were measured.
+    config = AnalyzerConfig(expansions=settings.score_expansions, capture_gate="none")
     simulator = task.make_simulator(settings.n_objects, friction, drive, "mujoco")
     capture, success = [], []
     for frame, start, child in zip(frames, times, seed.spawn(len(frames)), strict=True):

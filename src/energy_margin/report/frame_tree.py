@@ -66,10 +66,13 @@ class AnalysedTree:
 
 
 def analyser_settings(directory: Path) -> dict[str, Any]:
-    """The analyzer settings of ``analysis.json`` in a dataset directory, with later fields defaulted."""
-    from energy_margin._renamed import renamed_keys
+    """The analyzer settings of ``analysis.json`` in a dataset directory, later fields as they were then.
+
+    A field the file predates takes the behaviour it had when the file was written
+    (:func:`~energy_margin.analysis.run.recorded_analyzer`), so the tree grows again as it grew.
+    """
     from energy_margin.analysis.frame import AnalyzerConfig
-    from energy_margin.analysis.run import resolved_continuation
+    from energy_margin.analysis.run import recorded_analyzer, resolved_continuation
     from energy_margin.data.scores_file import CONFIG_FILE
     from energy_margin.runs.files import read_json
 
@@ -77,7 +80,7 @@ def analyser_settings(directory: Path) -> dict[str, Any]:
     analyzer = description.get("analyzer") if isinstance(description, dict) else None
     if not isinstance(analyzer, dict):
         raise EnergyMarginError(f"{directory / CONFIG_FILE}: no 'analyzer' settings")
-    settings = {**AnalyzerConfig().to_dict(), **renamed_keys(analyzer)}
+    settings = recorded_analyzer(analyzer)
     settings["continuation"] = resolved_continuation(description)  # the default rule's decision, where it decided
     known = set(AnalyzerConfig().to_dict())
     return {key: value for key, value in settings.items() if key in known}
