@@ -8,8 +8,9 @@ defaults but ``--capture-gate none`` (two workers, analysis seed 0). The gated c
 that score times the frame's own capture label (the label at k̂ = 0), which is what
 ``--capture-gate current`` writes (``tests/analysis/test_capture_gate.py`` checks it on a tree
 analysed both ways), so one tree per frame gives both columns. ``evaluate``'s capture questions at
-k̂ = 0, 2 and 4 and early success (first half; the same both ways, the gate does not touch the
-success score), each with the paired verdict against the best baseline (1000 resamples, seed 0).
+k̂ = 0, 2 and 4 and early success from the first 3 and the first 5 frames (k̄ = 3; the same both
+ways, the gate does not touch the success score), each with the paired verdict against the best
+baseline (1000 resamples, seed 0).
 
     python benchmarks/capture_gate.py --work runs/capture-gate --out docs/figures/capture_gate.json [--seed 502]
 
@@ -30,7 +31,8 @@ from energy_margin.data.dataset import load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.evaluation.baselines import baseline_grids
-from energy_margin.evaluation.metrics import question_aps, score_grid
+from energy_margin.evaluation.bootstrap import Questions
+from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs.versions import engine_versions
 from results_document import document_head, work_arguments, write_document
@@ -104,33 +106,42 @@ def _dataset(work: Path, name: str, spec: dict[str, Any], seed: int) -> Path:
     return out
 
 
+def questions_of(dataset: Any) -> Questions:
+    """Capture at k̂ = 0, 2, 4 and early success from the first 3 and 5 frames (k̄ = 3, linear weights)."""
+    return Questions(
+        dataset,
+        3,
+        capture_windows={f"capture_k{window}": window for window in WINDOWS},
+        success_spans={"success_first3": (0, 3), "success_first5": (0, 5)},
+    )
+
+
 def gated_rows(path: Path) -> dict[str, Any]:
-    """AP and verdict of each capture question (and early success) without and with the gate."""
+    """AP and verdict of each question without and with the gate (early success: the same both ways)."""
     dataset = load_dataset(path)
     scores = load_scores(path)
     capture = score_grid(dataset, scores, "capture_score")
     success = score_grid(dataset, scores, "success_score")
     gated = capture * dataset.arrays["captured"]
     grids = baseline_grids(dataset)
+    questions = questions_of(dataset)
+    every = np.arange(dataset.n_trajectories)
+    options = {"capture_window": 0, "success_frames": 3, "weights": "linear", "resamples": RESAMPLES, "seed": 0}
     found: dict[str, Any] = {"uncaptured_share": float(1.0 - dataset.arrays["captured"].mean())}
-    for window in WINDOWS:
-        options = {"capture_window": window, "success_frames": 3, "weights": "linear"}
-        entry: dict[str, Any] = {
-            "baselines": {name: question_aps(dataset, *grid, **options)["capture_ap"] for name, grid in grids.items()}
+    baselines = {name: questions.answer(*grid, every) for name, grid in grids.items()}
+    both = {}
+    for name, grid in (("none", capture), ("current", gated)):
+        answers = questions.answer(grid, success, every)
+        verdict = verdicts(dataset, (grid, success), grids, questions=questions, **options)
+        both[name] = {
+            question: {"ap": answers[question], "verdict": verdict[question].to_dict()} for question in answers
         }
-        for name, grid in (("none", capture), ("current", gated)):
-            verdict = verdicts(dataset, (grid, success), grids, **options, resamples=RESAMPLES, seed=0)
-            entry[name] = {
-                "ap": question_aps(dataset, grid, success, **options)["capture_ap"],
-                "verdict": verdict["capture_ap"].to_dict(),
-            }
-        found[f"capture_k{window}"] = entry
-    options = {"capture_window": 0, "success_frames": 3, "weights": "linear"}
-    verdict = verdicts(dataset, (capture, success), grids, **options, resamples=RESAMPLES, seed=0)
-    found["success_first_half"] = {
-        "ap": question_aps(dataset, capture, success, **options)["success_ap_first_half"],
-        "verdict": verdict["success_ap_first_half"].to_dict(),
-    }
+    for question in questions.names:
+        found[question] = {
+            "baselines": {name: answers[question] for name, answers in baselines.items()},
+            "none": both["none"][question],
+            "current": both["current"][question],
+        }
     found["changed_frames"] = int(np.count_nonzero(gated != capture))
     return found
 
@@ -157,10 +168,9 @@ def main() -> None:
         _cli("analyze", str(path), *options)
         found = gated_rows(path)
         document["scenes"][name] = found
-        questions = [(f"capture k̂ = {window}", found[f"capture_k{window}"]) for window in WINDOWS]
-        # Early success does not read the capture score: the same with and without the gate.
-        success = found["success_first_half"]
-        questions.append(("early success (first half)", {"none": success, "current": success}))
+        labels = {f"capture_k{window}": f"capture k̂ = {window}" for window in WINDOWS}
+        labels.update({"success_first3": "early success (first 3 frames)", "success_first5": "early success (first 5)"})
+        questions = [(label, found[key]) for key, label in labels.items()]
         for question, entry in questions:
             document["rows"].append(
                 {
