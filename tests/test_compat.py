@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from energy_margin import compat
-from energy_margin.errors import InvalidDataError
+from energy_margin.errors import InvalidDataError, InvalidParameterError
 
 MODEL = """<mujoco>
   <worldbody>
@@ -45,7 +45,7 @@ def test_versions_are_parsed_to_three_numbers(text: str, version: tuple[int, int
 
 
 def test_a_version_without_numbers_is_refused() -> None:
-    with pytest.raises(ValueError, match="not a version: 'dev'"):
+    with pytest.raises(InvalidParameterError, match="text is not a version: 'dev'"):
         compat.parse_version("dev")
 
 

@@ -50,7 +50,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from energy_margin.errors import InvalidDataError
+from energy_margin.errors import InvalidDataError, InvalidParameterError
 
 __all__ = [
     "ATTACH_KEYFRAMES_SINCE",
@@ -109,13 +109,13 @@ def parse_version(text: str) -> tuple[int, int, int]:
     """The (major, minor, patch) numbers of a version string such as ``"3.3.0"`` or ``"2.1.0rc1"``.
 
     Raises:
-        ValueError: ``text`` does not start with a number.
+        InvalidParameterError: ``text`` does not start with a number.
 
     """
     numbers = [int(match) for match in re.findall(r"\d+", text.split("+")[0])[:3]]
     if not numbers or not re.match(r"\d", text):
         # A defect: the text is an installed package's __version__, never the user's input.
-        raise ValueError(f"not a version: {text!r}")
+        raise InvalidParameterError("text", f"is not a version: {text!r}")
     padded = [*numbers, 0, 0][:3]
     return padded[0], padded[1], padded[2]
 

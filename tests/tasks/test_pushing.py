@@ -326,5 +326,5 @@ def test_batched_capture_regions_equal_one_region_per_frame() -> None:
     np.testing.assert_array_equal(batched.signed_distance(positions), one_by_one.signed_distance(positions))
     inside = batched.contains(positions)
     assert inside.any() and not inside.all()
-    with pytest.raises(ValueError, match="one frame"):
+    with pytest.raises(NotImplementedError, match="one frame"):
         batched.shapes()

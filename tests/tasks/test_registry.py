@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from energy_margin import tasks
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks import PushingConfig, PushingTask, available_tasks, get_task, register_task
 from energy_margin.tasks.pushing import WallBand
 
@@ -69,7 +69,7 @@ def test_register_requires_a_name(private_registry: None) -> None:
     class Nameless(PushingTask):
         name = ""
 
-    with pytest.raises(ValueError, match="non-empty `name`"):
+    with pytest.raises(InvalidParameterError, match="task_class needs a non-empty `name`"):
         register_task(Nameless)
     assert "" not in available_tasks()
 

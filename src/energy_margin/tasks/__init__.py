@@ -12,7 +12,7 @@ import sys
 from importlib.metadata import entry_points
 from typing import Any
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.tasks.base import (
     DesignAlias,
     DesignParameter,
@@ -64,7 +64,7 @@ def register_task(task_class: type[Task]) -> type[Task]:
     """Register a :class:`Task` subclass under its ``name`` (usable as a class decorator)."""
     if not getattr(task_class, "name", ""):
         # A defect of the task class (its author's code), not of a user's input.
-        raise ValueError("a task class needs a non-empty `name`")
+        raise InvalidParameterError("task_class", "needs a non-empty `name`")
     _REGISTRY[task_class.name] = task_class
     return task_class
 

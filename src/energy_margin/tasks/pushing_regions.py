@@ -127,8 +127,8 @@ class SweptRegion:
         workspace bound is not drawn (it lies outside every picture of the task).
         """
         if self.is_disc.ndim:
-            # A defect of the caller: the package draws the region of one frame only.
-            raise ValueError("only the region of one frame is drawn, not a batch of regions")
+            # The package draws the region of one frame only.
+            raise NotImplementedError("only the region of one frame is drawn, not a batch of regions")
         config = self.config
         z, half_height = _slab(config)
         if self.is_disc:
