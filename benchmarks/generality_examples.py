@@ -4,7 +4,8 @@ For each example, ``bash examples/measure_generality.sh NAME SCENE.toml WORK [re
 set of generation seed 202 from the scene file as written, the same trajectories with the
 perturbation derived from the scene and with the fixed defaults, ``calibrate`` on the file's trees,
 then ``benchmarks/bench_generality.py``'s paired verdicts; two workers; everything under ``WORK``
-is kept, so a run resumes), then one document of every example's rows:
+is kept, so a run resumes: a resumed example's ``calibrate_seconds`` is of the resumed run), then
+one document of every example's rows:
 
     python benchmarks/generality_examples.py --work runs/generality --out docs/figures/generality_examples.json
 
@@ -16,14 +17,13 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 from energy_margin.runs.versions import engine_versions
 from results_document import document_head, work_arguments, write_document
 
-__all__ = ["EXAMPLES", "table_rows"]
+__all__ = ["EXAMPLES", "ORDER", "cell", "table_rows"]
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Each example: its scene file, and whether its trajectories are recorded roll-outs.
@@ -38,26 +38,35 @@ EXAMPLES: dict[str, tuple[str, bool]] = {
 }
 
 
+#: The order of the ways of setting the perturbation in the table (labels start with these).
+ORDER = ("the file's", "fixed defaults", "derived", "calibrated")
+
+
+def cell(ap: float | None, verdict: dict[str, Any] | None = None) -> str:
+    """``0.981 (**ahead** +0.084 [+0.055, +0.123])``; the AP alone without a verdict; ``n/a`` without an AP."""
+    if ap is None:
+        return "n/a"
+    if verdict is None or None in (verdict["difference"], verdict["low"], verdict["high"]):
+        return f"{ap:.3f}"
+    word = verdict["word"] if verdict["word"] == "level" else f"**{verdict['word']}**"
+    return f"{ap:.3f} ({word} {verdict['difference']:+.3f} [{verdict['low']:+.3f}, {verdict['high']:+.3f}])"
+
+
 def table_rows(name: str, found: dict[str, Any]) -> list[dict[str, Any]]:
-    """One row per way of setting the perturbation, then one per baseline, flat for a table block.
+    """One row per way of setting the perturbation, then one per baseline: the cells of the table.
 
     ``found`` is ``bench_generality.py``'s JSON: per settings, each question's AP and verdict.
     """
+    ranked = sorted(found["rows"], key=lambda row: [row["settings"].startswith(p) for p in ORDER].index(True))
     rows = []
-    for index, row in enumerate(found["rows"]):
-        flat: dict[str, Any] = {"example": name if index == 0 else "", "settings": row["settings"]}
-        for number, (question, ap) in enumerate(row["ap"].items()):
-            verdict = row["verdict"][question]
-            flat[f"ap{number}"] = ap
-            flat[f"word{number}"] = f"**{verdict['word']}**" if verdict["word"] != "level" else verdict["word"]
-            for key in ("difference", "low", "high"):
-                flat[f"{key}{number}"] = verdict[key]
-        rows.append(flat)
+    for row in ranked:
+        cells = [cell(ap, row["verdict"][question]) for question, ap in row["ap"].items()]
+        rows.append({"example": "", "settings": row["settings"], **{f"q{i}": c for i, c in enumerate(cells)}})
     for baseline, answers in found["baselines"].items():
-        flat = {"example": "", "settings": f"baseline: {baseline.replace('_', ' ')}"}
-        for number, ap in enumerate(answers.values()):
-            flat[f"ap{number}"] = ap
-        rows.append(flat)
+        cells = [cell(ap) for ap in answers.values()]
+        label = f"baseline: {baseline.replace('_', ' ')}"
+        rows.append({"example": "", "settings": label, **{f"q{i}": c for i, c in enumerate(cells)}})
+    rows[0]["example"] = f"`{name}`"
     return rows
 
 
@@ -76,11 +85,9 @@ def main() -> None:
         model = ROOT / Path(scene).parent / "write_model.py"
         if model.exists():
             subprocess.run([sys.executable, str(model)], check=True, stdout=subprocess.DEVNULL)
-        started = time.perf_counter()
         command = ["bash", str(ROOT / "examples/measure_generality.sh"), name, str(ROOT / scene), str(args.work)]
         subprocess.run([*command, *(["record"] if recorded else [])], check=True)
         found = json.loads((args.work / name / "row.json").read_text(encoding="utf-8"))
-        found["wall_s"] = round(time.perf_counter() - started, 1)
         document["examples"][name] = found
         document["rows"] += table_rows(name, found)
         write_document(args.out, document)
