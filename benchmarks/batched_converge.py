@@ -26,7 +26,7 @@ import numpy as np
 
 from converge_ap import analysed_copy
 from energy_margin.analysis.convergence import frame_seeds, score_field, scores_settled
-from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, analyze_frame
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.evaluation.metrics import question_aps
@@ -123,19 +123,10 @@ def measure_set(work: Path, seed: int, batch: int, workers: int) -> dict[str, An
     jobs = [(index // dataset.n_frames, index % dataset.n_frames, seeds[index], batch) for index in range(len(seeds))]
     with multiprocessing.Pool(workers, initializer=_init, initargs=(str(source),)) as pool:
         traces = {(t, k): rows for t, k, rows in pool.map(_trace, jobs, chunksize=4)}
-    # The replay is analyze's rule: check it on the first frame.
-    _init(str(source))
-    direct, _ = analyze_frame(
-        dataset.task,
-        dataset.frame(0, 0),
-        friction=float(dataset.arrays["friction"][0]),
-        drive=dataset.arrays["drive"][0],
-        seed=seeds[0],
-        config=_config(batch, converge=0.02),
-        start_time=float(dataset.arrays["frame_time"][0, 0]),
-    )
+    # The replay is analyze's rule: check it on the first frame, analysed as analyze analyses it.
+    row = FrameAnalyzer(dataset, _config(batch, converge=0.02), seed)(0)
     replayed = traces[(0, 0)][replay(traces[(0, 0)], RULES["projected 0.02"])]
-    if replayed != (direct.expansions, direct.capture_score, direct.success_score):
+    if replayed != (row["expansions"], row["capture_score"], row["success_score"]):
         raise SystemExit(f"set {seed}: the replayed rule is not analyze --converge 0.02 --batch {batch}")
     rules: dict[str, Any] = {}
     for name, rule in RULES.items():

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.analysis.convergence import frame_seeds, score_field, scores_settled
-from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
+from energy_margin.analysis.frame import AnalyzerConfig, FrameAnalyzer, analyze_frame
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
 from energy_margin.evaluation.metrics import question_aps
@@ -186,19 +186,10 @@ def measure_set(args: argparse.Namespace, seed: int, workdir: Path) -> dict[str,
     ]
     with multiprocessing.get_context("spawn").Pool(args.workers, initializer=_init, initargs=(str(out),)) as pool:
         traces = pool.map(_trace_frame, jobs, chunksize=1)
-    _init(str(out))
     # Recording never changes the tree: the last row is what analyze gives at the whole budget.
-    first = traces[0]
-    direct, _ = analyze_frame(
-        dataset.task,
-        dataset.frame(0, 0),
-        friction=float(dataset.arrays["friction"][0]),
-        drive=dataset.arrays["drive"][0],
-        seed=seeds[0],
-        config=AnalyzerConfig(expansions=args.max_expansions, method=args.method, capture_gate="none"),
-        start_time=float(dataset.arrays["frame_time"][0, 0]),
-    )
-    if tuple(first["rows"][-1][1:3]) != (direct.capture_score, direct.success_score):
+    config = AnalyzerConfig(expansions=args.max_expansions, method=args.method, capture_gate="none")
+    direct = FrameAnalyzer(dataset, config, args.analysis_seed)(0)
+    if tuple(traces[0]["rows"][-1][1:3]) != (direct["capture_score"], direct["success_score"]):
         raise SystemExit(f"set {seed}: the traced tree's scores are not analyze's at {args.max_expansions} expansions")
     shape = (dataset.n_trajectories, dataset.n_frames)
     budgets = []
