@@ -244,7 +244,11 @@ class RolloutPropagator:
         (k,) s, q (k, r), v (k, r))`` returns the forces (k, r) and servo targets (k, r) or ``None``
         that ``Task.robot_force`` and ``Task.robot_targets`` give each state with ``rng=None``, bit
         for bit, or ``None`` to be evaluated one state at a time; a task with model commands has
-        none. The built-in tasks have one.
+        none. The built-in tasks have one. A task that moves its robot by model commands alone (no
+        forces, no servo targets: a scene file's) may vectorise those instead:
+        ``task.batched_model_command(drives (k, n_drive), times (k,) s)`` returns the
+        :class:`~energy_margin.sim.base.ModelCommand` of every row (arrays with a leading k axis)
+        that ``Task.model_command`` gives row by row, or ``None``.
 
         The same numbers as the loop of :meth:`propagate`, to the last bit: commands at the same
         times (start + done * dt, done a multiple of ``period``), packed into the same vector (the
@@ -255,7 +259,8 @@ class RolloutPropagator:
 
         """
         robot_commands = getattr(task, "robot_commands", None)
-        if robot_commands is None:
+        model_commands = getattr(task, "batched_model_command", None)
+        if robot_commands is None and model_commands is None:
             return False
         index, model = self.index, self.model
         k = chunks.shape[0]
@@ -271,7 +276,17 @@ class RolloutPropagator:
         for c in range(chunks.shape[1]):
             done = c * period
             active = np.flatnonzero(n_steps > done)
-            commands = robot_commands(drives[active], start_times[active] + done * dt, robot_q[active], robot_v[active])
+            times = start_times[active] + done * dt
+            if robot_commands is None:
+                assert model_commands is not None  # one of the two, checked above
+                command = model_commands(drives[active], times)
+                if command is None:
+                    return False
+                rows[np.ix_(active, force_at)] = 0.0
+                self._write_model_commands(rows, active, command)
+                chunks[:, c] = rows
+                continue
+            commands = robot_commands(drives[active], times, robot_q[active], robot_v[active])
             if commands is None:
                 return False
             forces, targets = commands
@@ -280,6 +295,17 @@ class RolloutPropagator:
                 rows[np.ix_(active, index.servo_actuators)] = np.asarray(targets, dtype=float)[:, index.servoed]
             chunks[:, c] = rows  # a propagation past its last command holds it
         return True
+
+    def _write_model_commands(self, rows: np.ndarray, active: np.ndarray, command: ModelCommand) -> None:
+        """Write each active row's controls and mocap poses (``command``'s arrays, one row each) into ``rows``."""
+        nmocap = int(self.model.nmocap)
+        at = self._mocap_at
+        if command.ctrl is not None:
+            rows[active, : int(self.model.nu)] = command.ctrl
+        if command.mocap_pos is not None:
+            rows[active, at : at + 3 * nmocap] = np.reshape(command.mocap_pos, (active.size, 3 * nmocap))
+        if command.mocap_quat is not None:
+            rows[active, at + 3 * nmocap : at + 7 * nmocap] = np.reshape(command.mocap_quat, (active.size, 4 * nmocap))
 
     def propagate(
         self,

@@ -54,6 +54,21 @@ class Motion:
         quat = _interpolate_quat(self.mocap_times, self.mocap_quat, time, hold=self.hold)
         return pos, quat / np.linalg.norm(quat, axis=-1, keepdims=True)
 
+    def ctrl_at_times(self, times: np.ndarray) -> np.ndarray | None:
+        """:meth:`ctrl_at` of every time of ``times`` (k,), s: shape (k, nu), the same numbers to the last bit."""
+        if self.ctrl_times.size == 0:
+            return None
+        return _interpolate_rows(self.ctrl_times, self.ctrl, np.asarray(times, dtype=float), hold=self.hold)
+
+    def mocap_at_times(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`mocap_at` of every time of ``times`` (k,), s: (k, nmocap, 3) and (k, nmocap, 4), bit for bit."""
+        if self.mocap_times.size == 0:
+            return None
+        times = np.asarray(times, dtype=float)
+        pos = _interpolate_rows(self.mocap_times, self.mocap_pos, times, hold=self.hold)
+        quat = _interpolate_quat_rows(self.mocap_times, self.mocap_quat, times, hold=self.hold)
+        return pos, quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+
 
 def _interpolate(times: np.ndarray, values: np.ndarray, time: float, *, hold: bool) -> np.ndarray:
     """Values (n, ...) at ``time`` between rows at ``times`` (n,), held before the first and after the last."""
@@ -99,6 +114,51 @@ def _interpolate_quat(times: np.ndarray, quats: np.ndarray, time: float, *, hold
         angle = np.arccos(dot[arc])[:, None]
         sine = np.sin(angle)
         result[arc] = (np.sin((1.0 - weight) * angle) * start[arc] + np.sin(weight * angle) * end[arc]) / sine
+    return result
+
+
+def _between(times: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Which of ``at`` (k,) lie strictly inside ``times``, and for those the rows before and after and the weight."""
+    inside = (at > times[0]) & (at < times[-1])
+    between = at[inside]
+    upper = np.searchsorted(times, between, side="right")
+    lower = upper - 1
+    weight = (between - times[lower]) / (times[upper] - times[lower])
+    return inside, lower, upper, weight
+
+
+def _interpolate_rows(times: np.ndarray, values: np.ndarray, at: np.ndarray, *, hold: bool) -> np.ndarray:
+    """:func:`_interpolate` at every time of ``at`` (k,): values (k, ...), the same arithmetic per row."""
+    result = np.where((at <= times[0]).reshape(-1, *[1] * (values.ndim - 1)), values[0], values[-1])
+    inside, lower, upper, weight = _between(times, at)
+    if hold:
+        result[inside] = values[lower]
+        return result
+    weight = weight.reshape(-1, *[1] * (values.ndim - 1))
+    result[inside] = (1.0 - weight) * values[lower] + weight * values[upper]
+    return result
+
+
+def _interpolate_quat_rows(times: np.ndarray, quats: np.ndarray, at: np.ndarray, *, hold: bool) -> np.ndarray:
+    """:func:`_interpolate_quat` at every time of ``at`` (k,): quaternions (k, n, 4), the same arithmetic per row."""
+    if hold:
+        return _interpolate_rows(times, quats, at, hold=hold)
+    result = _interpolate_rows(times, quats, at, hold=False)
+    inside, lower, upper, weight = _between(times, at)
+    start, end = quats[lower], quats[upper].copy()
+    dot = np.sum(start * end, axis=-1)
+    flip = dot < 0
+    end[flip] = -end[flip]
+    dot = np.clip(np.abs(dot), 0.0, 1.0)
+    weights = np.broadcast_to(weight[:, None], dot.shape)
+    blended = (1.0 - weight[:, None, None]) * start + weight[:, None, None] * end
+    arc = dot <= _NEARLY_EQUAL
+    if np.any(arc):
+        angle = np.arccos(dot[arc])[:, None]
+        sine = np.sin(angle)
+        share = weights[arc][:, None]
+        blended[arc] = (np.sin((1.0 - share) * angle) * start[arc] + np.sin(share * angle) * end[arc]) / sine
+    result[inside] = blended
     return result
 
 

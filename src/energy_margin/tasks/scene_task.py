@@ -314,6 +314,30 @@ class SceneTask(SceneRegions, Task):
             mocap_quat=None if mocap is None else mocap[1],
         )
 
+    def batched_model_command(self, drives: np.ndarray, times: np.ndarray) -> ModelCommand | None:
+        """:meth:`model_command` of many rows at once, the same numbers to the last bit.
+
+        Args:
+            drives: each row's drive parameters, shape (k, n_drive).
+            times: each row's time, shape (k,), s.
+
+        Returns:
+            A command whose arrays have a leading axis of k rows (controls (k, nu), mocap
+            positions (k, nmocap, 3), quaternions (k, nmocap, 4)); ``None`` where a subclass
+            commands its robot otherwise (it then gives :meth:`model_command` row by row).
+
+        """
+        if type(self).model_command is not SceneTask.model_command:
+            return None
+        motion = self.loaded.motion
+        clocks = np.asarray(times, dtype=float) * np.asarray(drives, dtype=float)[:, 0]
+        mocap = motion.mocap_at_times(clocks)
+        return ModelCommand(
+            ctrl=motion.ctrl_at_times(clocks),
+            mocap_pos=None if mocap is None else mocap[0],
+            mocap_quat=None if mocap is None else mocap[1],
+        )
+
     def wrench_limits(self, scene: Scene) -> WrenchLimits:
         """Forces m a and torques I alpha per axis, from the compiled model's masses and inertias.
 
