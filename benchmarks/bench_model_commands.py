@@ -15,9 +15,10 @@ dataset is generated (``--trajectories`` x ``--frames``, generation seed ``--see
 ``--trajectories`` roll-outs are used, with ``--frames`` frames spread over each.
 Every frame is analysed twice in this one process at ``analyze``'s defaults (the motion continued:
 16 draws) with ``--expansions``, alternating frame by frame (so both sides see the same machine
-state): row by row ("before") and in batches ("after"). It prints per scene the seconds per frame
-of each side (the whole call's wall time), their ratio, and how many frames scored the same to
-the last bit. Examples whose model is written from another package's assets are skipped (one
+state): row by row ("before") and in batches ("after"), then once more with the tree's own success
+score alone (``--continuation 0``: what the continuation adds). It prints per scene the seconds
+per frame of each side (the whole call's wall time), their ratio, how many frames scored the same
+to the last bit, and the tree alone. Examples whose model is written from another package's assets are skipped (one
 ``skip:`` line) until their ``write_model.py`` has run.
 """
 
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import json
 import os
 import statistics
@@ -37,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.analysis.continuation_rule import default_continuation
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame, frame_seeds
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.data.generate import generate_dataset
@@ -74,8 +77,10 @@ def _places(dataset: Dataset, args: argparse.Namespace) -> list[tuple[int, list[
 def measure(name: str, dataset: Dataset, args: argparse.Namespace) -> dict[str, Any]:
     """Both sides on the frames of ``dataset`` that :func:`_places` picks."""
     seeds = frame_seeds(args.seed, dataset.n_trajectories * dataset.n_frames)
-    config = AnalyzerConfig(expansions=args.expansions)
-    times: dict[str, list[float]] = {side: [] for side in SIDES}
+    # analyze's default continuation, as analyze resolves it (analyze_frame itself takes None as 0).
+    config = AnalyzerConfig(expansions=args.expansions, continuation=default_continuation("mujoco"))
+    tree_only = dataclasses.replace(config, continuation=0)
+    times: dict[str, list[float]] = {side: [] for side in (*SIDES, "tree")}
     same = 0
     for t, frames in _places(dataset, args):
         friction, drive = float(dataset.arrays["friction"][t]), dataset.arrays["drive"][t]
@@ -98,6 +103,18 @@ def measure(name: str, dataset: Dataset, args: argparse.Namespace) -> dict[str, 
                     times[side].append(time.perf_counter() - started)
                 scores[side] = (result.capture_score, result.success_score)
             same += scores["before"] == scores["after"]
+            started = time.perf_counter()
+            analyze_frame(
+                dataset.task,
+                dataset.frame(t, k),
+                friction=friction,
+                drive=drive,
+                seed=seeds[t * dataset.n_frames + k],
+                config=tree_only,
+                simulator=simulator,
+                start_time=float(dataset.arrays["frame_time"][t, k]),
+            )
+            times["tree"].append(time.perf_counter() - started)
     before, after = statistics.mean(times["before"]), statistics.mean(times["after"])
     return {
         "scene": name,
@@ -106,6 +123,7 @@ def measure(name: str, dataset: Dataset, args: argparse.Namespace) -> dict[str, 
         "after_s": after,
         "speedup": before / after,
         "same_scores": same,
+        "tree_s": statistics.mean(times["tree"]),
     }
 
 
@@ -148,12 +166,15 @@ def main() -> None:
                 flush=True,
             )
     print()
-    print("| scene | frames | row by row [s / frame] | batched [s / frame] | ratio | same scores |")
-    print("|---|---:|---:|---:|---:|---:|")
+    print(
+        "| scene | frames | row by row [s / frame] | batched [s / frame] | ratio | same scores "
+        "| tree alone [s / frame] |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
     for row in rows:
         print(
             f"| {row['scene']} | {row['frames']} | {row['before_s']:.4f} | {row['after_s']:.4f} | "
-            f"{row['speedup']:.2f}x | {row['same_scores']} / {row['frames']} |"
+            f"{row['speedup']:.2f}x | {row['same_scores']} / {row['frames']} | {row['tree_s']:.4f} |"
         )
     if args.out:
         settings = {key: getattr(args, key) for key in ("trajectories", "frames", "expansions", "seed")}

@@ -24,7 +24,7 @@ from typing import Any
 from generality_examples import cell
 from results_document import document_head, work_arguments, write_document
 
-__all__ = ["QUESTIONS", "STACKS", "row"]
+__all__ = ["QUESTIONS", "STACKS", "questions", "row"]
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Each stack: its distribution, its example's script and options.
@@ -88,10 +88,31 @@ def _version(python: Path, distribution: str) -> str | None:
     return found.stdout.strip() or None
 
 
+def _evaluation(results: dict[str, Any]) -> dict[str, Any]:
+    """``evaluate``'s result of the analysed episodes (examples that evaluate the live scores too keep both)."""
+    evaluation: dict[str, Any] = results["evaluate"]
+    return evaluation.get("analyze", evaluation)
+
+
+def questions(results: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Per question: the margin's AP, the best baseline's name and AP, and the verdict's numbers and word."""
+    evaluation = _evaluation(results)
+    found = {}
+    for question in QUESTIONS:
+        verdict = (evaluation.get("verdict") or {}).get(question) or {}
+        baseline = verdict.get("baseline")
+        found[question] = {
+            "margin": evaluation.get(question),
+            "baseline": baseline,
+            "baseline_ap": evaluation["baselines"][baseline][question] if baseline else None,
+            **{key: verdict.get(key) for key in ("difference", "low", "high", "word")},
+        }
+    return found
+
+
 def row(name: str, results: dict[str, Any]) -> dict[str, Any]:
     """The table's row of one stack from its example's ``results.json``."""
-    evaluation = results["evaluate"]
-    evaluation = evaluation.get("analyze", evaluation)  # examples that evaluate live scores too keep both
+    evaluation = _evaluation(results)
     episodes = results["episodes"]
     count = episodes if isinstance(episodes, int) else len(episodes)
     cells = {}
@@ -132,6 +153,7 @@ def main() -> None:
             "distribution": distribution,
             "version": _version(interpreters[name], distribution),
             "row": row(name, results),
+            "questions": questions(results),
             "evaluate_text": results.get("evaluate_text"),
         }
         document["rows"].append(document["stacks"][name]["row"])

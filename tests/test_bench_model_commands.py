@@ -36,4 +36,4 @@ def test_both_sides_score_every_picked_frame_the_same(bench, make_scene, tmp_pat
     assert bench._places(dataset, args) == [(0, [0, 2, 4])]
     row = bench.measure("tiny", dataset, args)
     assert (row["frames"], row["same_scores"]) == (3, 3)
-    assert row["before_s"] > 0 and row["after_s"] > 0
+    assert row["before_s"] > 0 and row["after_s"] > 0 and row["tree_s"] > 0

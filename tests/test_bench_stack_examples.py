@@ -41,6 +41,13 @@ def test_a_row_says_the_runs_and_each_questions_verdict_against_its_baseline(ben
     assert (row["mujoco"], row["episodes"], row["succeeded"]) == ("3.3.0", 30, 17)
     assert (row["live_mean_ms"], row["live_mean_expansions"]) == (49.0, 54.0)
     assert row["capture_ap_window2"] == "0.944 (**ahead** +0.027 [+0.017, +0.037]) against 0.917 (current state)"
+    found = bench.questions(results)["capture_ap_window2"]
+    assert (found["margin"], found["baseline"], found["baseline_ap"], found["word"]) == (
+        0.944,
+        "current_state",
+        0.917,
+        "ahead",
+    )
 
 
 def test_examples_that_evaluate_live_scores_too_are_read_from_their_analysis(bench) -> None:
