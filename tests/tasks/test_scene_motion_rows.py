@@ -81,6 +81,12 @@ def test_a_subclass_that_commands_otherwise_gets_no_batched_command(make_scene) 
     held = HeldCommandTask(loaded=task.loaded)
     assert held.batched_model_command(np.ones((2, 1)), np.zeros(2)) is None
 
+    class Pushed(type(task)):  # type: ignore[misc]
+        def robot_force(self, state, rng=None):  # type: ignore[no-untyped-def]
+            return np.ones(self.robot_dofs())
+
+    assert Pushed(loaded=task.loaded).batched_model_command(np.ones((2, 1)), np.zeros(2)) is None
+
 
 class _RowByRow:
     """The task, without its batched model command: the propagator evaluates it one row at a time."""

@@ -324,10 +324,16 @@ class SceneTask(SceneRegions, Task):
         Returns:
             A command whose arrays have a leading axis of k rows (controls (k, nu), mocap
             positions (k, nmocap, 3), quaternions (k, nmocap, 4)); ``None`` where a subclass
-            commands its robot otherwise (it then gives :meth:`model_command` row by row).
+            commands its robot otherwise (its own model command, forces or servo targets, which
+            are then evaluated row by row).
 
         """
-        if type(self).model_command is not SceneTask.model_command:
+        mine = type(self)
+        if (mine.model_command, mine.robot_force, mine.robot_targets) != (
+            SceneTask.model_command,
+            SceneTask.robot_force,
+            SceneTask.robot_targets,
+        ):
             return None
         motion = self.loaded.motion
         clocks = np.asarray(times, dtype=float) * np.asarray(drives, dtype=float)[:, 0]
