@@ -198,6 +198,7 @@ def main() -> None:
         "resample_seed": args.seed,
         "analysis_seed": args.analysis_seed,
         "continuation": args.continuation,
+        "capture_gate": args.capture_gate,
         "largest_persistence_tried": args.persistence,
     }
     results["cores"] = os.cpu_count()
