@@ -94,3 +94,21 @@ def test_select_chooses_on_a_third_set(
     assert main([*argv[:-1], str(calibration)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("energy-margin: error: --select is the calibration set")
+
+
+def test_a_capture_alarm_on_gated_scores_gets_a_note(
+    analysed: tuple[Path, Path], copy_dataset: Callable[[str], Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    calibration, test = analysed  # analysed at the defaults: capture gated
+    argv = ["--alpha", "0.5", "--resamples", "20"]
+    capsys.readouterr()
+    assert main(["monitor", str(calibration), str(test), *argv, "--score", "capture"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "watches capture" in err and "--capture-gate none" in err
+    assert main(["monitor", str(calibration), str(test), *argv, "--score", "success"]) == 0
+    assert capsys.readouterr().err == ""
+    ungated = copy_dataset("ungated")
+    assert main(["analyze", str(ungated), "--iterations", "5", "--no-progress", "--capture-gate", "none"]) == 0
+    capsys.readouterr()
+    assert main(["monitor", str(ungated), str(test), *argv, "--score", "capture"]) == 0
+    assert capsys.readouterr().err == ""

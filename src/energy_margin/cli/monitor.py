@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+from pathlib import Path
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json
 
@@ -74,6 +77,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _capture_gated(dataset: str) -> bool:
+    """Whether the analysis recorded beside ``dataset`` gated capture by the frame's own state."""
+    from energy_margin.analysis.run import recorded_analyzer
+    from energy_margin.data.scores_file import CONFIG_FILE
+
+    try:
+        record = json.loads((Path(dataset) / CONFIG_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    analyzer = record.get("analyzer") if isinstance(record, dict) else None
+    return isinstance(analyzer, dict) and recorded_analyzer(analyzer).get("capture_gate") == "current"
+
+
 def run(args: argparse.Namespace) -> int:
     """Print the table (or JSON); write the calibration file when asked."""
     from energy_margin.evaluation.monitor import MonitorCalibration, write_calibration
@@ -93,6 +109,14 @@ def run(args: argparse.Namespace) -> int:
     if args.save:
         margin = [MonitorCalibration.from_dict(entry) for entry in result.calibrations if entry["scorer"] == "margin"]
         write_calibration(args.save, margin)
+    watching = sorted({entry["score"] for entry in result.calibrations if entry["scorer"] == "margin"} - {"success"})
+    if watching and _capture_gated(args.calibration):
+        print(
+            f"note: the margin alarm watches {' and '.join(watching)}, and {args.calibration} was analysed with "
+            "capture gated (0 on a frame already out of its region), which lowers the threshold where a successful "
+            "roll-out leaves its region for a moment; for a capture alarm, analyse with --capture-gate none",
+            file=sys.stderr,
+        )
     if args.json:
         print_json(result.to_dict())
     else:
