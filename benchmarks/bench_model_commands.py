@@ -18,8 +18,8 @@ Every frame is analysed twice in this one process at ``analyze``'s defaults (the
 state): row by row ("before") and in batches ("after"), then once more with the tree's own success
 score alone (``--continuation 0``: what the continuation adds). It prints per scene the seconds
 per frame of each side (the whole call's wall time), their ratio, how many frames scored the same
-to the last bit, and the tree alone. Examples whose model is written from another package's assets are skipped (one
-``skip:`` line) until their ``write_model.py`` has run.
+to the last bit, and the tree alone. Examples whose model is written from another package's assets
+are skipped (one ``skip:`` line) until their ``write_model.py`` has run.
 """
 
 from __future__ import annotations
@@ -74,6 +74,27 @@ def _places(dataset: Dataset, args: argparse.Namespace) -> list[tuple[int, list[
     return [(t, frames.tolist()) for t in range(min(args.trajectories, dataset.n_trajectories))]
 
 
+def _timed(
+    dataset: Dataset, t: int, k: int, seed: int, simulator: Any, config: AnalyzerConfig
+) -> tuple[tuple[float, float], float]:
+    """Frame ``k`` of roll-out ``t`` analysed with ``config``: its capture and success scores and the call's seconds.
+
+    The roll-out's simulator is built beforehand and shared by every call, so no side pays for building it.
+    """
+    started = time.perf_counter()
+    result, _ = analyze_frame(
+        dataset.task,
+        dataset.frame(t, k),
+        friction=float(dataset.arrays["friction"][t]),
+        drive=dataset.arrays["drive"][t],
+        seed=seed,
+        config=config,
+        simulator=simulator,
+        start_time=float(dataset.arrays["frame_time"][t, k]),
+    )
+    return (result.capture_score, result.success_score), time.perf_counter() - started
+
+
 def measure(name: str, dataset: Dataset, args: argparse.Namespace) -> dict[str, Any]:
     """Both sides on the frames of ``dataset`` that :func:`_places` picks."""
     seeds = frame_seeds(args.seed, dataset.n_trajectories * dataset.n_frames)
@@ -86,35 +107,14 @@ def measure(name: str, dataset: Dataset, args: argparse.Namespace) -> dict[str, 
         friction, drive = float(dataset.arrays["friction"][t]), dataset.arrays["drive"][t]
         simulator = dataset.task.make_simulator(dataset.n_objects, friction, drive)
         for k in frames:
+            frame = (dataset, t, k, seeds[t * dataset.n_frames + k], simulator)
             scores = {}
             for side in SIDES:
                 with _row_by_row() if side == "before" else contextlib.nullcontext():
-                    started = time.perf_counter()
-                    result, _ = analyze_frame(
-                        dataset.task,
-                        dataset.frame(t, k),
-                        friction=friction,
-                        drive=drive,
-                        seed=seeds[t * dataset.n_frames + k],
-                        config=config,
-                        simulator=simulator,
-                        start_time=float(dataset.arrays["frame_time"][t, k]),
-                    )
-                    times[side].append(time.perf_counter() - started)
-                scores[side] = (result.capture_score, result.success_score)
+                    scores[side], seconds = _timed(*frame, config)
+                times[side].append(seconds)
             same += scores["before"] == scores["after"]
-            started = time.perf_counter()
-            analyze_frame(
-                dataset.task,
-                dataset.frame(t, k),
-                friction=friction,
-                drive=drive,
-                seed=seeds[t * dataset.n_frames + k],
-                config=tree_only,
-                simulator=simulator,
-                start_time=float(dataset.arrays["frame_time"][t, k]),
-            )
-            times["tree"].append(time.perf_counter() - started)
+            times["tree"].append(_timed(*frame, tree_only)[1])
     before, after = statistics.mean(times["before"]), statistics.mean(times["after"])
     return {
         "scene": name,

@@ -112,17 +112,14 @@ def questions(results: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 def row(name: str, results: dict[str, Any]) -> dict[str, Any]:
     """The table's row of one stack from its example's ``results.json``."""
-    evaluation = _evaluation(results)
     episodes = results["episodes"]
     count = episodes if isinstance(episodes, int) else len(episodes)
     cells = {}
-    for question in QUESTIONS:
-        verdict = (evaluation.get("verdict") or {}).get(question)
-        ap = evaluation.get(question)
-        text = cell(ap, verdict)
-        if verdict is not None and ap is not None:
-            best = evaluation["baselines"][verdict["baseline"]][question]
-            text += f" against {best:.3f} ({verdict['baseline'].replace('_', ' ')})"
+    for question, found in questions(results).items():
+        verdict = found if found["baseline"] is not None else None
+        text = cell(found["margin"], verdict)
+        if verdict is not None and found["margin"] is not None:
+            text += f" against {found['baseline_ap']:.3f} ({found['baseline'].replace('_', ' ')})"
         cells[question] = text
     timing = results["timing"]
     return {

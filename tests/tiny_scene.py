@@ -65,6 +65,15 @@ region = { type = "all", of = [
 """
 
 
+#: A slide pad driven by a position actuator, added to :data:`TINY_MODEL` (``make_scene``'s
+#: ``model_replace``): the tiny scene's robot with an actuator beside its mocap pusher.
+SLIDE_PAD = {
+    "  </worldbody>": '  <body name="pad" pos="0.5 0 0.03"><joint name="pad_x" type="slide" axis="1 0 0"/>'
+    '<geom type="box" size="0.02 0.02 0.02"/></body>\n  </worldbody>',
+    "</mujoco>": '<actuator><position joint="pad_x" kp="10"/></actuator>\n</mujoco>',
+}
+
+
 # An arm swept by a motor about a base at ``height``: its link pushes a box across the ground; two
 # slide fingers on the link can close onto each other (robot self-contact). With the default height
 # the link rests clear of the ground; a lower one lays it on the ground.

@@ -20,6 +20,7 @@ from energy_margin.tasks.scene_follow import node_frames
 from energy_margin.tasks.scene_model import load_scene
 from energy_margin.tasks.scene_sections import region_names
 from energy_margin.world.state import FrameState
+from tiny_scene import SLIDE_PAD
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -333,17 +334,12 @@ def test_batched_and_one_at_a_time_propagation_give_the_same_robot_and_membershi
 
 def test_a_mocap_body_without_declared_poses_stays_where_the_frame_has_it_in_both_paths(make_scene) -> None:
     # The motion drives a slide by its actuator only; the mocap pusher has no keyframes.
-    pad = '<body name="pad" pos="0.5 0 0.03"><joint name="pad_x" type="slide" axis="1 0 0"/>'
-    pad += '<geom type="box" size="0.02 0.02 0.02"/></body>\n  </worldbody>'
     scene = make_scene(
         replace={
             "mocap.pusher.pos = [0.0, -0.15, 0.03]": "ctrl = [0.0]",
             "mocap.pusher.pos = [0.0, 0.3, 0.03]": "ctrl = [0.1]",
         },
-        model_replace={
-            "  </worldbody>": "  " + pad,
-            "</mujoco>": '<actuator><position joint="pad_x" kp="10"/></actuator>\n</mujoco>',
-        },
+        model_replace=SLIDE_PAD,
     )
     task = get_task("scene", {"scene_file": str(scene)})
     trajectory = task.sample_trajectory(np.random.default_rng(1), 2)

@@ -8,6 +8,7 @@ import pytest
 from energy_margin.sim.base import BatchedRollout, require
 from energy_margin.tasks import get_task
 from energy_margin.tasks.scene_motion import Motion
+from tiny_scene import SLIDE_PAD
 
 # Two mocap bodies whose quaternions turn the long way (negative dot: flipped), a little (slerp) and
 # not at all (linear), and controls of three actuators, at uneven keyframe times.
@@ -102,17 +103,12 @@ class _RowByRow:
 
 @pytest.mark.parametrize("control_steps", [1, 3, None])
 def test_propagations_with_the_batched_command_equal_those_commanded_row_by_row(make_scene, control_steps) -> None:
-    slide = '<body name="pad" pos="0.5 0 0.03"><joint name="pad_x" type="slide" axis="1 0 0"/>'
-    slide += '<geom type="box" size="0.02 0.02 0.02"/></body>\n  </worldbody>'
     scene = make_scene(
         replace={
             "mocap.pusher.pos = [0.0, -0.15, 0.03]": "mocap.pusher.pos = [0.0, -0.15, 0.03]\nctrl = [0.0]",
             "mocap.pusher.pos = [0.0, 0.3, 0.03]": "mocap.pusher.pos = [0.0, 0.3, 0.03]\nctrl = [0.1]",
         },
-        model_replace={
-            "  </worldbody>": "  " + slide,
-            "</mujoco>": '<actuator><position joint="pad_x" kp="10"/></actuator>\n</mujoco>',
-        },
+        model_replace=SLIDE_PAD,
     )
     task = get_task("scene", {"scene_file": str(scene)})
     trajectory = task.sample_trajectory(np.random.default_rng(1), 2)

@@ -127,9 +127,14 @@ def _between(times: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return inside, lower, upper, weight
 
 
+def _held_ends(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Values (k, ...) at ``at`` (k,) as held past the ends: the first row up to ``times[0]``, else the last."""
+    return np.where((at <= times[0]).reshape(-1, *[1] * (values.ndim - 1)), values[0], values[-1])
+
+
 def _interpolate_rows(times: np.ndarray, values: np.ndarray, at: np.ndarray, *, hold: bool) -> np.ndarray:
     """:func:`_interpolate` at every time of ``at`` (k,): values (k, ...), the same arithmetic per row."""
-    result = np.where((at <= times[0]).reshape(-1, *[1] * (values.ndim - 1)), values[0], values[-1])
+    result = _held_ends(times, values, at)
     inside, lower, upper, weight = _between(times, at)
     if hold:
         result[inside] = values[lower]
@@ -143,7 +148,7 @@ def _interpolate_quat_rows(times: np.ndarray, quats: np.ndarray, at: np.ndarray,
     """:func:`_interpolate_quat` at every time of ``at`` (k,): quaternions (k, n, 4), the same arithmetic per row."""
     if hold:
         return _interpolate_rows(times, quats, at, hold=hold)
-    result = _interpolate_rows(times, quats, at, hold=False)
+    result = _held_ends(times, quats, at)
     inside, lower, upper, weight = _between(times, at)
     start, end = quats[lower], quats[upper].copy()
     dot = np.sum(start * end, axis=-1)
