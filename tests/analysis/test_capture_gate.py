@@ -53,6 +53,7 @@ def test_a_frame_moved_out_of_its_capture_region_scores_capture_zero(tiny_datase
         mass = region_score(field.costs, all_inside(task.capture_region(frame), field.object_pos), lam)
         assert paper.capture_score == pytest.approx(mass, abs=1e-15)
         assert gated.capture_score == (paper.capture_score if captured_now else 0.0)
+        assert gated.tree_capture_score == paper.tree_capture_score == paper.capture_score  # kept beside
         # Success is not gated, and the tree is the same.
         assert gated.success_score == paper.success_score
         assert gated.nodes == paper.nodes
@@ -73,6 +74,9 @@ def test_gated_scores_are_the_paper_scores_times_the_k0_label(tmp_path: Path) ->
     assert rows_paper["capture_score"][~label].max() > 0.0  # the gate changes a score
     np.testing.assert_array_equal(rows_gated["capture_score"], rows_paper["capture_score"] * label)
     np.testing.assert_array_equal(rows_gated["success_score"], rows_paper["success_score"])
+    # The tree's own capture score is kept beside the gated one, in both files.
+    np.testing.assert_array_equal(rows_gated["tree_capture_score"], rows_paper["capture_score"])
+    np.testing.assert_array_equal(rows_paper["tree_capture_score"], rows_paper["capture_score"])
     assert json.loads((gated / CONFIG_FILE).read_text())["analyzer"]["capture_gate"] == "current"
 
 
@@ -91,7 +95,8 @@ def test_lambda_rescoring_gates_like_analyze(copy_dataset: Callable[[str], Path]
     source, direct = copy_dataset("source"), copy_dataset("direct")
     found = rescore_lambdas(source, tmp_path / "lambdas", [2.0], config=AnalyzerConfig(expansions=10), progress=False)
     analyze(direct, AnalyzerConfig(expansions=10, likelihood_lambda=2.0), progress=False)
-    np.testing.assert_array_equal(found[2.0]["capture_score"], load_scores(direct)["capture_score"])
+    for column in ("capture_score", "tree_capture_score"):
+        np.testing.assert_array_equal(found[2.0][column], load_scores(direct)[column])
 
 
 def test_command_line_option(copy_dataset: Callable[[str], Path], capsys: pytest.CaptureFixture[str]) -> None:

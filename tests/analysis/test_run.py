@@ -275,9 +275,9 @@ def test_resume_after_an_interrupt(
 
 
 def test_read_journal_drops_torn_foreign_and_duplicate_lines(tmp_path: Path) -> None:
-    row = "0,1,0.5,0.25,31,30,0.01,0.005,123,0,0\n"
-    duplicate = "0,1,0.9,0.9,31,30,0.01,0.005,123,0,0\n"
-    other = "1,0,1.0,0.0,5,30,0.01,0.005,7,2,0\n"
+    row = "0,1,0.5,0.25,31,30,0.01,0.005,123,0,0,0.5\n"
+    duplicate = "0,1,0.9,0.9,31,30,0.01,0.005,123,0,0,0.5\n"
+    other = "1,0,1.0,0.0,5,30,0.01,0.005,7,2,0,1.0\n"
     journal = tmp_path / JOURNAL_FILE
     journal.write_text(
         ",".join(COLUMNS)
@@ -285,7 +285,7 @@ def test_read_journal_drops_torn_foreign_and_duplicate_lines(tmp_path: Path) -> 
         + row
         + "garbage\n"
         + duplicate
-        + "1,0,1.0,0.0,5.5,30,0.01,0.005,7,0,0\n"
+        + "1,0,1.0,0.0,5.5,30,0.01,0.005,7,0,0,1.0\n"
         + other
         + "1,2,0.3"
     )
@@ -373,12 +373,12 @@ def test_load_scores_errors(tiny_dataset: Path) -> None:
     with pytest.raises(EnergyMarginError, match="unexpected header"):
         load_scores(tiny_dataset)
     (tiny_dataset / SCORES_FILE).write_text(
-        ",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0\n0,1,x,1.0,31,30,0.1,0.1,5,0,0\n"
+        ",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0,1.0\n0,1,x,1.0,31,30,0.1,0.1,5,0,0,1.0\n"
     )
     with pytest.raises(EnergyMarginError, match="line 3 is malformed"):
         load_scores(tiny_dataset)
     # A missing final newline is fine in scores.csv.
-    (tiny_dataset / SCORES_FILE).write_text(",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0")
+    (tiny_dataset / SCORES_FILE).write_text(",".join(COLUMNS) + "\n0,0,1.0,1.0,31,30,0.1,0.1,5,0,0,1.0")
     assert load_scores(tiny_dataset)["seed"].tolist() == [5]
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from energy_margin.cli.app import main
 from energy_margin.data.dataset import load_dataset
+from energy_margin.data.scores_file import SCORES_FILE
 from energy_margin.evaluation.monitor import load_calibration
 
 
@@ -96,19 +97,26 @@ def test_select_chooses_on_a_third_set(
     assert err.count("\n") == 1 and err.startswith("energy-margin: error: --select is the calibration set")
 
 
-def test_a_capture_alarm_on_gated_scores_gets_a_note(
+def test_a_capture_alarm_watches_the_trees_own_capture_and_old_gated_files_get_a_note(
     analysed: tuple[Path, Path], copy_dataset: Callable[[str], Path], capsys: pytest.CaptureFixture[str]
 ) -> None:
     calibration, test = analysed  # analysed at the defaults: capture gated
-    argv = ["--alpha", "0.5", "--resamples", "20"]
-    capsys.readouterr()
-    assert main(["monitor", str(calibration), str(test), *argv, "--score", "capture"]) == 0
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "watches capture" in err and "--capture-gate none" in err
-    assert main(["monitor", str(calibration), str(test), *argv, "--score", "success"]) == 0
-    assert capsys.readouterr().err == ""
     ungated = copy_dataset("ungated")
     assert main(["analyze", str(ungated), "--iterations", "5", "--no-progress", "--capture-gate", "none"]) == 0
-    capsys.readouterr()
-    assert main(["monitor", str(ungated), str(test), *argv, "--score", "capture"]) == 0
+    argv = ["--alpha", "0.5", "--resamples", "20", "--score", "capture", "--json"]
+    thresholds = []
+    for directory in (calibration, ungated):
+        capsys.readouterr()
+        assert main(["monitor", str(directory), str(test), *argv]) == 0
+        out, err = capsys.readouterr()
+        assert err == ""
+        thresholds.append(json.loads(out)["calibrations"][0]["threshold"])
+    assert thresholds[0] == thresholds[1]  # the gate leaves the alarm's score alone
+    # A gated scores file written before the tree's own capture score was kept: a note.
+    scores = calibration / SCORES_FILE
+    scores.write_text("".join(line.rsplit(",", 1)[0] + "\n" for line in scores.read_text().splitlines()))
+    assert main(["monitor", str(calibration), str(test), *argv]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "watches capture" in err and "--overwrite" in err
+    assert main(["monitor", str(calibration), str(test), *argv[:4], "--score", "success"]) == 0
     assert capsys.readouterr().err == ""

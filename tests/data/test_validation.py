@@ -288,7 +288,7 @@ def _write_and_check(directory: Path, lines: list[str]) -> list[str]:
         (
             lambda lines: [*lines[:3], "0,2,0.5", *lines[4:]],
             [
-                "scores.csv: row [line 4]: has 3 fields, expected 11",
+                "scores.csv: row [line 4]: has 3 fields, expected 12",
                 "scores.csv: row [trajectory 0, frame 2]: is missing",
             ],
         ),
@@ -302,7 +302,7 @@ def _write_and_check(directory: Path, lines: list[str]) -> list[str]:
         ),
         (lambda lines: [], ["scores.csv: header [line 1]: expected " + HEADER]),
         (
-            lambda lines: [*lines, "2,0,0.5,0.5,31,30,0.01,0.005,7,0,0"],
+            lambda lines: [*lines, "2,0,0.5,0.5,31,30,0.01,0.005,7,0,0,0.5"],
             ["scores.csv: trajectory [line 8]: frame (2, 0) is outside the dataset"],
         ),
         (
@@ -319,6 +319,17 @@ def test_scores_problems(scored: Path, edit: Callable[[list[str]], list[str]], e
         evaluate(scored)
 
 
+def test_a_scores_file_without_the_tree_capture_score_is_still_read(scored: Path) -> None:
+    # Written before the tree's own capture score was kept: it reads as NaN (unknown).
+    kept = load_scores(scored)
+    assert np.isfinite(kept["tree_capture_score"]).all()
+    lines = [line.rsplit(",", 1)[0] for line in _scores_lines(scored)]
+    assert _write_and_check(scored, lines) == []
+    scores = load_scores(scored)
+    assert np.isnan(scores["tree_capture_score"]).all()
+    np.testing.assert_array_equal(scores["capture_score"], kept["capture_score"])
+
+
 def test_a_scores_file_without_the_tree_counts_is_still_read(scored: Path) -> None:
     # Written before the trees' rejections were counted: the counts read as -1 (unknown).
     lines = [",".join(line.split(",")[:9]) for line in _scores_lines(scored)]
@@ -332,11 +343,15 @@ def test_a_scores_file_without_the_tree_counts_is_still_read(scored: Path) -> No
     ("edit", "expected"),
     [
         (
-            lambda lines: [*lines[:2], lines[2].rsplit(",", 1)[0] + ",-2"],
+            lambda lines: [*lines[:2], ",".join([*lines[2].split(",")[:10], "-2", lines[2].split(",")[11]])],
             ["scores.csv: diverged [line 3]: -2 is not a count (-1: unknown)"],
         ),
+        (
+            lambda lines: [*lines[:2], lines[2].rsplit(",", 1)[0] + ",1.5"],
+            ["scores.csv: tree_capture_score [line 3]: 1.5 is outside [0, 1] (nan: unknown)"],
+        ),
     ],
-    ids=["negative-count"],
+    ids=["negative-count", "tree-capture-outside"],
 )
 def test_tree_count_problems(scored: Path, edit: Callable[[list[str]], list[str]], expected: list[str]) -> None:
     lines = edit(_scores_lines(scored))
@@ -351,7 +366,7 @@ def test_several_scores_problems_at_once(scored: Path) -> None:
     lines = [*lines[:5], "garbage", lines[2]]  # drops trajectory 1, frame 1 and 2; duplicates line 3
     assert _write_and_check(scored, lines) == [
         "scores.csv: capture_score [line 2]: 1.5 is outside [0, 1]",
-        "scores.csv: row [line 6]: has 1 fields, expected 11",
+        "scores.csv: row [line 6]: has 1 fields, expected 12",
         "scores.csv: row [line 7]: duplicates line 3 (trajectory 0, frame 1)",
         "scores.csv: row [trajectory 1, frame 1]: is missing",
         "scores.csv: row [trajectory 1, frame 2]: is missing",
@@ -459,7 +474,7 @@ def test_small_objects_get_the_overlap_floor(tmp_path: Path) -> None:
 
 def test_a_scores_file_of_release_0_2_with_its_iterations_column_is_still_read(scored: Path) -> None:
     before = load_scores(scored)
-    lines = _scores_lines(scored)
+    lines = [line.rsplit(",", 1)[0] for line in _scores_lines(scored)]  # no tree capture score then
     lines[0] = lines[0].replace(",expansions,", ",iterations,")
     assert _write_and_check(scored, lines) == []
     after = load_scores(scored)

@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from energy_margin.data.dataset import load_dataset
+from energy_margin.data.scores_file import UNGATED_COLUMNS
 from energy_margin.errors import EnergyMarginError, InvalidParameterError
 from energy_margin.evaluation.monitor import (
     LiveAlarm,
@@ -16,6 +18,7 @@ from energy_margin.evaluation.monitor import (
     calibrate_monitor,
     conformal_rank,
     load_calibration,
+    monitored_grids,
     worst_scores,
     write_calibration,
 )
@@ -186,6 +189,20 @@ def test_calibrate_and_evaluate_a_dataset(labelled: Path) -> None:
     assert result.detection_rate_low == 1.0 and result.false_alarm_rate_high == 0.0
     with pytest.raises(InvalidParameterError, match="needs at least 19"):
         calibrate_monitor(labelled, alpha=0.05)
+
+
+def test_a_capture_alarm_watches_the_trees_own_capture_score(labelled: Path) -> None:
+    # The success's frame 1 was out of its region for a moment: gated, its capture is 0 there.
+    gated = np.array([[0.9, 0.0, 0.7], [0.6, 0.0, 0.0]])
+    tree = np.array([[0.9, 0.8, 0.7], [0.6, 0.3, 0.1]])
+    success = np.array([[0.5, 0.6, 0.9], [0.2, 0.1, 0.0]])
+    write_scores(labelled, gated, success, tree_capture=tree)
+    assert calibrate_monitor(labelled, alpha=0.5, score="capture").threshold == 0.7  # the tree's worst
+    assert calibrate_monitor(labelled, alpha=0.5, score="min").threshold == 0.5
+    np.testing.assert_array_equal(monitored_grids(load_dataset(labelled), labelled)["capture"], tree)
+    # A file written before the tree's own score was kept: the gated score is all there is.
+    write_scores(labelled, gated, success, columns=UNGATED_COLUMNS)
+    assert calibrate_monitor(labelled, alpha=0.5, score="capture").threshold == 0.0
 
 
 def test_compare_reports_margin_then_distance(labelled: Path, copy_dataset: Callable[[str], Path]) -> None:

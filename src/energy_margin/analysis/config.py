@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -175,6 +176,10 @@ class FrameScores:
         physics_s: part of it spent in the simulator, s.
         rejected: reached states the tree rejected for leaving the task's state box.
         diverged: reached states the tree rejected for a non-finite number (a blow-up).
+        tree_capture_score: the tree's own capture score (eq. 2) before ``capture_gate``: equal
+            to ``capture_score`` unless the gate scored the frame 0; what a capture alarm watches
+            (a successful roll-out whose objects leave their region for a moment keeps it). NaN
+            where unknown (scores no tree of this package grew).
 
     """
 
@@ -186,3 +191,4 @@ class FrameScores:
     physics_s: float
     rejected: int = 0
     diverged: int = 0
+    tree_capture_score: float = math.nan

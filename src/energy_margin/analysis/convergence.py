@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from energy_margin.analysis.scores import gate_capture, region_score
+from energy_margin.analysis.scores import region_score
 from energy_margin.errors import check_choice
 from energy_margin.planning import CostField, TreeBudget
 from energy_margin.tasks import Task, TaskRegions
@@ -44,20 +44,15 @@ def field_membership(task: TaskRegions, root: FrameState, field: CostField) -> t
     return captured, successful
 
 
-def score_field(
-    task: TaskRegions, root: FrameState, field: CostField, lam: float, *, capture_gate: str = "none"
-) -> tuple[float, float]:
-    """Capture and success scores of a cost field (Algorithm 1, lines 4-11).
+def score_field(task: TaskRegions, root: FrameState, field: CostField, lam: float) -> tuple[float, float]:
+    """Capture and success scores of a cost field (Algorithm 1, lines 4-11): the tree's own.
 
-    ``capture_gate``: ``"current"`` scores capture 0 when ``root`` itself is not captured
-    (:func:`~energy_margin.analysis.scores.gate_capture`); ``"none"``, the default here, is
-    Algorithm 1 as it is (the adaptive budget's rule watches the tree's own scores).
+    ``analyze_frame`` gates the capture score by the root's own state afterwards
+    (:func:`~energy_margin.analysis.scores.gate_capture`); the adaptive budget's rule watches
+    these scores as they are.
     """
     captured, successful = field_membership(task, root, field)
-    capture = region_score(field.costs, captured, lam)
-    if capture_gate != "none":
-        capture = gate_capture(capture, task.is_captured(root), capture_gate)
-    return capture, region_score(field.costs, successful, lam)
+    return region_score(field.costs, captured, lam), region_score(field.costs, successful, lam)
 
 
 class ScoresConverged:

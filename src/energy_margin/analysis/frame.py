@@ -26,6 +26,7 @@ from energy_margin.analysis.convergence import (
     frame_seeds,
     score_field,
 )
+from energy_margin.analysis.scores import gate_capture
 from energy_margin.data.dataset import Dataset
 from energy_margin.errors import InvalidParameterError
 from energy_margin.planning import CostField, grow_tree, grow_trees_together
@@ -122,15 +123,15 @@ def analyze_frame(
         stop=stop,
         check_every=every,
     )
-    capture, success = score_field(task, frame, field, lam, capture_gate=config.capture_gate)
+    tree_capture, success = score_field(task, frame, field, lam)
+    capture = gate_capture(tree_capture, task.is_captured(frame), config.capture_gate)
     if config.continuation:
         success = continued_success(simulator, task, frame, field, drive, lam=lam, samples=config.continuation,
             seed=seed, start_time=start_time, horizon=config.continuation_horizon, batched_states=config.batch > 1,
             threads=config.threads).success_score  # fmt: skip
     runtime = time.perf_counter() - started
-    scores = FrameScores(
-        capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
-    )
+    scores = FrameScores(capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected,
+        field.diverged, tree_capture)  # fmt: skip
     return scores, field
 
 
@@ -227,11 +228,11 @@ def _scored_together(
     """Each frame's scores from its tree (its success score from continuations where given) and field."""
     results = []
     for frame, field, continued_score in zip(frames, fields, continued, strict=True):
-        capture, success = score_field(task, frame, field, lam, capture_gate=capture_gate)
+        tree_capture, success = score_field(task, frame, field, lam)
+        capture = gate_capture(tree_capture, task.is_captured(frame), capture_gate)
         success = success if continued_score is None else continued_score
-        scores = FrameScores(
-            capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected, field.diverged
-        )
+        scores = FrameScores(capture, success, field.nodes, field.expansions, runtime, field.physics_s, field.rejected,
+            field.diverged, tree_capture)  # fmt: skip
         results.append((scores, field))
     return results
 
@@ -438,4 +439,5 @@ class FrameAnalyzer:
             "seed": self.seeds[index],
             "rejected": scores.rejected,
             "diverged": scores.diverged,
+            "tree_capture_score": scores.tree_capture_score,
         }

@@ -21,6 +21,7 @@ The learned path, a fitted regressor's estimate in microseconds, is
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 
@@ -57,6 +58,8 @@ class LiveScore:
             reached first) or ``"learned"`` (a regressor's estimate, no tree).
         rejected: reached states the tree rejected for leaving the state box (-1: no tree).
         diverged: reached states the tree rejected for a non-finite number (-1: no tree).
+        tree_capture: the tree's own capture score before the capture gate, what a capture alarm
+            watches (NaN: no tree).
 
     """
 
@@ -68,6 +71,7 @@ class LiveScore:
     stopped_by: str
     rejected: int = -1
     diverged: int = -1
+    tree_capture: float = math.nan
 
 
 def score_state(
@@ -137,4 +141,5 @@ def score_state(
         stopped_by="budget" if deadline is not None and scores.expansions < max_expansions else "max_expansions",
         rejected=scores.rejected,
         diverged=scores.diverged,
+        tree_capture=scores.tree_capture_score,
     )

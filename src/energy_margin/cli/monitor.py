@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from energy_margin.cli.common import add_seed, non_negative_int, positive_int, print_json
+from energy_margin.errors import EnergyMarginError
 
 __all__ = [
     "EXAMPLES",
@@ -78,16 +79,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _capture_gated(dataset: str) -> bool:
-    """Whether the analysis recorded beside ``dataset`` gated capture by the frame's own state."""
+    """Whether ``dataset`` holds only gated capture scores.
+
+    That is, it was analysed with capture gated by the frame's own state, and its scores file was
+    written before the tree's own capture score was kept beside the gated one.
+    """
     from energy_margin.analysis.run import recorded_analyzer
-    from energy_margin.data.scores_file import CONFIG_FILE
+    from energy_margin.data.scores_file import CONFIG_FILE, load_scores
+    from energy_margin.evaluation.monitor import tree_capture_known
 
     try:
         record = json.loads((Path(dataset) / CONFIG_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        scores = load_scores(dataset)
+    except (OSError, ValueError, EnergyMarginError):
         return False
     analyzer = record.get("analyzer") if isinstance(record, dict) else None
-    return isinstance(analyzer, dict) and recorded_analyzer(analyzer).get("capture_gate") == "current"
+    gated = isinstance(analyzer, dict) and recorded_analyzer(analyzer).get("capture_gate") == "current"
+    return gated and not tree_capture_known(scores)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -114,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"note: the margin alarm watches {' and '.join(watching)}, and {args.calibration} was analysed with "
             "capture gated (0 on a frame already out of its region), which lowers the threshold where a successful "
-            "roll-out leaves its region for a moment; for a capture alarm, analyse with --capture-gate none",
+            "roll-out leaves its region for a moment; for a capture alarm, analyse it again (--overwrite) to keep "
+            "the tree's own capture score",
             file=sys.stderr,
         )
     if args.json:

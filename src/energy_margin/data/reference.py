@@ -303,6 +303,7 @@ def _write_scores(out: Path, ref: ReferenceSet, n_frames: int) -> None:
             "seed": 0,
             "rejected": UNKNOWN_COUNT,
             "diverged": UNKNOWN_COUNT,
+            "tree_capture_score": min(1.0, float(row[index["capture_score"]])),  # theirs is ungated
         }
         lines.append(",".join(repr(v) if isinstance(v, float) else str(v) for v in (values[c] for c in COLUMNS)))
     atomic_write_text(out / SCORES_FILE, "\n".join(lines) + "\n")

@@ -4,13 +4,17 @@
 :data:`COLUMNS`; floats are written by ``repr`` so a read gives back the exact values.
 ``rejected`` and ``diverged`` count the states each frame's tree rejected for leaving the task's
 state box and for a non-finite number; -1 where unknown (a file written before they were counted,
-read with :data:`EARLIER_COLUMNS`, or scores that no tree produced). While an
+read with :data:`EARLIER_COLUMNS`, or scores that no tree produced). ``tree_capture_score`` is
+the tree's own capture score before the capture gate (``capture_score`` is gated); NaN where
+unknown (a file written before it was kept, read with :data:`UNGATED_COLUMNS`, or scores that no
+tree produced). While an
 analysis runs, rows are appended to ``scores.journal.csv`` (same columns) as frames finish;
 ``analysis.json`` records the resolved configuration that produced them.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +34,7 @@ __all__ = [
     "REJECTED_SHARE",
     "RENAMED_COLUMNS",
     "SCORES_FILE",
+    "UNGATED_COLUMNS",
     "UNKNOWN_COUNT",
     "UNREACHED_SHARE",
     "current_names",
@@ -63,37 +68,42 @@ COLUMNS = (
     "seed",
     "rejected",
     "diverged",
+    "tree_capture_score",
 )
+#: The columns of scores files written before the tree's own capture score was kept (still read).
+UNGATED_COLUMNS = COLUMNS[:-1]
 #: The columns of scores files of release 0.2, whose expansions column was ``iterations`` (still read).
-RENAMED_COLUMNS = tuple("iterations" if name == "expansions" else name for name in COLUMNS)
+RENAMED_COLUMNS = tuple("iterations" if name == "expansions" else name for name in UNGATED_COLUMNS)
 #: The columns of scores files written before the trees' rejections were counted (still read).
 EARLIER_COLUMNS = RENAMED_COLUMNS[:9]
 #: ``rejected`` and ``diverged`` where unknown.
 UNKNOWN_COUNT = -1
+#: What a row lacking a column holds: the counts unknown, the tree's own capture score unknown.
+_UNKNOWN = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT, "tree_capture_score": math.nan}
 
 
 def format_row(row: dict[str, Any]) -> str:
     """One scores row as a CSV line without its newline (floats by ``repr``: exact round trip).
 
     A row without ``rejected`` or ``diverged`` (scores no tree of this package grew) gets
-    :data:`UNKNOWN_COUNT`.
+    :data:`UNKNOWN_COUNT`, without ``tree_capture_score`` NaN.
     """
-    values = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT, **row}
+    values = {**_UNKNOWN, **row}
     return ",".join(repr(float(values[c])) if isinstance(values[c], float) else str(values[c]) for c in COLUMNS)
 
 
 def parse_row(line: str, columns: tuple[str, ...] = COLUMNS) -> dict[str, Any] | None:
     """A journal line as a row, or ``None`` for a torn or foreign line.
 
-    ``columns`` are the file's (:data:`COLUMNS`, :data:`RENAMED_COLUMNS` or
-    :data:`EARLIER_COLUMNS`); an earlier file's ``iterations`` is the row's ``expansions``, and
-    the counts it lacks are :data:`UNKNOWN_COUNT`.
+    ``columns`` are the file's (:data:`COLUMNS` or an earlier layout, :func:`file_columns`); an
+    earlier file's ``iterations`` is the row's ``expansions``, the counts it lacks are
+    :data:`UNKNOWN_COUNT` and its lacking tree capture score NaN.
     """
     fields = line.rstrip("\n").split(",")
     if len(fields) != len(columns) or not line.endswith("\n"):
         return None
     try:
-        row: dict[str, Any] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
+        row: dict[str, Any] = dict(_UNKNOWN)
         for key, text in zip(current_names(columns), fields, strict=True):
             row[key] = int(text) if key in INTEGER_COLUMNS else float(text)
     except ValueError:
@@ -124,7 +134,7 @@ def read_journal(path: Path) -> dict[tuple[int, int], dict[str, Any]]:
 
 def file_columns(first_line: str) -> tuple[str, ...] | None:
     """The columns a scores file's header line declares (current or earlier), or ``None``."""
-    for columns in (COLUMNS, RENAMED_COLUMNS, EARLIER_COLUMNS):
+    for columns in (COLUMNS, UNGATED_COLUMNS, RENAMED_COLUMNS, EARLIER_COLUMNS):
         if first_line.rstrip("\n") == ",".join(columns):
             return columns
     return None

@@ -140,7 +140,7 @@ def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
                 Problem(SCORES_FILE, "row", f"line {number}", f"has {len(fields)} fields, expected {len(columns)}")
             )
             continue
-        row: dict[str, float] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT}
+        row: dict[str, float] = {"rejected": UNKNOWN_COUNT, "diverged": UNKNOWN_COUNT, "tree_capture_score": math.nan}
         for name, value in zip(columns, fields, strict=True):
             try:
                 row[name] = int(value) if name in INTEGER_COLUMNS else float(value)
@@ -177,6 +177,11 @@ def _row_problems(
         value = row[name]
         if not (math.isfinite(value) and 0.0 <= value <= 1.0):
             problems.append(Problem(SCORES_FILE, name, where, f"{value!r} is outside [0, 1]"))
+    tree_capture = row["tree_capture_score"]
+    if not (math.isnan(tree_capture) or 0.0 <= tree_capture <= 1.0):
+        problems.append(
+            Problem(SCORES_FILE, "tree_capture_score", where, f"{tree_capture!r} is outside [0, 1] (nan: unknown)")
+        )
     for name in ("runtime_s", "physics_s"):
         if not (math.isfinite(row[name]) and row[name] >= 0):
             problems.append(Problem(SCORES_FILE, name, where, f"{row[name]!r} is not a non-negative time"))

@@ -66,9 +66,10 @@ class LambdaRescorer(FrameAnalyzer):
         continued = self._continuation(index, frame, field) if self.continued_config.continuation else None
         rows = []
         for lam in self.lambdas:
-            capture = gate_capture(region_score(field.costs, captured, lam), captured_now, self.config.capture_gate)
+            tree_capture = region_score(field.costs, captured, lam)
+            capture = gate_capture(tree_capture, captured_now, self.config.capture_gate)
             success = continued(lam) if continued is not None else region_score(field.costs, successful, lam)
-            rows.append({**row, "capture_score": capture, "success_score": success})
+            rows.append({**row, "capture_score": capture, "success_score": success, "tree_capture_score": tree_capture})
         return {"trajectory": row["trajectory"], "frame": row["frame"], "rows": rows}
 
     def _continuation(self, index: int, frame: FrameState, field: CostField) -> Callable[[float], float]:

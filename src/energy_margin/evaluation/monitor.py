@@ -21,6 +21,12 @@ and no score is below 0: such an alarm cannot fire (:attr:`MonitorCalibration.ca
 persistence above the number of frames at which the calibration successes score 0 keeps the
 threshold above 0 where failures stay at 0 for longer.
 
+The margin's ``capture`` is the tree's own capture score (``tree_capture_score`` of
+``scores.csv``), not the gated ``capture_score`` that ``evaluate`` ranks: gated, a successful
+roll-out whose objects leave their region for a moment scores 0 there, and one such frame among the
+calibration successes sets the threshold near 0. A file written before the tree's own score was
+kept falls back on ``capture_score`` (:func:`tree_capture_known`).
+
 :func:`calibrate_grid` is the calibration of a score grid; :func:`calibrate_monitor` that of an
 analysed dataset directory. :func:`write_calibration` and :func:`load_calibration` keep one or
 more calibrations in a small versioned JSON file that a live scorer can load.
@@ -60,6 +66,7 @@ __all__ = [
     "load_calibration",
     "monitored_grid",
     "monitored_grids",
+    "tree_capture_known",
     "worst_scores",
     "write_calibration",
 ]
@@ -327,7 +334,8 @@ def monitored_grids(dataset: Dataset, path: Path | str, *, scorer: str = "margin
     check_choice("scorer", scorer, SCORERS)
     if scorer == "margin":
         scores = load_scores(path)
-        capture = score_grid(dataset, scores, "capture_score")
+        column = "tree_capture_score" if tree_capture_known(scores) else "capture_score"
+        capture = score_grid(dataset, scores, column)
         success = score_grid(dataset, scores, "success_score")
     else:
         distances = distance_scores(dataset)
@@ -335,6 +343,15 @@ def monitored_grids(dataset: Dataset, path: Path | str, *, scorer: str = "margin
             raise EnergyMarginError(f"the regions of task {dataset.metadata['task']} measure no distance")
         capture, success = distances
     return {"success": success, "capture": capture, "min": np.minimum(capture, success)}
+
+
+def tree_capture_known(scores: dict[str, np.ndarray]) -> bool:
+    """Whether scores columns hold every frame's tree capture score (``tree_capture_score``).
+
+    ``scores``: columns as :func:`~energy_margin.data.scores_file.load_scores` reads them. Files
+    written before the tree's own capture score was kept, and scores no tree grew, lack it.
+    """
+    return bool(np.all(np.isfinite(scores["tree_capture_score"])))
 
 
 def monitored_grid(dataset: Dataset, path: Path | str, *, scorer: str = "margin", score: str = "success") -> np.ndarray:

@@ -26,6 +26,7 @@ mocap bodies stay where they are in both cases.
 from __future__ import annotations
 
 import copy
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -76,6 +77,7 @@ INFO_KEYS = (
     "seed",
     "rejected",
     "diverged",
+    "tree_capture_score",
 )
 
 
@@ -279,7 +281,9 @@ class LiveModelScorer:
             result = self.margin_model.score_state(self.task, state)
         else:
             with self.warning_log:  # MuJoCo's warnings of the trees, not MUJOCO_LOG.TXT in the cwd
-                result = self._grow(state, tree_budget, seed)
+                result = score_state(self.task, state, friction=self.friction, drive=self.drive, budget_s=tree_budget,
+                    seed=seed, max_expansions=self.options.max_expansions, simulator=self.simulator,
+                    config=self.options.config)  # fmt: skip
         seconds = time.perf_counter() - started
         if tree_budget is not None and self.margin_model is None:
             self._overruns.append(max(seconds - tree_budget, 0.0))
@@ -292,23 +296,10 @@ class LiveModelScorer:
             "ms": 1000.0 * seconds,
             "stopped_by": result.stopped_by,
             "seed": seed,
-            "rejected": int(getattr(result, "rejected", -1)),
-            "diverged": int(getattr(result, "diverged", -1)),
+            "rejected": int(result.rejected),
+            "diverged": int(result.diverged),
+            "tree_capture_score": float(result.tree_capture),
         }
-
-    def _grow(self, state: FrameState, tree_budget: float | None, seed: int) -> LiveScore:
-        """One tree from ``state`` within the budget."""
-        return score_state(
-            self.task,
-            state,
-            friction=self.friction,
-            drive=self.drive,
-            budget_s=tree_budget,
-            seed=seed,
-            max_expansions=self.options.max_expansions,
-            simulator=self.simulator,
-            config=self.options.config,
-        )
 
     def labels(self, data: mujoco.MjData) -> tuple[bool, bool]:
         """Whether the state in ``data`` is in the capture set and in the success set."""
@@ -421,7 +412,9 @@ class LiveSession:
         """The scores of the state in ``data``, with ``alarm`` when a calibration watches them."""
         scores = self.scorer.score(data)
         if self.alarm is not None:
-            scores["alarm"] = self.alarm.update(scores["capture_score"], scores["success_score"])
+            capture = scores["tree_capture_score"]  # a capture alarm watches the tree's own, as calibrated
+            capture = capture if math.isfinite(capture) else scores["capture_score"]
+            scores["alarm"] = self.alarm.update(capture, scores["success_score"])
         return scores
 
     def reset(self, data: mujoco.MjData) -> dict[str, Any] | None:
