@@ -124,7 +124,9 @@ def test_a_robomimic_file_becomes_a_dataset_that_analyze_and_check_accept(
     out = tmp_path / "dataset"
     argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "4", "--out", str(out)]
     assert main(argv) == 0
-    assert "dataset" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "dataset" in printed.out
+    assert printed.err.count("\n") == 1 and "robot is held still during analysis" in printed.err
     dataset = load_dataset(out)
     keys = ["demo_0", "demo_2", "demo_10"]
     assert dataset.n_trajectories == 3 and dataset.n_frames == 4 and dataset.n_objects == 2

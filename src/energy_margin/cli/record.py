@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -163,6 +164,12 @@ def run(args: argparse.Namespace) -> int:
         f"{dataset.n_objects} objects; captured frames {labels['captured'].mean():.2f}, "
         f"successful roll-outs {dataset.success_labels().mean():.2f}"
     )
+    if args.format == "robomimic":
+        print(
+            "note: the demonstrations carry no commands the analysis could follow, so the robot is held still "
+            "during analysis: future capture and early success miss its motion (docs/howto/integrations.md)",
+            file=sys.stderr,
+        )
     return 0
 
 
