@@ -4,9 +4,9 @@ A refactor that changes what is computed (a different random stream, another ord
 calls, a changed label) changes these exact floats. They are exact for one MuJoCo build with one
 numpy on one CPU architecture, so they are pinned per release pair in ``releases.PINNED_SCORES``
 (tests/releases.py holds every expectation that differs between releases); another pair skips.
-One pushing score differs in its last bit between the x86-64 machines the tests have run on (the
-second list of MuJoCo 4.0.0 was measured on an AMD EPYC with AVX2 and no AVX-512); each is pinned
-exactly, and a change of the computation moves the scores off both. Pushing is pinned with the
+Pushing scores differ in their last bits between the x86-64 machines the tests have run on (the
+second lists were measured on an AMD EPYC with AVX2 and no AVX-512); each is pinned exactly, and a
+change of the computation moves the scores off both. Pushing is pinned with the
 rim ground contacts of that release (``ground_contact="geometry"``, still the default), whatever
 the default becomes, and as the paper's reproduction scores them: success as the tree's own score
 (``continuation=0``), not ``analyze``'s default continuation, and capture without the capture gate
@@ -54,7 +54,7 @@ def test_pushing_scores_are_pinned(tmp_path: Path) -> None:
     )
     scores = load_scores(out)
     assert [float(v) for v in scores["capture_score"]] in expected["pushing_capture"]
-    assert [float(v) for v in scores["success_score"]] == expected["pushing_success"]
+    assert [float(v) for v in scores["success_score"]] in expected["pushing_success"]
     assert [int(v) for v in scores["seed"]] == PUSHING_SEEDS
     assert set(scores["nodes"].tolist()) == {31}
     assert set(scores["expansions"].tolist()) == {30}
