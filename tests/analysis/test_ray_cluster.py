@@ -3,7 +3,9 @@
 `ray start --head` and a second node joining with `ray start --address ...` (both on this
 machine, one CPU each), then `energy-margin analyze --executor ray --address ...`: the scores are
 the local pool's, exactly. Killing every process of the second node once a few frames are done
-(as when a machine is lost) still finishes the run, with every frame scored once.
+(as when a machine is lost) still finishes the run, with every frame scored once. The cluster is
+stopped by killing its own processes: ``ray stop`` would stop every Ray cluster of the machine and
+programs beside the tests.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -45,18 +48,66 @@ def _free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def _ray_processes() -> set[int]:
-    found = set()
+def _command_lines() -> dict[int, bytes]:
+    """Every process's command line (its arguments joined by spaces), by pid."""
+    found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
-            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
+            found[int(entry.name)] = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
         except OSError:
             continue
-        if b"ray" in command:
-            found.add(int(entry.name))
     return found
+
+
+def _parents() -> dict[int, int]:
+    """Every process's parent pid, by pid."""
+    found = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            # The fields after the command name, which is in parentheses and may hold spaces.
+            found[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+    return found
+
+
+def _ray_processes() -> set[int]:
+    return {pid for pid, command in _command_lines().items() if b"ray" in command}
+
+
+def _cluster_processes(temp_dir: Path) -> set[int]:
+    """The processes of the cluster started in ``temp_dir``: those naming it, and all their descendants.
+
+    Ray's agents and workers rename their command lines (``ray::IDLE``); they are the raylet's children.
+    """
+    named = {pid for pid, command in _command_lines().items() if str(temp_dir).encode() in command}
+    parents = _parents()
+    found, grown = set(named), True
+    while grown:
+        children = {pid for pid, parent in parents.items() if parent in found} - found
+        found |= children
+        grown = bool(children)
+    return found - {os.getpid()}
+
+
+def _stop_cluster(temp_dir: Path) -> None:
+    """Stop the cluster started in ``temp_dir`` and nothing else.
+
+    ``ray stop`` would stop every Ray process of the machine, and every process whose command line
+    holds one of the names it looks for (``monitor.py`` among them): a user's own cluster and
+    programs running beside the tests.
+    """
+    for signal_number in (signal.SIGTERM, signal.SIGKILL):
+        for pid in _cluster_processes(temp_dir):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, signal_number)
+        deadline = time.monotonic() + 10
+        while _cluster_processes(temp_dir) and time.monotonic() < deadline:
+            time.sleep(0.2)
 
 
 def _ray(*args: str) -> None:
@@ -71,15 +122,52 @@ def cluster() -> Iterator[tuple[str, set[int]]]:
         pytest.skip(f"no `ray` command beside {sys.executable}")
     port = _free_port()
     address = f"127.0.0.1:{port}"
+    # A short folder of its own (Ray's socket paths must stay under about 100 bytes): the cluster's
+    # processes name it, so that only they are stopped afterwards.
+    temp_dir = Path(tempfile.mkdtemp(prefix="emray", dir="/tmp"))
     try:
-        _ray("start", "--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false", "--disable-usage-stats")
+        _ray(
+            "start", "--head", f"--port={port}", "--num-cpus=1", "--include-dashboard=false", "--disable-usage-stats",
+            f"--temp-dir={temp_dir}",
+        )  # fmt: skip
         before = _ray_processes()
         _ray("start", f"--address={address}", "--num-cpus=1", "--disable-usage-stats")
         # Every process that appeared with the second node belongs to it (raylet, its workers' parent...).
         second = _ray_processes() - before
         yield address, second
     finally:
-        subprocess.run([str(RAY), "stop", "--force"], env=_environment(), capture_output=True, timeout=120)
+        _stop_cluster(temp_dir)
+        shutil.rmtree(temp_dir, ignore_errors=True)
+
+
+def test_stopping_the_cluster_spares_other_processes(tmp_path: Path) -> None:
+    """The teardown stops the cluster's processes only: not a program whose command line holds ``monitor.py``."""
+    bystander_script = tmp_path / "monitor.py"
+    bystander_script.write_text("import time\ntime.sleep(600)\n")
+    bystander = subprocess.Popen([sys.executable, str(bystander_script)])
+    temp_dir = Path(tempfile.mkdtemp(prefix="emray", dir="/tmp"))
+    try:
+        child_script = tmp_path / "child.py"
+        child_script.write_text("import time\ntime.sleep(600)\n")
+        # A stand-in for a cluster process (it names the folder) with a child that does not.
+        member = subprocess.Popen(
+            [sys.executable, "-c", "import subprocess, sys, time; subprocess.Popen([sys.executable, sys.argv[1]]); "
+             "time.sleep(600)", str(child_script), str(temp_dir)]
+        )  # fmt: skip
+        deadline = time.monotonic() + 30
+        while len(_cluster_processes(temp_dir)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        members = _cluster_processes(temp_dir)
+        assert member.pid in members and len(members) == 2
+        assert bystander.pid not in members
+        _stop_cluster(temp_dir)
+        assert member.wait(timeout=30) != 0
+        assert not _cluster_processes(temp_dir)
+        assert bystander.poll() is None
+    finally:
+        bystander.kill()
+        bystander.wait()
+        shutil.rmtree(temp_dir, ignore_errors=True)
 
 
 def _table(directory: Path) -> list[tuple]:
