@@ -1,15 +1,18 @@
 """Demonstrations in robomimic's layout, converted and analysed at the defaults (docs/howto/integrations.md).
 
 The Jaco example's sweeps (``examples/robomimic/write_demos.py``, demonstration seed 0, states every
-5 physics steps) give three sets, each recorded with ``energy-margin record`` (10 frames) and
+5 physics steps) give five sets, each recorded with ``energy-margin record`` (10 frames) and
 analysed with ``energy-margin analyze`` at its defaults (300 expansions, seed 0, one worker):
 
-* ``demos``: 50 demonstrations at the drawn speed (0.9-1.1), converted from the HDF5 file
-  (``--format robomimic``, ``examples/robomimic/jaco_demos.toml``): the robot held still in analysis;
-* ``still`` and ``declared``: 50 sweeps at the declared speed, converted from the HDF5 file (robot
-  still) and recorded from the same sweeps written as ``.npz`` roll-outs with the Jaco example's own
-  scene (``examples/jaco/jaco.toml``: the analysis follows the declared sweep). Their frames and
-  labels are the same; they differ only in what the robot does during a tree's propagation.
+* ``demos`` and ``demos_still``: 50 demonstrations at the drawn speed (0.9-1.1), converted from the
+  HDF5 file (``--format robomimic``, ``examples/robomimic/jaco_demos.toml``) at ``record``'s
+  default (the robot coasting in analysis: it keeps each frame's joint velocities) and with
+  ``--robot still``;
+* ``coasting``, ``still`` and ``declared``: 50 sweeps at the declared speed, converted from the HDF5
+  file (``--robot coasting``, ``--robot still``) and recorded from the same sweeps written as
+  ``.npz`` roll-outs with the Jaco example's own scene (``examples/jaco/jaco.toml``: the analysis
+  follows the declared sweep). Their frames and labels are the same; they differ only in what the
+  robot does during a tree's propagation.
 
 For each set: capture AP at k̂ = 0, 2, 4 and success from the first 3 and 5 frames and the last 3
 (k̄ = 3), beside the current-state and distance baselines, each with the margin minus the best
@@ -21,6 +24,7 @@ its word; the analysis's wall time per frame. Everything under ``--work`` is kep
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -31,7 +35,7 @@ import numpy as np
 
 from bench_generality import questions_of
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import load_scores
+from energy_margin.data.scores_file import JOURNAL_FILE, load_scores
 from energy_margin.evaluation.baselines import baseline_grids
 from energy_margin.evaluation.bootstrap import Questions
 from energy_margin.evaluation.metrics import score_grid
@@ -71,10 +75,13 @@ def _sets(work: Path) -> dict[str, Path]:
         _run(EXAMPLES / "robomimic" / "write_demos.py", "--demos", DEMOS, "--nominal-speed", "--npz", npz,
              "--out", nominal)  # fmt: skip
     demos_scene = EXAMPLES / "robomimic" / "jaco_demos.toml"
-    sets = {"demos": work / "demos", "still": work / "still", "declared": work / "declared"}
+    names = ("demos", "demos_still", "coasting", "still", "declared")
+    sets = {name: work / name for name in names}
     sources = {
         "demos": ["--format", "robomimic", drawn, "--scene", demos_scene],
-        "still": ["--format", "robomimic", nominal, "--scene", demos_scene],
+        "demos_still": ["--format", "robomimic", drawn, "--scene", demos_scene, "--robot", "still"],
+        "coasting": ["--format", "robomimic", nominal, "--scene", demos_scene, "--robot", "coasting"],
+        "still": ["--format", "robomimic", nominal, "--scene", demos_scene, "--robot", "still"],
         "declared": ["--scene", EXAMPLES / "jaco" / "jaco.toml", *sorted(npz.glob("demo_*.npz"))],
     }
     for name, directory in sets.items():
@@ -83,14 +90,26 @@ def _sets(work: Path) -> dict[str, Path]:
     return sets
 
 
-def _analysed(directory: Path) -> float:
-    """Analyse ``directory`` at the defaults (resumed); its wall time per frame, s (0: analysed before)."""
+#: Where a set's analysis time is kept beside its scores (a resumed benchmark reports it again).
+SECONDS_FILE = "seconds_per_frame.json"
+
+
+def _analysed(directory: Path) -> float | None:
+    """Analyse ``directory`` at the defaults; its wall time per frame, s (``None``: analysed by an interrupted run)."""
+    kept = directory / SECONDS_FILE
+    if kept.exists():
+        return float(json.loads(kept.read_text())["seconds_per_frame"])
     if (directory / "scores.csv").exists():
-        return 0.0
+        return None
+    resumed = (directory / JOURNAL_FILE).exists()
     started = time.perf_counter()
     _cli("analyze", directory, "--expansions", EXPANSIONS, "--workers", 1, "--seed", 0, "--no-progress")
+    if resumed:
+        return None
     dataset = load_dataset(directory)
-    return (time.perf_counter() - started) / (dataset.n_trajectories * dataset.n_frames)
+    seconds = (time.perf_counter() - started) / (dataset.n_trajectories * dataset.n_frames)
+    kept.write_text(json.dumps({"seconds_per_frame": seconds}) + "\n")
+    return seconds
 
 
 def set_results(directory: Path, *, resamples: int = 1000) -> dict[str, Any]:
@@ -157,7 +176,7 @@ def main() -> None:
     }
     for name, directory in sets.items():
         seconds = _analysed(directory)
-        document["sets"][name] = {**set_results(directory), "seconds_per_frame": seconds or None}
+        document["sets"][name] = {**set_results(directory), "seconds_per_frame": seconds}
         rows = document["sets"][name]["questions"]
         print(f"{name}: " + "; ".join(f"{question} {row['cell']}" for question, row in rows.items()), flush=True)
     document["rows"] = table_rows(document["sets"])

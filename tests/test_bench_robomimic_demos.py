@@ -42,3 +42,23 @@ def test_a_sets_answers_are_evaluates(bench, tmp_path: Path) -> None:
     assert [row["question"] for row in rows] == list(answers)
     assert rows[0]["margin"] == answers[rows[0]["question"]]["cell"] and rows[0]["set"] == "tiny"
     assert rows[0]["current_state"] == f"{found['baselines']['current_state'][rows[0]['question']]:.3f}"
+
+
+def test_a_sets_analysis_time_is_kept_beside_its_scores(bench, tmp_path: Path, monkeypatch) -> None:
+    """A resumed benchmark reports the time its first run measured; a set analysed without it reports none."""
+    scene = write_tiny_scene(tmp_path / "scene")
+    directory = tmp_path / "set"
+    generate_dataset("scene", n_objects=2, n_trajectories=2, n_frames=2, seed=0, out=directory,
+                     task_config={"scene_file": str(scene)})  # fmt: skip
+    calls = []
+
+    def fake_cli(*argv) -> None:
+        calls.append(argv)
+        analyze(directory, AnalyzerConfig(expansions=5, continuation=0), seed=0, progress=False)
+
+    monkeypatch.setattr(bench, "_cli", fake_cli)
+    seconds = bench._analysed(directory)
+    assert len(calls) == 1 and calls[0][0] == "analyze" and seconds is not None and seconds > 0
+    assert bench._analysed(directory) == seconds and len(calls) == 1
+    (directory / bench.SECONDS_FILE).unlink()
+    assert bench._analysed(directory) is None and len(calls) == 1

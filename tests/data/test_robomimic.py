@@ -126,8 +126,10 @@ def test_a_robomimic_file_becomes_a_dataset_that_analyze_and_check_accept(
     assert main(argv) == 0
     printed = capsys.readouterr()
     assert "dataset" in printed.out
-    assert printed.err.count("\n") == 1 and "robot is held still during analysis" in printed.err
+    assert printed.err.count("\n") == 1 and "the robot keeps each frame's joint velocities" in printed.err
     dataset = load_dataset(out)
+    assert dataset.task.loaded.spec.motion.robot == "coasting"
+    assert dataset.task.make_simulator(2, dataset.task.default_friction()).coasting
     keys = ["demo_0", "demo_2", "demo_10"]
     assert dataset.n_trajectories == 3 and dataset.n_frames == 4 and dataset.n_objects == 2
     for index, key in enumerate(keys):
@@ -358,3 +360,27 @@ def test_record_without_the_robomimic_format_needs_a_scene_and_points_to_the_for
     assert "pass --format robomimic" in capsys.readouterr().err
     assert main(["record", "--scene", str(tiny_scene), str(path), "--dt", "0.1", "--out", out]) == 2
     assert "--dt applies to --format robomimic only" in capsys.readouterr().err
+
+
+def test_robot_still_is_written_into_the_datasets_scene_and_said(
+    tmp_path: Path, demo_states: dict[str, np.ndarray], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write_demos(tmp_path / "demos.hdf5", demo_states)
+    out = tmp_path / "dataset"
+    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3", "--robot", "still"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert "robot is held still during analysis" in capsys.readouterr().err
+    assert 'robot = "still"' in (out / "source" / "scene.toml").read_text()
+    assert load_dataset(out).task.make_simulator(2, 0.5).still
+
+
+def test_robot_is_refused_for_rollout_files_and_bad_values(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from energy_margin.data.robomimic import record_robomimic
+
+    with pytest.raises(SystemExit):
+        main(["record", "x.hdf5", "--format", "robomimic", "--robot", "frozen", "--out", str(tmp_path / "a")])
+    assert "invalid choice: 'frozen'" in capsys.readouterr().err
+    assert main(["record", "x.npz", "--robot", "still", "--out", str(tmp_path / "b")]) != 0
+    assert "--robot applies to --format robomimic only" in capsys.readouterr().err
+    with pytest.raises(EnergyMarginError, match="robot"):
+        record_robomimic(tmp_path / "x.hdf5", n_frames=2, out=tmp_path / "c", robot="frozen")

@@ -92,8 +92,8 @@ def test_a_wall_clock_budget_stops_growth() -> None:
 
 
 def test_hold_still_keeps_the_robot_in_place_during_propagation() -> None:
-    moved = {}
-    for hold in ("action", "still"):
+    moved, coasted = {}, {}
+    for hold in ("action", "still", "coasting"):
         wrapper = wrapped(hold=hold)
         wrapper.reset(seed=2)
         for action in actions(3):
@@ -105,11 +105,16 @@ def test_hold_still_keeps_the_robot_in_place_during_propagation() -> None:
         simulator = scorer.simulator
         simulator.reset(state)
         simulator.data.ctrl[:] = data_ctrl
-        before = simulator.robot_positions()
+        before, velocity = simulator.robot_positions(), simulator.robot_velocities()
         simulator.step(20)
         moved[hold] = float(np.max(np.abs(simulator.robot_positions() - before)))
+        elapsed = 20 * float(simulator.model.opt.timestep)
+        coasted[hold] = float(np.max(np.abs(simulator.robot_positions() - (before + velocity * elapsed))))
     assert moved["action"] > 1e-3
     assert moved["still"] < 1e-6
+    # Coasting: the arm goes on at the frame's joint velocities, whatever its actuators and contacts do.
+    assert moved["coasting"] > 1e-3
+    assert coasted["coasting"] < 1e-4 * moved["coasting"] < coasted["action"]
 
 
 def test_recorded_episode_becomes_a_dataset(tmp_path: Path) -> None:
@@ -221,10 +226,12 @@ def test_a_margin_model_of_another_task_is_refused(tmp_path: Path, pusher_model:
         MarginWrapper(env, objects="object", capture=CAPTURE, success=SUCCESS, model=pusher_model)
 
 
-def test_hold_still_is_the_scene_option_of_the_simulator() -> None:
-    wrapper = wrapped(hold="still")
-    assert wrapper.scorer.task.loaded.spec.motion.robot == "still"
-    assert wrapper.scorer.simulator.still
+@pytest.mark.parametrize("hold", ["still", "coasting"])
+def test_hold_still_is_the_scene_option_of_the_simulator(hold: str) -> None:
+    wrapper = wrapped(hold=hold)
+    assert wrapper.scorer.task.loaded.spec.motion.robot == hold
+    assert wrapper.scorer.simulator.still == (hold == "still")
+    assert wrapper.scorer.simulator.coasting == (hold == "coasting")
     # The environment's own model is untouched by the armature of the scorer's copy.
     assert float(wrapper.unwrapped.model.dof_armature.max()) < 1e3
 

@@ -461,13 +461,59 @@ def test_motion_robot_still_holds_the_robot_where_the_frame_has_it(tmp_path: Pat
     assert (travelled > 0.05) if moves else (travelled < 1e-6)
 
 
-def test_motion_robot_takes_declared_or_still(tmp_path: Path) -> None:
+@pytest.mark.parametrize("robot", ["coasting", "still"])
+def test_motion_robot_coasting_keeps_the_frames_velocity_and_pushes_what_it_meets(tmp_path: Path, robot: str) -> None:
+    """A coasting arm turns on at the frame's 2 rad/s against its servo and the puck it meets; a still one stays."""
+    from tiny_scene import write_tiny_scene
+
+    text = ARM_AND_PUCK_SCENE.replace("ROBOT", f'robot = "{robot}"')
+    scene = write_tiny_scene(tmp_path, scene=text, model=ARM_AND_PUCK)
+    task = get_task("scene", {"scene_file": str(scene)})
+    simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
+    assert simulator.coasting == (robot == "coasting") and simulator.still == (robot == "still")
+    frame = simulator.frame_state()
+    # The puck inside the arm's sweep, 0.46 rad ahead of it; the arm turning towards it.
+    puck = np.array([[0.2, 0.1, 0.03]])
+    simulator.reset(type(frame)(puck, frame.object_quat, frame.object_vel, np.array([0.0]), np.array([2.0])))
+    simulator.step(40)  # 0.4 s
+    angle, speed = float(simulator.robot_positions()[0]), float(simulator.robot_velocities()[0])
+    pushed = float(np.linalg.norm(simulator.frame_state().object_pos[0, :2] - puck[0, :2]))
+    if robot == "coasting":
+        assert angle == pytest.approx(0.8, abs=1e-3)
+        assert speed == pytest.approx(2.0, abs=1e-4)
+        assert pushed > 0.02
+    else:
+        assert abs(angle) < 1e-6 and abs(speed) < 1e-6
+        assert pushed < 1e-6
+
+
+def test_a_robot_both_still_and_coasting_is_refused(tmp_path: Path) -> None:
+    from energy_margin.sim import make_model_simulator
+    from tiny_scene import write_tiny_scene
+
+    scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=ARM_AND_PUCK)
+    task = get_task("scene", {"scene_file": str(scene)})
+    loaded = task.loaded
+    with pytest.raises(EnergyMarginError, match="either held still or coasting, not both"):
+        make_model_simulator(
+            task.compiled_model(task.default_friction()),
+            task.build_scene(1, task.default_friction()),
+            object_joints=list(loaded.object_joints),
+            robot_joints=list(loaded.robot_joints),
+            still=True,
+            coasting=True,
+        )
+
+
+def test_motion_robot_takes_declared_still_or_coasting(tmp_path: Path) -> None:
     from tiny_scene import write_tiny_scene
 
     scene = write_tiny_scene(
         tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", 'robot = "frozen"'), model=ARM_AND_PUCK
     )
-    with pytest.raises(EnergyMarginError, match=r"scene.toml:10: motion.robot: must be one of 'declared', 'still'"):
+    with pytest.raises(
+        EnergyMarginError, match=r"scene.toml:10: motion.robot: must be one of 'declared', 'still', 'coasting'"
+    ):
         read_scene_file(scene)
 
 

@@ -101,6 +101,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     robomimic.add_argument(
         "--dt", type=positive_float, metavar="S", help="seconds between rows of states without the time column"
     )
+    robomimic.add_argument(
+        "--robot",
+        choices=("coasting", "still"),
+        help="the robot during analysis: coasting keeps each frame's joint velocities (the default), still holds "
+        "it where the frame has it",
+    )
 
 
 def _json_table(flag: str, text: str | None) -> dict[str, Any] | None:
@@ -131,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
                 ("--success", args.success),
                 ("--assets", args.assets),
                 ("--dt", args.dt),
+                ("--robot", args.robot),
             )
             if value is not None
         ]
@@ -165,9 +172,17 @@ def run(args: argparse.Namespace) -> int:
         f"successful roll-outs {dataset.success_labels().mean():.2f}"
     )
     if args.format == "robomimic":
+        from energy_margin.data.robomimic import ROBOT_DURING_ANALYSIS
+
+        robot = args.robot or ROBOT_DURING_ANALYSIS
         print(
-            "note: the demonstrations carry no commands the analysis could follow, so the robot is held still "
-            "during analysis: future capture and early success miss its motion (docs/howto/integrations.md)",
+            "note: the demonstrations carry no commands the analysis could follow, so "
+            + (
+                "the robot is held still during analysis: future capture and early success miss its motion"
+                if robot == "still"
+                else "during analysis the robot keeps each frame's joint velocities (--robot still holds it)"
+            )
+            + " (docs/howto/integrations.md)",
             file=sys.stderr,
         )
     return 0
@@ -193,6 +208,7 @@ def _run_robomimic(args: argparse.Namespace) -> Dataset:
             success=success,
             assets=args.assets,
             dt=args.dt,
+            **({"robot": args.robot} if args.robot is not None else {}),
             overwrite=args.overwrite,
             progress=bar.update,
             drop_unphysical=args.drop_unphysical,

@@ -18,11 +18,11 @@ The objects and the capture and success sets come from a scene file (its ``objec
 ``perturbation``, ``bounds``, ``capture`` and ``success`` tables; its model is not loaded) or from
 body patterns and region tables given directly. The dataset directory gets a scene of its own,
 ``source/model.xml`` (the re-rooted XML) and ``source/scene.toml``, which its ``dataset.json``
-names, so every later command rebuilds the task from the directory. Its motion declares
-``robot = "still"``: the states carry no actuator commands, so during analysis the robot is held
-where each frame has it. Frames and labels are made as
-:func:`~energy_margin.data.record.record_dataset` makes them. Every problem is one line naming the
-file and the demonstration; nothing is written then.
+names, so every later command rebuilds the task from the directory. The states carry no actuator
+commands, so its motion declares ``robot = "coasting"`` (the robot keeps each frame's joint
+velocities during analysis) or, with ``robot="still"``, ``"still"`` (held where each frame has it).
+Frames and labels are made as :func:`~energy_margin.data.record.record_dataset` makes them. Every
+problem is one line naming the file and the demonstration; nothing is written then.
 
 This module makes the frames and writes the dataset; :mod:`~energy_margin.data.robomimic_hdf5` reads
 the file, :mod:`~energy_margin.data.robomimic_assets` rebuilds the models and
@@ -57,6 +57,7 @@ from energy_margin.data.robomimic_hdf5 import (
 )
 from energy_margin.data.robomimic_scene import (
     MODEL_FILE,
+    ROBOT_CHOICES,
     ROBOT_DURING_ANALYSIS,
     SCENE_FILE,
     SOURCE_FOLDER,
@@ -64,7 +65,7 @@ from energy_margin.data.robomimic_scene import (
     _scene_text,
     _set_tables,
 )
-from energy_margin.errors import EnergyMarginError, check_positive_float, check_positive_int
+from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
 from energy_margin.runs.files import staging_directory
 from energy_margin.runs.progress import Progress
 from energy_margin.tasks import get_task
@@ -93,6 +94,7 @@ def record_robomimic(
     success: Mapping[str, Any] | str | None = None,
     assets: Path | str | None = None,
     dt: float | None = None,
+    robot: str = ROBOT_DURING_ANALYSIS,
     overwrite: bool = False,
     progress: Progress = None,
     drop_unphysical: bool = False,
@@ -114,6 +116,8 @@ def record_robomimic(
             not exist here: the part of such a path after ``models/assets/``, else its file name.
         dt: seconds between rows for states without the time column (default: 1 /
             ``env_kwargs.control_freq`` of the file's ``env_args``).
+        robot: what the robot does during analysis (the scene's ``motion.robot``):
+            ``"coasting"`` (it keeps each frame's joint velocities) or ``"still"``.
         overwrite: replace an existing ``out``.
         drop_unphysical: leave out the demonstrations with a physically impossible frame (listed
             under ``dropped`` in ``dataset.json``) instead of refusing them.
@@ -130,6 +134,7 @@ def record_robomimic(
             or a bad scene file or region table; one line each, and nothing is written.
     """
     check_positive_int("n_frames", n_frames)
+    check_choice("robot", robot, ROBOT_CHOICES)
     if dt is not None:
         check_positive_float("dt", dt)
     path = Path(path)
@@ -142,7 +147,7 @@ def record_robomimic(
     model = built[0].model
     rollouts = [_rollout(path, demo, model, dt if dt is not None else env_dt, n_frames) for demo in raw_demos]
     duration = _duration(rollouts, model)
-    spec = _scene_spec(tables, scene_file, path, duration)
+    spec = _scene_spec(tables, scene_file, path, duration, robot)
     loaded = resolve_scene(spec, model)
     scene_text = _scene_text(spec, loaded, duration)
     sources = [

@@ -20,7 +20,7 @@ from energy_margin.tasks.scene_model import LoadedScene
 from energy_margin.tasks.scene_spec import SceneSpec
 from energy_margin.tasks.scene_toml import toml_key, toml_value
 
-__all__ = ["MODEL_FILE", "ROBOT_DURING_ANALYSIS", "SCENE_FILE", "SOURCE_FOLDER"]
+__all__ = ["MODEL_FILE", "ROBOT_CHOICES", "ROBOT_DURING_ANALYSIS", "SCENE_FILE", "SOURCE_FOLDER"]
 
 
 #: The folder of the dataset directory that holds its own scene file and model.
@@ -30,8 +30,11 @@ SCENE_FILE = "scene.toml"
 #: The model written into :data:`SOURCE_FOLDER`.
 MODEL_FILE = "model.xml"
 #: A demonstration's states carry no actuator commands (robomimic's actions are a controller's
-#: inputs), so during analysis the robot is held where each frame has it (``motion.robot``).
-ROBOT_DURING_ANALYSIS = "still"
+#: inputs), but they carry the robot's joint velocities: by default the robot keeps each frame's
+#: velocities during analysis (``motion.robot``; docs/howto/integrations.md says what was measured).
+ROBOT_DURING_ANALYSIS = "coasting"
+#: What the robot may do during analysis of demonstrations (``motion.robot``).
+ROBOT_CHOICES = ("coasting", "still")
 
 
 #: The scene-file tables a robomimic recording takes from a scene file.
@@ -109,11 +112,13 @@ def _scene_document(path: Path) -> dict[str, Any]:
     return {key: document[key] for key in _SCENE_TABLES if key in document}
 
 
-def _scene_spec(tables: _Tables, scene_file: Path | str | None, path: Path, duration: float) -> SceneSpec:
+def _scene_spec(
+    tables: _Tables, scene_file: Path | str | None, path: Path, duration: float, robot: str = ROBOT_DURING_ANALYSIS
+) -> SceneSpec:
     """The validated scene of the recording (its ``mjcf`` names the HDF5 file in messages)."""
     document = dict(tables.document)
     document["mjcf"] = str(path.resolve())
-    document["motion"] = {"duration": duration, "robot": ROBOT_DURING_ANALYSIS}
+    document["motion"] = {"duration": duration, "robot": robot}
     origin = str(scene_file) if scene_file is not None else "record options"
     return scene_spec_from_tables(document, origin=origin)
 
@@ -122,7 +127,7 @@ def _scene_text(spec: SceneSpec, loaded: LoadedScene, duration: float) -> str:
     """The scene file of the dataset's ``source`` folder (TOML)."""
     document: dict[str, Any] = {
         "objects": {"bodies": list(loaded.object_names), "joints": loaded.spec.object_joints},
-        "motion": {"duration": duration, "robot": ROBOT_DURING_ANALYSIS},
+        "motion": {"duration": duration, "robot": spec.motion.robot},
         "perturbation": {
             "linear_acceleration": list(loaded.perturbation.linear_acceleration),
             "angular_acceleration": list(loaded.perturbation.angular_acceleration),

@@ -99,7 +99,7 @@ class MarginEnvironment:
             ``max_expansions`` only.
         max_expansions: most tree expansions per call.
         model: a learned margin file to score with instead of the tree.
-        hold: ``"action"`` or ``"still"``.
+        hold: ``"action"``, ``"still"`` or ``"coasting"`` (:class:`~energy_margin.integrations.live_model.LiveOptions`).
         seed: root seed of the trees' perturbations.
         record: keep the episode's rows for :meth:`save_episode`.
         perturbation: a scene file's ``[perturbation]`` table.

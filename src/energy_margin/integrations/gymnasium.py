@@ -112,7 +112,7 @@ class MarginWrapper(gymnasium.Wrapper):
             ``max_expansions`` only.
         max_expansions: most tree expansions per call.
         model: a learned margin file (``energy-margin learn``) to score with instead of the tree.
-        hold: ``"action"`` (the last action is held during propagation) or ``"still"``.
+        hold: ``"action"`` (the last action is held during propagation), ``"still"`` or ``"coasting"``.
         seed: root seed of the trees' perturbations.
         record: keep the episode's rows for :meth:`save_episode`.
         perturbation: a scene file's ``[perturbation]`` table.

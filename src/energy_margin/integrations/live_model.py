@@ -16,7 +16,8 @@ with its current velocity (``hold="action"``, the default). With ``hold="still"`
 held where it is instead (a scene's ``motion.robot = "still"``: its joint velocities start at zero
 and its joints get an armature of :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE` kg m^2 or
 kg, so that no actuator, gravity or contact force moves it measurably during the propagation);
-mocap bodies stay where they are in both cases.
+with ``hold="coasting"`` it keeps its current joint velocities under that armature (a scene's
+``motion.robot = "coasting"``); mocap bodies stay where they are in every case.
 
 :class:`EpisodeRecorder` keeps ``time``, ``qpos``, ``qvel``, ``ctrl``, ``mocap_pos`` and
 ``mocap_quat`` of every recorded step and writes them as the ``.npz`` roll-out that
@@ -61,7 +62,7 @@ __all__ = [
     "scene_tables",
 ]
 
-Hold = Literal["action", "still"]
+Hold = Literal["action", "still", "coasting"]
 
 #: Calls whose overrun of the tree's budget sets the reserve of the next call's tree.
 OVERRUN_WINDOW = 20
@@ -138,7 +139,8 @@ class LiveOptions:
             budget less the overrun measured on the scorer's earlier calls (see
             :meth:`LiveModelScorer.tree_budget`).
         max_expansions: most expansions of one tree.
-        hold: ``"action"`` (the robot holds its last command) or ``"still"`` (held where it is).
+        hold: ``"action"`` (the robot holds its last command), ``"still"`` (held where it is) or
+            ``"coasting"`` (it keeps its current joint velocities).
         seed: root seed; call k uses the k-th child of ``numpy.random.SeedSequence(seed)``.
         config: further analysis settings (cost model, lambda, ...); its budgets are replaced.
 
@@ -196,7 +198,7 @@ class LiveModelScorer:
         if options.budget_s is not None:
             check_positive_float("budget_s", options.budget_s)
         check_positive_int("max_expansions", options.max_expansions)
-        check_choice("hold", options.hold, ("action", "still"))
+        check_choice("hold", options.hold, ("action", "still", "coasting"))
         self.options = options
         model = copy.copy(model)
         if scene is not None:
@@ -214,8 +216,8 @@ class LiveModelScorer:
             if joints is not None:
                 tables["objects"]["joints"] = joints
             spec = scene_spec_from_tables(tables, origin=origin)
-        if options.hold == "still":
-            spec = replace(spec, motion=replace(spec.motion, robot="still"))
+        if options.hold != "action":
+            spec = replace(spec, motion=replace(spec.motion, robot=options.hold))
         loaded = resolve_scene(spec, model)
         self.task = HeldCommandTask(loaded=loaded)
         self.friction = self.task.default_friction()

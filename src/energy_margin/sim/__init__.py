@@ -30,8 +30,9 @@ class Engine:
         continues: its simulators continue the scripted motion from a tree's states in batches
             (success continuation, :mod:`energy_margin.analysis.continuation`).
         model_simulator: ``"module:Class"`` of its simulator of a compiled user model (a scene
-            file's), taking the model, the scene, ``object_joints=``, ``robot_joints=``, ``still=``
-            and ``device=`` when :attr:`devices` is not empty; ``None``: it simulates built-in scenes only.
+            file's), taking the model, the scene, ``object_joints=``, ``robot_joints=``, ``still=``,
+            ``coasting=`` and ``device=`` when :attr:`devices` is not empty; ``None``: it simulates
+            built-in scenes only.
 
     """
 
@@ -151,6 +152,7 @@ def make_model_simulator(
     object_joints: list[int],
     robot_joints: list[int],
     still: bool = False,
+    coasting: bool = False,
     device: str | None = None,
 ) -> Simulator:
     """Build a simulator of a compiled user model (``mujoco.MjModel``, not copied) with the named engine.
@@ -162,6 +164,7 @@ def make_model_simulator(
         object_joints: joint id of each object's free joint (or first upright joint).
         robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
         still: hold the robot where each reset puts it.
+        coasting: the robot keeps the velocities each reset gives it.
         device: where an engine with devices runs (its first device when ``None``).
 
     Raises:
@@ -174,7 +177,7 @@ def make_model_simulator(
         users = ", ".join(name for name, other in ENGINE_REGISTRY.items() if other.model_simulator is not None)
         raise EnergyMarginError(f"engine {engine!r} simulates built-in scenes only; a model file runs on {users}")
     return _build(spec, spec.model_simulator, device, model, scene, object_joints=object_joints,
-                  robot_joints=robot_joints, still=still)  # fmt: skip
+                  robot_joints=robot_joints, still=still, coasting=coasting)  # fmt: skip
 
 
 __all__ = [

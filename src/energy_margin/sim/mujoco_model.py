@@ -15,6 +15,14 @@ hinges, kg for slides), so that no actuator, gravity or contact force of a manip
 it measurably during a propagation of a few tenths of a second (mocap bodies stay where the frame
 puts them in any case). For recorded states whose commands are not known, and for live scoring
 with ``hold="still"``.
+
+A simulator built with ``coasting=True`` gives the robot's joints the same armature but keeps the
+velocities each reset gives them: the robot goes on moving as each frame has it moving (a joint
+turning at 0.5 rad/s at the frame turns on at 0.5 rad/s), a body too heavy for the objects'
+contacts, gravity or its actuators to slow it, as a robot following its own path does; its joint
+limits still stop it. For recorded states whose commands are not known but whose velocities are
+(``motion.robot = "coasting"``, the live wrappers' ``hold="coasting"``). Contacts between the robot
+and the world are kept (the robot moves).
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
@@ -31,7 +40,7 @@ __all__ = [
     "MujocoModelSimulator",
 ]
 
-#: Armature of the robot's joints in a ``still=True`` simulator (kg m^2 or kg).
+#: Armature of the robot's joints in a ``still=True`` or ``coasting=True`` simulator (kg m^2 or kg).
 STILL_ARMATURE = 1e8
 
 
@@ -46,6 +55,7 @@ class MujocoModelSimulator(MujocoSimulator):
         object_joints: list[int],
         robot_joints: list[int],
         still: bool = False,
+        coasting: bool = False,
     ) -> None:
         """Simulate ``model``.
 
@@ -57,13 +67,21 @@ class MujocoModelSimulator(MujocoSimulator):
                 is servoed: the model's own actuators drive the robot).
             still: hold the robot where each reset puts it (see the module docstring); the
                 model's robot armature is changed.
+            coasting: the robot keeps the velocities each reset gives it (see the module
+                docstring); the model's robot armature is changed.
+
+        Raises:
+            EnergyMarginError: both ``still`` and ``coasting``.
 
         """
+        if still and coasting:
+            raise EnergyMarginError("the robot is either held still or coasting, not both")
         index = ModelIndex.of(model, scene, object_joints=object_joints, robot_joints=robot_joints)
         super().__init__(scene, model=model, index=index)
         self._n_mocap = int(model.nmocap)
         self.still = still
-        if still and index.robot_qvel.size:
+        self.coasting = coasting
+        if (still or coasting) and index.robot_qvel.size:
             model.dof_armature[index.robot_qvel] = STILL_ARMATURE
 
     @property

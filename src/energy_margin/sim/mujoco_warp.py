@@ -391,6 +391,7 @@ class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
         robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
         still: hold the robot where each reset puts it
             (:class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
+        coasting: the robot keeps the velocities each reset gives it (the same class).
         device: ``"cuda"`` or ``"cpu"`` (:data:`DEVICES`).
 
     Raises:
@@ -406,9 +407,12 @@ class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
         object_joints: list[int],
         robot_joints: list[int],
         still: bool = False,
+        coasting: bool = False,
         device: str = "cpu",
     ) -> None:
         check_device(device)
-        super().__init__(model, scene, object_joints=object_joints, robot_joints=robot_joints, still=still)
+        super().__init__(
+            model, scene, object_joints=object_joints, robot_joints=robot_joints, still=still, coasting=coasting
+        )
         self.device = device
         self._warp_propagator = None

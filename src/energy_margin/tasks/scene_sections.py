@@ -333,7 +333,7 @@ def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> Moti
         if not isinstance(value, list) or not value:
             raise read.fail("motion.actuators", f"must be a non-empty list of actuator names, got {value!r}")
         actuators = tuple(read.string(item, "motion.actuators") for item in value)
-    robot = read.choice(motion.get("robot", "declared"), "motion.robot", ("declared", "still"))
+    robot = read.choice(motion.get("robot", "declared"), "motion.robot", ("declared", "still", "coasting"))
     return MotionSpec(
         tuple(keyframes),
         ctrl_file,

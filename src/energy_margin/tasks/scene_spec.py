@@ -49,7 +49,7 @@ BOUNDS_MARGIN = 1.0
 
 Interpolation = Literal["linear", "hold"]
 ObjectJoints = Literal["free", "upright"]
-RobotDuringAnalysis = Literal["declared", "still"]
+RobotDuringAnalysis = Literal["declared", "still", "coasting"]
 
 
 @dataclass(frozen=True)
@@ -85,8 +85,9 @@ class MotionSpec:
         actuators: the actuators the control columns drive, in order (others get 0), or ``None``
             for every actuator of the model in its order.
         robot: ``"declared"``: during analysis the robot follows this motion; ``"still"``: the
-            robot is held where each analysed frame has it (for recorded states whose commands
-            are not known; see :class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
+            robot is held where each analysed frame has it; ``"coasting"``: the robot keeps each
+            analysed frame's joint velocities (both for recorded states whose commands are not
+            known; see :class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
 
     """
 

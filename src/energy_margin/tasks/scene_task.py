@@ -218,6 +218,7 @@ class SceneTask(SceneRegions, Task):
             object_joints=list(self.loaded.object_joints),
             robot_joints=list(self.loaded.robot_joints),
             still=self.loaded.spec.motion.robot == "still",
+            coasting=self.loaded.spec.motion.robot == "coasting",
             device=device,
         )
 
