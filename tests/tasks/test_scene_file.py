@@ -494,7 +494,7 @@ def test_a_robot_both_still_and_coasting_is_refused(tmp_path: Path) -> None:
     scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", ""), model=ARM_AND_PUCK)
     task = get_task("scene", {"scene_file": str(scene)})
     loaded = task.loaded
-    with pytest.raises(EnergyMarginError, match="either held still or coasting, not both"):
+    with pytest.raises(InvalidParameterError, match=r"^coasting cannot be combined with still"):
         make_model_simulator(
             task.compiled_model(task.default_friction()),
             task.build_scene(1, task.default_friction()),

@@ -30,7 +30,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from energy_margin.errors import EnergyMarginError
+from energy_margin.errors import InvalidParameterError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
@@ -71,11 +71,11 @@ class MujocoModelSimulator(MujocoSimulator):
                 docstring); the model's robot armature is changed.
 
         Raises:
-            EnergyMarginError: both ``still`` and ``coasting``.
+            InvalidParameterError: both ``still`` and ``coasting``.
 
         """
         if still and coasting:
-            raise EnergyMarginError("the robot is either held still or coasting, not both")
+            raise InvalidParameterError("coasting", "cannot be combined with still: the robot is held still or coasts")
         index = ModelIndex.of(model, scene, object_joints=object_joints, robot_joints=robot_joints)
         super().__init__(scene, model=model, index=index)
         self._n_mocap = int(model.nmocap)
