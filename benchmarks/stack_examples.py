@@ -7,7 +7,9 @@ NAME=PATH`` names another), on this checkout's code (``PYTHONPATH=src``), writin
 ``WORK/EXAMPLE``; an example whose ``results.json`` is already there is not run again. Then one
 document: per stack the package and MuJoCo versions, the episodes and how many succeeded, the live
 calls (mean ms, mean expansions: they depend on the machine's load, recorded before and after each
-run) and ``evaluate``'s verdict on the recorded episodes analysed by ``analyze`` at its defaults:
+run) and ``evaluate``'s verdict on the recorded episodes analysed by ``analyze`` at its defaults.
+With ``--keep``, the entries of the stacks not named in ``--stacks`` are kept from the existing
+``--out``, each with the date and machine it was measured on (every entry has its own):
 
     python benchmarks/stack_examples.py --work runs/stacks --out docs/figures/stack_examples.json
 """
@@ -24,7 +26,7 @@ from typing import Any
 from generality_examples import cell
 from results_document import document_head, work_arguments, write_document
 
-__all__ = ["QUESTIONS", "STACKS", "questions", "row"]
+__all__ = ["QUESTIONS", "STACKS", "kept_entries", "questions", "row"]
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Each stack: its distribution, its example's script and options.
@@ -133,13 +135,33 @@ def row(name: str, results: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def kept_entries(previous: dict[str, Any], measured: list[str]) -> dict[str, dict[str, Any]]:
+    """The entries of ``previous`` (a document) for the stacks not ``measured`` again, with their date and machine."""
+    return {
+        name: {"date": previous.get("date"), "machine": previous.get("machine"), **entry}
+        for name, entry in previous.get("stacks", {}).items()
+        if name not in measured
+    }
+
+
+def _in_order(entries: dict[str, dict[str, Any]], document: dict[str, Any]) -> dict[str, Any]:
+    """``document`` with ``entries`` as its stacks and rows, in :data:`STACKS`' order."""
+    ordered = {name: entries[name] for name in STACKS if name in entries}
+    return {**document, "stacks": ordered, "rows": [entry["row"] for entry in ordered.values()]}
+
+
 def main() -> None:
     parser = work_arguments(__doc__, workers=False, work_help="each example's folder (kept; a finished one is reused)")
     parser.add_argument("--python", nargs="*", default=[], metavar="NAME=PATH", help="a stack's interpreter")
     parser.add_argument("--stacks", nargs="+", choices=tuple(STACKS), default=list(STACKS))
+    parser.add_argument(
+        "--keep", action="store_true", help="keep the other stacks' entries of an existing --out (each with its date)"
+    )
     args = parser.parse_args()
     interpreters = _interpreters(args.python)
-    document: dict[str, Any] = {**document_head("stack_examples.py"), "stacks": {}, "rows": []}
+    head = document_head("stack_examples.py")
+    kept = kept_entries(json.loads(args.out.read_text(encoding="utf-8")), args.stacks) if args.keep else {}
+    document: dict[str, Any] = {**head, "stacks": {}, "rows": []}
     for name in args.stacks:
         distribution, script, _ = STACKS[name]
         out = (args.work / Path(script).parent.name).resolve()
@@ -147,6 +169,8 @@ def main() -> None:
         results = json.loads((out / "results.json").read_text(encoding="utf-8"))
         document["stacks"][name] = {
             **ran,
+            "date": head["date"],
+            "machine": head["machine"],
             "distribution": distribution,
             "version": _version(interpreters[name], distribution),
             "row": row(name, results),
@@ -154,7 +178,7 @@ def main() -> None:
             "evaluate_text": results.get("evaluate_text"),
         }
         document["rows"].append(document["stacks"][name]["row"])
-        write_document(args.out, document)
+        write_document(args.out, _in_order({**kept, **document["stacks"]}, document))
         print(name, "done", flush=True)
 
 

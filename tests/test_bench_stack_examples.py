@@ -84,3 +84,20 @@ def test_interpreters_default_to_the_stacks_nox_sessions_and_refuse_a_bad_name(b
         bench._interpreters(["nothing=/usr/bin/python"])
     with pytest.raises(SystemExit, match="NAME=PATH"):
         bench._interpreters(["robosuite"])
+
+
+def test_keep_takes_the_other_stacks_entries_with_their_date(bench) -> None:
+    previous = {
+        "date": "2026-12-06",
+        "machine": "m1",
+        "stacks": {"metaworld": {"row": {"stack": "metaworld"}}, "robosuite": {"row": {"stack": "robosuite"}}},
+    }
+    kept = bench.kept_entries(previous, ["robosuite"])
+    assert list(kept) == ["metaworld"]
+    assert kept["metaworld"] == {"date": "2026-12-06", "machine": "m1", "row": {"stack": "metaworld"}}
+    # An entry that has its own date keeps it.
+    again = bench.kept_entries({"date": "2026-12-07", "stacks": kept}, [])
+    assert again["metaworld"]["date"] == "2026-12-06"
+    document = bench._in_order({"robosuite": {"row": {"stack": "robosuite"}}, **kept}, {"date": "d"})
+    assert list(document["stacks"]) == ["metaworld", "robosuite"]
+    assert [row["stack"] for row in document["rows"]] == ["metaworld", "robosuite"]

@@ -12,8 +12,9 @@
    grasp site. Success: at least one object's centre is inside ``bin2``.
 3. Runs ``--episodes`` episodes of the scripted policy (``policy.py``; the target object and the
    noise are drawn from ``(seed, episode)``). The wrapper scores the reset and every
-   ``--every``-th step within ``--budget`` seconds, with the robot held still during the tree's
-   propagation (``hold="still"``; the controller's torques are not known ahead). It records each
+   ``--every``-th step within ``--budget`` seconds, the robot keeping its joint velocities during
+   the tree's propagation (``--hold coasting``, the default: the controller's torques are not known
+   ahead; ``--hold still`` holds it where it is). It records each
    episode as ``OUT/episodes/episode_NNN.npz``.
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
    ``energy-margin analyze`` (``--expansions`` expansions per frame) and ``energy-margin evaluate``
@@ -95,7 +96,7 @@ def make_env(env_seed: int, steps: int) -> Any:
     )
 
 
-def scene_text(mjcf: str, steps: int, objects: Sequence[str], grip_site: str) -> str:
+def scene_text(mjcf: str, steps: int, objects: Sequence[str], grip_site: str, hold: str = "coasting") -> str:
     """The scene file of this example."""
     bodies = ", ".join(f'"{name}_main"' for name in objects)
     return f"""# robosuite 1.5 PickPlace (Panda, OSC_POSE) with the scripted policy of policy.py.
@@ -106,10 +107,10 @@ mjcf = "{mjcf}"
 bodies = [{bodies}]
 joints = "free"
 
-# The controller's torques are not known ahead: the robot is held where each frame has it.
+# The controller's torques are not known ahead: {HOLD_COMMENTS[hold]}.
 [motion]
 duration = {steps / CONTROL_FREQ}
-robot = "still"
+robot = "{hold}"
 
 [perturbation]
 linear_acceleration = [2.0, 2.0, 2.0]
@@ -130,6 +131,13 @@ follow = false
 at_least = 1
 region = {{ type = "box", body = "bin2", center = [0.0, 0.0, 0.06], half_size = [0.2, 0.25, 0.08] }}
 """
+
+
+#: What the robot does during a tree's propagation (``--hold``), as the scene file's comment says it.
+HOLD_COMMENTS = {
+    "still": "the robot is held where each frame has it",
+    "coasting": "the robot keeps each frame's joint velocities",
+}
 
 
 def run_episode(wrapper: MarginWrapper, env: Any, steps: int, rng: np.random.Generator) -> dict[str, Any]:
@@ -210,6 +218,9 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--env-seed", type=int, default=0, help="robosuite's seed (the object placements)")
     parser.add_argument("--out", type=Path, default=Path("runs/robosuite_pick_place"))
     parser.add_argument("--no-picture", action="store_true", help="skip the rendered picture")
+    parser.add_argument(
+        "--hold", choices=tuple(HOLD_COMMENTS), default="coasting", help="the robot during a tree's propagation"
+    )
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.every < 1 or args.steps % args.every:
         parser.error("--episodes must be >= 1 and --steps a multiple of --every")
@@ -226,9 +237,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     env.reset()
     (out / "pick_place.xml").write_text(env.model.get_xml(), encoding="utf-8")
     scene = out / "scene.toml"
-    scene.write_text(scene_text("pick_place.xml", args.steps, policy.OBJECTS, policy.GRIP_SITE), encoding="utf-8")
+    text = scene_text("pick_place.xml", args.steps, policy.OBJECTS, policy.GRIP_SITE, args.hold)
+    scene.write_text(text, encoding="utf-8")
     wrapper = MarginWrapper(
-        GymWrapper(env), scene=scene, every=args.every, budget_s=args.budget, hold="still", record=True, seed=args.seed
+        GymWrapper(env), scene=scene, every=args.every, budget_s=args.budget, hold=args.hold, record=True, seed=args.seed
     )
     print(f"robosuite {robosuite.__version__}, MuJoCo {mujoco.__version__}; objects {wrapper.scorer.object_names}")
     episodes, files = [], []
