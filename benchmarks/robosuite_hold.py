@@ -21,10 +21,13 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from energy_margin.data.scores_file import load_scores
 from results_document import document_head, work_arguments, write_document
 from stack_examples import questions
 
-__all__ = ["HOLDS", "summary"]
+__all__ = ["HOLDS", "seconds_per_frame", "summary"]
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = "examples/robosuite_pick_place/pick_place.py"
@@ -32,8 +35,8 @@ SCRIPT = "examples/robosuite_pick_place/pick_place.py"
 HOLDS = ("coasting", "still")
 
 
-def summary(results: dict[str, Any], evaluate_text: str | None = None) -> dict[str, Any]:
-    """The document's entry of one hold from the example's ``results.json``."""
+def summary(results: dict[str, Any], seconds_per_frame: float | None = None) -> dict[str, Any]:
+    """The document's entry of one hold from the example's ``results.json`` and its analysis's time per frame, s."""
     return {
         "mujoco": results["mujoco"],
         "robosuite": results["robosuite"],
@@ -43,20 +46,12 @@ def summary(results: dict[str, Any], evaluate_text: str | None = None) -> dict[s
         "live_mean_expansions": results["timing"]["mean_expansions"],
         "analyze": questions({"evaluate": results["evaluate"]["analyze"]}),
         "live": questions({"evaluate": results["evaluate"]["live"]}),
-        "seconds_per_frame": _seconds_per_frame(evaluate_text),
+        "seconds_per_frame": seconds_per_frame,
     }
 
 
-def _seconds_per_frame(evaluate_text: str | None) -> float | None:
-    """The analysis's mean runtime per frame from ``evaluate``'s printed table (``None`` when absent)."""
-    for line in (evaluate_text or "").splitlines():
-        if line.startswith("runtime per frame:"):
-            return float(line.split(":", 1)[1].split()[0])
-    return None
-
-
-def _run(python: Path, hold: str, seed: int, out: Path) -> str | None:
-    """Run the example with ``hold`` into ``out`` (reused when done); ``evaluate``'s text of the analysed episodes."""
+def _run(python: Path, hold: str, seed: int, out: Path) -> None:
+    """Run the example with ``hold`` into ``out`` (reused when done), its output into ``out``'s ``.log`` beside it."""
     log = out.parent / f"{out.name}.log"
     if not (out / "results.json").is_file():
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -65,11 +60,11 @@ def _run(python: Path, hold: str, seed: int, out: Path) -> str | None:
         environment = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
         with log.open("w", encoding="utf-8") as handle:
             subprocess.run(command, check=True, cwd=ROOT, env=environment, stdout=handle, stderr=subprocess.STDOUT)
-    if not log.is_file():
-        return None
-    text = log.read_text(encoding="utf-8")
-    start = text.find("== energy-margin evaluate")
-    return text[start:] if start >= 0 else None
+
+
+def seconds_per_frame(out: Path) -> float:
+    """Mean wall time of a frame's analysis in the example's ``OUT/dataset``, s (what ``evaluate`` prints)."""
+    return float(np.mean(load_scores(out / "dataset")["runtime_s"]))
 
 
 def main() -> None:
@@ -80,9 +75,9 @@ def main() -> None:
     document: dict[str, Any] = {**document_head("robosuite_hold.py"), "seed": args.seed, "holds": {}}
     for hold in HOLDS:
         out = args.work.resolve() / hold
-        text = _run(args.python, hold, args.seed, out)
+        _run(args.python, hold, args.seed, out)
         results = json.loads((out / "results.json").read_text(encoding="utf-8"))
-        document["holds"][hold] = summary(results, text)
+        document["holds"][hold] = summary(results, seconds_per_frame(out))
         print(hold, {q: round(v["margin"], 3) for q, v in document["holds"][hold]["analyze"].items()}, flush=True)
     write_document(args.out, document)
     print(f"wrote {args.out}")

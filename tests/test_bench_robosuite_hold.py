@@ -32,8 +32,7 @@ def test_an_entry_keeps_both_evaluations_the_live_calls_and_the_analysis_time(be
         "timing": {"mean_ms": 46.5, "mean_expansions": 9.8},
         "evaluate": {"analyze": _evaluation(0.635, 0.375, "ahead"), "live": _evaluation(0.458, 0.375, "level")},
     }
-    text = "== energy-margin evaluate d\nquestion ...\nruntime per frame: 4.215 +- 2.915 s (physics 0.519 s)\n"
-    entry = bench.summary(results, text)
+    entry = bench.summary(results, 4.215)
     assert (entry["episodes"], entry["success_rate"], entry["seconds_per_frame"]) == (40, 0.375, 4.215)
     assert (entry["live_mean_ms"], entry["live_mean_expansions"]) == (46.5, 9.8)
     early = entry["analyze"]["success_ap_first_half"]
@@ -46,3 +45,19 @@ def test_an_entry_keeps_both_evaluations_the_live_calls_and_the_analysis_time(be
     assert entry["live"]["success_ap_first_half"]["margin"] == 0.458
     assert entry["live"]["success_ap_first_half"]["word"] == "level"
     assert bench.summary(results, None)["seconds_per_frame"] is None
+
+
+def test_the_analysis_time_is_evaluates(bench, tmp_path) -> None:
+    from energy_margin.analysis.frame import AnalyzerConfig
+    from energy_margin.analysis.run import analyze
+    from energy_margin.data.generate import generate_dataset
+    from energy_margin.evaluation.metrics import evaluate
+    from tiny_scene import write_tiny_scene
+
+    scene = write_tiny_scene(tmp_path / "scene")
+    dataset = tmp_path / "run" / "dataset"
+    generate_dataset("scene", n_objects=2, n_trajectories=2, n_frames=4, seed=0, out=dataset,
+                     task_config={"scene_file": str(scene)})  # fmt: skip
+    analyze(dataset, AnalyzerConfig(expansions=5, continuation=0), seed=0, progress=False)
+    expected = evaluate(dataset, resamples=0).to_dict()["runtime_per_frame_s"]
+    assert bench.seconds_per_frame(tmp_path / "run") == pytest.approx(expected, rel=1e-12)
