@@ -48,35 +48,24 @@ def _free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def _command_lines() -> dict[int, bytes]:
-    """Every process's command line (its arguments joined by spaces), by pid."""
+def _processes() -> dict[int, tuple[bytes, int]]:
+    """Every process's command line (its arguments joined by spaces) and parent pid, by pid."""
     found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
-            found[int(entry.name)] = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
-        except OSError:
-            continue
-    return found
-
-
-def _parents() -> dict[int, int]:
-    """Every process's parent pid, by pid."""
-    found = {}
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ")
             # The fields after the command name, which is in parentheses and may hold spaces.
-            found[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
         except (OSError, IndexError, ValueError):
             continue
+        found[int(entry.name)] = (command, parent)
     return found
 
 
 def _ray_processes() -> set[int]:
-    return {pid for pid, command in _command_lines().items() if b"ray" in command}
+    return {pid for pid, (command, _) in _processes().items() if b"ray" in command}
 
 
 def _cluster_processes(temp_dir: Path) -> set[int]:
@@ -84,11 +73,11 @@ def _cluster_processes(temp_dir: Path) -> set[int]:
 
     Ray's agents and workers rename their command lines (``ray::IDLE``); they are the raylet's children.
     """
-    named = {pid for pid, command in _command_lines().items() if str(temp_dir).encode() in command}
-    parents = _parents()
-    found, grown = set(named), True
+    processes = _processes()
+    found = {pid for pid, (command, _) in processes.items() if str(temp_dir).encode() in command}
+    grown = True
     while grown:
-        children = {pid for pid, parent in parents.items() if parent in found} - found
+        children = {pid for pid, (_, parent) in processes.items() if parent in found} - found
         found |= children
         grown = bool(children)
     return found - {os.getpid()}
