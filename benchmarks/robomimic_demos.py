@@ -54,7 +54,7 @@ DEMOS = 50
 FRAMES = 10
 EXPANSIONS = 300
 #: The sets, in the document's order.
-SETS = ("demos", "demos_still", "coasting", "still", "declared")
+SETS = ("demos", "demos_still", "demos_recorded", "coasting", "still", "recorded", "declared")
 #: The questions: bench_generality's five, then success from the last 3 frames.
 LAST_3 = "success, last 3"
 
@@ -77,7 +77,7 @@ def _sets(work: Path, names: tuple[str, ...] = SETS, seed: int = 0) -> dict[str,
     drawn, nominal, npz = work / "demos.hdf5", work / "nominal.hdf5", work / "nominal_npz"
     if not drawn.exists():
         _run(EXAMPLES / "robomimic" / "write_demos.py", "--demos", DEMOS, "--seed", seed, "--out", drawn)
-    if not nominal.exists() and set(names) & {"coasting", "still", "declared"}:
+    if not nominal.exists() and set(names) & {"coasting", "still", "recorded", "declared"}:
         _run(EXAMPLES / "robomimic" / "write_demos.py", "--demos", DEMOS, "--seed", seed, "--nominal-speed",
              "--npz", npz, "--out", nominal)  # fmt: skip
     demos_scene = EXAMPLES / "robomimic" / "jaco_demos.toml"
@@ -85,8 +85,10 @@ def _sets(work: Path, names: tuple[str, ...] = SETS, seed: int = 0) -> dict[str,
     sources = {
         "demos": ["--format", "robomimic", drawn, "--scene", demos_scene],
         "demos_still": ["--format", "robomimic", drawn, "--scene", demos_scene, "--robot", "still"],
+        "demos_recorded": ["--format", "robomimic", drawn, "--scene", demos_scene, "--robot", "recorded"],
         "coasting": ["--format", "robomimic", nominal, "--scene", demos_scene, "--robot", "coasting"],
         "still": ["--format", "robomimic", nominal, "--scene", demos_scene, "--robot", "still"],
+        "recorded": ["--format", "robomimic", nominal, "--scene", demos_scene, "--robot", "recorded"],
         "declared": ["--scene", EXAMPLES / "jaco" / "jaco.toml", *sorted(npz.glob("demo_*.npz"))],
     }
     for name, directory in sets.items():

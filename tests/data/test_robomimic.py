@@ -374,6 +374,35 @@ def test_robot_still_is_written_into_the_datasets_scene_and_said(
     assert load_dataset(out).task.make_simulator(2, 0.5).still
 
 
+def test_robot_recorded_carries_each_demonstrations_path_in_its_drive(
+    tmp_path: Path, demo_states: dict[str, np.ndarray], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from energy_margin import AnalyzerConfig, analyze
+
+    path = write_demos(tmp_path / "demos.hdf5", demo_states)
+    out = tmp_path / "dataset"
+    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3", "--robot", "recorded"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert "follows each demonstration's recorded joint path" in capsys.readouterr().err
+    assert 'robot = "recorded"' in (out / "source" / "scene.toml").read_text()
+    dataset = load_dataset(out)
+    points = dataset.task.loaded.spec.motion.path_points
+    assert dataset.arrays["drive"].shape == (3, 2 + points * 3)  # one robot joint: the pusher's slide
+    for index, key in enumerate(["demo_0", "demo_2", "demo_10"]):
+        states = demo_states[key]
+        drive = dataset.arrays["drive"][index]
+        # Fewer rows than knots (60 < 64): every row is a knot, the last one repeated.
+        rows = np.unique(nearest_rows(states[:, 0], points))
+        rows = np.concatenate([rows, np.full(points - rows.size, rows[-1])])
+        assert rows.size == points and np.unique(rows).size == len(states)
+        np.testing.assert_array_equal(drive[2 : 2 + points], states[rows, 0])
+        np.testing.assert_array_equal(drive[2 + points : 2 + 2 * points], states[rows, 1])  # the pusher's qpos
+    assert dataset.task.make_simulator(2, 0.5, dataset.arrays["drive"][0]).coasting
+    assert main(["check", str(out)]) == 0
+    analyze(out, AnalyzerConfig(expansions=5), seed=0, progress=False)
+    assert len(load_scores(out)["capture_score"]) == 9
+
+
 def test_robot_is_refused_for_rollout_files_and_bad_values(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from energy_margin.data.robomimic import record_robomimic
 

@@ -103,10 +103,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     robomimic.add_argument(
         "--robot",
-        choices=("coasting", "still"),
+        choices=("coasting", "still", "recorded"),
         help="the robot during analysis: coasting keeps each frame's joint velocities (the default), still holds "
-        "it where the frame has it",
+        "it where the frame has it, recorded follows the demonstration's own joint path",
     )
+
+
+#: What ``record --format robomimic`` says the robot does during analysis, per ``--robot``.
+_ROBOT_NOTES = {
+    "still": "the robot is held still during analysis: future capture and early success miss its motion",
+    "coasting": "during analysis the robot keeps each frame's joint velocities (--robot still holds it)",
+    "recorded": "during analysis the robot follows each demonstration's recorded joint path from the frame on",
+}
 
 
 def _json_table(flag: str, text: str | None) -> dict[str, Any] | None:
@@ -177,11 +185,7 @@ def run(args: argparse.Namespace) -> int:
         robot = args.robot or ROBOT_DURING_ANALYSIS
         print(
             "note: the demonstrations carry no commands the analysis could follow, so "
-            + (
-                "the robot is held still during analysis: future capture and early success miss its motion"
-                if robot == "still"
-                else "during analysis the robot keeps each frame's joint velocities (--robot still holds it)"
-            )
+            + _ROBOT_NOTES[robot]
             + " (docs/howto/integrations.md)",
             file=sys.stderr,
         )

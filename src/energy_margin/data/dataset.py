@@ -170,7 +170,7 @@ _LIMITS = {
     "n_frames": 100_000,
     "n_objects": 10_000,
     "n_robot_dofs": 1_000,
-    "n_drive": 1_000,
+    "n_drive": 100_000,
 }
 _MAX_MEMBER_BYTES = 1 << 31
 _MAX_PER_FIELD = 5

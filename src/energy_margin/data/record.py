@@ -303,7 +303,8 @@ def rollout_records(
             raise EnergyMarginError(f"{name}: time: has {time.size} rows, fewer than `n_frames={n_frames}`")
         kept = _rollout_frames(task, simulator, compiled, box, drive, name, arrays, n_frames, dropped)
         if kept is not None:
-            records.append(trajectory_record(task, kept[0], kept[1], friction, drive))
+            path = task.recorded_drive(time, arrays["qpos"], arrays["qvel"])
+            records.append(trajectory_record(task, kept[0], kept[1], friction, path))
         bar.update(1)
     bar.close()
     if not records:

@@ -34,7 +34,7 @@ MODEL_FILE = "model.xml"
 #: velocities during analysis (``motion.robot``; docs/howto/integrations.md says what was measured).
 ROBOT_DURING_ANALYSIS = "coasting"
 #: What the robot may do during analysis of demonstrations (``motion.robot``).
-ROBOT_CHOICES = ("coasting", "still")
+ROBOT_CHOICES = ("coasting", "still", "recorded")
 
 
 #: The scene-file tables a robomimic recording takes from a scene file.

@@ -248,7 +248,8 @@ class RolloutPropagator:
         forces, no servo targets: a scene file's) may vectorise those instead:
         ``task.batched_model_command(drives (k, n_drive), times (k,) s)`` returns the
         :class:`~energy_margin.sim.base.ModelCommand` of every row (arrays with a leading k axis)
-        that ``Task.model_command`` gives row by row, or ``None``.
+        that ``Task.model_command`` gives row by row, or ``None``; its forces then come from
+        ``task.batched_robot_force(drives, times)`` (k, r) where it has one (zero otherwise).
 
         The same numbers as the loop of :meth:`propagate`, to the last bit: commands at the same
         times (start + done * dt, done a multiple of ``period``), packed into the same vector (the
@@ -260,6 +261,7 @@ class RolloutPropagator:
         """
         robot_commands = getattr(task, "robot_commands", None)
         model_commands = getattr(task, "batched_model_command", None)
+        model_forces = getattr(task, "batched_robot_force", None)
         if robot_commands is None and model_commands is None:
             return False
         index, model = self.index, self.model
@@ -282,7 +284,8 @@ class RolloutPropagator:
                 command = model_commands(drives[active], times)
                 if command is None:
                     return False
-                rows[np.ix_(active, force_at)] = 0.0
+                forces = 0.0 if model_forces is None else model_forces(drives[active], times)
+                rows[np.ix_(active, force_at)] = np.asarray(forces)[..., : index.robot_qvel.size]
                 self._write_model_commands(rows, active, command)
                 chunks[:, c] = rows
                 continue

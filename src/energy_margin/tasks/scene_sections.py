@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, get_args
 
 from energy_margin.tasks.regions import REGION_TYPES
 from energy_margin.tasks.scene_spec import (
@@ -24,6 +24,7 @@ from energy_margin.tasks.scene_spec import (
     DesignEntry,
     Keyframe,
     MotionSpec,
+    RobotDuringAnalysis,
     StartSpec,
 )
 from energy_margin.tasks.scene_toml import (
@@ -251,6 +252,7 @@ _MOTION_KEYS = {
     "control_period",
     "actuators",
     "robot",
+    "path_points",
 }
 
 
@@ -333,7 +335,10 @@ def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> Moti
         if not isinstance(value, list) or not value:
             raise read.fail("motion.actuators", f"must be a non-empty list of actuator names, got {value!r}")
         actuators = tuple(read.string(item, "motion.actuators") for item in value)
-    robot = read.choice(motion.get("robot", "declared"), "motion.robot", ("declared", "still", "coasting"))
+    robot = read.choice(motion.get("robot", "declared"), "motion.robot", get_args(RobotDuringAnalysis))
+    points = read.integer(motion.get("path_points", 64), "motion.path_points", minimum=2)
+    if "path_points" in motion and robot != "recorded":
+        raise read.fail("motion.path_points", f'applies to robot = "recorded" only (robot is {robot!r})')
     return MotionSpec(
         tuple(keyframes),
         ctrl_file,
@@ -343,6 +348,7 @@ def _read_motion(read: _Reader, document: Mapping[str, Any], path: Path) -> Moti
         period,
         actuators,
         robot,  # type: ignore[arg-type]
+        points,
     )
 
 

@@ -49,7 +49,7 @@ BOUNDS_MARGIN = 1.0
 
 Interpolation = Literal["linear", "hold"]
 ObjectJoints = Literal["free", "upright"]
-RobotDuringAnalysis = Literal["declared", "still", "coasting"]
+RobotDuringAnalysis = Literal["declared", "still", "coasting", "recorded"]
 
 
 @dataclass(frozen=True)
@@ -87,7 +87,10 @@ class MotionSpec:
         robot: ``"declared"``: during analysis the robot follows this motion; ``"still"``: the
             robot is held where each analysed frame has it; ``"coasting"``: the robot keeps each
             analysed frame's joint velocities (both for recorded states whose commands are not
-            known; see :class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
+            known; see :class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`);
+            ``"recorded"``: the robot follows the path each roll-out was recorded on, carried in
+            its drive parameters (:mod:`~energy_margin.tasks.recorded_path`).
+        path_points: knots of a recorded path (``robot = "recorded"``).
 
     """
 
@@ -99,6 +102,7 @@ class MotionSpec:
     control_period: float
     actuators: tuple[str, ...] | None = None
     robot: RobotDuringAnalysis = "declared"
+    path_points: int = 64
 
 
 @dataclass(frozen=True)
@@ -268,6 +272,7 @@ DEFAULTED_KEYS = (
     "motion.initial_keyframe",
     "motion.control_period",
     "motion.robot",
+    "motion.path_points",
     "randomize.friction",
     "randomize.mass_scale",
     "randomize.time_scale",

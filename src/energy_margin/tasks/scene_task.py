@@ -19,6 +19,7 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits
 from energy_margin.tasks.motion import RobotState, Trajectory
+from energy_margin.tasks.recorded_path import path_drive, path_drive_size, path_forces
 from energy_margin.tasks.scene_defaults import object_armature
 from energy_margin.tasks.scene_layout import draw_layout
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
@@ -218,7 +219,8 @@ class SceneTask(SceneRegions, Task):
             object_joints=list(self.loaded.object_joints),
             robot_joints=list(self.loaded.robot_joints),
             still=self.loaded.spec.motion.robot == "still",
-            coasting=self.loaded.spec.motion.robot == "coasting",
+            # A robot following its recorded path coasts under the forces of robot_force.
+            coasting=self.loaded.spec.motion.robot in ("coasting", "recorded"),
             device=device,
         )
 
@@ -227,8 +229,24 @@ class SceneTask(SceneRegions, Task):
         return len(self.loaded.robot_joints) + 7 * int(self.loaded.model.nmocap)
 
     def drive_size(self) -> int:
-        """Two drive parameters: the motion's time scale and the objects' mass scale."""
+        """The motion's time scale and the objects' mass scale, then a recorded path's knots (``"recorded"``)."""
+        motion = self.loaded.spec.motion
+        if motion.robot == "recorded":
+            return path_drive_size(motion.path_points, len(self.loaded.robot_joints))
         return 2
+
+    def recorded_drive(self, time: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """The drive parameters of a roll-out recorded at ``time`` (n,) s with ``qpos`` (n, nq), ``qvel`` (n, nv).
+
+        Scales of 1; with ``robot = "recorded"``, the robot joints' path after them (:func:`path_drive`).
+        """
+        motion = self.loaded.spec.motion
+        if motion.robot != "recorded":
+            return np.ones(self.drive_size())
+        model, joints = self.loaded.model, list(self.loaded.robot_joints)
+        q = np.asarray(qpos)[:, model.jnt_qposadr[joints]]
+        v = np.asarray(qvel)[:, model.jnt_dofadr[joints]]
+        return path_drive(time, q, v, points=motion.path_points)
 
     def default_friction(self) -> float:
         """The sliding friction of the first object geom of the model (used without a friction range)."""
@@ -242,6 +260,11 @@ class SceneTask(SceneRegions, Task):
         """Friction, time and mass scales, then object start poses placed without overlaps."""
         self._check_objects(n_objects)
         spec = self.loaded.spec
+        if spec.motion.robot == "recorded":
+            raise InvalidDataError(
+                f'{spec.path}: motion.robot: "recorded" follows the paths of recorded roll-outs: make its data with '
+                "record, not generate"
+            )
         friction = (
             float(rng.uniform(*spec.friction_range)) if spec.friction_range is not None else self.default_friction()
         )
@@ -300,9 +323,26 @@ class SceneTask(SceneRegions, Task):
         return np.concatenate([poses[0].ravel(), poses[1].ravel()])
 
     def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
-        """No generalized forces: the model's actuators and mocap bodies move the robot."""
-        del state, rng
-        return np.zeros(self.robot_dofs())
+        """No generalized forces (the model's actuators and mocap bodies move the robot), but a recorded path's."""
+        del rng
+        return self.batched_robot_force(np.asarray(state.drive)[None], np.array([state.time]))[0]
+
+    def batched_robot_force(self, drives: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """:meth:`robot_force` of many rows, drives (k, n_drive) and times (k,) s: shape (k, n_robot_dofs).
+
+        Zero, but with ``robot = "recorded"`` the forces that keep the joints on the path
+        (:func:`~energy_margin.tasks.recorded_path.path_forces`) over one control period.
+        """
+        from energy_margin.sim.mujoco_model import STILL_ARMATURE
+
+        forces = np.zeros((len(times), self.robot_dofs()))
+        motion = self.loaded.spec.motion
+        if motion.robot == "recorded":
+            joints = len(self.loaded.robot_joints)
+            forces[:, :joints] = path_forces(
+                drives, times, n_joints=joints, period=motion.control_period, armature=STILL_ARMATURE
+            )
+        return forces
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
         """The declared motion at ``time`` (s) times the trajectory's time scale ``drive[0]``."""

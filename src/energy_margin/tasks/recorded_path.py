@@ -1,0 +1,132 @@
+"""A roll-out's recorded robot path, carried in its drive parameters and followed during analysis.
+
+A scene whose motion declares ``robot = "recorded"`` analyses recorded roll-outs (``record``,
+``record --format robomimic``) whose commands are not known: during every propagation the robot
+follows the path it was recorded on, from the analysed frame to the end of the roll-out, whatever
+the objects do. Each roll-out's drive parameters carry its path after the scene's two scales
+(:func:`path_drive`): ``P`` knots (``motion.path_points``), the recorded rows nearest ``P`` evenly
+spaced times, each with the robot joints' positions and velocities:
+
+``[time_scale, mass_scale, t (P,) s, q (P, n_joints) rad or m, v (P, n_joints) rad/s or m/s]``
+
+Between knots the path is the cubic Hermite curve through the knots' positions and velocities;
+before the first knot it keeps the first knot's velocity, after the last the last's.
+
+The robot's joints carry the armature of a held robot (:data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`,
+so contacts, gravity and its actuators do not move it measurably) and its velocities are kept at
+each reset (a coasting robot); :func:`path_forces` gives the generalized forces that change its
+velocities as the path's do over one command period: armature times the path's mean acceleration
+``(v(t + period) - v(t)) / period``. They depend on the time alone (not on the state), so a
+propagation batched through ``mujoco.rollout`` and one stepped one command at a time apply the
+same forces to the last bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from energy_margin.errors import InvalidParameterError
+
+__all__ = ["PATH_PREFIX", "path_drive", "path_drive_size", "path_forces", "path_velocities"]
+
+#: Drive parameters before the path: the motion's time scale and the objects' mass scale.
+PATH_PREFIX = 2
+
+
+def path_drive_size(points: int, n_joints: int) -> int:
+    """Drive parameters of a scene following recorded paths of ``points`` knots of ``n_joints`` joints."""
+    return PATH_PREFIX + points * (1 + 2 * n_joints)
+
+
+def path_drive(time: np.ndarray, q: np.ndarray, v: np.ndarray, *, points: int) -> np.ndarray:
+    """The drive parameters of a recorded roll-out: scales of 1, then its path's knots.
+
+    Args:
+        time: the roll-out's times, shape (n,), s, increasing.
+        q: the robot joints' positions at those times, shape (n, n_joints).
+        v: their velocities, shape (n, n_joints).
+        points: knots P, >= 2; a roll-out of fewer rows repeats its last row.
+
+    Returns:
+        Shape (:func:`path_drive_size`,).
+
+    """
+    time = np.asarray(time, dtype=float)
+    q = np.asarray(q, dtype=float).reshape(time.size, -1)
+    v = np.asarray(v, dtype=float).reshape(time.size, -1)
+    if points < 2:
+        raise InvalidParameterError("points", f"must be >= 2, got {points}")
+    targets = np.linspace(time[0], time[-1], points)
+    # The row nearest each target: the first at or after it, or the one before.
+    after = np.clip(np.searchsorted(time, targets), 0, time.size - 1)
+    before = np.maximum(after - 1, 0)
+    rows = np.where(np.abs(time[before] - targets) <= np.abs(time[after] - targets), before, after)
+    rows = np.unique(rows)
+    rows = np.concatenate([rows, np.full(points - rows.size, rows[-1])])
+    return np.concatenate([np.ones(PATH_PREFIX), time[rows], q[rows].ravel(), v[rows].ravel()])
+
+
+def _knots(drives: np.ndarray, n_joints: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Knot times (k, P), positions and velocities (k, P, n_joints) of drive rows (k, n_drive)."""
+    drives = np.asarray(drives, dtype=float)
+    k = drives.shape[0]
+    points = (drives.shape[1] - PATH_PREFIX) // (1 + 2 * n_joints)
+    if drives.shape[1] != path_drive_size(points, n_joints) or points < 2:
+        raise InvalidParameterError(
+            "drive", f"holds {drives.shape[1]} parameters, not a recorded path of {n_joints} joints"
+        )
+    at = PATH_PREFIX
+    times = drives[:, at : at + points]
+    q = drives[:, at + points : at + points * (1 + n_joints)].reshape(k, points, n_joints)
+    v = drives[:, at + points * (1 + n_joints) :].reshape(k, points, n_joints)
+    return times, q, v
+
+
+def path_velocities(drives: np.ndarray, times: np.ndarray, n_joints: int) -> np.ndarray:
+    """The path's joint velocities at ``times`` (k,) s of drive rows (k, n_drive): shape (k, n_joints).
+
+    The derivative of the cubic Hermite curve through the knots; the first (last) knot's velocity
+    before (after) the path.
+    """
+    knot_t, knot_q, knot_v = _knots(drives, n_joints)
+    k, points = knot_t.shape
+    times = np.asarray(times, dtype=float)
+    rows = np.arange(k)
+    # The segment of each time: the last knot at or before it (repeated knots only end a path).
+    lower = np.clip((knot_t <= times[:, None]).sum(axis=1) - 1, 0, points - 2)
+    upper = lower + 1
+    t0, t1 = knot_t[rows, lower], knot_t[rows, upper]
+    span = t1 - t0
+    inside = (times > knot_t[:, 0]) & (times < knot_t[:, -1]) & (span > 0)
+    s = np.where(inside, (times - t0) / np.where(span > 0, span, 1.0), 0.0)[:, None]
+    h = np.where(span > 0, span, 1.0)[:, None]
+    q0, q1 = knot_q[rows, lower], knot_q[rows, upper]
+    v0, v1 = knot_v[rows, lower], knot_v[rows, upper]
+    hermite = (
+        (6 * s**2 - 6 * s) * q0 / h
+        + (3 * s**2 - 4 * s + 1) * v0
+        + (6 * s - 6 * s**2) * q1 / h
+        + (3 * s**2 - 2 * s) * v1
+    )
+    first = times[:, None] <= knot_t[:, :1]
+    return np.where(inside[:, None], hermite, np.where(first, knot_v[:, 0], knot_v[:, -1]))
+
+
+def path_forces(drives: np.ndarray, times: np.ndarray, *, n_joints: int, period: float, armature: float) -> np.ndarray:
+    """Generalized forces on the robot joints that follow the path over one command period.
+
+    Args:
+        drives: each row's drive parameters, shape (k, n_drive) (:func:`path_drive`).
+        times: each row's time, shape (k,), s.
+        n_joints: the robot's hinge and slide joints.
+        period: seconds the forces are held, > 0.
+        armature: the joints' armature, kg m^2 or kg.
+
+    Returns:
+        Shape (k, n_joints): N m or N.
+
+    """
+    times = np.asarray(times, dtype=float)
+    now = path_velocities(drives, times, n_joints)
+    later = path_velocities(drives, times + period, n_joints)
+    return armature * (later - now) / period
