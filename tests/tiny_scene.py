@@ -110,6 +110,71 @@ def sweeping_arm(*, height: float = 0.05, timestep: float = 0.002) -> str:
     return SWEEPING_ARM.format(height=height, timestep=timestep)
 
 
+# A hinged arm over a puck on two slides (the arm sweeps through the puck at about 0.46 rad).
+ARM_OVER_PUCK = """<mujoco>
+  <option timestep="0.01"/>
+  <worldbody>
+    <geom type="plane" size="2 2 0.1"/>
+    <body name="arm" pos="0 0 0.05">
+      <joint name="shoulder" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+      <site name="tip" pos="0.3 0 0"/>
+    </body>
+    <body name="puck" pos="0.2 0.1 0.03">
+      <joint name="puck_y" type="slide" axis="0 1 0"/>
+      <joint name="puck_x" type="slide" axis="1 0 0"/>
+      <geom type="cylinder" size="0.03 0.03" mass="0.1"/>
+    </body>
+  </worldbody>
+  <actuator><position joint="shoulder" kp="50"/></actuator>
+</mujoco>
+"""
+
+ARM_SCENE = """schema_version = 1
+mjcf = "model.xml"
+
+[objects]
+bodies = ["puck"]
+joints = "upright"
+
+[motion]
+duration = 2.0
+ROBOT
+
+[capture]
+region = { type = "distance", site = "tip", max = 0.2 }
+
+[success]
+region = { type = "height", max = 0.1 }
+"""
+
+
+def write_arm_rollouts(directory: Path, *, count: int = 3, rows: int = 150) -> list[Path]:
+    """``count`` recorded roll-outs of :data:`ARM_OVER_PUCK` (``.npz``: time, qpos, qvel every step).
+
+    The arm's servo turns it from 0 to 0.9, 1.0, ... rad (ramped over 0.6 s) through the puck.
+    """
+    import mujoco
+    import numpy as np
+
+    directory.mkdir(parents=True, exist_ok=True)
+    model = mujoco.MjModel.from_xml_string(ARM_OVER_PUCK)
+    paths = []
+    for index in range(count):
+        data = mujoco.MjData(model)
+        time, qpos, qvel = [], [], []
+        for step in range(rows):
+            data.ctrl[0] = (0.9 + 0.1 * index) * min(1.0, step / 60)
+            time.append(data.time)
+            qpos.append(data.qpos.copy())
+            qvel.append(data.qvel.copy())
+            mujoco.mj_step(model, data)
+        path = directory / f"rollout_{index}.npz"
+        np.savez(path, time=np.array(time), qpos=np.array(qpos), qvel=np.array(qvel))
+        paths.append(path)
+    return paths
+
+
 def write_tiny_scene(directory: Path, scene: str = TINY_SCENE, model: str = TINY_MODEL) -> Path:
     """Write the tiny model and scene file into ``directory``; return the scene file's path."""
     directory.mkdir(parents=True, exist_ok=True)

@@ -8,48 +8,16 @@ import numpy as np
 import pytest
 
 from energy_margin.errors import EnergyMarginError, InvalidDataError
-from energy_margin.sim.mujoco_model import STILL_ARMATURE
 from energy_margin.tasks import command_robot, get_task
-from energy_margin.tasks.recorded_path import path_drive, path_drive_size, path_forces, path_velocities
+from energy_margin.tasks.recorded_path import (
+    RECORDED_ARMATURE,
+    path_drive,
+    path_drive_size,
+    path_forces,
+    path_velocities,
+)
 from energy_margin.tasks.scene_file import read_scene_file
-
-# A hinged arm over a puck on two slides (the arm sweeps through the puck at about 0.46 rad).
-ARM_AND_PUCK = """<mujoco>
-  <option timestep="0.01"/>
-  <worldbody>
-    <geom type="plane" size="2 2 0.1"/>
-    <body name="arm" pos="0 0 0.05">
-      <joint name="shoulder" type="hinge" axis="0 0 1"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
-      <site name="tip" pos="0.3 0 0"/>
-    </body>
-    <body name="puck" pos="0.2 0.1 0.03">
-      <joint name="puck_y" type="slide" axis="0 1 0"/>
-      <joint name="puck_x" type="slide" axis="1 0 0"/>
-      <geom type="cylinder" size="0.03 0.03" mass="0.1"/>
-    </body>
-  </worldbody>
-  <actuator><position joint="shoulder" kp="50"/></actuator>
-</mujoco>
-"""
-
-SCENE = """schema_version = 1
-mjcf = "model.xml"
-
-[objects]
-bodies = ["puck"]
-joints = "upright"
-
-[motion]
-duration = 2.0
-ROBOT
-
-[capture]
-region = { type = "distance", site = "tip", max = 0.2 }
-
-[success]
-region = { type = "height", max = 0.1 }
-"""
+from tiny_scene import ARM_OVER_PUCK, ARM_SCENE, write_arm_rollouts, write_tiny_scene
 
 
 def _recorded_path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -58,9 +26,7 @@ def _recorded_path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _task(tmp_path: Path, robot: str):  # type: ignore[no-untyped-def]
-    from tiny_scene import write_tiny_scene
-
-    scene = write_tiny_scene(tmp_path, scene=SCENE.replace("ROBOT", robot), model=ARM_AND_PUCK)
+    scene = write_tiny_scene(tmp_path, scene=ARM_SCENE.replace("ROBOT", robot), model=ARM_OVER_PUCK)
     return get_task("scene", {"scene_file": str(scene)})
 
 
@@ -137,7 +103,7 @@ def test_batched_propagation_applies_the_path_s_forces_bit_for_bit(tmp_path: Pat
     drives_array = np.stack(drives)
     times = rng.uniform(0.0, 2.0, 5)
     forces = task.batched_robot_force(drives_array, times)
-    assert np.abs(forces[:, 0]).max() > 1e6  # armature x accelerations of about 1 rad/s^2
+    assert np.abs(forces[:, 0]).max() > 0.5 * RECORDED_ARMATURE  # armature x accelerations of about 1 rad/s^2
     for j in range(5):
         from energy_margin.world.state import RobotState
 
@@ -159,18 +125,16 @@ def test_batched_propagation_applies_the_path_s_forces_bit_for_bit(tmp_path: Pat
     for chunk in range(3):
         expected = task.batched_robot_force(drives_array, times + 0.01 * chunk)[:, 0]
         np.testing.assert_array_equal(seen["controls"][:, chunk, nu + qfrc[0]], expected)
-    assert simulator.model.dof_armature[qfrc[0]] == STILL_ARMATURE
+    assert simulator.model.dof_armature[qfrc[0]] == RECORDED_ARMATURE
 
 
 def test_path_points_apply_to_a_recorded_robot_only(tmp_path: Path) -> None:
-    from tiny_scene import write_tiny_scene
-
-    scene = write_tiny_scene(tmp_path, scene=SCENE.replace("ROBOT", 'robot = "coasting"\npath_points = 10'),
-                             model=ARM_AND_PUCK)  # fmt: skip
+    scene = write_tiny_scene(tmp_path, scene=ARM_SCENE.replace("ROBOT", 'robot = "coasting"\npath_points = 10'),
+                             model=ARM_OVER_PUCK)  # fmt: skip
     with pytest.raises(EnergyMarginError, match=r'scene.toml:11: motion.path_points: applies to robot = "recorded"'):
         read_scene_file(scene)
-    fewer = write_tiny_scene(tmp_path, scene=SCENE.replace("ROBOT", 'robot = "recorded"\npath_points = 1'),
-                             model=ARM_AND_PUCK)  # fmt: skip
+    fewer = write_tiny_scene(tmp_path, scene=ARM_SCENE.replace("ROBOT", 'robot = "recorded"\npath_points = 1'),
+                             model=ARM_OVER_PUCK)  # fmt: skip
     with pytest.raises(EnergyMarginError, match=r"scene.toml:11: motion.path_points: must be an integer >= 2"):
         read_scene_file(fewer)
 
@@ -179,3 +143,20 @@ def test_a_recorded_robot_has_no_path_to_generate_from(tmp_path: Path) -> None:
     task = _task(tmp_path, 'robot = "recorded"')
     with pytest.raises(InvalidDataError, match=r'motion.robot: "recorded" follows the paths of recorded roll-outs'):
         task.sample_trajectory(np.random.default_rng(0), 1)
+
+
+def test_record_keeps_each_roll_outs_own_path(tmp_path: Path) -> None:
+    from energy_margin.data.record import record_dataset
+
+    text = ARM_SCENE.replace("ROBOT", 'robot = "recorded"\npath_points = 20')
+    scene = write_tiny_scene(tmp_path / "scene", scene=text, model=ARM_OVER_PUCK)
+    rollouts = write_arm_rollouts(tmp_path / "rollouts", count=2)
+    dataset = record_dataset(scene, rollouts, n_frames=4, out=tmp_path / "set")
+    drives = dataset.arrays["drive"]
+    assert drives.shape == (2, 2 + 20 * 3)
+    for index, path in enumerate(rollouts):
+        recorded = np.load(path)
+        at = np.searchsorted(recorded["time"], drives[index, 2:22])
+        np.testing.assert_array_equal(drives[index, 22:42], recorded["qpos"][at, 0])  # the shoulder's angles
+        np.testing.assert_array_equal(drives[index, 42:62], recorded["qvel"][at, 0])
+    assert drives[0, 22:42].max() < drives[1, 22:42].max()  # 0.9 against 1.0 rad

@@ -153,6 +153,7 @@ def make_model_simulator(
     robot_joints: list[int],
     still: bool = False,
     coasting: bool = False,
+    robot_armature: float | None = None,
     device: str | None = None,
 ) -> Simulator:
     """Build a simulator of a compiled user model (``mujoco.MjModel``, not copied) with the named engine.
@@ -165,6 +166,8 @@ def make_model_simulator(
         robot_joints: ids of the robot's hinge and slide joints, in ``robot_q`` order.
         still: hold the robot where each reset puts it.
         coasting: the robot keeps the velocities each reset gives it.
+        robot_armature: the robot joints' armature when still or coasting, kg m^2 or kg (``None``:
+            :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`).
         device: where an engine with devices runs (its first device when ``None``).
 
     Raises:
@@ -176,8 +179,9 @@ def make_model_simulator(
     if spec.model_simulator is None:
         users = ", ".join(name for name, other in ENGINE_REGISTRY.items() if other.model_simulator is not None)
         raise EnergyMarginError(f"engine {engine!r} simulates built-in scenes only; a model file runs on {users}")
+    armature = {} if robot_armature is None else {"robot_armature": robot_armature}
     return _build(spec, spec.model_simulator, device, model, scene, object_joints=object_joints,
-                  robot_joints=robot_joints, still=still, coasting=coasting)  # fmt: skip
+                  robot_joints=robot_joints, still=still, coasting=coasting, **armature)  # fmt: skip
 
 
 __all__ = [

@@ -56,6 +56,7 @@ class MujocoModelSimulator(MujocoSimulator):
         robot_joints: list[int],
         still: bool = False,
         coasting: bool = False,
+        robot_armature: float = STILL_ARMATURE,
     ) -> None:
         """Simulate ``model``.
 
@@ -69,6 +70,7 @@ class MujocoModelSimulator(MujocoSimulator):
                 model's robot armature is changed.
             coasting: the robot keeps the velocities each reset gives it (see the module
                 docstring); the model's robot armature is changed.
+            robot_armature: the robot joints' armature when ``still`` or ``coasting``, kg m^2 or kg.
 
         Raises:
             InvalidParameterError: both ``still`` and ``coasting``.
@@ -82,7 +84,7 @@ class MujocoModelSimulator(MujocoSimulator):
         self.still = still
         self.coasting = coasting
         if (still or coasting) and index.robot_qvel.size:
-            model.dof_armature[index.robot_qvel] = STILL_ARMATURE
+            model.dof_armature[index.robot_qvel] = robot_armature
 
     @property
     def _robot_still(self) -> bool:

@@ -29,7 +29,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import IncompatibleModelsError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
-from energy_margin.sim.mujoco_model import MujocoModelSimulator
+from energy_margin.sim.mujoco_model import STILL_ARMATURE, MujocoModelSimulator
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
 from energy_margin.sim.mujoco_warp_kernels import engine_kernels, load_warp
 from energy_margin.world.scene import Scene
@@ -392,6 +392,7 @@ class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
         still: hold the robot where each reset puts it
             (:class:`~energy_margin.sim.mujoco_model.MujocoModelSimulator`).
         coasting: the robot keeps the velocities each reset gives it (the same class).
+        robot_armature: the robot joints' armature when still or coasting (the same class).
         device: ``"cuda"`` or ``"cpu"`` (:data:`DEVICES`).
 
     Raises:
@@ -408,11 +409,13 @@ class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
         robot_joints: list[int],
         still: bool = False,
         coasting: bool = False,
+        robot_armature: float = STILL_ARMATURE,
         device: str = "cpu",
     ) -> None:
         check_device(device)
         super().__init__(
-            model, scene, object_joints=object_joints, robot_joints=robot_joints, still=still, coasting=coasting
-        )
+            model, scene, object_joints=object_joints, robot_joints=robot_joints, still=still, coasting=coasting,
+            robot_armature=robot_armature,
+        )  # fmt: skip
         self.device = device
         self._warp_propagator = None

@@ -12,13 +12,19 @@ spaced times, each with the robot joints' positions and velocities:
 Between knots the path is the cubic Hermite curve through the knots' positions and velocities;
 before the first knot it keeps the first knot's velocity, after the last the last's.
 
-The robot's joints carry the armature of a held robot (:data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`,
-so contacts, gravity and its actuators do not move it measurably) and its velocities are kept at
-each reset (a coasting robot); :func:`path_forces` gives the generalized forces that change its
-velocities as the path's do over one command period: armature times the path's mean acceleration
-``(v(t + period) - v(t)) / period``. They depend on the time alone (not on the state), so a
-propagation batched through ``mujoco.rollout`` and one stepped one command at a time apply the
-same forces to the last bit.
+The robot's joints carry an armature of :data:`RECORDED_ARMATURE` (kg m^2 or kg), heavy enough that
+the objects' contacts, gravity and its actuators move it little off its path, and its velocities
+are kept at each reset (a coasting robot); :func:`path_forces` gives the generalized forces that
+change its velocities as the path's do over one command period: armature times the path's mean
+acceleration ``(v(t + period) - v(t)) / period``. They depend on the time alone (not on the
+state), so a propagation batched through ``mujoco.rollout`` and one stepped one command at a time
+apply the same forces to the last bit.
+
+:data:`RECORDED_ARMATURE` is a hundredth of a held robot's
+(:data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`), chosen by replaying recorded sweeps along
+their paths (``benchmarks/recorded_replay.py``, docs/howto/scenes.md): with a held robot's armature
+the replayed objects strayed far further from their recording than with this one, whose arm stays
+within about 0.01 rad of its path.
 """
 
 from __future__ import annotations
@@ -27,10 +33,12 @@ import numpy as np
 
 from energy_margin.errors import InvalidParameterError
 
-__all__ = ["PATH_PREFIX", "path_drive", "path_drive_size", "path_forces", "path_velocities"]
+__all__ = ["PATH_PREFIX", "RECORDED_ARMATURE", "path_drive", "path_drive_size", "path_forces", "path_velocities"]
 
 #: Drive parameters before the path: the motion's time scale and the objects' mass scale.
 PATH_PREFIX = 2
+#: Armature of the robot's joints while it follows a recorded path, kg m^2 or kg (see the module docstring).
+RECORDED_ARMATURE = 1e6
 
 
 def path_drive_size(points: int, n_joints: int) -> int:

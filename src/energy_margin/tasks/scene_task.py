@@ -19,7 +19,7 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits
 from energy_margin.tasks.motion import RobotState, Trajectory
-from energy_margin.tasks.recorded_path import path_drive, path_drive_size, path_forces
+from energy_margin.tasks.recorded_path import RECORDED_ARMATURE, path_drive, path_drive_size, path_forces
 from energy_margin.tasks.scene_defaults import object_armature
 from energy_margin.tasks.scene_layout import draw_layout
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
@@ -212,6 +212,7 @@ class SceneTask(SceneRegions, Task):
         """A simulator of the scene's compiled model on ``engine`` (one with a model simulator: MuJoCo's)."""
         from energy_margin.sim import make_model_simulator
 
+        recorded = self.loaded.spec.motion.robot == "recorded"
         return make_model_simulator(
             self.compiled_model(friction, drive),
             self.build_scene(n_objects, friction, drive),
@@ -220,7 +221,8 @@ class SceneTask(SceneRegions, Task):
             robot_joints=list(self.loaded.robot_joints),
             still=self.loaded.spec.motion.robot == "still",
             # A robot following its recorded path coasts under the forces of robot_force.
-            coasting=self.loaded.spec.motion.robot in ("coasting", "recorded"),
+            coasting=self.loaded.spec.motion.robot == "coasting" or recorded,
+            robot_armature=RECORDED_ARMATURE if recorded else None,
             device=device,
         )
 
@@ -331,17 +333,16 @@ class SceneTask(SceneRegions, Task):
         """:meth:`robot_force` of many rows, drives (k, n_drive) and times (k,) s: shape (k, n_robot_dofs).
 
         Zero, but with ``robot = "recorded"`` the forces that keep the joints on the path
-        (:func:`~energy_margin.tasks.recorded_path.path_forces`) over one control period.
+        (:func:`~energy_margin.tasks.recorded_path.path_forces`) over one command period: the
+        control period in whole time steps, as a tree's propagation holds each command.
         """
-        from energy_margin.sim.mujoco_model import STILL_ARMATURE
-
         forces = np.zeros((len(times), self.robot_dofs()))
         motion = self.loaded.spec.motion
         if motion.robot == "recorded":
             joints = len(self.loaded.robot_joints)
-            forces[:, :joints] = path_forces(
-                drives, times, n_joints=joints, period=motion.control_period, armature=STILL_ARMATURE
-            )
+            dt = self.config.timestep
+            period = max(1, round(motion.control_period / dt)) * dt
+            forces[:, :joints] = path_forces(drives, times, n_joints=joints, period=period, armature=RECORDED_ARMATURE)
         return forces
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
