@@ -160,3 +160,13 @@ def test_record_keeps_each_roll_outs_own_path(tmp_path: Path) -> None:
         np.testing.assert_array_equal(drives[index, 22:42], recorded["qpos"][at, 0])  # the shoulder's angles
         np.testing.assert_array_equal(drives[index, 42:62], recorded["qvel"][at, 0])
     assert drives[0, 22:42].max() < drives[1, 22:42].max()  # 0.9 against 1.0 rad
+
+
+def test_scene_says_the_robot_follows_each_roll_outs_path(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from energy_margin.cli import main
+
+    scene = write_tiny_scene(tmp_path, scene=ARM_SCENE.replace("ROBOT", 'robot = "recorded"'), model=ARM_OVER_PUCK)
+    assert main(["scene", str(scene), "--no-picture"]) == 0
+    assert (
+        "robot during analysis recorded (each roll-out's own joint path, 64 (default) knots)" in capsys.readouterr().out
+    )

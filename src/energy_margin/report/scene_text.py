@@ -140,10 +140,14 @@ def _motion_lines(task: SceneTask) -> list[str]:
     )
     initial = motion.initial_keyframe or "the model's reference configuration"
     driven = ", ".join(motion.actuators) if motion.actuators is not None else "every actuator"
+    robot = _given(spec, "motion.robot", motion.robot)
+    if motion.robot == "recorded":
+        robot += (
+            f" (each roll-out's own joint path, {_given(spec, 'motion.path_points', str(motion.path_points))} knots)"
+        )
     lines.append(
         f"  start {_given(spec, 'motion.initial_keyframe', initial)}, controls for "
-        f"{_given(spec, 'motion.actuators', driven)}, "
-        f"robot during analysis {_given(spec, 'motion.robot', motion.robot)}"
+        f"{_given(spec, 'motion.actuators', driven)}, robot during analysis {robot}"
     )
     return lines
 
