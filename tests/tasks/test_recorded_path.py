@@ -11,6 +11,7 @@ from energy_margin.errors import EnergyMarginError, InvalidDataError
 from energy_margin.tasks import command_robot, get_task
 from energy_margin.tasks.recorded_path import (
     RECORDED_ARMATURE,
+    PathForceTable,
     path_drive,
     path_drive_size,
     path_forces,
@@ -170,3 +171,16 @@ def test_scene_says_the_robot_follows_each_roll_outs_path(tmp_path: Path, capsys
     assert (
         "robot during analysis recorded (each roll-out's own joint path, 64 (default) knots)" in capsys.readouterr().out
     )
+
+
+def test_the_force_table_holds_the_path_s_forces_at_every_time_step() -> None:
+    time = np.arange(0.0, 2.0 + 1e-9, 0.01)
+    q, v = _recorded_path(time)
+    drive = path_drive(time, q[:, None], v[:, None], points=41)
+    table = PathForceTable.of(drive, n_joints=1, dt=0.004, hold_steps=2, armature=10.0)
+    assert table.first_step == 0 and table.forces.shape == (round(2.0 / 0.004) + 2 + 1, 1)
+    steps = np.array([0, 1, 137, 250, 499])
+    direct = path_forces(drive[None], steps * 0.004, n_joints=1, period=0.008, armature=10.0)
+    np.testing.assert_array_equal(table.at(steps * 0.004)[:, 0], np.repeat(direct[:, 0], 1))
+    np.testing.assert_array_equal(table.at(137 * 0.004 + np.array([-0.0015, 0.0015])), table.forces[[137, 137]])
+    np.testing.assert_array_equal(table.at(np.array([2.1, 30.0])), 0.0)  # past the path: no velocity change

@@ -17,8 +17,10 @@ the objects' contacts, gravity and its actuators move it little off its path, an
 are kept at each reset (a coasting robot); :func:`path_forces` gives the generalized forces that
 change its velocities as the path's do over one command period: armature times the path's mean
 acceleration ``(v(t + period) - v(t)) / period``. They depend on the time alone (not on the
-state), so a propagation batched through ``mujoco.rollout`` and one stepped one command at a time
-apply the same forces to the last bit.
+state): :class:`PathForceTable` evaluates them once per roll-out at every time step of its path,
+and a command at time t takes the row of the step nearest t, so a propagation batched through
+``mujoco.rollout`` and one stepped one command at a time apply the same forces to the last bit
+(and a command costs a lookup, not a curve evaluation).
 
 :data:`RECORDED_ARMATURE` is a hundredth of a held robot's
 (:data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`), chosen by replaying recorded sweeps along
@@ -29,11 +31,21 @@ within about 0.01 rad of its path.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from energy_margin.errors import InvalidParameterError
 
-__all__ = ["PATH_PREFIX", "RECORDED_ARMATURE", "path_drive", "path_drive_size", "path_forces", "path_velocities"]
+__all__ = [
+    "PATH_PREFIX",
+    "RECORDED_ARMATURE",
+    "PathForceTable",
+    "path_drive",
+    "path_drive_size",
+    "path_forces",
+    "path_velocities",
+]
 
 #: Drive parameters before the path: the motion's time scale and the objects' mass scale.
 PATH_PREFIX = 2
@@ -138,3 +150,45 @@ def path_forces(drives: np.ndarray, times: np.ndarray, *, n_joints: int, period:
     now = path_velocities(drives, times, n_joints)
     later = path_velocities(drives, times + period, n_joints)
     return armature * (later - now) / period
+
+
+@dataclass(frozen=True)
+class PathForceTable:
+    """A recorded path's forces (:func:`path_forces`) at every time step from its first knot to its end.
+
+    Attributes:
+        first_step: the time step (time / dt, rounded) of the table's first row.
+        forces: shape (n_steps, n_joints): row i holds the forces at ``(first_step + i) * dt``; the
+            last row is past the last knot plus one command period, where the path's velocity is
+            constant and the forces are zero.
+        dt: the time step, s.
+
+    """
+
+    first_step: int
+    forces: np.ndarray
+    dt: float
+
+    @classmethod
+    def of(cls, drive: np.ndarray, *, n_joints: int, dt: float, hold_steps: int, armature: float) -> PathForceTable:
+        """The table of one roll-out's drive parameters (:func:`path_drive`), commands held ``hold_steps`` steps."""
+        drive = np.asarray(drive, dtype=float)
+        knot_t = _knots(drive[None], n_joints)[0][0]
+        first, last = round(knot_t[0] / dt), round(knot_t[-1] / dt) + hold_steps
+        steps = np.arange(first, last + 1)
+        forces = path_forces(np.broadcast_to(drive, (steps.size, drive.size)), steps * dt, n_joints=n_joints,
+                             period=hold_steps * dt, armature=armature)  # fmt: skip
+        return cls(first_step=first, forces=forces, dt=dt)
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """The forces at ``times`` (k,) s: the rows of the steps nearest them, shape (k, n_joints).
+
+        Times before the first knot take the first row (a frame lies within its recording).
+        """
+        steps = np.rint(np.asarray(times, dtype=float) / self.dt).astype(np.int64) - self.first_step
+        return self.forces[np.clip(steps, 0, self.forces.shape[0] - 1)]
+
+    def row(self, time: float) -> np.ndarray:
+        """:meth:`at` of one time (s), the same row: shape (n_joints,)."""
+        step = round(time / self.dt) - self.first_step  # half to even, as numpy's rint
+        return self.forces[min(max(step, 0), self.forces.shape[0] - 1)]

@@ -19,7 +19,7 @@ from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, S
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits
 from energy_margin.tasks.motion import RobotState, Trajectory
-from energy_margin.tasks.recorded_path import RECORDED_ARMATURE, path_drive, path_drive_size, path_forces
+from energy_margin.tasks.recorded_path import RECORDED_ARMATURE, PathForceTable, path_drive, path_drive_size
 from energy_margin.tasks.scene_defaults import object_armature
 from energy_margin.tasks.scene_layout import draw_layout
 from energy_margin.tasks.scene_model import LoadedScene, load_scene_cached
@@ -36,6 +36,8 @@ __all__ = ["SceneTask", "SceneTaskConfig", "design_overrides"]
 _LAYOUT_ATTEMPTS = 200
 #: Deepest accepted contact penetration of a freshly placed object, m.
 _PLACEMENT_TOLERANCE = 1e-3
+#: Recorded paths whose force tables a task keeps (frames arrive roll-out by roll-out).
+_PATH_TABLES = 256
 
 
 class SceneTask(SceneRegions, Task):
@@ -112,6 +114,7 @@ class SceneTask(SceneRegions, Task):
         )
         self._success: Region | None = None
         self._placement: Simulator | None = None
+        self._path_tables: dict[bytes, PathForceTable] = {}
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> Task:
@@ -327,23 +330,44 @@ class SceneTask(SceneRegions, Task):
     def robot_force(self, state: RobotState, rng: np.random.Generator | None = None) -> np.ndarray:
         """No generalized forces (the model's actuators and mocap bodies move the robot), but a recorded path's."""
         del rng
-        return self.batched_robot_force(np.asarray(state.drive)[None], np.array([state.time]))[0]
+        force = np.zeros(self.robot_dofs())
+        if self.loaded.spec.motion.robot == "recorded":
+            drive = np.asarray(state.drive, dtype=float)
+            force[: len(self.loaded.robot_joints)] = self._path_table(drive.tobytes(), drive).row(float(state.time))
+        return force
 
     def batched_robot_force(self, drives: np.ndarray, times: np.ndarray) -> np.ndarray:
         """:meth:`robot_force` of many rows, drives (k, n_drive) and times (k,) s: shape (k, n_robot_dofs).
 
-        Zero, but with ``robot = "recorded"`` the forces that keep the joints on the path
-        (:func:`~energy_margin.tasks.recorded_path.path_forces`) over one command period: the
-        control period in whole time steps, as a tree's propagation holds each command.
+        Zero, but with ``robot = "recorded"`` the forces that keep the joints on the path over one
+        command period (the control period in whole time steps, as a tree's propagation holds each
+        command), looked up in each roll-out's :class:`~energy_margin.tasks.recorded_path.PathForceTable`.
         """
-        forces = np.zeros((len(times), self.robot_dofs()))
-        motion = self.loaded.spec.motion
-        if motion.robot == "recorded":
-            joints = len(self.loaded.robot_joints)
-            dt = self.config.timestep
-            period = max(1, round(motion.control_period / dt)) * dt
-            forces[:, :joints] = path_forces(drives, times, n_joints=joints, period=period, armature=RECORDED_ARMATURE)
+        times = np.asarray(times, dtype=float)
+        forces = np.zeros((times.size, self.robot_dofs()))
+        if self.loaded.spec.motion.robot != "recorded":
+            return forces
+        drives = np.asarray(drives, dtype=float)
+        rows: dict[bytes, list[int]] = {}
+        for row in range(times.size):
+            rows.setdefault(drives[row].tobytes(), []).append(row)
+        joints = len(self.loaded.robot_joints)
+        for key, mine in rows.items():
+            forces[mine, :joints] = self._path_table(key, drives[mine[0]]).at(times[mine])
         return forces
+
+    def _path_table(self, key: bytes, drive: np.ndarray) -> PathForceTable:
+        """The force table of the roll-out whose drive parameters are ``drive`` (``key``: their bytes), kept."""
+        table = self._path_tables.get(key)
+        if table is None:
+            if len(self._path_tables) >= _PATH_TABLES:
+                self._path_tables.clear()
+            dt = self.config.timestep
+            hold = max(1, round(self.loaded.spec.motion.control_period / dt))
+            table = PathForceTable.of(drive, n_joints=len(self.loaded.robot_joints), dt=dt, hold_steps=hold,
+                                      armature=RECORDED_ARMATURE)  # fmt: skip
+            self._path_tables[key] = table
+        return table
 
     def model_command(self, drive: np.ndarray, time: float) -> ModelCommand | None:
         """The declared motion at ``time`` (s) times the trajectory's time scale ``drive[0]``."""
