@@ -126,10 +126,10 @@ def test_a_robomimic_file_becomes_a_dataset_that_analyze_and_check_accept(
     assert main(argv) == 0
     printed = capsys.readouterr()
     assert "dataset" in printed.out
-    assert printed.err.count("\n") == 1 and "the robot keeps each frame's joint velocities" in printed.err
+    assert printed.err.count("\n") == 1 and "follows each demonstration's recorded joint path" in printed.err
     dataset = load_dataset(out)
-    assert dataset.task.loaded.spec.motion.robot == "coasting"
-    assert dataset.task.make_simulator(2, dataset.task.default_friction()).coasting
+    assert dataset.task.loaded.spec.motion.robot == "recorded"
+    assert dataset.task.make_simulator(2, dataset.task.default_friction(), dataset.arrays["drive"][0]).coasting
     keys = ["demo_0", "demo_2", "demo_10"]
     assert dataset.n_trajectories == 3 and dataset.n_frames == 4 and dataset.n_objects == 2
     for index, key in enumerate(keys):
@@ -362,16 +362,20 @@ def test_record_without_the_robomimic_format_needs_a_scene_and_points_to_the_for
     assert "--dt applies to --format robomimic only" in capsys.readouterr().err
 
 
-def test_robot_still_is_written_into_the_datasets_scene_and_said(
-    tmp_path: Path, demo_states: dict[str, np.ndarray], capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize(("robot", "said"), [("still", "robot is held still"), ("coasting", "keeps each frame's")])
+def test_robot_still_or_coasting_is_written_into_the_datasets_scene_and_said(
+    tmp_path: Path, demo_states: dict[str, np.ndarray], capsys: pytest.CaptureFixture[str], robot: str, said: str
 ) -> None:
     path = write_demos(tmp_path / "demos.hdf5", demo_states)
     out = tmp_path / "dataset"
-    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3", "--robot", "still"]
+    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3", "--robot", robot]
     assert main([*argv, "--out", str(out)]) == 0
-    assert "robot is held still during analysis" in capsys.readouterr().err
-    assert 'robot = "still"' in (out / "source" / "scene.toml").read_text()
-    assert load_dataset(out).task.make_simulator(2, 0.5).still
+    assert said in capsys.readouterr().err
+    assert f'robot = "{robot}"' in (out / "source" / "scene.toml").read_text()
+    dataset = load_dataset(out)
+    assert dataset.arrays["drive"].shape == (3, 2)  # no path
+    simulator = dataset.task.make_simulator(2, 0.5)
+    assert (simulator.still, simulator.coasting) == (robot == "still", robot == "coasting")
 
 
 def test_robot_recorded_carries_each_demonstrations_path_in_its_drive(
@@ -381,7 +385,7 @@ def test_robot_recorded_carries_each_demonstrations_path_in_its_drive(
 
     path = write_demos(tmp_path / "demos.hdf5", demo_states)
     out = tmp_path / "dataset"
-    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3", "--robot", "recorded"]
+    argv = ["record", "--format", "robomimic", str(path), *REGION_ARGS, "--frames", "3"]  # the default: recorded
     assert main([*argv, "--out", str(out)]) == 0
     assert "follows each demonstration's recorded joint path" in capsys.readouterr().err
     assert 'robot = "recorded"' in (out / "source" / "scene.toml").read_text()

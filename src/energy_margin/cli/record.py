@@ -103,16 +103,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     robomimic.add_argument(
         "--robot",
-        choices=("coasting", "still", "recorded"),
-        help="the robot during analysis: coasting keeps each frame's joint velocities (the default), still holds "
-        "it where the frame has it, recorded follows the demonstration's own joint path",
+        choices=("recorded", "coasting", "still"),
+        help="the robot during analysis: recorded follows each demonstration's own joint path (the default), "
+        "coasting keeps each frame's joint velocities, still holds it where the frame has it",
     )
 
 
 #: What ``record --format robomimic`` says the robot does during analysis, per ``--robot``.
 _ROBOT_NOTES = {
     "still": "the robot is held still during analysis: future capture and early success miss its motion",
-    "coasting": "during analysis the robot keeps each frame's joint velocities (--robot still holds it)",
+    "coasting": "during analysis the robot keeps each frame's joint velocities",
     "recorded": "during analysis the robot follows each demonstration's recorded joint path from the frame on",
 }
 

@@ -19,8 +19,10 @@ The objects and the capture and success sets come from a scene file (its ``objec
 body patterns and region tables given directly. The dataset directory gets a scene of its own,
 ``source/model.xml`` (the re-rooted XML) and ``source/scene.toml``, which its ``dataset.json``
 names, so every later command rebuilds the task from the directory. The states carry no actuator
-commands, so its motion declares ``robot = "coasting"`` (the robot keeps each frame's joint
-velocities during analysis) or, with ``robot="still"``, ``"still"`` (held where each frame has it).
+commands, so its motion declares ``robot = "recorded"`` (during analysis the robot follows each
+demonstration's own recorded joint path from the frame on, kept in its drive parameters:
+:mod:`~energy_margin.tasks.recorded_path`) or, with ``robot="coasting"`` or ``"still"``, that
+(it keeps each frame's joint velocities, or is held where each frame has it).
 Frames and labels are made as :func:`~energy_margin.data.record.record_dataset` makes them. Every
 problem is one line naming the file and the demonstration; nothing is written then.
 
@@ -117,7 +119,8 @@ def record_robomimic(
         dt: seconds between rows for states without the time column (default: 1 /
             ``env_kwargs.control_freq`` of the file's ``env_args``).
         robot: what the robot does during analysis (the scene's ``motion.robot``):
-            ``"coasting"`` (it keeps each frame's joint velocities) or ``"still"``.
+            ``"recorded"`` (it follows the demonstration's recorded joint path), ``"coasting"`` (it
+            keeps each frame's joint velocities) or ``"still"``.
         overwrite: replace an existing ``out``.
         drop_unphysical: leave out the demonstrations with a physically impossible frame (listed
             under ``dropped`` in ``dataset.json``) instead of refusing them.

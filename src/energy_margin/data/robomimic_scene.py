@@ -2,7 +2,7 @@
 
 The objects and the capture and success sets come from a scene file's tables or from body patterns
 and region tables given directly; the dataset directory gets ``source/scene.toml`` whose motion
-declares ``robot = "still"``.
+declares what the robot does during analysis (``motion.robot``: :data:`ROBOT_DURING_ANALYSIS` by default).
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ SCENE_FILE = "scene.toml"
 #: The model written into :data:`SOURCE_FOLDER`.
 MODEL_FILE = "model.xml"
 #: A demonstration's states carry no actuator commands (robomimic's actions are a controller's
-#: inputs), but they carry the robot's joint velocities: by default the robot keeps each frame's
-#: velocities during analysis (``motion.robot``; docs/howto/integrations.md says what was measured).
-ROBOT_DURING_ANALYSIS = "coasting"
+#: inputs), but they carry the robot's whole joint path: by default the robot follows it during
+#: analysis (``motion.robot``; docs/howto/integrations.md says what was measured).
+ROBOT_DURING_ANALYSIS = "recorded"
 #: What the robot may do during analysis of demonstrations (``motion.robot``).
-ROBOT_CHOICES = ("coasting", "still", "recorded")
+ROBOT_CHOICES = ("recorded", "coasting", "still")
 
 
 #: The scene-file tables a robomimic recording takes from a scene file.
