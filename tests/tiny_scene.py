@@ -111,7 +111,7 @@ def sweeping_arm(*, height: float = 0.05, timestep: float = 0.002) -> str:
 
 
 # A hinged arm over a puck on two slides (the arm sweeps through the puck at about 0.46 rad).
-ARM_OVER_PUCK = """<mujoco>
+ARM_AND_PUCK = """<mujoco>
   <option timestep="0.01"/>
   <worldbody>
     <geom type="plane" size="2 2 0.1"/>
@@ -120,7 +120,7 @@ ARM_OVER_PUCK = """<mujoco>
       <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
       <site name="tip" pos="0.3 0 0"/>
     </body>
-    <body name="puck" pos="0.2 0.1 0.03">
+    <body name="puck" pos="{x} {y} 0.03">
       <joint name="puck_y" type="slide" axis="0 1 0"/>
       <joint name="puck_x" type="slide" axis="1 0 0"/>
       <geom type="cylinder" size="0.03 0.03" mass="0.1"/>
@@ -130,7 +130,7 @@ ARM_OVER_PUCK = """<mujoco>
 </mujoco>
 """
 
-ARM_SCENE = """schema_version = 1
+ARM_AND_PUCK_SCENE = """schema_version = 1
 mjcf = "model.xml"
 
 [objects]
@@ -138,7 +138,7 @@ bodies = ["puck"]
 joints = "upright"
 
 [motion]
-duration = 2.0
+duration = DURATION
 ROBOT
 
 [capture]
@@ -147,6 +147,11 @@ region = { type = "distance", site = "tip", max = 0.2 }
 [success]
 region = { type = "height", max = 0.1 }
 """
+
+#: The arm sweeps through the puck (at about 0.46 rad of its turn).
+ARM_OVER_PUCK = ARM_AND_PUCK.format(x=0.2, y=0.1)
+#: The arm's scene over two seconds; ``ROBOT`` is replaced by the motion's ``robot`` line.
+ARM_SCENE = ARM_AND_PUCK_SCENE.replace("DURATION", "2.0")
 
 
 def write_arm_rollouts(directory: Path, *, count: int = 3, rows: int = 150) -> list[Path]:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import tiny_scene
 from energy_margin.cli import main
 from energy_margin.errors import EnergyMarginError, InvalidDataError, InvalidParameterError
 from energy_margin.tasks import get_task
@@ -386,42 +387,9 @@ def test_success_region_in_a_moving_body_frame_is_taken_at_the_frame(make_scene)
 
 # A hinge arm driven by a position servo, and a puck on two slides (y declared before x, as in
 # Gymnasium's Pusher) whose body sits away from the origin.
-ARM_AND_PUCK = """<mujoco>
-  <option timestep="0.01"/>
-  <worldbody>
-    <geom type="plane" size="2 2 0.1"/>
-    <body name="arm" pos="0 0 0.05">
-      <joint name="shoulder" type="hinge" axis="0 0 1"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
-      <site name="tip" pos="0.3 0 0"/>
-    </body>
-    <body name="puck" pos="0.4 0.1 0.03">
-      <joint name="puck_y" type="slide" axis="0 1 0"/>
-      <joint name="puck_x" type="slide" axis="1 0 0"/>
-      <geom type="cylinder" size="0.03 0.03" mass="0.1"/>
-    </body>
-  </worldbody>
-  <actuator><position joint="shoulder" kp="50"/></actuator>
-</mujoco>
-"""
-
-ARM_AND_PUCK_SCENE = """schema_version = 1
-mjcf = "model.xml"
-
-[objects]
-bodies = ["puck"]
-joints = "upright"
-
-[motion]
-duration = 1.0
-ROBOT
-
-[capture]
-region = { type = "distance", site = "tip", max = 0.2 }
-
-[success]
-region = { type = "height", max = 0.1 }
-"""
+# The arm and a puck beyond its reach at (0.4, 0.1); ROBOT is replaced by the motion's robot line.
+ARM_AND_PUCK = tiny_scene.ARM_AND_PUCK.format(x=0.4, y=0.1)
+ARM_AND_PUCK_SCENE = tiny_scene.ARM_AND_PUCK_SCENE.replace("DURATION", "1.0")
 
 
 def test_a_puck_on_two_slides_is_an_upright_object_at_its_world_position(tmp_path: Path) -> None:
