@@ -223,3 +223,19 @@ def test_a_scene_file_runs_on_warp_with_its_success_continued(tmp_path: Path, se
         a = np.array([row[key] for row in reference])
         b = np.array([row[key] for row in warp])
         assert np.abs(a - b).mean() < 0.1, key
+
+
+def test_roll_outs_following_their_recorded_paths_grow_together_on_warp(tmp_path: Path) -> None:
+    """Each roll-out's own path (its drive parameters) rides in the worlds of one call, under the path's armature."""
+    from energy_margin.data.record import record_dataset
+    from energy_margin.tasks.recorded_path import RECORDED_ARMATURE
+    from tiny_scene import ARM_OVER_PUCK, ARM_SCENE, write_arm_rollouts
+
+    scene = write_tiny_scene(tmp_path / "scene", ARM_SCENE.replace("ROBOT", 'robot = "recorded"'), ARM_OVER_PUCK)
+    dataset = record_dataset(scene, write_arm_rollouts(tmp_path / "rollouts", count=2), n_frames=2,
+                             out=tmp_path / "set")  # fmt: skip
+    config = AnalyzerConfig(expansions=12, batch=6, engine="mujoco-warp", device="cpu", continuation=4)
+    analyzer = _together_scores_as_alone(dataset, config, [0, 1, 2, 3], seed=2)
+    simulator = analyzer._simulator(float(dataset.arrays["friction"][0]), dataset.arrays["drive"][0])
+    assert isinstance(simulator, WarpModelSimulator) and simulator.coasting
+    assert simulator.model.dof_armature[simulator.index.robot_qvel[0]] == RECORDED_ARMATURE
