@@ -359,3 +359,16 @@ def test_the_held_command_is_set_once_per_propagation_and_steps_as_set_every_per
     assert once["scores"] == every["scores"]
     assert len(once["positions"]) == len(every["positions"])
     assert all(np.array_equal(a, b) for a, b in zip(once["positions"], every["positions"], strict=True))
+
+
+@pytest.mark.parametrize(("hold", "robot"), [("action", "declared"), ("coasting", "coasting")])
+def test_a_scene_following_recorded_paths_holds_its_command_live(tmp_path: Path, hold: str, robot: str) -> None:
+    """A live state has no recording: the robot holds its last action, or does what ``hold`` says."""
+    scene = starter_scene(tmp_path / "p.toml")
+    scene.write_text(scene.read_text().replace("[motion]\n", '[motion]\nrobot = "recorded"\n', 1))
+    wrapper = MarginWrapper(gymnasium.make("Pusher-v5"), scene=scene, hold=hold, budget_s=None, max_expansions=5)
+    task = wrapper.scorer.task
+    assert task.loaded.spec.motion.robot == robot and task.drive_size() == 2
+    wrapper.reset(seed=0)
+    margin = wrapper.step(actions(1)[0])[4]["energy_margin"]
+    assert 0.0 <= margin["capture_score"] <= 1.0

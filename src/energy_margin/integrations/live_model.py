@@ -17,7 +17,9 @@ held where it is instead (a scene's ``motion.robot = "still"``: its joint veloci
 and its joints get an armature of :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE` kg m^2 or
 kg, so that no actuator, gravity or contact force moves it measurably during the propagation);
 with ``hold="coasting"`` it keeps its current joint velocities under that armature (a scene's
-``motion.robot = "coasting"``); mocap bodies stay where they are in every case.
+``motion.robot = "coasting"``); mocap bodies stay where they are in every case. A scene whose
+robot follows its recorded path (``motion.robot = "recorded"``, for roll-outs analysed afterwards)
+holds its last command live, or does what ``hold`` says.
 
 :class:`EpisodeRecorder` keeps ``time``, ``qpos``, ``qvel``, ``ctrl``, ``mocap_pos`` and
 ``mocap_quat`` of every recorded step and writes them as the ``.npz`` roll-out that
@@ -218,6 +220,9 @@ class LiveModelScorer:
             spec = scene_spec_from_tables(tables, origin=origin)
         if options.hold != "action":
             spec = replace(spec, motion=replace(spec.motion, robot=options.hold))
+        elif spec.motion.robot == "recorded":
+            # A live state has no recording to follow: the robot holds its last command.
+            spec = replace(spec, motion=replace(spec.motion, robot="declared"))
         loaded = resolve_scene(spec, model)
         self.task = HeldCommandTask(loaded=loaded)
         self.friction = self.task.default_friction()
