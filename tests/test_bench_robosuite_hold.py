@@ -61,3 +61,19 @@ def test_the_analysis_time_is_evaluates(bench, tmp_path) -> None:
     analyze(dataset, AnalyzerConfig(expansions=5, continuation=0), seed=0, progress=False)
     expected = evaluate(dataset, resamples=0).to_dict()["runtime_per_frame_s"]
     assert bench.seconds_per_frame(tmp_path / "run") == pytest.approx(expected, rel=1e-12)
+
+
+def test_the_recorded_entry_s_scene_is_the_coasting_scene_following_the_paths(bench) -> None:
+    coasting = (
+        "[objects]\n\n# The controller's torques are not known ahead: the robot keeps each frame's joint velocities.\n"
+        '[motion]\nduration = 9.0\nrobot = "coasting"\n'
+    )
+    recorded = bench.recorded_scene(coasting)
+    assert 'robot = "recorded"\n' in recorded and 'robot = "coasting"' not in recorded
+    assert (
+        "# The controller's torques are not known ahead: the robot follows each episode's recorded joint path.\n"
+        in (recorded)
+    )
+    assert recorded.count("\n") == coasting.count("\n")
+    with pytest.raises(ValueError, match="has no line"):
+        bench.recorded_scene(coasting.replace('robot = "coasting"', 'robot = "still"'))

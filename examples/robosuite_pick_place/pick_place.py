@@ -15,7 +15,9 @@
    ``--every``-th step within ``--budget`` seconds, the robot keeping its joint velocities during
    the tree's propagation (``--hold coasting``, the default: the controller's torques are not known
    ahead; ``--hold still`` holds it where it is). It records each
-   episode as ``OUT/episodes/episode_NNN.npz``.
+   episode as ``OUT/episodes/episode_NNN.npz``. In ``analyze`` the robot follows each episode's
+   recorded joint path instead (the scene's ``robot = "recorded"``; ``--analysis hold`` does what
+   ``--hold`` says there too).
 4. Runs ``energy-margin record`` (its frames are the scored steps, checked),
    ``energy-margin analyze`` (``--expansions`` expansions per frame) and ``energy-margin evaluate``
    (capture AP at k-hat 0 and 2, success AP) on ``OUT/dataset``. It also writes the live scores
@@ -96,8 +98,11 @@ def make_env(env_seed: int, steps: int) -> Any:
     )
 
 
-def scene_text(mjcf: str, steps: int, objects: Sequence[str], grip_site: str, hold: str = "coasting") -> str:
-    """The scene file of this example."""
+def scene_text(
+    mjcf: str, steps: int, objects: Sequence[str], grip_site: str, hold: str = "coasting", analysis: str = "recorded"
+) -> str:
+    """The scene file of this example: live, the robot does what ``hold`` says; in ``analyze``, ``analysis``."""
+    robot = hold if analysis == "hold" else analysis
     bodies = ", ".join(f'"{name}_main"' for name in objects)
     return f"""# robosuite 1.5 PickPlace (Panda, OSC_POSE) with the scripted policy of policy.py.
 schema_version = 1
@@ -107,10 +112,10 @@ mjcf = "{mjcf}"
 bodies = [{bodies}]
 joints = "free"
 
-# The controller's torques are not known ahead: {HOLD_COMMENTS[hold]}.
+# The controller's torques are not known ahead: {HOLD_COMMENTS[robot]}.
 [motion]
 duration = {steps / CONTROL_FREQ}
-robot = "{hold}"
+robot = "{robot}"
 
 [perturbation]
 linear_acceleration = [2.0, 2.0, 2.0]
@@ -137,7 +142,10 @@ region = {{ type = "box", body = "bin2", center = [0.0, 0.0, 0.06], half_size = 
 HOLD_COMMENTS = {
     "still": "the robot is held where each frame has it",
     "coasting": "the robot keeps each frame's joint velocities",
+    "recorded": "the robot follows each episode's recorded joint path",
 }
+#: What the robot does during ``analyze``'s propagations (``--analysis``).
+ANALYSIS_CHOICES = ("recorded", "hold")
 
 
 def run_episode(wrapper: MarginWrapper, env: Any, steps: int, rng: np.random.Generator) -> dict[str, Any]:
@@ -219,7 +227,13 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, default=Path("runs/robosuite_pick_place"))
     parser.add_argument("--no-picture", action="store_true", help="skip the rendered picture")
     parser.add_argument(
-        "--hold", choices=tuple(HOLD_COMMENTS), default="coasting", help="the robot during a tree's propagation"
+        "--hold", choices=("coasting", "still"), default="coasting", help="the robot during a live tree's propagation"
+    )
+    parser.add_argument(
+        "--analysis",
+        choices=ANALYSIS_CHOICES,
+        default="recorded",
+        help="the robot during analyze's propagations: its episode's recorded joint path, or as --hold says",
     )
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.every < 1 or args.steps % args.every:
@@ -237,10 +251,16 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     env.reset()
     (out / "pick_place.xml").write_text(env.model.get_xml(), encoding="utf-8")
     scene = out / "scene.toml"
-    text = scene_text("pick_place.xml", args.steps, policy.OBJECTS, policy.GRIP_SITE, args.hold)
+    text = scene_text("pick_place.xml", args.steps, policy.OBJECTS, policy.GRIP_SITE, args.hold, args.analysis)
     scene.write_text(text, encoding="utf-8")
     wrapper = MarginWrapper(
-        GymWrapper(env), scene=scene, every=args.every, budget_s=args.budget, hold=args.hold, record=True, seed=args.seed
+        GymWrapper(env),
+        scene=scene,
+        every=args.every,
+        budget_s=args.budget,
+        hold=args.hold,
+        record=True,
+        seed=args.seed,
     )
     print(f"robosuite {robosuite.__version__}, MuJoCo {mujoco.__version__}; objects {wrapper.scorer.object_names}")
     episodes, files = [], []

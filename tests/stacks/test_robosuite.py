@@ -94,7 +94,22 @@ def test_example_end_to_end(tmp_path: Path) -> None:
         scores = load_scores(out / folder)
         assert len(scores["trajectory"]) == 3 * 6
         assert np.all((scores["capture_score"] >= 0) & (scores["capture_score"] <= 1))
+    # analyze follows each episode's recorded joint path (the Panda's 9 joints), kept in its drive.
+    dataset = load_dataset(out / "dataset")
+    assert dataset.task.loaded.spec.motion.robot == "recorded"
+    assert dataset.arrays["drive"].shape == (3, 2 + 64 * (1 + 2 * 9))
     assert set(results["evaluate"]) == {"analyze", "live"}
     for evaluation in results["evaluate"].values():
         assert evaluation["verdict"] and 0.0 <= evaluation["capture_ap"] <= 1.0
     assert (out / "pick_place.png").stat().st_size > 10_000
+
+
+def test_the_scene_follows_the_recorded_paths_in_analyze_as_the_hold_benchmark_writes_it() -> None:
+    sys.path.insert(0, str(FOLDER.parents[1] / "benchmarks"))
+    from robosuite_hold import recorded_scene
+
+    example = _module("pick_place")
+    policy = example.policy_module()
+    held = example.scene_text("pick_place.xml", 180, policy.OBJECTS, policy.GRIP_SITE, "coasting", "hold")
+    default = example.scene_text("pick_place.xml", 180, policy.OBJECTS, policy.GRIP_SITE)
+    assert 'robot = "coasting"' in held and recorded_scene(held) == default
