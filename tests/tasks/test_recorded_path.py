@@ -184,3 +184,24 @@ def test_the_force_table_holds_the_path_s_forces_at_every_time_step() -> None:
     np.testing.assert_array_equal(table.at(steps * 0.004)[:, 0], np.repeat(direct[:, 0], 1))
     np.testing.assert_array_equal(table.at(137 * 0.004 + np.array([-0.0015, 0.0015])), table.forces[[137, 137]])
     np.testing.assert_array_equal(table.at(np.array([2.1, 30.0])), 0.0)  # past the path: no velocity change
+
+
+def test_a_task_commanding_by_model_commands_alone_gets_zero_forces_in_a_batched_call(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A task with ``batched_model_command`` but no ``batched_robot_force`` (another package's) propagates."""
+    task = _task(tmp_path, "")
+    simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
+    propagator = simulator.rollout_propagator(1)
+    seen = {}
+
+    def keep(initial, chunks, period, n_steps, models=None):  # type: ignore[no-untyped-def]
+        seen["controls"] = chunks.copy()
+        return initial
+
+    propagator._roll_to = keep  # type: ignore[method-assign]
+    monkeypatch.setattr(type(task), "batched_robot_force", None)
+    states = np.repeat(propagator.current_state()[None], 3, axis=0)
+    propagator.propagate(task, np.ones((3, 2)), states, np.zeros(3), np.zeros((3, 1, 6)), np.full(3, 2), 1)
+    qfrc = int(simulator.model.nu) + simulator.index.robot_qvel[0]
+    np.testing.assert_array_equal(seen["controls"][:, :, qfrc], 0.0)

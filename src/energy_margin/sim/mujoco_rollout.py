@@ -284,8 +284,10 @@ class RolloutPropagator:
                 command = model_commands(drives[active], times)
                 if command is None:
                     return False
-                forces = 0.0 if model_forces is None else model_forces(drives[active], times)
-                rows[np.ix_(active, force_at)] = np.asarray(forces)[..., : index.robot_qvel.size]
+                if model_forces is None:
+                    rows[np.ix_(active, force_at)] = 0.0
+                else:
+                    rows[np.ix_(active, force_at)] = model_forces(drives[active], times)[:, : index.robot_qvel.size]
                 self._write_model_commands(rows, active, command)
                 chunks[:, c] = rows
                 continue
