@@ -33,6 +33,7 @@ from energy_margin.runs.progress import Progress, progress_bar
 from energy_margin.sim.base import CompiledModel, Simulator, require
 from energy_margin.sim.mujoco_audit import PHYSICS_WARNINGS, WARNINGS_ARRAY
 from energy_margin.tasks import get_task
+from energy_margin.tasks.recorded_path import nearest_rows
 from energy_margin.tasks.scene_task import SceneTask
 from energy_margin.tasks.state_box import StateBox
 from energy_margin.world.state import FrameState
@@ -202,16 +203,6 @@ def _warned(arrays: dict[str, np.ndarray]) -> str | None:
     return f"row {row}: MuJoCo warned {name} during the roll-out ({PHYSICS_WARNINGS[name]})"
 
 
-def _frame_rows(time: np.ndarray, n_frames: int) -> np.ndarray:
-    """Row indices nearest to ``n_frames`` evenly spaced times from the first to the last row."""
-    targets = np.linspace(time[0], time[-1], n_frames) if n_frames > 1 else np.array([time[-1]])
-    rows = np.clip(np.searchsorted(time, targets), 1, time.size - 1) if time.size > 1 else np.zeros(n_frames, int)
-    if time.size > 1:
-        nearer_before = np.abs(time[rows - 1] - targets) <= np.abs(time[rows] - targets)
-        rows = np.where(nearer_before, rows - 1, rows)
-    return rows.astype(int)
-
-
 def record_dataset(
     scene_file: Path | str,
     rollouts: Sequence[Path | str],
@@ -344,7 +335,7 @@ def _rollout_frames(
             )
         dropped.append({"rollout": name, "reason": warned})
         return None
-    for row in _frame_rows(time, n_frames):
+    for row in nearest_rows(time, n_frames):
         frame = _frame_at(task, simulator, compiled, drive, name, arrays, row)
         frames.append(frame)
         times.append(float(time[row]))

@@ -41,6 +41,7 @@ __all__ = [
     "PATH_PREFIX",
     "RECORDED_ARMATURE",
     "PathForceTable",
+    "nearest_rows",
     "path_drive",
     "path_drive_size",
     "path_forces",
@@ -56,6 +57,20 @@ RECORDED_ARMATURE = 1e6
 def path_drive_size(points: int, n_joints: int) -> int:
     """Drive parameters of a scene following recorded paths of ``points`` knots of ``n_joints`` joints."""
     return PATH_PREFIX + points * (1 + 2 * n_joints)
+
+
+def nearest_rows(time: np.ndarray, count: int) -> np.ndarray:
+    """Row indices of ``time`` (n,) s nearest to ``count`` evenly spaced times from its first row to its last.
+
+    A tie goes to the earlier row; one time is the last row's. ``record`` takes its frames and a
+    recorded path its knots this way.
+    """
+    targets = np.linspace(time[0], time[-1], count) if count > 1 else np.array([time[-1]])
+    rows = np.clip(np.searchsorted(time, targets), 1, time.size - 1) if time.size > 1 else np.zeros(count, int)
+    if time.size > 1:
+        nearer_before = np.abs(time[rows - 1] - targets) <= np.abs(time[rows] - targets)
+        rows = np.where(nearer_before, rows - 1, rows)
+    return rows.astype(int)
 
 
 def path_drive(time: np.ndarray, q: np.ndarray, v: np.ndarray, *, points: int) -> np.ndarray:
@@ -76,12 +91,7 @@ def path_drive(time: np.ndarray, q: np.ndarray, v: np.ndarray, *, points: int) -
     v = np.asarray(v, dtype=float).reshape(time.size, -1)
     if points < 2:
         raise InvalidParameterError("points", f"must be >= 2, got {points}")
-    targets = np.linspace(time[0], time[-1], points)
-    # The row nearest each target: the first at or after it, or the one before.
-    after = np.clip(np.searchsorted(time, targets), 0, time.size - 1)
-    before = np.maximum(after - 1, 0)
-    rows = np.where(np.abs(time[before] - targets) <= np.abs(time[after] - targets), before, after)
-    rows = np.unique(rows)
+    rows = np.unique(nearest_rows(time, points))
     rows = np.concatenate([rows, np.full(points - rows.size, rows[-1])])
     return np.concatenate([np.ones(PATH_PREFIX), time[rows], q[rows].ravel(), v[rows].ravel()])
 
