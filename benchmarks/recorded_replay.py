@@ -26,6 +26,7 @@ import numpy as np
 from energy_margin.data.dataset import Dataset, load_dataset
 from energy_margin.runs.versions import engine_versions
 from energy_margin.sim import make_model_simulator
+from energy_margin.tasks.command import control_steps
 from energy_margin.tasks.recorded_path import path_forces
 from energy_margin.tasks.scene_task import SceneTask
 from results_document import document_head, work_arguments, write_document
@@ -61,7 +62,8 @@ def replay(dataset: Dataset, trajectory: int, armature: float) -> dict[str, Any]
                                      robot_joints=list(loaded.robot_joints), coasting=True,
                                      robot_armature=armature)  # fmt: skip
     dt = task.config.timestep
-    hold = max(1, round(loaded.spec.motion.control_period / dt))
+    hold = control_steps(loaded.spec.motion.control_period, dt)
+    assert hold is not None
     joints = len(loaded.robot_joints)
     start, end = float(arrays["frame_time"][trajectory, 0]), float(arrays["frame_time"][trajectory, -1])
     simulator.reset(dataset.frame(trajectory, 0))

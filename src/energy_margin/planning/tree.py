@@ -41,6 +41,7 @@ from energy_margin.planning.nodes import CostField, Outcome, _Tree
 from energy_margin.planning.propagate import _Expansion, _propagate_one, _propagate_round, _read
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator, require
 from energy_margin.tasks.base import Task
+from energy_margin.tasks.command import control_steps
 from energy_margin.world.state import FrameState
 
 __all__ = [
@@ -256,8 +257,7 @@ class _Bounds:
         max_duration = limits.max_duration * duration_scale
         dt = simulator.timestep
         needs_friction = cost_model.needs_friction_work
-        control_steps = max(1, round(task.control_period / dt)) if task.control_period is not None else None
-        return cls(max_wrench, max_duration, dt, needs_friction, control_steps)
+        return cls(max_wrench, max_duration, dt, needs_friction, control_steps(task.control_period, dt))
 
 
 def _batch_propagator(simulator: Simulator, cost_model: CostModel, batch: int, threads: int) -> Propagator | None:

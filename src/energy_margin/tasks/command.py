@@ -16,7 +16,15 @@ from energy_margin.world.state import RobotState
 if TYPE_CHECKING:
     from energy_margin.tasks.protocols import ScriptedMotion
 
-__all__ = ["command_robot"]
+__all__ = ["command_robot", "control_steps"]
+
+
+def control_steps(control_period: float | None, dt: float) -> int | None:
+    """Time steps of ``dt`` (s) a command is held in analysis: the control period rounded, at least one.
+
+    ``None`` (one command a propagation) for a task without a control period.
+    """
+    return max(1, round(control_period / dt)) if control_period is not None else None
 
 
 def command_robot(

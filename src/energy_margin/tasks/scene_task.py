@@ -18,6 +18,7 @@ from energy_margin.errors import InvalidDataError, InvalidParameterError
 from energy_margin.sim.base import CompiledModel, ModelCommand, ModelCommands, Simulator, require
 from energy_margin.sim.mujoco_index import ModelIndex, object_owners
 from energy_margin.tasks.base import DesignParameter, Region, Task, WrenchLimits
+from energy_margin.tasks.command import control_steps
 from energy_margin.tasks.motion import RobotState, Trajectory
 from energy_margin.tasks.recorded_path import RECORDED_ARMATURE, PathForceTable, path_drive, path_drive_size
 from energy_margin.tasks.scene_defaults import object_armature
@@ -363,7 +364,8 @@ class SceneTask(SceneRegions, Task):
             if len(self._path_tables) >= _PATH_TABLES:
                 self._path_tables.clear()
             dt = self.config.timestep
-            hold = max(1, round(self.loaded.spec.motion.control_period / dt))
+            hold = control_steps(self.loaded.spec.motion.control_period, dt)
+            assert hold is not None  # a scene file's control period is a number
             table = PathForceTable.of(drive, n_joints=len(self.loaded.robot_joints), dt=dt, hold_steps=hold,
                                       armature=RECORDED_ARMATURE)  # fmt: skip
             self._path_tables[key] = table
