@@ -224,8 +224,7 @@ class SceneTask(SceneRegions, Task):
             object_joints=list(self.loaded.object_joints),
             robot_joints=list(self.loaded.robot_joints),
             still=self.loaded.spec.motion.robot == "still",
-            # A robot following its recorded path coasts under the forces of robot_force.
-            coasting=self.loaded.spec.motion.robot == "coasting" or recorded,
+            coasting=self.loaded.spec.motion.robot == "coasting" or recorded,  # a recorded path: coasting, driven
             robot_armature=RECORDED_ARMATURE if recorded else None,
             device=device,
         )
@@ -364,8 +363,7 @@ class SceneTask(SceneRegions, Task):
             if len(self._path_tables) >= _PATH_TABLES:
                 self._path_tables.clear()
             dt = self.config.timestep
-            hold = control_steps(self.loaded.spec.motion.control_period, dt)
-            assert hold is not None  # a scene file's control period is a number
+            hold = control_steps(self.loaded.spec.motion.control_period, dt) or 1  # a scene file's period is a number
             table = PathForceTable.of(drive, n_joints=len(self.loaded.robot_joints), dt=dt, hold_steps=hold,
                                       armature=RECORDED_ARMATURE)  # fmt: skip
             self._path_tables[key] = table
