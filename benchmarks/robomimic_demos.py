@@ -121,18 +121,23 @@ def _analysed(directory: Path) -> float | None:
     return seconds
 
 
-def set_results(directory: Path, *, resamples: int = 1000) -> dict[str, Any]:
-    """Each question's AP and verdict for the margin, the baselines' APs, the positive rates."""
-    dataset = load_dataset(directory)
-    scores = load_scores(directory)
-    grids = (score_grid(dataset, scores, "capture_score"), score_grid(dataset, scores, "success_score"))
+def set_questions(dataset: Any) -> Questions:
+    """The questions of a set: bench_generality's five, then success from the last 3 frames."""
     early = questions_of(dataset)
-    questions = Questions(
+    return Questions(
         dataset,
         3,
         capture_windows={name: window for name, window in zip(early.capture, (0, 2, 4), strict=True)},
         success_spans={**{name: (span.start, span.stop) for name, span in early.spans.items()}, LAST_3: (None, None)},
     )
+
+
+def set_results(directory: Path, *, resamples: int = 1000) -> dict[str, Any]:
+    """Each question's AP and verdict for the margin, the baselines' APs, the positive rates."""
+    dataset = load_dataset(directory)
+    scores = load_scores(directory)
+    grids = (score_grid(dataset, scores, "capture_score"), score_grid(dataset, scores, "success_score"))
+    questions = set_questions(dataset)
     every = np.arange(dataset.n_trajectories)
     baselines = baseline_grids(dataset)
     found = verdicts(dataset, grids, baselines, capture_window=0, success_frames=3, weights="linear",

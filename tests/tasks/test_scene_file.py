@@ -455,6 +455,22 @@ def test_motion_robot_coasting_keeps_the_frames_velocity_and_pushes_what_it_meet
         assert pushed < 1e-6
 
 
+@pytest.mark.parametrize(("robot", "armature"), [("still", 1e8), ("coasting", 1e6), ("declared", None)])
+def test_a_held_robot_is_heavier_than_a_coasting_one(tmp_path: Path, robot: str, armature: float | None) -> None:
+    """A still robot's joints get STILL_ARMATURE, a coasting (moving) one's the hundredth COASTING_ARMATURE."""
+    from energy_margin.sim.mujoco_model import COASTING_ARMATURE, STILL_ARMATURE
+    from tiny_scene import write_tiny_scene
+
+    assert (STILL_ARMATURE, COASTING_ARMATURE) == (1e8, 1e6)
+    scene = write_tiny_scene(tmp_path, scene=ARM_AND_PUCK_SCENE.replace("ROBOT", f'robot = "{robot}"'),
+                             model=ARM_AND_PUCK)  # fmt: skip
+    task = get_task("scene", {"scene_file": str(scene)})
+    simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
+    robot_dofs = simulator.index.robot_qvel
+    expected = task.loaded.model.dof_armature[robot_dofs] if armature is None else armature
+    np.testing.assert_array_equal(simulator.model.dof_armature[robot_dofs], expected)
+
+
 def test_a_robot_both_still_and_coasting_is_refused(tmp_path: Path) -> None:
     from energy_margin.sim import make_model_simulator
     from tiny_scene import write_tiny_scene

@@ -167,7 +167,8 @@ def make_model_simulator(
         still: hold the robot where each reset puts it.
         coasting: the robot keeps the velocities each reset gives it.
         robot_armature: the robot joints' armature when still or coasting, kg m^2 or kg (``None``:
-            :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE`).
+            :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE` or
+            :data:`~energy_margin.sim.mujoco_model.COASTING_ARMATURE`).
         device: where an engine with devices runs (its first device when ``None``).
 
     Raises:

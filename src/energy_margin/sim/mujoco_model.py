@@ -16,13 +16,17 @@ it measurably during a propagation of a few tenths of a second (mocap bodies sta
 puts them in any case). For recorded states whose commands are not known, and for live scoring
 with ``hold="still"``.
 
-A simulator built with ``coasting=True`` gives the robot's joints the same armature but keeps the
-velocities each reset gives them: the robot goes on moving as each frame has it moving (a joint
-turning at 0.5 rad/s at the frame turns on at 0.5 rad/s), a body too heavy for the objects'
-contacts, gravity or its actuators to slow it, as a robot following its own path does; its joint
-limits still stop it. For recorded states whose commands are not known but whose velocities are
-(``motion.robot = "coasting"``, the live wrappers' ``hold="coasting"``). Contacts between the robot
-and the world are kept (the robot moves).
+A simulator built with ``coasting=True`` keeps the velocities each reset gives the robot's joints
+and gives them an armature of :data:`COASTING_ARMATURE`: the robot goes on moving as each frame has
+it moving (a joint turning at 0.5 rad/s at the frame turns on at 0.5 rad/s), a body too heavy for
+the objects' contacts, gravity or its actuators to slow it much, as a robot following its own path
+does; its joint limits still stop it. For recorded states whose commands are not known but whose
+velocities are (``motion.robot = "coasting"``, the live wrappers' ``hold="coasting"``). Contacts
+between the robot and the world are kept (the robot moves). A moving robot is a hundredth of a
+held one's armature: a body of :data:`STILL_ARMATURE` moving into the objects throws them (the
+contact solver's impulses against it), and on recorded demonstrations the lighter one ranks
+future capture better (``benchmarks/coasting_armature.py``, docs/howto/scenes.md); a held robot
+keeps the heavier one, which ranks it better there.
 """
 
 from __future__ import annotations
@@ -36,12 +40,15 @@ from energy_margin.sim.mujoco_index import ModelIndex
 from energy_margin.world.scene import Scene
 
 __all__ = [
+    "COASTING_ARMATURE",
     "STILL_ARMATURE",
     "MujocoModelSimulator",
 ]
 
-#: Armature of the robot's joints in a ``still=True`` or ``coasting=True`` simulator (kg m^2 or kg).
+#: Armature of the robot's joints in a ``still=True`` simulator, kg m^2 or kg.
 STILL_ARMATURE = 1e8
+#: Armature of the robot's joints in a ``coasting=True`` simulator (a robot that moves), kg m^2 or kg.
+COASTING_ARMATURE = 1e6
 
 
 class MujocoModelSimulator(MujocoSimulator):
@@ -56,7 +63,7 @@ class MujocoModelSimulator(MujocoSimulator):
         robot_joints: list[int],
         still: bool = False,
         coasting: bool = False,
-        robot_armature: float = STILL_ARMATURE,
+        robot_armature: float | None = None,
     ) -> None:
         """Simulate ``model``.
 
@@ -70,7 +77,8 @@ class MujocoModelSimulator(MujocoSimulator):
                 model's robot armature is changed.
             coasting: the robot keeps the velocities each reset gives it (see the module
                 docstring); the model's robot armature is changed.
-            robot_armature: the robot joints' armature when ``still`` or ``coasting``, kg m^2 or kg.
+            robot_armature: the robot joints' armature when ``still`` or ``coasting``, kg m^2 or kg
+                (``None``: :data:`STILL_ARMATURE` or :data:`COASTING_ARMATURE`).
 
         Raises:
             InvalidParameterError: both ``still`` and ``coasting``.
@@ -84,6 +92,8 @@ class MujocoModelSimulator(MujocoSimulator):
         self.still = still
         self.coasting = coasting
         if (still or coasting) and index.robot_qvel.size:
+            if robot_armature is None:
+                robot_armature = STILL_ARMATURE if still else COASTING_ARMATURE
             model.dof_armature[index.robot_qvel] = robot_armature
 
     @property

@@ -29,7 +29,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.sim.base import IncompatibleModelsError
 from energy_margin.sim.mujoco_backend import MujocoSimulator
 from energy_margin.sim.mujoco_index import ModelIndex
-from energy_margin.sim.mujoco_model import STILL_ARMATURE, MujocoModelSimulator
+from energy_margin.sim.mujoco_model import MujocoModelSimulator
 from energy_margin.sim.mujoco_rollout import RolloutPropagator
 from energy_margin.sim.mujoco_warp_kernels import engine_kernels, load_warp
 from energy_margin.world.scene import Scene
@@ -409,7 +409,7 @@ class WarpModelSimulator(_WarpPropagation, MujocoModelSimulator):
         robot_joints: list[int],
         still: bool = False,
         coasting: bool = False,
-        robot_armature: float = STILL_ARMATURE,
+        robot_armature: float | None = None,
         device: str = "cpu",
     ) -> None:
         check_device(device)
