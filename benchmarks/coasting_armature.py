@@ -31,24 +31,24 @@ import json
 import shutil
 import subprocess
 import sys
-import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from energy_margin.data.dataset import load_dataset
-from energy_margin.data.scores_file import JOURNAL_FILE, load_scores
+from energy_margin.data.scores_file import load_scores
 from energy_margin.evaluation.metrics import score_grid
 from energy_margin.evaluation.verdict import verdicts
 from energy_margin.runs.versions import engine_versions
 from energy_margin.sim.mujoco_model import COASTING_ARMATURE, STILL_ARMATURE
 from results_document import document_head, work_arguments, write_document
-from robomimic_demos import EXPANSIONS, ROOT, _sets, set_questions, set_results
+from robomimic_demos import EXPANSIONS, ROOT, _analysed, _sets, set_questions, set_results
 
 #: The sets this benchmark analyses (``robomimic_demos.py``'s with a held or coasting robot).
 SETS = ("demos_coasting", "demos_still", "coasting", "still")
 #: The armatures compared, kg m^2 (or kg for a slide).
 ARMATURES = (1e8, 1e6)
-#: Sets the analysis copies from a recorded set (its analysis, if any, is not copied).
+#: What the analysis copies of a recorded set (its analysis, if any, is not copied; ``source``: where it has one).
 RECORDED_FILES = ("dataset.json", "frames.npz", "source")
 #: Runs ``energy-margin`` in one process with both armature constants set to ``sys.argv[1]``.
 _PATCHED_CLI = (
@@ -64,42 +64,33 @@ def package_armature(robot: str) -> float:
 
 
 def armature_copy(recorded: Path, directory: Path) -> Path:
-    """A copy of the recorded set ``recorded`` at ``directory`` (kept), its scene file its own."""
+    """A copy of the recorded set ``recorded`` at ``directory`` (kept); a scene file of the set's own is copied too."""
     if not (directory / "dataset.json").exists():
         directory.mkdir(parents=True, exist_ok=True)
         for name in RECORDED_FILES:
             source = recorded / name
             if source.is_dir():
                 shutil.copytree(source, directory / name, dirs_exist_ok=True)
-            else:
+            elif source.exists():
                 shutil.copy2(source, directory / name)
-        document = json.loads((directory / "dataset.json").read_text(encoding="utf-8"))
-        scene_file = Path(document["task_config"]["scene_file"])
-        document["task_config"]["scene_file"] = str(directory / "source" / scene_file.name)
-        (directory / "dataset.json").write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+        if (recorded / "source").is_dir():  # record --format robomimic writes the scene there: use the copy's
+            document = json.loads((directory / "dataset.json").read_text(encoding="utf-8"))
+            scene_file = directory / "source" / Path(document["task_config"]["scene_file"]).name
+            document["task_config"]["scene_file"] = str(scene_file)
+            (directory / "dataset.json").write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
     return directory
 
 
-def analysed(directory: Path, armature: float) -> float | None:
-    """Analyse ``directory`` at the defaults with ``armature``; s per frame (``None``: resumed or kept scores)."""
-    kept = directory / "seconds_per_frame.json"
-    if kept.exists():
-        return float(json.loads(kept.read_text())["seconds_per_frame"])
-    if (directory / "scores.csv").exists():
-        return None
-    resumed = (directory / JOURNAL_FILE).exists()
-    started = time.perf_counter()
-    argv = ["analyze", directory, "--expansions", EXPANSIONS, "--workers", 1, "--seed", 0, "--no-progress"]
-    found = subprocess.run([sys.executable, "-c", _PATCHED_CLI, repr(armature), *map(str, argv)], cwd=ROOT,
-                           capture_output=True, text=True)  # fmt: skip
-    if found.returncode:
-        sys.exit(f"analyze {directory} failed: {(found.stderr or found.stdout).strip()[-400:]}")
-    if resumed:
-        return None
-    dataset = load_dataset(directory)
-    seconds = (time.perf_counter() - started) / (dataset.n_trajectories * dataset.n_frames)
-    kept.write_text(json.dumps({"seconds_per_frame": seconds}) + "\n")
-    return seconds
+def patched_cli(armature: float) -> Callable[..., None]:
+    """A runner of ``energy-margin`` commands in a process whose armature constants are ``armature``."""
+
+    def run(*argv: str | Path | int) -> None:
+        found = subprocess.run([sys.executable, "-c", _PATCHED_CLI, repr(armature), *map(str, argv)], cwd=ROOT,
+                               capture_output=True, text=True)  # fmt: skip
+        if found.returncode:
+            sys.exit(f"{' '.join(map(str, argv[:2]))} failed: {(found.stderr or found.stdout).strip()[-400:]}")
+
+    return run
 
 
 def against_package(directory: Path, package: Path) -> dict[str, dict[str, Any]]:
@@ -147,7 +138,7 @@ def main() -> None:
         where = {a: armature_copy(source, args.work / f"armature-{a:g}" / name) for a in {*armatures, package}}
         entry: dict[str, Any] = {"robot": robot, "package_armature": package, "armatures": {}}
         for armature, directory in sorted(where.items(), reverse=True):
-            seconds = analysed(directory, armature)
+            seconds = _analysed(directory, patched_cli(armature))
             found = set_results(directory)
             difference = against_package(directory, where[package])
             entry["armatures"][f"{armature:g}"] = {**found, "seconds_per_frame": seconds, "against_package": difference}

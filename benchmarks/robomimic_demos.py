@@ -34,6 +34,7 @@ import json
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -103,8 +104,12 @@ def _sets(work: Path, names: tuple[str, ...] = SETS, seed: int = 0) -> dict[str,
 SECONDS_FILE = "seconds_per_frame.json"
 
 
-def _analysed(directory: Path) -> float | None:
-    """Analyse ``directory`` at the defaults; its wall time per frame, s (``None``: analysed by an interrupted run)."""
+def _analysed(directory: Path, cli: Callable[..., None] | None = None) -> float | None:
+    """Analyse ``directory`` at the defaults; its wall time per frame, s (``None``: analysed by an interrupted run).
+
+    ``cli`` runs the command (``energy-margin`` and its arguments) in another process (``None``: this
+    checkout's interpreter).
+    """
     kept = directory / SECONDS_FILE
     if kept.exists():
         return float(json.loads(kept.read_text())["seconds_per_frame"])
@@ -112,7 +117,7 @@ def _analysed(directory: Path) -> float | None:
         return None
     resumed = (directory / JOURNAL_FILE).exists()
     started = time.perf_counter()
-    _cli("analyze", directory, "--expansions", EXPANSIONS, "--workers", 1, "--seed", 0, "--no-progress")
+    (cli or _cli)("analyze", directory, "--expansions", EXPANSIONS, "--workers", 1, "--seed", 0, "--no-progress")
     if resumed:
         return None
     dataset = load_dataset(directory)

@@ -16,8 +16,8 @@ with its current velocity (``hold="action"``, the default). With ``hold="still"`
 held where it is instead (a scene's ``motion.robot = "still"``: its joint velocities start at zero
 and its joints get an armature of :data:`~energy_margin.sim.mujoco_model.STILL_ARMATURE` kg m^2 or
 kg, so that no actuator, gravity or contact force moves it measurably during the propagation);
-with ``hold="coasting"`` it keeps its current joint velocities under that armature (a scene's
-``motion.robot = "coasting"``); mocap bodies stay where they are in every case. A scene whose
+with ``hold="coasting"`` it keeps its current joint velocities under an armature of
+:data:`~energy_margin.sim.mujoco_model.COASTING_ARMATURE` (a scene's ``motion.robot = "coasting"``); mocap bodies stay where they are in every case. A scene whose
 robot follows its recorded path (``motion.robot = "recorded"``, for roll-outs analysed afterwards)
 holds its last command live, or does what ``hold`` says.
 

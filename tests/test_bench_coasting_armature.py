@@ -1,0 +1,61 @@
+"""benchmarks/coasting_armature.py: each armature's analysis is the package's with that armature."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench_modules import load_benchmark
+from energy_margin.cli import main
+from energy_margin.data.scores_file import load_scores
+from tiny_scene import ARM_OVER_PUCK, ARM_SCENE, write_arm_rollouts, write_tiny_scene
+
+ANALYZE = ("--expansions", "15", "--workers", "1", "--seed", "0", "--no-progress")
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return load_benchmark("coasting_armature")
+
+
+def test_the_package_s_armature_is_still_s_for_still_robots_and_coasting_s_else(bench) -> None:
+    assert bench.package_armature("still") == 1e8 and bench.package_armature("coasting") == 1e6
+
+
+def test_an_armature_s_analysis_is_the_plain_one_at_the_package_s_armature_only(bench, tmp_path: Path) -> None:
+    """The copy analysed in a process patched to 1e6 scores as ``analyze`` itself; patched to 1e2 it does not."""
+    rollouts = write_arm_rollouts(tmp_path / "rollouts", count=2)
+    scene = write_tiny_scene(tmp_path / "scene", scene=ARM_SCENE.replace("ROBOT", 'robot = "coasting"'),
+                             model=ARM_OVER_PUCK)  # fmt: skip
+    recorded = tmp_path / "recorded"
+    assert main(["record", "--scene", str(scene), *map(str, rollouts), "--frames", "8", "--out", str(recorded)]) == 0
+    copies = {armature: bench.armature_copy(recorded, tmp_path / f"armature-{armature:g}") for armature in (1e6, 1e2)}
+    for armature, directory in copies.items():
+        assert json.loads((directory / "dataset.json").read_text())["task_config"]["scene_file"] == str(scene)
+        bench.patched_cli(armature)("analyze", directory, *ANALYZE)
+    assert main(["analyze", str(recorded), *ANALYZE]) == 0
+    plain = load_scores(recorded)
+    same, lighter = (load_scores(copies[armature]) for armature in (1e6, 1e2))
+    for column in ("capture_score", "success_score"):
+        assert same[column].tolist() == plain[column].tolist()
+    # A light arm is slowed by the puck it sweeps through: the puck stays nearer its tip.
+    assert np.max(np.abs(lighter["capture_score"] - plain["capture_score"])) > 0.01
+
+
+def test_a_copy_of_a_set_with_its_own_scene_reads_the_copy_s_scene(bench, tmp_path: Path) -> None:
+    recorded = tmp_path / "recorded"
+    (recorded / "source").mkdir(parents=True)
+    (recorded / "source" / "scene.toml").write_text("the scene")
+    (recorded / "frames.npz").write_bytes(b"frames")
+    document = {"task_config": {"scene_file": "/elsewhere/source/scene.toml"}, "n_frames": 3}
+    (recorded / "dataset.json").write_text(json.dumps(document))
+    copy = bench.armature_copy(recorded, tmp_path / "copy")
+    found = json.loads((copy / "dataset.json").read_text())
+    assert found == {"task_config": {"scene_file": str(copy / "source" / "scene.toml")}, "n_frames": 3}
+    assert (copy / "source" / "scene.toml").read_text() == "the scene"
+    assert (copy / "frames.npz").read_bytes() == b"frames"
+    (recorded / "frames.npz").write_bytes(b"changed")
+    assert bench.armature_copy(recorded, copy) == copy and (copy / "frames.npz").read_bytes() == b"frames"  # kept
