@@ -106,6 +106,33 @@ def against_package(directory: Path, package: Path) -> dict[str, dict[str, Any]]
     return {name: found[name].to_dict() for name in questions.names}
 
 
+def comparison_rows(name: str, entry: dict[str, Any]) -> list[dict[str, Any]]:
+    """One row per question and armature other than the package's: both margins and their paired difference."""
+    package = entry["armatures"][f"{entry['package_armature']:g}"]
+    rows = []
+    for armature, found in entry["armatures"].items():
+        if found is package:
+            continue
+        for question, answer in found["questions"].items():
+            change = found["against_package"][question]
+            rows.append(
+                {
+                    "set": name,
+                    "robot": entry["robot"],
+                    "question": question,
+                    "package_armature": entry["package_armature"],
+                    "package_margin": package["questions"][question]["cell"],
+                    "armature": float(armature),
+                    "margin": answer["cell"],
+                    "difference": change["difference"],
+                    "low": change["low"],
+                    "high": change["high"],
+                    "word": change["word"],
+                }
+            )
+    return rows
+
+
 def main() -> None:
     parser = work_arguments(__doc__, workers=False)
     parser.add_argument("--demonstration-seed", type=int, default=0, help="write_demos.py's --seed")
@@ -142,22 +169,8 @@ def main() -> None:
             found = set_results(directory)
             difference = against_package(directory, where[package])
             entry["armatures"][f"{armature:g}"] = {**found, "seconds_per_frame": seconds, "against_package": difference}
-            for question, answer in found["questions"].items():
-                change = difference[question]
-                document["rows"].append(
-                    {
-                        "set": name,
-                        "armature": armature,
-                        "package": armature == package,
-                        "question": question,
-                        "margin": answer["cell"],
-                        "against_package": change["difference"],
-                        "low": change["low"],
-                        "high": change["high"],
-                        "word": change["word"],
-                    }
-                )
             print(f"{name} {armature:g}: " + "; ".join(f"{q} {a['cell']}" for q, a in found["questions"].items()))
+        document["rows"] += comparison_rows(name, entry)
         document["sets"][name] = entry
     write_document(args.out, document)
     print(f"wrote {args.out}")

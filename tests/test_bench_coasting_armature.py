@@ -59,3 +59,21 @@ def test_a_copy_of_a_set_with_its_own_scene_reads_the_copy_s_scene(bench, tmp_pa
     assert (copy / "frames.npz").read_bytes() == b"frames"
     (recorded / "frames.npz").write_bytes(b"changed")
     assert bench.armature_copy(recorded, copy) == copy and (copy / "frames.npz").read_bytes() == b"frames"  # kept
+
+
+def test_a_row_holds_both_armatures_margins_and_their_paired_difference(bench) -> None:
+    def found(cell: str, difference: float | None) -> dict:
+        change = {"difference": difference, "low": -0.1, "high": 0.2, "word": "level"}
+        return {"questions": {"capture": {"cell": cell}}, "against_package": {"capture": change}}
+
+    entry = {
+        "robot": "coasting",
+        "package_armature": 1e6,
+        "armatures": {"1e+08": found("0.9", 0.05), "1e+06": found("0.8", 0.0)},
+    }
+    rows = bench.comparison_rows("demos_coasting", entry)
+    assert rows == [
+        {"set": "demos_coasting", "robot": "coasting", "question": "capture", "package_armature": 1e6,
+         "package_margin": "0.8", "armature": 1e8, "margin": "0.9", "difference": 0.05, "low": -0.1, "high": 0.2,
+         "word": "level"}
+    ]  # fmt: skip
