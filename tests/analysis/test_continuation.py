@@ -183,7 +183,7 @@ def test_a_continuation_from_a_recorded_frame_replays_the_recorded_motion(tmp_pa
                              config=AnalyzerConfig(expansions=3), start_time=float(dataset.arrays["frame_time"][0, 1]),
                              simulator=simulator)  # fmt: skip
     nodes, start = np.array([0]), float(dataset.arrays["frame_time"][0, 1])
-    steps = continuation._steps(task, simulator.timestep, field, nodes, start, None)
+    steps = continuation._steps(task.config.duration, simulator.timestep, field, nodes, start, None)
     run = continuation._continue_batched if batched else continuation._continue_one_by_one
     args = (simulator if batched else _OneAtATime(simulator), task, field, nodes, np.array([start]), steps, drive)
     pos = run(*args, *((False, 1) if batched else ()))[0]  # type: ignore[operator]

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 from energy_margin.evaluation.monitor import MonitorCalibration
-from energy_margin.integrations.live_model import LiveSession
+from energy_margin.integrations.live_session import LiveSession
 
 
 class _Scorer:

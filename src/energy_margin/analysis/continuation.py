@@ -17,7 +17,7 @@ recorded roll-out keeps them).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,10 +28,21 @@ from energy_margin.errors import InvalidParameterError, check_float, check_int
 from energy_margin.planning import CostField
 from energy_margin.sim.base import BatchedRollout, Propagator, Simulator
 from energy_margin.tasks import Task
-from energy_margin.tasks.command import command_robot
+from energy_margin.tasks.command import command_robot, control_steps
 from energy_margin.world.state import FrameState
 
-__all__ = ["Continuation", "continuation_seed", "continued_success", "continued_successes_together"]
+__all__ = [
+    "Continuation",
+    "Controller",
+    "continuation_seed",
+    "continued_success",
+    "continued_successes_together",
+    "controlled_success",
+]
+
+#: What runs a continuation under feedback: called every control period with the simulator, it
+#: sets the robot's command from the simulator's current state (``set_model_command``).
+Controller = Callable[[Simulator], None]
 
 #: Spawn key of the continuation's draws under the frame's seed (the tree's generator is the seed's own).
 _SPAWN_KEY = (0xC0,)
@@ -59,10 +70,10 @@ class Continuation:
 
 
 def _steps(
-    task: Task, dt: float, field: CostField, nodes: np.ndarray, start_time: float, horizon: float | None
+    end: float, dt: float, field: CostField, nodes: np.ndarray, start_time: float, horizon: float | None
 ) -> np.ndarray:
-    """Steps of each node's continuation: to the end of the motion or the horizon, at least one."""
-    remaining = task.config.duration - (start_time + field.times[nodes])
+    """Steps of each node's continuation: to ``end`` (s on the frame's clock) or the horizon, at least one."""
+    remaining = end - (start_time + field.times[nodes])
     if horizon is not None:
         remaining = np.minimum(remaining, horizon)
     return np.maximum(np.round(remaining / dt).astype(np.int64), 1)
@@ -83,9 +94,12 @@ class _Draws:
 
 def _draw(
     task: Task, dt: float, field: CostField, *, lam: float, samples: int, seed: int, start_time: float,
-    horizon: float | None,
+    horizon: float | None, end: float | None = None,
 ) -> _Draws:  # fmt: skip
-    """Draw ``samples`` nodes of ``field`` by likelihood (checked arguments; see :func:`continued_success`)."""
+    """Draw ``samples`` nodes of ``field`` by likelihood (checked arguments; see :func:`continued_success`).
+
+    ``end``: when the continuations end on the frame's clock, s (``None``: the task's ``duration``).
+    """
     check_int("samples", samples, minimum=1)
     if horizon is not None:
         check_float("horizon", horizon, minimum=0.0, exclusive_minimum=True)
@@ -94,7 +108,7 @@ def _draw(
     rng = np.random.default_rng(continuation_seed(seed))
     draws = rng.choice(field.nodes, size=samples, p=likelihood(field.costs, lam))
     nodes, counts = np.unique(draws, return_counts=True)
-    n_steps = _steps(task, dt, field, nodes, start_time, horizon)
+    n_steps = _steps(task.config.duration if end is None else end, dt, field, nodes, start_time, horizon)
     return _Draws(nodes, counts, n_steps, start_time + field.times[nodes])
 
 
@@ -256,6 +270,22 @@ def _unperturbed_ends(
     return pos, vel, quat, propagator.end_robot_positions(final)
 
 
+def _end_of(simulator: Simulator) -> tuple[np.ndarray, ...]:
+    """The objects' positions, velocities, quaternions and the robot's positions where a continuation ended."""
+    return (
+        simulator.object_positions().copy(),
+        simulator.object_velocities().copy(),
+        simulator.object_quaternions().copy(),
+        simulator.robot_positions().copy(),
+    )
+
+
+def _stacked(ends: list[tuple[np.ndarray, ...]]) -> _Ends:
+    """One array per quantity of :func:`_end_of`, a row per continuation."""
+    pos, vel, quat, robot = (np.stack(column) for column in zip(*ends, strict=True))
+    return pos, vel, quat, robot
+
+
 def _continue_one_by_one(
     simulator: Simulator,
     task: Task,
@@ -277,13 +307,62 @@ def _continue_one_by_one(
         for step in range(steps):
             command_robot(task, simulator, drive, start + step * dt, None)
             simulator.step(1)
-        ends.append(
-            (
-                simulator.object_positions().copy(),
-                simulator.object_velocities().copy(),
-                simulator.object_quaternions().copy(),
-                simulator.robot_positions().copy(),
-            )
-        )
-    pos, vel, quat, robot = (np.stack(column) for column in zip(*ends, strict=True))
-    return pos, vel, quat, robot
+        ends.append(_end_of(simulator))
+    return _stacked(ends)
+
+
+def controlled_success(
+    simulator: Simulator,
+    task: Task,
+    root: FrameState,
+    field: CostField,
+    controllers: Callable[[], Controller],
+    *,
+    lam: float,
+    samples: int,
+    seed: int,
+    horizon: float,
+    period: float,
+) -> Continuation:
+    """Success score of ``samples`` continuations under a feedback controller, from nodes drawn by likelihood.
+
+    The draws are :func:`continued_success`'s (the same nodes for the same seed). Each draw's
+    continuation starts at its node's state without wrenches, with a controller of its own
+    (``controllers()``, e.g. a copy of a policy that keeps state) that sets the command every
+    ``period`` from the state reached, and runs to ``horizon`` past the frame (at least one step);
+    success is scored where it ends. One continuation at a time: the command depends on the state.
+
+    Args:
+        simulator: the simulator the tree grew on (its states are ``field.states``).
+        task: the task (success region).
+        root: the analysed frame z_init (the success region may follow it).
+        field: the tree's cost field, with its node states.
+        controllers: makes the controller of one continuation.
+        lam: the likelihood's inverse temperature, 1/J.
+        samples: draws (with replacement) by likelihood weight, >= 1.
+        seed: the frame's seed (the draws use :func:`continuation_seed`).
+        horizon: when the continuations end, s after the frame, > 0.
+        period: time between two commands, s, > 0 (rounded to whole time steps, at least one).
+
+    Raises:
+        InvalidParameterError: ``samples`` < 1, a non-positive horizon or period, or a field without states.
+
+    """
+    check_float("horizon", horizon, minimum=0.0, exclusive_minimum=True)
+    check_float("period", period, minimum=0.0, exclusive_minimum=True)
+    dt = simulator.timestep
+    draws = _draw(task, dt, field, lam=lam, samples=samples, seed=seed, start_time=0.0, horizon=None, end=horizon)
+    assert field.states is not None
+    every = control_steps(period, dt) or 1
+    n_objects = field.object_pos.shape[1]
+    ends: list[tuple[np.ndarray, ...]] = []
+    for node, steps in zip(draws.nodes.tolist(), draws.n_steps.tolist(), strict=True):
+        simulator.set_state(field.states[node])
+        simulator.set_object_wrenches(np.zeros((n_objects, 6)))
+        control = controllers()
+        for step in range(steps):
+            if step % every == 0:
+                control(simulator)
+            simulator.step(1)
+        ends.append(_end_of(simulator))
+    return _scored(task, root, draws, samples, _stacked(ends))

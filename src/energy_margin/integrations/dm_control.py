@@ -30,7 +30,8 @@ from energy_margin.analysis.frame import AnalyzerConfig
 from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.evaluation.monitor import MonitorCalibration, load_calibration
 from energy_margin.integrations.handles import find_mujoco
-from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions, LiveSession
+from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions
+from energy_margin.integrations.live_session import LiveSession
 
 __all__ = [
     "MarginEnvironment",
