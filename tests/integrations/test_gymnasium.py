@@ -372,3 +372,32 @@ def test_a_scene_following_recorded_paths_holds_its_command_live(tmp_path: Path,
     wrapper.reset(seed=0)
     margin = wrapper.step(actions(1)[0])[4]["energy_margin"]
     assert 0.0 <= margin["capture_score"] <= 1.0
+
+
+def test_a_policy_s_continuations_run_to_the_time_limit_and_leave_the_episode_alone() -> None:
+    """Pusher-v5's time limit is 100 steps of 0.05 s: every continuation's last command falls in its last 0.05 s."""
+    calls: list[list[float]] = []  # the times of each copy's calls
+
+    class Still:
+        def __call__(self, data) -> np.ndarray:  # type: ignore[no-untyped-def]
+            calls[-1].append(float(data.time))
+            return np.zeros(7)
+
+        def __deepcopy__(self, memo: dict) -> Still:
+            calls.append([])
+            return self
+
+    plain = gymnasium.make("Pusher-v5")
+    wrapper = wrapped(every=4, policy=Still(), continuation=2)
+    assert wrapper.session.episode_steps == 100 and wrapper.session.step_s == pytest.approx(0.05)
+    assert wrapper.scorer.policy_period_s == pytest.approx(0.05)
+    first, info = wrapper.reset(seed=2)
+    assert np.array_equal(first, plain.reset(seed=2)[0])
+    assert info["energy_margin"]["continuation_ms"] > 0.0
+    for action in actions(4):
+        observation, *_ = wrapper.step(action)
+        assert np.array_equal(observation, plain.step(action)[0])
+    assert len(calls) >= 2
+    for times in calls:  # one command every 0.05 s, the last one within a period of the time limit
+        np.testing.assert_allclose(np.diff(times), 0.05, atol=1e-9)
+        assert times[-1] < 5.0 <= times[-1] + 0.05 + 1e-9

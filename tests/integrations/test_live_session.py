@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import pytest
+
 from energy_margin.evaluation.monitor import MonitorCalibration
 from energy_margin.integrations.live_session import LiveSession
 
@@ -14,8 +16,10 @@ class _Scorer:
 
     def __init__(self, tree_capture: float) -> None:
         self.tree_capture = tree_capture
+        self.horizons: list[float | None] = []
 
-    def score(self, data: Any) -> dict[str, Any]:
+    def score(self, data: Any, *, horizon_s: float | None = None) -> dict[str, Any]:
+        self.horizons.append(horizon_s)
         return {"capture_score": 0.0, "success_score": 1.0, "tree_capture_score": self.tree_capture}
 
 
@@ -43,3 +47,15 @@ def test_without_a_tree_the_alarm_watches_the_capture_score() -> None:
     # A learned margin grows no tree: its capture score is all there is (0, below the threshold).
     session = LiveSession(_Scorer(math.nan), every=1, record=False, calibration=_capture_alarm())  # type: ignore[arg-type]
     assert session.reset(None)["alarm"] is True  # type: ignore[index]
+
+
+def test_a_scored_call_s_horizon_is_the_rest_of_the_episode_where_its_length_is_known() -> None:
+    scorer = _Scorer(0.9)
+    session = LiveSession(scorer, every=2, record=False, step_s=0.05, episode_steps=6)  # type: ignore[arg-type]
+    session.reset(None)
+    for _ in range(6):
+        session.step(None)
+    assert scorer.horizons == pytest.approx([0.3, 0.2, 0.1, 0.0])
+    unknown = _Scorer(0.9)
+    LiveSession(unknown, every=1, record=False, step_s=0.05).reset(None)  # type: ignore[arg-type]
+    assert unknown.horizons == [None]

@@ -23,18 +23,21 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from energy_margin.analysis.continuation import Controller, controlled_success
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
-from energy_margin.errors import check_positive_float, check_positive_int
+from energy_margin.errors import InvalidParameterError, check_positive_float, check_positive_int
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
 from energy_margin.world.state import FrameState
 
 __all__ = [
     "MAX_EXPANSIONS",
+    "FeedbackContinuation",
     "LiveScore",
     "score_state",
 ]
@@ -60,6 +63,7 @@ class LiveScore:
         diverged: reached states the tree rejected for a non-finite number (-1: no tree).
         tree_capture: the tree's own capture score before the capture gate, what a capture alarm
             watches (NaN: no tree).
+        continuation_s: wall time of the feedback continuation, s (0: none ran).
 
     """
 
@@ -72,6 +76,26 @@ class LiveScore:
     rejected: int = -1
     diverged: int = -1
     tree_capture: float = math.nan
+    continuation_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class FeedbackContinuation:
+    """The success score continued under the robot's own feedback controller (a policy) from the tree.
+
+    Attributes:
+        controllers: makes the controller of one continuation (called once per draw; see
+            :func:`~energy_margin.analysis.continuation.controlled_success`).
+        horizon_s: when the continuations end, s after the state (the rest of the episode).
+        period_s: time between two commands of the controller, s.
+        samples: nodes drawn by likelihood weight, >= 1.
+
+    """
+
+    controllers: Callable[[], Controller]
+    horizon_s: float
+    period_s: float
+    samples: int = 8
 
 
 def score_state(
@@ -87,6 +111,7 @@ def score_state(
     start_time: float = 0.0,
     simulator: Simulator | None = None,
     config: AnalyzerConfig | None = None,
+    feedback: FeedbackContinuation | None = None,
 ) -> LiveScore:
     """Score one state by growing its tree until ``budget_s`` seconds have passed.
 
@@ -106,12 +131,15 @@ def score_state(
         config: further analysis settings (cost model, method, projection, lambda, batch); its
             iteration and node budgets and its engine are replaced by ``max_expansions`` and
             ``engine``.
+        feedback: continue the success score under the robot's feedback controller from the tree's
+            likely states (after the tree, outside ``budget_s``; needs ``simulator`` and ``batch`` 1).
 
     Returns:
         The scores with the expansions reached and the seconds used.
 
     Raises:
-        InvalidParameterError: a ``budget_s`` that is not > 0, or a ``max_expansions`` below 1.
+        InvalidParameterError: a ``budget_s`` that is not > 0, a ``max_expansions`` below 1, or a
+            ``feedback`` without ``simulator`` or with batched expansion.
 
     """
     started = time.perf_counter()
@@ -120,8 +148,10 @@ def score_state(
     check_positive_int("max_expansions", max_expansions)
     base = config if config is not None else AnalyzerConfig()
     settings = dataclasses.replace(base, expansions=int(max_expansions), nodes=None, engine=engine)
+    if feedback is not None and (simulator is None or settings.batch > 1):
+        raise InvalidParameterError("feedback", "needs a simulator and one expansion at a time (batch 1)")
     deadline = started + budget_s if budget_s is not None else None
-    scores, _ = analyze_frame(
+    scores, field = analyze_frame(
         task,
         state,
         friction=friction,
@@ -132,9 +162,16 @@ def score_state(
         simulator=simulator,
         deadline=deadline,
     )
+    success, continued = scores.success_score, time.perf_counter()
+    if feedback is not None:
+        assert simulator is not None
+        lam = settings.likelihood_lambda if settings.likelihood_lambda is not None else task.config.likelihood_lambda
+        success = controlled_success(simulator, task, state, field, feedback.controllers, lam=lam,
+            samples=feedback.samples, seed=seed, horizon=feedback.horizon_s,
+            period=feedback.period_s).success_score  # fmt: skip
     return LiveScore(
         capture=scores.capture_score,
-        success=scores.success_score,
+        success=success,
         expansions=scores.expansions,
         nodes=scores.nodes,
         seconds=time.perf_counter() - started,
@@ -142,4 +179,5 @@ def score_state(
         rejected=scores.rejected,
         diverged=scores.diverged,
         tree_capture=scores.tree_capture_score,
+        continuation_s=time.perf_counter() - continued if feedback is not None else 0.0,
     )

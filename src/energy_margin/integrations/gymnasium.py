@@ -42,6 +42,7 @@ from energy_margin.errors import EnergyMarginError
 from energy_margin.evaluation.monitor import MonitorCalibration, load_calibration
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions
+from energy_margin.integrations.live_policy import Policy
 from energy_margin.integrations.live_session import LiveSession
 
 __all__ = [
@@ -121,6 +122,12 @@ class MarginWrapper(gymnasium.Wrapper):
         calibration: a monitor calibration (``energy-margin monitor --save``: a loaded
             :class:`~energy_margin.evaluation.monitor.MonitorCalibration` or the file of one);
             each scored call then adds ``alarm`` to ``info["energy_margin"]``.
+        policy: the policy driving the robot, ``policy(data) -> ctrl`` on the environment's
+            ``MjData`` (:mod:`~energy_margin.integrations.live_policy`): the success score is
+            continued under it, one command per environment step (``dt``), from ``continuation``
+            of the tree's likely states to the end of the episode (the time limit of
+            ``env.spec.max_episode_steps``; 1 s where there is none).
+        continuation: with a policy, the draws continued under it, >= 1.
 
     """
 
@@ -142,10 +149,14 @@ class MarginWrapper(gymnasium.Wrapper):
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
         calibration: MonitorCalibration | str | Path | None = None,
+        policy: Policy | None = None,
+        continuation: int = 8,
     ) -> None:
         super().__init__(env)
         # Found once here and again at every reset (robosuite rebuilds its simulation there), not per step.
         mj_model, self._data = mujoco_handles(env)
+        # The environment's time per step (Gymnasium's MuJoCo environments: frame_skip x timestep).
+        step_s = float(getattr(env.unwrapped, "dt", mj_model.opt.timestep))
         scorer = LiveModelScorer(
             mj_model,
             objects=objects,
@@ -154,12 +165,17 @@ class MarginWrapper(gymnasium.Wrapper):
             scene=scene,
             perturbation=perturbation,
             margin_model=model,
-            options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
+            options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config,
+                                continuation=continuation),
             origin=environment_name(env),
-        )
+            policy=policy,
+            policy_period_s=step_s,
+        )  # fmt: skip
         if isinstance(calibration, str | Path):
             calibration = load_calibration(calibration)
-        self.session = LiveSession(scorer, every=every, record=record, calibration=calibration)
+        spec = getattr(env, "spec", None)
+        self.session = LiveSession(scorer, every=every, record=record, calibration=calibration, step_s=step_s,
+                                   episode_steps=getattr(spec, "max_episode_steps", None))  # fmt: skip
         self.scorer = scorer
 
     @property

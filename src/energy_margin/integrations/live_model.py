@@ -39,8 +39,9 @@ import mujoco
 import numpy as np
 
 from energy_margin.analysis.frame import AnalyzerConfig
-from energy_margin.analysis.live import MAX_EXPANSIONS, LiveScore, score_state
+from energy_margin.analysis.live import MAX_EXPANSIONS, FeedbackContinuation, LiveScore, score_state
 from energy_margin.errors import EnergyMarginError, check_choice, check_positive_float, check_positive_int
+from energy_margin.integrations.live_policy import Policy, PolicyControllers
 from energy_margin.sim.base import CompiledModel, ModelCommand, require
 from energy_margin.sim.mujoco_audit import WarningLog
 from energy_margin.tasks.scene_file import read_scene_file, scene_spec_from_tables, set_table
@@ -75,6 +76,7 @@ INFO_KEYS = (
     "rejected",
     "diverged",
     "tree_capture_score",
+    "continuation_ms",
 )
 
 
@@ -139,6 +141,8 @@ class LiveOptions:
             ``"coasting"`` (it keeps its current joint velocities).
         seed: root seed; call k uses the k-th child of ``numpy.random.SeedSequence(seed)``.
         config: further analysis settings (cost model, lambda, ...); its budgets are replaced.
+        continuation: with a policy, the draws whose continuation under it scores success, >= 1.
+        horizon_s: with a policy, how far its continuations run, s, where a call gives no horizon.
 
     """
 
@@ -147,6 +151,8 @@ class LiveOptions:
     hold: Hold = "action"
     seed: int = 0
     config: AnalyzerConfig | None = None
+    continuation: int = 8
+    horizon_s: float = 1.0
 
 
 class LiveModelScorer:
@@ -168,6 +174,12 @@ class LiveModelScorer:
             :class:`~energy_margin.learning.margin_model.MarginModel`) to use instead of the tree.
         options: budget, hold, seed and analysis settings.
         origin: what messages call the model, e.g. ``"Pusher-v5"``.
+        policy: the policy driving the robot, ``policy(data) -> ctrl``
+            (:mod:`~energy_margin.integrations.live_policy`): the success score is then continued
+            under it from the tree's likely states to the call's horizon (after the tree, beyond
+            ``budget_s``); ``None``: the tree's own success score.
+        policy_period_s: time between two of the policy's commands, s (the environment's control
+            step; ``None``: the model's time step).
 
     Raises:
         EnergyMarginError: objects that match no body, a region naming an unknown body or site,
@@ -189,11 +201,17 @@ class LiveModelScorer:
         margin_model: Any = None,
         options: LiveOptions | None = None,
         origin: str = "model",
+        policy: Policy | None = None,
+        policy_period_s: float | None = None,
     ) -> None:
         options = options if options is not None else LiveOptions()
         if options.budget_s is not None:
             check_positive_float("budget_s", options.budget_s)
         check_positive_int("max_expansions", options.max_expansions)
+        check_positive_int("continuation", options.continuation)
+        check_positive_float("horizon_s", options.horizon_s)
+        if policy_period_s is not None:
+            check_positive_float("policy_period_s", policy_period_s)
         check_choice("hold", options.hold, ("action", "still", "coasting"))
         self.options = options
         model = copy.copy(model)
@@ -224,6 +242,10 @@ class LiveModelScorer:
         self.simulator = self.task.make_simulator(loaded.n_objects, self.friction, self.drive)
         compiled = require(self.simulator, CompiledModel, purpose="live scoring of a user's model")
         self._model, self._data = compiled.model, compiled.data
+        if policy is not None and margin_model is not None:
+            raise EnergyMarginError("give either a policy or a margin model, not both: a learned margin grows no tree")
+        self.policy = PolicyControllers.of(policy, self._model) if policy is not None else None
+        self.policy_period_s = policy_period_s if policy_period_s is not None else float(self._model.opt.timestep)
         self._seeds = np.random.SeedSequence(options.seed)
         self.margin_model = _load_model(margin_model, loaded.model_sha256)
         self._overruns: list[float] = []
@@ -263,10 +285,13 @@ class LiveModelScorer:
         reserve = max(self._overruns[-OVERRUN_WINDOW:], default=0.0)
         return max(budget - reserve, 0.5 * budget)
 
-    def score(self, data: mujoco.MjData) -> dict[str, Any]:
+    def score(self, data: mujoco.MjData, *, horizon_s: float | None = None) -> dict[str, Any]:
         """Score the state held in ``data``: ``capture_score``, ``success_score``, ``expansions``, ``ms`` ...
 
-        ``ms`` is the wall time of the whole call (reading the state included), milliseconds.
+        ``ms`` is the wall time of the whole call (reading the state included), milliseconds;
+        ``continuation_ms`` the part spent continuing under the policy. ``horizon_s``: with a
+        policy, how far its continuations run, s (the rest of the episode; ``None``: the options'
+        ``horizon_s``; 0 or less: none runs, the episode is over).
         """
         started = time.perf_counter()
         state = self.frame(data)
@@ -281,13 +306,14 @@ class LiveModelScorer:
         if self.margin_model is not None:
             result = self.margin_model.score_state(self.task, state)
         else:
+            feedback = self._feedback(horizon_s, float(data.time))
             with self.warning_log:  # MuJoCo's warnings of the trees, not MUJOCO_LOG.TXT in the cwd
                 result = score_state(self.task, state, friction=self.friction, drive=self.drive, budget_s=tree_budget,
                     seed=seed, max_expansions=self.options.max_expansions, simulator=self.simulator,
-                    config=self.options.config)  # fmt: skip
+                    config=self.options.config, feedback=feedback)  # fmt: skip
         seconds = time.perf_counter() - started
         if tree_budget is not None and self.margin_model is None:
-            self._overruns.append(max(seconds - tree_budget, 0.0))
+            self._overruns.append(max(seconds - result.continuation_s - tree_budget, 0.0))
             del self._overruns[:-OVERRUN_WINDOW]
         return {
             "capture_score": float(result.capture),
@@ -300,7 +326,19 @@ class LiveModelScorer:
             "rejected": int(result.rejected),
             "diverged": int(result.diverged),
             "tree_capture_score": float(result.tree_capture),
+            "continuation_ms": 1000.0 * result.continuation_s,
         }
+
+    def _feedback(self, horizon_s: float | None, time: float) -> FeedbackContinuation | None:
+        """The continuation under the policy of a state at ``time`` (s, the environment's clock), ``horizon_s`` left.
+
+        ``None`` without a policy or with no time left.
+        """
+        horizon = self.options.horizon_s if horizon_s is None else horizon_s
+        if self.policy is None or horizon <= 0.0:
+            return None
+        controllers = replace(self.policy, start_time=time)
+        return FeedbackContinuation(controllers, horizon, self.policy_period_s, self.options.continuation)
 
     def labels(self, data: mujoco.MjData) -> tuple[bool, bool]:
         """Whether the state in ``data`` is in the capture set and in the success set."""

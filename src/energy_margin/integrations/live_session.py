@@ -91,22 +91,36 @@ class LiveSession:
         record: keep the episode's rows.
         calibration: a margin calibration of ``energy-margin monitor``: every scored call adds
             ``alarm`` (:class:`~energy_margin.evaluation.monitor.LiveAlarm`; the reset's call is frame 0).
+        step_s: the environment's time per step, s.
+        episode_steps: steps of a whole episode (its time limit), or ``None``: with a policy, a
+            scored call's continuations then run to the end of the episode, ``(episode_steps -
+            steps) * step_s`` ahead, else the scorer's ``horizon_s``.
 
     """
 
     def __init__(
-        self, scorer: LiveModelScorer, *, every: int, record: bool, calibration: MonitorCalibration | None = None
+        self,
+        scorer: LiveModelScorer,
+        *,
+        every: int,
+        record: bool,
+        calibration: MonitorCalibration | None = None,
+        step_s: float = 0.0,
+        episode_steps: int | None = None,
     ) -> None:
         check_positive_int("every", every, minimum=0)
         self.scorer = scorer
         self.every = every
+        self.step_s = step_s
+        self.episode_steps = episode_steps
         self.recorder = EpisodeRecorder() if record else None
         self.steps = 0
         self.alarm = LiveAlarm(calibration) if calibration is not None else None
 
     def _scored(self, data: mujoco.MjData) -> dict[str, Any]:
         """The scores of the state in ``data``, with ``alarm`` when a calibration watches them."""
-        scores = self.scorer.score(data)
+        left = None if self.episode_steps is None else (self.episode_steps - self.steps) * self.step_s
+        scores = self.scorer.score(data, horizon_s=left)
         if self.alarm is not None:
             capture = scores["tree_capture_score"]  # a capture alarm watches the tree's own, as calibrated
             capture = capture if math.isfinite(capture) else scores["capture_score"]
