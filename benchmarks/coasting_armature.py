@@ -164,11 +164,15 @@ def main() -> None:
         package = package_armature(robot)
         where = {a: armature_copy(source, args.work / f"armature-{a:g}" / name) for a in {*armatures, package}}
         entry: dict[str, Any] = {"robot": robot, "package_armature": package, "armatures": {}}
+        seconds = {armature: _analysed(directory, patched_cli(armature)) for armature, directory in where.items()}
         for armature, directory in sorted(where.items(), reverse=True):
-            seconds = _analysed(directory, patched_cli(armature))
             found = set_results(directory)
             difference = against_package(directory, where[package])
-            entry["armatures"][f"{armature:g}"] = {**found, "seconds_per_frame": seconds, "against_package": difference}
+            entry["armatures"][f"{armature:g}"] = {
+                **found,
+                "seconds_per_frame": seconds[armature],
+                "against_package": difference,
+            }
             print(f"{name} {armature:g}: " + "; ".join(f"{q} {a['cell']}" for q, a in found["questions"].items()))
         document["rows"] += comparison_rows(name, entry)
         document["sets"][name] = entry
