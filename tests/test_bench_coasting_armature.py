@@ -77,3 +77,36 @@ def test_a_row_holds_both_armatures_margins_and_their_paired_difference(bench) -
          "package_margin": "0.8", "armature": 1e8, "margin": "0.9", "difference": 0.05, "low": -0.1, "high": 0.2,
          "word": "level"}
     ]  # fmt: skip
+
+
+def test_the_benchmark_compares_each_armature_with_the_package_s_on_the_same_set(
+    bench, tmp_path: Path, monkeypatch
+) -> None:
+    """The whole run on a tiny recorded set: every armature analysed (the package's too, though it sorts
+    after the other), each row against the package's."""
+    import sys
+
+    rollouts = write_arm_rollouts(tmp_path / "rollouts", count=4)
+    scene = write_tiny_scene(tmp_path / "scene", scene=ARM_SCENE.replace("ROBOT", 'robot = "coasting"'),
+                             model=ARM_OVER_PUCK)  # fmt: skip
+    recorded = tmp_path / "work" / "demos_coasting"
+    assert main(["record", "--scene", str(scene), *map(str, rollouts), "--frames", "6", "--out", str(recorded)]) == 0
+    monkeypatch.setattr(bench, "_sets", lambda work, names, seed: {"demos_coasting": recorded})
+    monkeypatch.setattr(sys.modules["robomimic_demos"], "EXPANSIONS", 10)
+    out = tmp_path / "armature.json"
+    argv = ["coasting_armature.py", "--work", str(tmp_path / "work"), "--out", str(out), "--armatures", "1e8,1e6"]
+    monkeypatch.setattr(sys, "argv", argv)
+    bench.main()
+    document = json.loads(out.read_text())
+    entry = document["sets"]["demos_coasting"]
+    assert entry["package_armature"] == 1e6 and set(entry["armatures"]) == {"1e+08", "1e+06"}
+    assert all(
+        (tmp_path / "work" / f"armature-{a}" / "demos_coasting" / "scores.csv").exists() for a in ("1e+08", "1e+06")
+    )
+    package = entry["armatures"]["1e+06"]
+    assert all(change["difference"] in (0.0, None) for change in package["against_package"].values())
+    rows = document["rows"]
+    assert [row["armature"] for row in rows] == [1e8] * len(package["questions"])
+    for row in rows:
+        assert row["package_margin"] == package["questions"][row["question"]]["cell"]
+        assert row["margin"] == entry["armatures"]["1e+08"]["questions"][row["question"]]["cell"]
