@@ -94,3 +94,36 @@ def test_live_scores_quick(tmp_path: Path) -> None:
     assert len(scores["trajectory"]) == 2 * 11
     assert (out / "scene.toml").read_text().count(f"lambda = {results['lambda']!r}") == 1
     assert (out / "episode_scores.png").stat().st_size > 0
+
+
+def test_a_copy_of_the_policy_keeps_its_phase_and_draws_noise_of_its_own() -> None:
+    import copy
+
+    policy = _module("policy")
+    env = gymnasium.make("Pusher-v5")
+    model, data = env.unwrapped.model, env.unwrapped.data
+    env.reset(seed=1003)
+    pusher = policy.ScriptedPusher(model, 0.2, np.random.default_rng(4))
+    for _ in range(12):
+        env.step(pusher(data))
+    untouched = copy.deepcopy(pusher.rng)
+    copied = copy.deepcopy(pusher)
+    assert copied.phase == pusher.phase and copied.model is pusher.model and copied.scratch is not pusher.scratch
+    np.testing.assert_array_equal(copied.solution, pusher.solution)
+    # The copy's noise is its own; the original draws on as if no copy had been made.
+    ahead = untouched.normal(size=7)
+    np.testing.assert_array_equal(pusher.rng.normal(size=7), ahead)
+    assert not np.array_equal(copied.rng.normal(size=7), ahead)
+
+
+def test_the_policy_s_continuation_leaves_the_episodes_as_they_were(tmp_path: Path) -> None:
+    """The same episodes with the success continued under copies of the policy: the same outcomes."""
+    pytest.importorskip("matplotlib", reason="the example draws a picture (pip install 'energy-margin[plot]')")
+    live_scores = _module("live_scores")
+    arguments = ["--episodes", "2", "--calibration-episodes", "2", "--calibration-expansions", "5"]
+    arguments += ["--budget", "0.002", "--lambdas", "5"]
+    plain = live_scores.main([*arguments, "--out", str(tmp_path / "plain")])
+    continued = live_scores.main([*arguments, "--out", str(tmp_path / "continued"), "--policy-continuation", "2"])
+    assert (plain["policy_continuation"], continued["policy_continuation"]) == (0, 2)
+    assert continued["final_distances"] == plain["final_distances"]
+    assert continued["timing"]["mean_ms"] > plain["timing"]["mean_ms"]  # the continuations run after the tree

@@ -150,12 +150,14 @@ def planar_distance(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(np.linalg.norm(data.xpos[model.body("object").id][:2] - data.xpos[model.body("goal").id][:2]))
 
 
-def run_episode(wrapper: MarginWrapper, env_seed: int, seed: int, noise: float, *, scored: bool) -> dict[str, Any]:
-    """One episode of the scripted policy; returns its scores (one dict per scored step) and outcome.
+def run_episode(wrapper: MarginWrapper, env_seed: int, seed: int, policy: Any, *, scored: bool) -> dict[str, Any]:
+    """One episode of the scripted ``policy``; returns its scores (one dict per scored step) and outcome.
 
-    ``scored``: whether the wrapper scores (then the start state is scored too).
+    The policy starts the episode with the noise generator of ``(seed, env_seed)``; ``scored``:
+    whether the wrapper scores (then the start state is scored too).
     """
     model, data = wrapper.unwrapped.model, wrapper.unwrapped.data
+    policy.reset(np.random.default_rng([seed, env_seed]))
     _, info = wrapper.reset(seed=env_seed)
     scores: list[dict[str, Any]] = []
     steps: list[int] = []
@@ -164,7 +166,6 @@ def run_episode(wrapper: MarginWrapper, env_seed: int, seed: int, noise: float, 
         scores.append(info["energy_margin"] if "energy_margin" in info else wrapper.scorer.score(data))
         steps.append(0)
     start = np.array(data.xpos[model.body("object").id][:2])
-    policy = policy_class()(model, noise, np.random.default_rng([seed, env_seed]))
     for step in range(1, STEPS + 1):
         _, _, terminated, truncated, info = wrapper.step(policy(data))
         if "energy_margin" in info:
@@ -302,9 +303,10 @@ def calibrate(
     scene = out / "calibration.toml"
     scene.write_text(scene_text("pusher.xml", None), encoding="utf-8")
     recorder = MarginWrapper(env, scene=scene, every=0, record=True)
+    policy = policy_class()(recorder.unwrapped.model, noise, np.random.default_rng(seed))
     files, outcomes = [], []
     for index, env_seed in enumerate(seeds):
-        episode = run_episode(recorder, env_seed, seed, noise, scored=False)
+        episode = run_episode(recorder, env_seed, seed, policy, scored=False)
         files.append(recorder.save_episode(folder / f"episode_{index:03d}.npz"))
         outcomes.append(episode["success"])
         print(
@@ -456,7 +458,16 @@ def parse_arguments(argv: Sequence[str] | None) -> argparse.Namespace:
         "--calibration-expansions", type=int, default=125, help="expansions of a calibration tree (no budget)"
     )
     parser.add_argument("--lambdas", type=float, nargs="+", default=list(LAMBDAS), help="lambda candidates, 1/J")
+    parser.add_argument(
+        "--policy-continuation",
+        type=int,
+        default=0,
+        metavar="K",
+        help="continue the success score under the policy from K of each tree's states (0: the tree's own)",
+    )
     args = parser.parse_args(argv)
+    if args.policy_continuation < 0:
+        parser.error("--policy-continuation must be at least 0")
     if min(args.episodes, args.calibration_episodes, args.calibration_expansions) < 1:
         parser.error("--episodes, --calibration-episodes and --calibration-expansions must be at least 1")
     if args.budget <= 0:
@@ -491,11 +502,14 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     scene = out / "scene.toml"
     scene.write_text(scene_text("pusher.xml", lam), encoding="utf-8")
 
-    wrapper = MarginWrapper(env, scene=scene, every=EVERY, budget_s=args.budget, record=True, seed=args.seed)
+    policy = policy_class()(env.unwrapped.model, args.noise, np.random.default_rng(args.seed))
+    continued = {"policy": policy, "continuation": args.policy_continuation} if args.policy_continuation else {}
+    wrapper = MarginWrapper(env, scene=scene, every=EVERY, budget_s=args.budget, record=True, seed=args.seed,
+                            **continued)  # type: ignore[arg-type]  # fmt: skip
     episodes, files = [], []
     print(f"reported: env seeds {env_seeds[0]}..{env_seeds[-1]}")
     for index, env_seed in enumerate(env_seeds):
-        episode = run_episode(wrapper, env_seed, args.seed, args.noise, scored=True)
+        episode = run_episode(wrapper, env_seed, args.seed, policy, scored=True)
         files.append(wrapper.save_episode(out / "episodes" / f"episode_{index:03d}.npz"))
         episodes.append(episode)
         ms = [score["ms"] for score in episode["scores"]]
@@ -533,6 +547,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "environment": ENVIRONMENT,
         "episodes": args.episodes,
         "budget_s": args.budget,
+        "policy_continuation": args.policy_continuation,
         "seed": args.seed,
         "noise": args.noise,
         "env_seeds": env_seeds,

@@ -26,9 +26,16 @@ orientation by damped least squares on a scratch ``MjData`` (joint limits respec
 the joints there with a proportional-derivative torque clipped to the action range [-2, 2] N m;
 Gaussian noise on the torques makes some episodes fail. The policy only reads the environment's
 state.
+
+A copy (``copy.deepcopy``, what the live scorer runs to continue the success score from a tree's
+states) keeps the phase and the last solution, shares the model, and draws its noise from a
+generator of its own, spawned from the policy's seed: the copies' noise is not the episode's.
 """
 
 from __future__ import annotations
+
+import copy
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -95,10 +102,20 @@ class ScriptedPusher:
         self.solution: np.ndarray | None = None
         self.roll = 0.0
 
-    def reset(self) -> None:
-        """A new episode starts with the approach."""
+    def reset(self, rng: np.random.Generator | None = None) -> None:
+        """A new episode starts with the approach (and draws its noise from ``rng`` when given)."""
         self.phase = "approach"
         self.solution = None
+        if rng is not None:
+            self.rng = rng
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> ScriptedPusher:
+        """A copy with its own scratch data and noise (spawned from this policy's seed), the model shared."""
+        other = copy.copy(self)
+        other.scratch = mujoco.MjData(self.model)
+        other.solution = None if self.solution is None else self.solution.copy()
+        other.rng = np.random.default_rng(self.rng.bit_generator.seed_seq.spawn(1)[0])  # type: ignore[attr-defined]
+        return other
 
     def _reference(self, target: np.ndarray, roll: float) -> np.ndarray:
         """A posture reaching down toward ``target``, the upper arm rolled by ``roll``: where the solver starts."""
