@@ -95,7 +95,7 @@ class FeedbackContinuation:
     controllers: Callable[[], Controller]
     horizon_s: float
     period_s: float
-    samples: int = 8
+    samples: int = 4
 
 
 def score_state(

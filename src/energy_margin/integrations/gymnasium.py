@@ -150,7 +150,7 @@ class MarginWrapper(gymnasium.Wrapper):
         config: AnalyzerConfig | None = None,
         calibration: MonitorCalibration | str | Path | None = None,
         policy: Policy | None = None,
-        continuation: int = 8,
+        continuation: int = 4,
     ) -> None:
         super().__init__(env)
         # Found once here and again at every reset (robosuite rebuilds its simulation there), not per step.

@@ -151,7 +151,7 @@ class LiveOptions:
     hold: Hold = "action"
     seed: int = 0
     config: AnalyzerConfig | None = None
-    continuation: int = 8
+    continuation: int = 4
     horizon_s: float = 1.0
 
 
