@@ -94,3 +94,12 @@ def test_a_continuation_needs_a_positive_period_and_horizon() -> None:
     with pytest.raises(InvalidParameterError, match=r"^horizon_s must be a finite number > 0"):
         LiveModelScorer(mujoco.MjModel.from_xml_string(ARM_OVER_PUCK), objects="puck", capture=PUSHED,
                         success=PUSHED, options=LiveOptions(horizon_s=-1.0))  # fmt: skip
+
+
+def test_a_policy_is_refused_beside_a_held_or_coasting_robot() -> None:
+    """Still and coasting robots carry a heavy armature: a policy's torques would not move them."""
+    model = mujoco.MjModel.from_xml_string(ARM_OVER_PUCK)
+    for hold in ("still", "coasting"):
+        with pytest.raises(EnergyMarginError, match=rf"^a policy drives the robot through .*'{hold}'"):
+            LiveModelScorer(model, objects="puck", capture=PUSHED, success=PUSHED, policy=Sweep(),
+                            options=LiveOptions(hold=hold))  # type: ignore[arg-type]  # fmt: skip

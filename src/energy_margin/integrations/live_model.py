@@ -244,6 +244,10 @@ class LiveModelScorer:
         self._model, self._data = compiled.model, compiled.data
         if policy is not None and margin_model is not None:
             raise EnergyMarginError("give either a policy or a margin model, not both: a learned margin grows no tree")
+        if policy is not None and options.hold != "action":
+            raise EnergyMarginError(
+                f"a policy drives the robot through its own actuators: give hold='action', not {options.hold!r}"
+            )
         self.policy = PolicyControllers.of(policy, self._model) if policy is not None else None
         self.policy_period_s = policy_period_s if policy_period_s is not None else float(self._model.opt.timestep)
         self._seeds = np.random.SeedSequence(options.seed)
