@@ -360,9 +360,8 @@ def controlled_success(
         simulator.set_state(field.states[node])
         simulator.set_object_wrenches(np.zeros((n_objects, 6)))
         control = controllers()
-        for step in range(steps):
-            if step % every == 0:
-                control(simulator)
-            simulator.step(1)
+        for step in range(0, steps, every):  # a command, then the physics steps it is held
+            control(simulator)
+            simulator.step(min(every, steps - step))
         ends.append(_end_of(simulator))
     return _scored(task, root, draws, samples, _stacked(ends))
