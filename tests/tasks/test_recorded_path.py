@@ -92,6 +92,22 @@ def test_a_recorded_arm_follows_its_path_through_the_puck(tmp_path: Path, robot:
         assert end > 1.5  # kept turning at the frame's 1.78 rad/s
 
 
+def _propagated_controls(simulator, task, drives: np.ndarray, times: np.ndarray, n_steps: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The control vectors a batched propagation hands MuJoCo, shape (rows, n_chunks, control_size)."""
+    propagator = simulator.rollout_propagator(1)
+    seen = {}
+
+    def keep(initial, chunks, period, n_steps, models=None):  # type: ignore[no-untyped-def]
+        seen["controls"] = chunks.copy()
+        return initial
+
+    propagator._roll_to = keep  # type: ignore[method-assign]
+    rows = len(times)
+    states = np.repeat(propagator.current_state()[None], rows, axis=0)
+    propagator.propagate(task, drives, states, times, np.zeros((rows, 1, 6)), np.full(rows, n_steps), 1)
+    return seen["controls"]
+
+
 def test_batched_propagation_applies_the_path_s_forces_bit_for_bit(tmp_path: Path) -> None:
     task = _task(tmp_path, 'robot = "recorded"\npath_points = 30')
     time = np.arange(0.0, 2.0 + 1e-9, 0.01)
@@ -112,20 +128,11 @@ def test_batched_propagation_applies_the_path_s_forces_bit_for_bit(tmp_path: Pat
         np.testing.assert_array_equal(one, forces[j])
     # The batched call writes them into each propagation's control vector.
     simulator = task.make_simulator(1, task.default_friction(), drives_array[0])
-    propagator = simulator.rollout_propagator(1)
-    seen = {}
-
-    def keep(initial, chunks, period, n_steps, models=None):  # type: ignore[no-untyped-def]
-        seen["controls"] = chunks.copy()
-        return initial
-
-    propagator._roll_to = keep  # type: ignore[method-assign]
-    states = np.repeat(propagator.current_state()[None], 5, axis=0)
-    propagator.propagate(task, drives_array, states, times, np.zeros((5, 1, 6)), np.full(5, 3), 1)
+    controls = _propagated_controls(simulator, task, drives_array, times, 3)
     nu, qfrc = int(simulator.model.nu), simulator.index.robot_qvel
     for chunk in range(3):
         expected = task.batched_robot_force(drives_array, times + 0.01 * chunk)[:, 0]
-        np.testing.assert_array_equal(seen["controls"][:, chunk, nu + qfrc[0]], expected)
+        np.testing.assert_array_equal(controls[:, chunk, nu + qfrc[0]], expected)
     assert simulator.model.dof_armature[qfrc[0]] == RECORDED_ARMATURE
 
 
@@ -192,16 +199,7 @@ def test_a_task_commanding_by_model_commands_alone_gets_zero_forces_in_a_batched
     """A task with ``batched_model_command`` but no ``batched_robot_force`` (another package's) propagates."""
     task = _task(tmp_path, "")
     simulator = task.make_simulator(1, task.default_friction(), np.ones(2))
-    propagator = simulator.rollout_propagator(1)
-    seen = {}
-
-    def keep(initial, chunks, period, n_steps, models=None):  # type: ignore[no-untyped-def]
-        seen["controls"] = chunks.copy()
-        return initial
-
-    propagator._roll_to = keep  # type: ignore[method-assign]
     monkeypatch.setattr(type(task), "batched_robot_force", None)
-    states = np.repeat(propagator.current_state()[None], 3, axis=0)
-    propagator.propagate(task, np.ones((3, 2)), states, np.zeros(3), np.zeros((3, 1, 6)), np.full(3, 2), 1)
+    controls = _propagated_controls(simulator, task, np.ones((3, 2)), np.zeros(3), 2)
     qfrc = int(simulator.model.nu) + simulator.index.robot_qvel[0]
-    np.testing.assert_array_equal(seen["controls"][:, :, qfrc], 0.0)
+    np.testing.assert_array_equal(controls[:, :, qfrc], 0.0)
