@@ -14,6 +14,7 @@ from energy_margin.integrations.dm_control import (
     MarginEnvironment,
     PhysicsScorer,
     align_dm_control_index,
+    episode_steps,
     physics_handles,
 )
 from energy_margin.integrations.live_model import INFO_KEYS
@@ -110,3 +111,59 @@ def test_a_calibration_adds_the_alarm() -> None:
     for action in steps(wrapper, 2):
         wrapper.step(action)
     assert [margin["alarm"] for margin in wrapper.margins] == [False, True, True]  # call 0 is not monitored
+
+
+class CountedPolicy:
+    """Holds the physics' controls where they are; every copy counts its calls in one shared list."""
+
+    def __init__(self, calls: list[int]) -> None:
+        self.calls = calls
+        self.index = -1
+
+    def __deepcopy__(self, memo: dict) -> CountedPolicy:  # type: ignore[type-arg]
+        copy = CountedPolicy(self.calls)
+        copy.index = len(self.calls)
+        self.calls.append(0)
+        return copy
+
+    def __call__(self, data) -> np.ndarray:  # type: ignore[no-untyped-def]
+        self.calls[self.index] += 1
+        return np.array(data.ctrl)
+
+
+def test_a_policy_continues_the_success_score_to_the_end_of_the_episode() -> None:
+    """Composer's 0.4 s episode of 0.04 s control steps: each copy commands every step left, one per step."""
+    from dm_control import composer
+    from dm_control.manipulation.shared import registry
+
+    def episode():  # type: ignore[no-untyped-def]
+        return composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=0.4, random_state=3)
+
+    calls: list[int] = []
+    policy = CountedPolicy(calls)
+    wrapper = MarginEnvironment(episode(), objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, budget_s=None,
+                                max_expansions=5, policy=policy, continuation=3)  # fmt: skip
+    plain = episode()
+    assert (wrapper.session.step_s, wrapper.session.episode_steps) == (pytest.approx(0.04), 10)
+    first, reference = wrapper.reset(), plain.reset()
+    # Each copy commands every 0.04 s from its node (up to a few steps past the scored state) to the episode's end.
+    per_call = [calls[:]]
+    assert wrapper.margin is not None and wrapper.margin["continuation_ms"] > 0.0
+    for action in steps(plain, 6):
+        before = len(calls)
+        a, b = plain.step(action), wrapper.step(action)
+        per_call.append(calls[before:])
+        assert a.reward == b.reward and all(np.array_equal(v, b.observation[k]) for k, v in a.observation.items())
+    for done, copies in enumerate(per_call):
+        left = 10 - done
+        assert 1 <= len(copies) <= 3 and min(copies) >= 1 and left - 3 <= max(copies) <= left, (done, copies)
+    assert policy.index == -1  # the policy driving the robot was never called, only its copies
+    assert set(first.observation) == set(reference.observation)
+
+
+def test_episode_steps_of_either_kind_of_time_limit() -> None:
+    from dm_control import suite
+
+    assert episode_steps(suite.load("cartpole", "balance"), 0.01) == 1000  # control: counted in steps
+    assert episode_steps(lift_brick(), 0.04) == 250  # composer: 10 s of physics time
+    assert episode_steps(object(), 0.04) is None

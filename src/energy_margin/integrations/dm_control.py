@@ -8,7 +8,9 @@ its ``step`` returns the environment's ``TimeStep`` unchanged and, every ``every
 scores of the state reached in :attr:`MarginEnvironment.margin` (the same dict as Gymnasium's
 ``info["energy_margin"]``) and appends them to :attr:`MarginEnvironment.margins`. The robot holds
 its last action during the tree's propagation (see
-:mod:`energy_margin.integrations.live_model`).
+:mod:`energy_margin.integrations.live_model`); given the ``policy`` that drives it, the success
+score is continued under that policy to the end of the episode
+(:mod:`~energy_margin.integrations.live_policy`).
 
 Needs ``pip install 'energy-margin[dm]'``. dm_control 1.0.50 indexes a few flex fields that MuJoCo
 4.0's ``MjModel`` and ``MjData`` no longer have (``flex_vertedge`` and eight more), so building
@@ -20,6 +22,7 @@ not exist.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -31,12 +34,14 @@ from energy_margin.analysis.live import MAX_EXPANSIONS
 from energy_margin.evaluation.monitor import MonitorCalibration, load_calibration
 from energy_margin.integrations.handles import find_mujoco
 from energy_margin.integrations.live_model import Hold, LiveModelScorer, LiveOptions
+from energy_margin.integrations.live_policy import Policy
 from energy_margin.integrations.live_session import LiveSession
 
 __all__ = [
     "MarginEnvironment",
     "PhysicsScorer",
     "align_dm_control_index",
+    "episode_steps",
     "physics_handles",
 ]
 
@@ -86,6 +91,22 @@ class PhysicsScorer(LiveModelScorer):
         return self.score(physics_handles(self.physics)[1])
 
 
+def episode_steps(env: Any, step_s: float) -> int | None:
+    """Steps of a whole episode of a dm_control environment, or ``None`` when it has no time limit.
+
+    ``dm_control.rl.control.Environment`` counts steps against its ``time_limit`` (``_step_limit``);
+    ``dm_control.composer.Environment`` compares the physics' time with it (``_time_limit``, s), so
+    its episode ends after ``ceil(time_limit / step_s)`` steps of ``step_s`` seconds.
+    """
+    step_limit = getattr(env, "_step_limit", None)
+    if isinstance(step_limit, int | float) and math.isfinite(step_limit):
+        return math.ceil(step_limit)
+    time_limit = getattr(env, "_time_limit", None)
+    if isinstance(time_limit, int | float) and math.isfinite(time_limit) and step_s > 0:
+        return math.ceil(time_limit / step_s - 1e-9)
+    return None
+
+
 class MarginEnvironment:
     """A ``dm_env`` environment whose steps are scored every ``every`` steps (see the module docstring).
 
@@ -107,6 +128,12 @@ class MarginEnvironment:
         config: further analysis settings.
         calibration: a monitor calibration (a loaded ``MonitorCalibration`` or the file of one,
             ``energy-margin monitor --save``); each scored call's ``margin`` then holds ``alarm``.
+        policy: the policy driving the robot, ``policy(data) -> ctrl`` on the physics' ``MjData``
+            (the actuator controls, shape (nu,): what the task's ``before_step`` makes of an
+            action): the success score is continued under it, one command per control step
+            (``env.control_timestep()``), from ``continuation`` of the tree's likely states to the
+            end of the episode (the environment's time limit; 1 s where there is none).
+        continuation: with a policy, the draws continued under it, >= 1.
 
     """
 
@@ -128,8 +155,12 @@ class MarginEnvironment:
         perturbation: Mapping[str, Any] | None = None,
         config: AnalyzerConfig | None = None,
         calibration: MonitorCalibration | str | Path | None = None,
+        policy: Policy | None = None,
+        continuation: int = 4,
     ) -> None:
         self.env = env
+        control_timestep = getattr(env, "control_timestep", None)
+        step_s = float(control_timestep()) if callable(control_timestep) else physics_handles(env)[0].opt.timestep
         self.scorer = PhysicsScorer(
             env,
             objects=objects,
@@ -138,12 +169,16 @@ class MarginEnvironment:
             scene=scene,
             perturbation=perturbation,
             margin_model=model,
-            options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config),
+            options=LiveOptions(budget_s=budget_s, max_expansions=max_expansions, hold=hold, seed=seed, config=config,
+                                continuation=continuation),
             origin=type(env).__name__,
-        )
+            policy=policy,
+            policy_period_s=step_s,
+        )  # fmt: skip
         if isinstance(calibration, str | Path):
             calibration = load_calibration(calibration)
-        self.session = LiveSession(self.scorer, every=every, record=record, calibration=calibration)
+        self.session = LiveSession(self.scorer, every=every, record=record, calibration=calibration, step_s=step_s,
+                                   episode_steps=episode_steps(env, step_s))  # fmt: skip
         # Found once here and again at every reset (a composer task may rebuild its physics there), not per step.
         self._data = physics_handles(env)[1]
         self.margin: dict[str, Any] | None = None
