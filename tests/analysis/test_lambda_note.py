@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from energy_margin.analysis.frame import AnalyzerConfig
-from energy_margin.analysis.run import analyze_dataset, lambda_note
+from energy_margin.analysis.run import analyze_dataset, unchosen_lambda
 from energy_margin.cli import main
+from energy_margin.cli.analyze import lambda_note
 from energy_margin.data.dataset import load_dataset
 from energy_margin.errors import InvalidParameterError
 
@@ -44,6 +45,8 @@ def test_a_chosen_lambda_says_nothing(unset: Path, capsys: pytest.CaptureFixture
     assert main(["analyze", str(unset), *ANALYZE, "--lambda", "5"]) == 0
     assert capsys.readouterr().err == ""
     assert lambda_note(load_dataset(unset), AnalyzerConfig(likelihood_lambda=2.0)) is None
+    assert unchosen_lambda(load_dataset(unset), AnalyzerConfig(likelihood_lambda=2.0)) is None
+    assert unchosen_lambda(load_dataset(unset), AnalyzerConfig()) == "default"
 
 
 def test_a_scene_that_sets_lambda_says_nothing(make_scene, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -69,6 +72,7 @@ def test_a_derived_lambda_is_named_derived(make_scene, tmp_path: Path) -> None:
 def test_a_built_in_task_sets_its_lambda(tiny_dataset: Path) -> None:
     assert load_dataset(tiny_dataset).task.lambda_origin == "set"
     assert lambda_note(load_dataset(tiny_dataset), AnalyzerConfig()) is None
+    assert unchosen_lambda(load_dataset(tiny_dataset), AnalyzerConfig()) is None
 
 
 def test_analyze_dataset_needs_its_directory(tiny_dataset: Path) -> None:

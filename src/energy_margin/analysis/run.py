@@ -32,11 +32,11 @@ __all__ = [
     "ANALYSIS_RUN",
     "analyze",
     "analyze_dataset",
-    "lambda_note",
     "open_analysis",
     "recorded_analyzer",
     "resolved_continuation",
     "run_description",
+    "unchosen_lambda",
     "write_scores",
 ]
 
@@ -266,25 +266,17 @@ def resolved_continuation(description: dict[str, Any]) -> int:
     return decided if decided is not None else 0
 
 
-def lambda_note(dataset: Dataset, config: AnalyzerConfig) -> str | None:
-    """The one-line note for an analysis at a lambda nobody chose: its task sets none, nor does ``config``.
+def unchosen_lambda(dataset: Dataset, config: AnalyzerConfig) -> str | None:
+    """Where the analysis's lambda comes from when nobody chose it: ``"default"`` or ``"derived"``, else ``None``.
 
     A scene file without ``perturbation.lambda`` takes the default or, with ``derive = true``, a
     derived one (:attr:`~energy_margin.tasks.base.Task.lambda_origin`); no rule from the scene or
-    its trees holds the calibrated AP on every example (docs/howto/scenes.md), so the note says how
-    to calibrate. ``None`` when ``config`` or the dataset's task sets lambda.
+    its trees holds the calibrated AP on every example (docs/howto/scenes.md), so such an analysis
+    is uncalibrated. ``None`` when ``config`` or the dataset's task sets lambda.
     """
-    if config.likelihood_lambda is not None:
+    if config.likelihood_lambda is not None or dataset.task.lambda_origin == "set":
         return None
-    task, path = dataset.task, dataset.path
-    if task.lambda_origin == "set":
-        return None
-    return (
-        f"note: lambda is unset and uncalibrated: {task.label} gives no perturbation.lambda, so the scores use "
-        f"the {task.lambda_origin} {task.config.likelihood_lambda:.3g} 1/J; to calibrate it on labelled data: "
-        f"energy-margin calibrate {path} --out CAL, then energy-margin analyze DATASET "
-        "--calibration CAL/calibration.json"
-    )
+    return dataset.task.lambda_origin
 
 
 def open_analysis(

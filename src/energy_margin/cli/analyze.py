@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from energy_margin.analysis.executors import EXECUTORS
 from energy_margin.analysis.frame import ANALYSIS_MODELS, CONVERGE_RULES, DEVICES, AnalyzerConfig
@@ -32,6 +33,9 @@ from energy_margin.planning.methods import METHODS
 from energy_margin.runs.files import read_json
 from energy_margin.sim import check_engine_device
 from energy_margin.tasks.base import CONTACT_MODELS
+
+if TYPE_CHECKING:
+    from energy_margin.data.dataset import Dataset
 
 __all__ = [
     "COSTS",
@@ -339,11 +343,30 @@ def tree_options_given(args: argparse.Namespace) -> list[str]:
     return given
 
 
+def lambda_note(dataset: Dataset, config: AnalyzerConfig) -> str | None:
+    """The one-line note for an analysis at a lambda nobody chose (:func:`~energy_margin.analysis.run.unchosen_lambda`).
+
+    It says how to calibrate; ``None`` when ``config`` or the dataset's task sets lambda.
+    """
+    from energy_margin.analysis.run import unchosen_lambda
+
+    origin = unchosen_lambda(dataset, config)
+    if origin is None:
+        return None
+    task = dataset.task
+    return (
+        f"note: lambda is unset and uncalibrated: {task.label} gives no perturbation.lambda, so the scores use "
+        f"the {origin} {task.config.likelihood_lambda:.3g} 1/J; to calibrate it on labelled data: "
+        f"energy-margin calibrate {dataset.path} --out CAL, then energy-margin analyze DATASET "
+        "--calibration CAL/calibration.json"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Analyse the dataset and print where the scores went."""
     if getattr(args, "model", None) is not None:
         return run_learned(args)
-    from energy_margin.analysis.run import analyze_dataset, lambda_note, resolved_continuation
+    from energy_margin.analysis.run import analyze_dataset, resolved_continuation
     from energy_margin.data.provenance import dataset_note
     from energy_margin.data.validation import require_valid
 
