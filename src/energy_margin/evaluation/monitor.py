@@ -67,6 +67,7 @@ __all__ = [
     "monitored_grid",
     "monitored_grids",
     "tree_capture_known",
+    "watched_score",
     "worst_scores",
     "write_calibration",
 ]
@@ -233,7 +234,12 @@ class MonitorCalibration(TypedResult):
 
     def watched(self, capture: float, success: float) -> float:
         """The watched score of a frame whose capture and success scores are given."""
-        return {"success": success, "capture": capture, "min": min(capture, success)}[self.score]
+        return watched_score(self.score, capture, success)
+
+
+def watched_score(score: str, capture: float, success: float) -> float:
+    """The ``score`` (of :data:`SCORES`) of a frame whose capture and success scores are given."""
+    return {"success": success, "capture": capture, "min": min(capture, success)}[score]
 
 
 class LiveAlarm:

@@ -11,7 +11,6 @@ that ``energy-margin record`` turns into a dataset.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from energy_margin.compat import save_npz
 from energy_margin.errors import EnergyMarginError, check_positive_int
+from energy_margin.evaluation.live_calibration import live_scores
 from energy_margin.evaluation.monitor import LiveAlarm, MonitorCalibration
 from energy_margin.integrations.live_model import LiveModelScorer
 from energy_margin.runs.files import atomic_path
@@ -121,10 +121,8 @@ class LiveSession:
         """The scores of the state in ``data``, with ``alarm`` when a calibration watches them."""
         left = None if self.episode_steps is None else (self.episode_steps - self.steps) * self.step_s
         scores = self.scorer.score(data, horizon_s=left)
-        if self.alarm is not None:
-            capture = scores["tree_capture_score"]  # a capture alarm watches the tree's own, as calibrated
-            capture = capture if math.isfinite(capture) else scores["capture_score"]
-            scores["alarm"] = self.alarm.update(capture, scores["success_score"])
+        if self.alarm is not None:  # a capture alarm watches the tree's own capture score, as calibrated
+            scores["alarm"] = self.alarm.update(*live_scores(scores))
         return scores
 
     def reset(self, data: mujoco.MjData) -> dict[str, Any] | None:
