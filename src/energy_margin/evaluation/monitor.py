@@ -247,7 +247,8 @@ class LiveAlarm:
 
     Call k after :meth:`reset` (the reset's own call is 0) stands for frame k of the calibration's
     trajectories, so the calibration set's frames should be as far apart as the live calls (a set
-    recorded from the same wrapper and cadence, ``energy-margin record``). The alarm is raised at
+    recorded from the same wrapper and cadence, ``energy-margin record``, or the live calls
+    themselves: :func:`~energy_margin.evaluation.live_calibration.calibrate_episodes`). The alarm is raised at
     the ``persistence``-th monitored call below the threshold and stays raised until the next reset.
 
     Raises:
