@@ -260,6 +260,7 @@ def write_scores(directory: Path, episodes: list[dict[str, Any]]) -> None:
                 "frame": frame,
                 "capture_score": float(score["capture_score"]),
                 "success_score": float(score["success_score"]),
+                "tree_capture_score": float(score["tree_capture_score"]),
                 "nodes": int(score["nodes"]),
                 "expansions": int(score["expansions"]),
                 "runtime_s": float(score["ms"]) / 1000.0,
