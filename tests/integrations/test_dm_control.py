@@ -167,3 +167,43 @@ def test_episode_steps_of_either_kind_of_time_limit() -> None:
     assert episode_steps(suite.load("cartpole", "balance"), 0.01) == 1000  # control: counted in steps
     assert episode_steps(lift_brick(), 0.04) == 250  # composer: 10 s of physics time
     assert episode_steps(object(), 0.04) is None
+
+
+def test_a_step_after_the_last_starts_a_new_scored_episode() -> None:
+    """dm_env resets by itself on the step after ``LAST``; composer rebuilds its physics there."""
+    from dm_control import composer
+    from dm_control.manipulation.shared import registry
+
+    env = composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=0.2, random_state=3)
+    wrapper = MarginEnvironment(env, objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, budget_s=None,
+                                max_expansions=3)  # fmt: skip
+    wrapper.reset()
+    actions = steps(env, 7)
+    for action in actions[:5]:
+        time_step = wrapper.step(action)
+    assert time_step.last() and len(wrapper.margins) == 6 == 1 + wrapper.session.episode_steps  # type: ignore[operator]
+    assert wrapper.step(actions[5]).first()
+    assert len(wrapper.margins) == 1 and wrapper.session.steps == 0
+    assert wrapper._data is physics_handles(env)[1]  # the rebuilt physics' data, not the last episode's
+    wrapper.step(actions[6])
+    assert len(wrapper.margins) == 2 and wrapper.session.steps == 1
+
+
+def test_episode_steps_is_where_the_episode_ends() -> None:
+    from dm_control import composer
+    from dm_control.manipulation.shared import registry
+    from dm_control.suite import cartpole
+
+    for limit in (0.4, 1.0):
+        env = composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=limit, random_state=0)
+        env.reset()
+        count, action = 0, np.zeros(env.action_spec().shape)
+        while not env.step(action).last():
+            count += 1
+        assert count + 1 == episode_steps(env, env.control_timestep())
+    control = cartpole.balance(time_limit=0.5)
+    control.reset()
+    count = 1
+    while not control.step(np.zeros(1)).last():
+        count += 1
+    assert count == episode_steps(control, control.control_timestep())

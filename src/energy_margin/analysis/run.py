@@ -267,7 +267,7 @@ def resolved_continuation(description: dict[str, Any]) -> int:
 
 
 def unchosen_lambda(dataset: Dataset, config: AnalyzerConfig) -> str | None:
-    """Where the analysis's lambda comes from when nobody chose it: ``"default"`` or ``"derived"``, else ``None``.
+    """Where the analysis's lambda comes from when nobody chose it (the task's ``lambda_origin``), else ``None``.
 
     A scene file without ``perturbation.lambda`` takes the default or, with ``derive = true``, a
     derived one (:attr:`~energy_margin.tasks.base.Task.lambda_origin`); no rule from the scene or

@@ -187,14 +187,25 @@ class MarginEnvironment:
     def reset(self) -> Any:
         """Reset the environment; a new episode's margins (the start state's first) and rows."""
         time_step = self.env.reset()
+        self._start()
+        return time_step
+
+    def _start(self) -> None:
+        """A new episode from the environment's current (start) state."""
         self._data = physics_handles(self.env)[1]
         self.margin = self.session.reset(self._data)
         self.margins = [self.margin] if self.margin is not None else []
-        return time_step
 
     def step(self, action: Any) -> Any:
-        """Step the environment, then score the state it reached every ``every`` steps."""
+        """Step the environment, then score the state it reached every ``every`` steps.
+
+        A step after the episode's last starts a new episode (dm_env's rule: the environment resets
+        itself and returns a ``FIRST`` time step): that is scored as :meth:`reset` scores.
+        """
         time_step = self.env.step(action)
+        if time_step.first():
+            self._start()
+            return time_step
         margin = self.session.step(self._data)
         if margin is not None:
             self.margin = margin
