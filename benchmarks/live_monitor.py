@@ -11,9 +11,9 @@ a dataset whose ``scores.csv`` holds the live calls:
 * the *test* run, the example's reported seeds, measures detection, lead time and the realised
   false-alarm rate with 95 % bootstrap intervals.
 
-The margin's calibration is also made from the calibration run's calls as the live wrapper
-returned them (``evaluation.live_calibration.calibrate_episodes``), and must give the same
-threshold (``live_calibration_agrees``): calibrating on a live dataset is calibrating on live calls.
+The margin's calibration is also made from the calibration run's scores file read back as each
+episode's calls (``evaluation.live_calibration.calibrate_episodes``), and must give the same
+threshold (``live_calibration_agrees``): calibrating on a live dataset is calibrating on its calls.
 A run whose ``results.json`` is in ``--work`` is reused. The live budget is wall-clock: the scores
 depend on the machine's load, which the document records.
 
@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from energy_margin.data.dataset import load_dataset
 from energy_margin.data.scores_file import load_scores
 from energy_margin.errors import InvalidParameterError
 from energy_margin.evaluation.live_calibration import calibrate_episodes
@@ -73,11 +74,14 @@ def _run(out: Path, env_seed: int, episodes: int, continuation: int, seed: int) 
     return out / "dataset"
 
 
-def _agrees(found: MonitorCalibration, calibration_set: Path) -> bool:
-    """Whether the calls of the calibration run, as the wrapper returned them, give the same calibration."""
-    from energy_margin.data.dataset import load_dataset
+def _success_labels(dataset: Path) -> np.ndarray:
+    """The success label of each episode of a run's dataset, shape (episodes,)."""
+    return load_dataset(dataset).success_labels()
 
-    labels = load_dataset(calibration_set).success_labels()
+
+def _agrees(found: MonitorCalibration, calibration_set: Path) -> bool:
+    """Whether the calibration run's scores file, read back as each episode's calls, gives the same calibration."""
+    labels = _success_labels(calibration_set)
     live = calibrate_episodes(episodes_of(load_scores(calibration_set)), labels, alpha=found.alpha, score=found.score,
                               start_frame=found.start_frame, persistence=found.persistence)  # fmt: skip
     return math.isclose(live.threshold, found.threshold) and live.rank == found.rank
@@ -108,7 +112,7 @@ def main() -> None:
         "versions": engine_versions(),
     }
     for role, path in paths.items():
-        document[f"{role}_success_rate"] = float(np.mean(_example_labels(path)))
+        document[f"{role}_success_rate"] = float(np.mean(_success_labels(path)))
     for alpha in ALPHAS:
         per_scorer: dict[str, Any] = {}
         for scorer in ("margin", "distance"):
@@ -132,12 +136,6 @@ def main() -> None:
         document[f"alpha_{alpha:g}"] = per_scorer
     write_document(args.out, document)
     print(f"wrote {args.out}")
-
-
-def _example_labels(dataset: Path) -> np.ndarray:
-    from energy_margin.data.dataset import load_dataset
-
-    return load_dataset(dataset).success_labels()
 
 
 if __name__ == "__main__":

@@ -29,6 +29,16 @@ def lift_brick(seed: int = 0):  # type: ignore[no-untyped-def]
     return manipulation.load("lift_brick_features", seed=seed)
 
 
+def short_lift_brick(time_limit: float, seed: int):  # type: ignore[no-untyped-def]
+    """The Jaco lifting a brick, in composer episodes of ``time_limit`` seconds (0.04 s control steps)."""
+    from dm_control import composer
+    from dm_control.manipulation.shared import registry
+
+    return composer.Environment(
+        registry.get_constructor("lift_brick_features")(), time_limit=time_limit, random_state=seed
+    )
+
+
 def steps(env, n: int) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
     spec = env.action_spec()
     rng = np.random.default_rng(0)
@@ -133,11 +143,9 @@ class CountedPolicy:
 
 def test_a_policy_continues_the_success_score_to_the_end_of_the_episode() -> None:
     """Composer's 0.4 s episode of 0.04 s control steps: each copy commands every step left, one per step."""
-    from dm_control import composer
-    from dm_control.manipulation.shared import registry
 
     def episode():  # type: ignore[no-untyped-def]
-        return composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=0.4, random_state=3)
+        return short_lift_brick(0.4, 3)
 
     calls: list[int] = []
     policy = CountedPolicy(calls)
@@ -171,10 +179,7 @@ def test_episode_steps_of_either_kind_of_time_limit() -> None:
 
 def test_a_step_after_the_last_starts_a_new_scored_episode() -> None:
     """dm_env resets by itself on the step after ``LAST``; composer rebuilds its physics there."""
-    from dm_control import composer
-    from dm_control.manipulation.shared import registry
-
-    env = composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=0.2, random_state=3)
+    env = short_lift_brick(0.2, 3)
     wrapper = MarginEnvironment(env, objects="duplo2x4/", capture=CAPTURE, success=SUCCESS, budget_s=None,
                                 max_expansions=3)  # fmt: skip
     wrapper.reset()
@@ -190,12 +195,10 @@ def test_a_step_after_the_last_starts_a_new_scored_episode() -> None:
 
 
 def test_episode_steps_is_where_the_episode_ends() -> None:
-    from dm_control import composer
-    from dm_control.manipulation.shared import registry
     from dm_control.suite import cartpole
 
     for limit in (0.4, 1.0):
-        env = composer.Environment(registry.get_constructor("lift_brick_features")(), time_limit=limit, random_state=0)
+        env = short_lift_brick(limit, 0)
         env.reset()
         count, action = 0, np.zeros(env.action_spec().shape)
         while not env.step(action).last():

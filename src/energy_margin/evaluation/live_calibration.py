@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from energy_margin.errors import InvalidParameterError, check_choice, check_int
-from energy_margin.evaluation.monitor import SCORES, MonitorCalibration, conformal_rank, watched_score
+from energy_margin.evaluation.monitor import SCORES, MonitorCalibration, calibrate_grid, watched_score
 
 __all__ = ["calibrate_episodes", "live_scores"]
 
@@ -75,28 +75,21 @@ def calibrate_episodes(
     labels = np.asarray(success, dtype=bool).reshape(-1)
     if labels.size != len(episodes):
         raise InvalidParameterError("success", f"has {labels.size} labels for {len(episodes)} episodes")
-    worst = []
-    for calls, succeeded in zip(episodes, labels.tolist(), strict=True):
-        if not succeeded:
-            continue
-        watched = sorted(watched_score(score, *live_scores(margin)) for margin in list(calls)[start_frame:])
-        worst.append(watched[persistence - 1] if len(watched) >= persistence else math.inf)
-    rank = conformal_rank(len(worst), alpha)
-    threshold = float(np.sort(worst)[rank - 1])
-    if not math.isfinite(threshold):
+    # The successes' watched scores as calibrate_grid's grid, each padded with +inf (a call that never
+    # alarms) to the longest episode and to one monitored window at least: an episode too short to
+    # alarm gets an infinite nonconformity.
+    width = max([len(calls) for calls in episodes] + [start_frame + persistence])
+    grid = np.full((len(episodes), width), math.inf)
+    for row, (calls, succeeded) in enumerate(zip(episodes, labels.tolist(), strict=True)):
+        if succeeded:
+            values = [watched_score(score, *live_scores(margin)) for margin in calls]
+            grid[row, : len(values)] = values
+    found = calibrate_grid(grid, labels, alpha=alpha, start_frame=start_frame, persistence=persistence,
+                           scorer="margin", score=score)  # fmt: skip
+    if not math.isfinite(found.threshold):
         raise InvalidParameterError(
             "episodes",
             f"hold too few successful ones with {start_frame + persistence} scored calls for a threshold at "
             f"alpha {alpha:g}: score them longer or lower start_frame or persistence",
         )
-    return MonitorCalibration(
-        threshold=threshold,
-        alpha=float(alpha),
-        rank=rank,
-        n_successes=len(worst),
-        n_trajectories=len(episodes),
-        scorer="margin",
-        score=score,
-        start_frame=start_frame,
-        persistence=persistence,
-    )
+    return found
