@@ -23,6 +23,7 @@ depend on the machine's load, which the document records.
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
 import os
 import sys
@@ -45,6 +46,8 @@ __all__ = ["ALPHAS", "episodes_of", "main"]
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "gymnasium_pusher" / "live_scores.py"
 ALPHAS = (0.05, 0.1)
+#: Beside each run: the load average when its episodes were scored (a reused run keeps its own).
+LOAD_FILE = "load_average.json"
 
 
 def _example() -> Any:
@@ -67,11 +70,21 @@ def episodes_of(scores: dict[str, np.ndarray]) -> list[list[dict[str, float]]]:
 
 
 def _run(out: Path, env_seed: int, episodes: int, continuation: int, seed: int) -> Path:
-    """The example's run into ``out`` (reused when its ``results.json`` is there): its dataset directory."""
+    """The example's run into ``out`` (reused when its ``results.json`` is there): its dataset directory.
+
+    A new run leaves the 1-minute load average at its end in ``load_average.json`` beside it.
+    """
     if not (out / "results.json").is_file():
         _example().main(["--episodes", str(episodes), "--env-seed", str(env_seed), "--out", str(out),
                          "--policy-continuation", str(continuation), "--seed", str(seed)])  # fmt: skip
+        (out / LOAD_FILE).write_text(json.dumps({"load_average": os.getloadavg()[0]}) + "\n")
     return out / "dataset"
+
+
+def _load_average(dataset: Path) -> float | None:
+    """The load average at the end of the run that scored ``dataset`` (``None``: not recorded)."""
+    path = dataset.parent / LOAD_FILE
+    return float(json.loads(path.read_text())["load_average"]) if path.is_file() else None
 
 
 def _success_labels(dataset: Path) -> np.ndarray:
@@ -102,13 +115,15 @@ def main() -> None:
         role: _run(args.work.resolve() / role, seeds[role], count, args.policy_continuation, args.seed)
         for role, count in zip(seeds, args.episodes, strict=True)
     }
+    loads = [_load_average(path) for path in paths.values()]
     document: dict[str, Any] = {
         **document_head("live_monitor.py"),
         "environment": "Pusher-v5",
         "policy_continuation": args.policy_continuation,
         "seeds": seeds,
         "episodes": dict(zip(seeds, args.episodes, strict=True)),
-        "load_average": os.getloadavg()[0],
+        # The highest 1-minute load average at the end of the three runs that scored the episodes.
+        "load_average": None if None in loads else max(loads),  # type: ignore[type-var]
         "versions": engine_versions(),
     }
     for role, path in paths.items():

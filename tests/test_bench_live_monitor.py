@@ -47,3 +47,11 @@ def test_calibrating_on_the_calls_is_calibrating_on_the_grid(bench) -> None:
         grid = calibrate_grid(success, labels, alpha=0.1, start_frame=2, persistence=persistence)
         live = calibrate_episodes(bench.episodes_of(scores), labels, alpha=0.1, start_frame=2, persistence=persistence)
         assert (live.threshold, live.rank, live.n_successes) == (grid.threshold, grid.rank, grid.n_successes)
+
+
+def test_a_reused_run_keeps_the_load_average_it_was_scored_under(bench, tmp_path) -> None:
+    dataset = tmp_path / "calibration" / "dataset"
+    dataset.mkdir(parents=True)
+    assert bench._load_average(dataset) is None
+    (dataset.parent / bench.LOAD_FILE).write_text('{"load_average": 1.5}\n')
+    assert bench._load_average(dataset) == 1.5

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from energy_margin.data.generate import generate_dataset
 from energy_margin.errors import InvalidParameterError
 from energy_margin.evaluation import monitor
 from energy_margin.evaluation.monitor_report import compare_monitors, format_table
@@ -102,3 +103,52 @@ def test_several_alphas_load_the_set_and_build_its_grids_once(
     assert built == ["load_scores" if scorer == "margin" else "distance_scores"]
     with pytest.raises(InvalidParameterError, match=r"^alpha 0.1 needs"):
         select_alarms(selection, alphas=(0.5, 0.1), scorer=scorer)
+
+
+# Four successes and a failure (trajectory 4, its capture label lost from frame 1). Two successes
+# score a capture of 0 at frame 0: watching capture from frame 0 at persistence 1 the conformal
+# threshold at alpha 0.7 (rank 3 of 4) is still 0.8 on this set, but two floor successes of a
+# needed 1.75 leave no room: on a set with one more such success it could not fire.
+FLOOR_CAPTURE = np.array([[0.0, 0.9, 0.9], [0.0, 0.9, 0.9], [0.8, 0.9, 0.9], [0.8, 0.9, 0.9], [0.5, 0.1, 0.0]])
+FLOOR_SUCCESS = np.array([[0.5, 0.5, 0.5]] * 4 + [[0.9, 0.9, 0.9]])
+
+
+@pytest.fixture
+def floor_selection(tmp_path: Path, rewrite_frames: Callable[..., None]) -> Path:
+    out = tmp_path / "five"
+    generate_dataset("pushing", out=out, n_objects=2, n_trajectories=5, n_frames=3, seed=0)
+    rewrite_frames(
+        out,
+        captured=np.array([[True, True, True]] * 4 + [[True, False, False]]),
+        in_success=np.array([[False, True, True]] * 4 + [[False, False, False]]),
+        frame_time=np.array([[0.0, 0.5, 1.0]] * 5),
+    )
+    write_scores(out, FLOOR_CAPTURE, FLOOR_SUCCESS)
+    return out
+
+
+def test_a_candidate_without_room_above_the_floor_is_passed_over(floor_selection: Path) -> None:
+    choice = select_alarm(floor_selection, alpha=0.7)
+    tried = {(row["score"], row["start_frame"], row["persistence"]): row for row in choice.candidates}
+    edge = tried[("capture", 0, 1)]
+    # The best by detection and lead (0.5 s), yet ineligible: 2 successes at the floor >= (4 + 1) 0.7 / 2.
+    assert (edge["early_detection_rate"], edge["lead_time_s"]) == (1.0, 0.5)
+    assert (edge["floor_successes"], edge["eligible"]) == (2, False)
+    # Persistence 2 skips the floor frame: no success there, detected at the failure frame (lead 0).
+    assert (choice.score, choice.start_frame, choice.persistence, choice.eligible) == ("capture", 0, 2, True)
+    assert (choice.early_detection_rate, choice.lead_time_s) == (1.0, 0.0)
+    assert tried[("capture", 0, 2)]["floor_successes"] == 0
+
+
+def test_with_no_eligible_candidate_the_best_of_all_is_taken_and_said(selection: Path, tmp_path: Path) -> None:
+    # The one success scores 0 everywhere: every margin candidate's threshold is the floor.
+    write_scores(selection, np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
+    choice = select_alarm(selection, alpha=0.5)
+    assert not choice.eligible and not any(row["eligible"] for row in choice.candidates)
+    assert choice.early_detection_rate == 0.0
+    calibration = tmp_path / "calibration"
+    shutil.copytree(selection, calibration)
+    result = compare_monitors(calibration, calibration, alphas=(0.5,), selection=selection, resamples=20)
+    assert "no margin alarm at alpha 0.5 left room above the score's floor" in format_table(result)
+    # The distance baseline's scores have no floor: every candidate is eligible.
+    assert all(row["eligible"] for row in select_alarm(selection, alpha=0.5, scorer="distance").candidates)

@@ -55,6 +55,7 @@ __all__ = [
     "CALIBRATION_VERSION",
     "SCORERS",
     "SCORES",
+    "SCORE_FLOORS",
     "LiveAlarm",
     "MonitorCalibration",
     "alarm_frames",
@@ -76,6 +77,8 @@ __all__ = [
 SCORERS = ("margin", "distance")
 #: Which per-frame score: success, capture, or the frame-wise minimum of the two.
 SCORES = ("success", "capture", "min")
+#: Each scorer's lowest score: no score is below it, so a threshold there never fires.
+SCORE_FLOORS = {"margin": 0.0, "distance": -math.inf}
 #: The ``format`` and ``version`` keys of a calibration file.
 CALIBRATION_FORMAT = "energy-margin-monitor"
 CALIBRATION_VERSION = 1
@@ -226,7 +229,7 @@ class MonitorCalibration(TypedResult):
     @property
     def can_fire(self) -> bool:
         """False for a margin threshold of 0 or less: no probability is below it, the alarm never fires."""
-        return self.scorer != "margin" or self.threshold > 0.0
+        return self.threshold > SCORE_FLOORS[self.scorer]
 
     def fires(self, value: float) -> bool:
         """Whether a monitored frame whose score is ``value`` counts toward the alarm (is below the threshold)."""

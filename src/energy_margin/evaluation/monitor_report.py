@@ -265,8 +265,14 @@ def format_table(result: MonitorComparison | dict[str, Any]) -> str:
         chosen = result["choices"][0]
         lines.append(
             f"chosen on {chosen['selection_dataset']} (seed {chosen['selection_seed']}): the most failures detected "
-            "at or before their failure frame there"
+            "at or before their failure frame there, among those with room above the score's floor"
         )
+        for choice in result["choices"]:
+            if not choice.get("eligible", True):
+                lines.append(
+                    f"no {choice['scorer']} alarm at alpha {choice['alpha']:g} left room above the score's floor "
+                    "on the selection set: the chosen one may not fire on another set"
+                )
     lines.append(
         f"test set: {first['n_failed']} failed, {first['n_successful']} successful; 95 % intervals over "
         f"{first['resamples']} resamples of the test trajectories (seed {first['seed']})"

@@ -11,6 +11,15 @@ frame, then the smaller persistence, then the order of
 :data:`~energy_margin.evaluation.monitor.SCORES`). Choosing on the calibration set itself would
 spend its guarantee; on a separate set it is kept. :func:`select_alarms` chooses at several
 alphas, the set loaded and its grids built once.
+
+A candidate must also leave room above the score's floor. A success whose nonconformity is at the
+floor (a margin of 0 at ``persistence`` monitored frames) would be a false alarm at any threshold
+that can fire, and once j = floor((n + 1) alpha) of the calibration successes are there the
+threshold is the floor and the alarm cannot fire. The share of such successes differs from set to
+set, so a candidate is eligible only while the selection set's count of them is below half of
+that, ``(n + 1) alpha / 2``: one at the edge on the selection set (a single floor success where j
+is 2) ended at threshold 0 on a calibration set twice as large. When no candidate is eligible the
+best of all is taken (``AlarmChoice.eligible`` is then False).
 """
 
 from __future__ import annotations
@@ -24,6 +33,7 @@ import numpy as np
 from energy_margin.data.validation import require_valid
 from energy_margin.errors import check_choice, check_int
 from energy_margin.evaluation.monitor import (
+    SCORE_FLOORS,
     SCORERS,
     SCORES,
     alarm_frames,
@@ -32,6 +42,7 @@ from energy_margin.evaluation.monitor import (
     conformal_rank,
     failure_frames,
     monitored_grids,
+    worst_scores,
 )
 from energy_margin.runs.results import TypedResult
 
@@ -51,10 +62,13 @@ class AlarmChoice(TypedResult):
         early_detection_rate: the chosen alarm's share of the selection set's failures detected at
             or before their failure frame (``None``: the set has no failure).
         lead_time_s: its mean lead time on them, s (``None``: no detection).
+        eligible: whether it left room above the score's floor (module docstring); False only
+            when no candidate did.
         selection_dataset: the selection set's directory.
         selection_seed: its generation seed (``None``: not recorded).
-        candidates: every candidate tried: score, start frame, persistence, early detection rate and
-            lead time (candidates the set has too few successes for are left out).
+        candidates: every candidate tried: score, start frame, persistence, early detection rate,
+            lead time, the successes at the score's floor and whether it is eligible (candidates
+            the set has too few successes for are left out).
 
     """
 
@@ -65,6 +79,7 @@ class AlarmChoice(TypedResult):
     persistence: int
     early_detection_rate: float | None
     lead_time_s: float | None
+    eligible: bool
     selection_dataset: str
     selection_seed: int | None
     candidates: list[dict[str, Any]]
@@ -112,9 +127,11 @@ def select_alarms(
     seed = dataset.metadata.get("seed")
     choices: list[AlarmChoice] = []
     for alpha in alphas:
-        candidates = _candidates(grids, success, failures, times, alpha=alpha, max_persistence=max_persistence)
+        candidates = _candidates(
+            grids, success, failures, times, alpha=alpha, max_persistence=max_persistence, floor=SCORE_FLOORS[scorer]
+        )
         best = max(
-            candidates,
+            [row for row in candidates if row["eligible"]] or candidates,
             key=lambda row: (
                 row["early_detection_rate"] or 0.0,
                 row["lead_time_s"] or 0.0,
@@ -131,6 +148,7 @@ def select_alarms(
                 persistence=best["persistence"],
                 early_detection_rate=best["early_detection_rate"],
                 lead_time_s=best["lead_time_s"],
+                eligible=best["eligible"],
                 selection_dataset=str(path),
                 selection_seed=seed if isinstance(seed, int) else None,
                 candidates=candidates,
@@ -147,8 +165,14 @@ def _candidates(
     *,
     alpha: float,
     max_persistence: int,
+    floor: float,
 ) -> list[dict[str, Any]]:
-    """Every score, first frame 0 .. K / 2 and persistence, calibrated at ``alpha`` and measured, in order."""
+    """Every score, first frame 0 .. K / 2 and persistence, calibrated at ``alpha`` and measured, in order.
+
+    ``floor`` is the scorer's lowest score: a candidate is eligible while fewer than
+    ``(n + 1) alpha / 2`` of the n successes have their nonconformity there.
+    """
+    room = (int(success.sum()) + 1) * alpha / 2
     candidates: list[dict[str, Any]] = []
     for score in SCORES:
         grid = grids[score]
@@ -158,6 +182,7 @@ def _candidates(
                 found = calibrate_grid(grid, success, alpha=alpha, start_frame=start, persistence=persistence)
                 alarms = alarm_frames(grid, found.threshold, start_frame=start, persistence=persistence)
                 measured = alarm_measures(alarms, failures, times)
+                at_floor = int(np.sum(worst_scores(grid[success], start_frame=start, persistence=persistence) <= floor))
                 candidates.append(
                     {
                         "score": score,
@@ -165,6 +190,8 @@ def _candidates(
                         "persistence": persistence,
                         "early_detection_rate": measured["early_detection_rate"],
                         "lead_time_s": measured["lead_time_s"],
+                        "floor_successes": at_floor,
+                        "eligible": at_floor < room,
                     }
                 )
     return candidates
