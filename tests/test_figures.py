@@ -39,6 +39,8 @@ def _page(tmp_path: Path, body: str) -> Path:
         ("results.json#/t", "1 min 02 s"),
         ("table.csv#method=est,budget=1000/ap :.2f", "0.89"),
         ("log.txt#L2", "second line"),
+        ("results.json#/a/b :neg.2f", "-0.90"),
+        ("table.csv#method=est,budget=300/ap :neg", "-0.8952"),
     ],
 )
 def test_a_marker_reads_json_csv_and_text(tmp_path: Path, marker: str, expected: str) -> None:
@@ -54,6 +56,7 @@ def test_a_marker_reads_json_csv_and_text(tmp_path: Path, marker: str, expected:
         ("results.json#/a/x", "no key 'x'"),
         ("table.csv#method=est/ap", "2 rows match"),
         ("log.txt#L9", "no line"),
+        ("results.json#/t :neg.1f", "not a number"),
     ],
 )
 def test_a_marker_to_a_missing_file_or_key_fails(tmp_path: Path, marker: str, error: str) -> None:

@@ -9,7 +9,8 @@ A quoted figure is written between two markers that name its source::
   for a CSV file ``COLUMN=VALUE,.../COLUMN`` (the one row whose cells match, then its column),
   for any other file ``L5`` (line 5, stripped);
 * after `` :`` an optional Python format spec (``.3f``, ``.2f``, ``,.0f``); without it the value as
-  written in the file.
+  written in the file. ``neg`` before the spec (``:neg.3f``) quotes the value negated: a change the
+  file holds as negative, written as a loss.
 
 A table of a results file is a block generated from a template: its lines without a ``{cell}``
 (the header and the separator) as they are, then its row line once per record of the file::
@@ -141,14 +142,19 @@ def lookup(path: str, key: str, root: Path = ROOT) -> Any:
 
 
 def render(value: Any, spec: str | None) -> str:
-    """A value as quoted: formatted by ``spec`` (numbers from CSV and text files too)."""
-    if not spec:
+    """A value as quoted: formatted by ``spec`` (numbers from CSV and text files too; ``neg``: negated first)."""
+    negate = spec is not None and spec.startswith("neg")
+    if spec is not None and negate:
+        spec = spec[3:]
+    if not spec and not negate:
         return str(value)
-    if isinstance(value, str):
+    if isinstance(value, str) or negate:
         try:
             value = float(value)
-        except ValueError as error:
+        except (TypeError, ValueError) as error:
             raise FigureError(f"{value!r} is not a number for format {spec!r}") from error
+    if negate:
+        value = -value
     try:
         return format(value, spec)
     except (TypeError, ValueError) as error:
