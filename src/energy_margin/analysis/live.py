@@ -31,6 +31,7 @@ import numpy as np
 from energy_margin.analysis.continuation import Controller, controlled_success
 from energy_margin.analysis.frame import AnalyzerConfig, analyze_frame
 from energy_margin.errors import InvalidParameterError, check_positive_float, check_positive_int
+from energy_margin.planning import CostField
 from energy_margin.sim import Simulator
 from energy_margin.tasks import Task
 from energy_margin.world.state import FrameState
@@ -96,6 +97,22 @@ class FeedbackContinuation:
     horizon_s: float
     period_s: float
     samples: int = 4
+
+
+def _feedback_success(
+    simulator: Simulator,
+    task: Task,
+    state: FrameState,
+    field: CostField,
+    settings: AnalyzerConfig,
+    feedback: FeedbackContinuation,
+    seed: int,
+) -> float:
+    """The success score continued under the robot's feedback controller from the tree ``field``'s likely states."""
+    lam = settings.likelihood_lambda if settings.likelihood_lambda is not None else task.config.likelihood_lambda
+    found = controlled_success(simulator, task, state, field, feedback.controllers, lam=lam, samples=feedback.samples,
+                               seed=seed, horizon=feedback.horizon_s, period=feedback.period_s)  # fmt: skip
+    return found.success_score
 
 
 def score_state(
@@ -165,10 +182,7 @@ def score_state(
     success, continued = scores.success_score, time.perf_counter()
     if feedback is not None:
         assert simulator is not None
-        lam = settings.likelihood_lambda if settings.likelihood_lambda is not None else task.config.likelihood_lambda
-        success = controlled_success(simulator, task, state, field, feedback.controllers, lam=lam,
-            samples=feedback.samples, seed=seed, horizon=feedback.horizon_s,
-            period=feedback.period_s).success_score  # fmt: skip
+        success = _feedback_success(simulator, task, state, field, settings, feedback, seed)
     return LiveScore(
         capture=scores.capture_score,
         success=success,

@@ -156,17 +156,8 @@ def record_robomimic(
     sources = [
         {"file": path.name, "sha256": _file_sha256(path), "format": "robomimic", "demos": [d.key for d in raw_demos]}
     ]
-    return _write(
-        out,
-        built[0],
-        scene_text,
-        rollouts,
-        n_frames,
-        sources,
-        overwrite=overwrite,
-        progress=progress,
-        drop_unphysical=drop_unphysical,
-    )
+    return _write(out, built[0], scene_text, rollouts, n_frames, sources, overwrite=overwrite, progress=progress,
+                  drop_unphysical=drop_unphysical)  # fmt: skip
 
 
 def _duration(rollouts: list[tuple[str, dict[str, np.ndarray]]], model: mujoco.MjModel) -> float:

@@ -101,17 +101,31 @@ def grow_together(
         growth.start(budget, stops[j] if stops is not None else None, check_every)
         growths.append(growth)
     models = _row_models(simulators, lead, propagator)
-    physics = np.zeros(n)
-    while rounds := [
-        (j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None
-    ]:
-        physics += _propagate_together(propagator, task, growths, rounds, drives, start_times, models)
+    physics = _grow_rounds(propagator, task, growths, drives, start_times, models, batch)
     elapsed = time.perf_counter() - started
     # Each tree's total_s is the group's wall time over the trees (``field`` measures from its ``started``).
     return [
         growth.tree.field(growth.expansions, float(physics[j]), time.perf_counter() - elapsed / n)
         for j, growth in enumerate(growths)
     ]
+
+
+def _grow_rounds(
+    propagator: Propagator,
+    task: Task,
+    growths: list[_Growth],
+    drives: Sequence[np.ndarray],
+    start_times: Sequence[float],
+    models: list[Any] | None,
+    batch: int,
+) -> np.ndarray:
+    """Round after round, every tree still growing propagated in one call: each tree's physics seconds, shape (n,)."""
+    physics = np.zeros(len(growths))
+    while rounds := [
+        (j, round_) for j, growth in enumerate(growths) if (round_ := growth.next_round(batch)) is not None
+    ]:
+        physics += _propagate_together(propagator, task, growths, rounds, drives, start_times, models)
+    return physics
 
 
 def _check_lists(
