@@ -1,7 +1,10 @@
 """The conformal failure alarm of ``energy-margin monitor``: the margin against the distance baseline.
 
-For each scene, three sets are generated (``energy-margin generate``) from three generation seeds
-and analysed (``energy-margin analyze``, one worker):
+For each scene, three sets are made from three seeds and analysed (``energy-margin analyze``, one
+worker): generated roll-outs (``energy-margin generate``) of the built-in pushing task and of two
+example robots, and the built-in pushing task under the control disturbances (``energy-margin
+control``: MPPI on the task's cost, on a plant whose friction, pushes and observation noise it does
+not know, at the ``hard`` level):
 
 * the *selection* set picks, for each alarm (margin, distance) and alpha, the watched score
   (``success``, ``capture``, ``min``), first monitored frame (0 .. K / 2) and persistence (the
@@ -45,23 +48,39 @@ from energy_margin.evaluation.monitor_select import select_alarm
 from energy_margin.runs.versions import engine_versions
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-#: Built-in tasks: name -> ``generate`` options.
-TASKS = {"pushing": ["--task", "pushing", "--objects", "10"]}
+#: Built-in tasks: name -> the ``generate`` command that makes a set's roll-outs.
+TASKS = {"pushing": ["generate", "--task", "pushing", "--objects", "10"]}
+#: Built-in tasks under the control disturbances: name -> the ``control`` command whose episodes
+#: (MPPI on the task's cost, on a plant with other friction, pushes and observation noise) make a set.
+CONTROLLED = {
+    "pushing_control_hard": ["control", "--task", "pushing", "--policy", "task", "--disturbance", "hard",
+                             "--expansions", "0", "--no-progress"],
+}  # fmt: skip
 #: Scene examples whose model ``write_model.py`` writes.
 SCENE_EXAMPLES = ("planar_manipulator", "fetch")
 ALPHAS = (0.05, 0.1)
+#: Each set-making command's option for the number of roll-outs.
+COUNT_OPTION = {"generate": "--trajectories", "control": "--episodes"}
 
 
-def _scene_options(name: str, folder: Path) -> list[str]:
-    """``generate``'s options of a built-in task or of a scene example (its model written to ``folder``)."""
-    if name in TASKS:
-        return TASKS[name]
+def _scene_command(name: str, folder: Path) -> list[str]:
+    """The command that makes a set of scene ``name``: a built-in task's ``generate`` or ``control``,
+    or ``generate`` of a scene example (its model written to ``folder``)."""
+    if name in TASKS or name in CONTROLLED:
+        return {**TASKS, **CONTROLLED}[name]
     out = folder / name
     subprocess.run(
         [sys.executable, str(EXAMPLES / name / "write_model.py"), "--out", str(out)], check=True, capture_output=True
     )
     shutil.copy(EXAMPLES / name / f"{name}.toml", out / f"{name}.toml")
-    return ["--scene", str(out / f"{name}.toml")]
+    return ["generate", "--scene", str(out / f"{name}.toml")]
+
+
+def set_command(command: list[str], *, trajectories: int, frames: int, seed: int, out: Path) -> list[str]:
+    """``command`` completed to make one set of ``trajectories`` roll-outs of ``frames`` frames in ``out``."""
+    count = COUNT_OPTION[command[0]]
+    return [*command, count, str(trajectories), "--frames", str(frames), "--seed", str(seed), "--out", str(out),
+            "--overwrite"]  # fmt: skip
 
 
 def _energy_margin(*arguments: str) -> None:
@@ -73,8 +92,7 @@ def _make_set(folder: Path, name: str, scene: list[str], seed: int, args: argpar
     """Generate and analyse one set (a set already generated in ``folder`` is kept; ``analyze`` resumes)."""
     path = folder / name
     if not (path / "dataset.json").is_file():
-        generate = ["generate", *scene, "--trajectories", str(args.trajectories), "--frames", str(args.frames)]
-        _energy_margin(*generate, "--seed", str(seed), "--out", str(path), "--overwrite")
+        _energy_margin(*set_command(scene, trajectories=args.trajectories, frames=args.frames, seed=seed, out=path))
     if not (path / "scores.csv").is_file():
         analyse = ["analyze", str(path), "--expansions", str(args.expansions), "--workers", "1", "--no-progress"]
         options = ["--continuation", str(args.continuation), "--capture-gate", args.capture_gate]
@@ -181,7 +199,8 @@ def main() -> None:
     )
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0, help="seeds the bootstrap resamples")
-    parser.add_argument("--scenes", nargs="+", choices=(*TASKS, *SCENE_EXAMPLES), default=[*TASKS, *SCENE_EXAMPLES])
+    scenes = [*TASKS, *CONTROLLED, *SCENE_EXAMPLES]
+    parser.add_argument("--scenes", nargs="+", choices=scenes, default=scenes)
     parser.add_argument("--out", type=Path, help="results JSON (scenes of an earlier run not rerun are kept)")
     parser.add_argument("--work", type=Path, help="keep the sets here; analysed sets found there are reused")
     args = parser.parse_args()
@@ -207,7 +226,7 @@ def main() -> None:
         folder = Path(args.work) if args.work is not None else Path(temporary)
         for name in args.scenes:
             started, cpu = time.perf_counter(), _cpu_s()
-            results["scenes"][name] = _scene(name, _scene_options(name, folder), folder, args)
+            results["scenes"][name] = _scene(name, _scene_command(name, folder), folder, args)
             # cpu_s: this run's (sets reused from --work were analysed by an earlier one).
             results["scenes"][name] |= {
                 "budget": budget,
