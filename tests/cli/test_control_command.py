@@ -100,3 +100,22 @@ def test_control_lookahead_is_run_and_saved(tmp_path: Path, capsys: pytest.Captu
     assert exited.value.code == 2
     assert "--lookahead: expected an integer >= 0, got -1" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_control_says_which_episodes_it_left_out_of_the_dataset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from energy_margin.control import episode_dataset
+
+    # The check itself is tested with real impossible frames (tests/control/test_episode_dataset.py).
+    monkeypatch.setattr(episode_dataset, "unphysical_trajectories", lambda dataset: {1: "frame 2: too deep"})
+    arguments = ["control", "--objects", "2", "--episodes", "3", "--policy", "scripted", *SHORT]
+    code, text, _ = _run([*arguments, "--out", str(tmp_path / "r")], capsys)
+    assert code == 0
+    assert (
+        "left out of the dataset 1 episode(s) with a physically impossible frame (listed in dataset.json's "
+        "dropped; the first: episode 1: frame 2: too deep); the summary counts every episode"
+    ) in text
+    assert "3 episodes" in text
+    code, text, _ = _run([*arguments, "--json", "--out", str(tmp_path / "j")], capsys)
+    assert json.loads(text)["dropped"] == [{"rollout": "episode 1", "reason": "frame 2: too deep"}]

@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
         if args.policy != "learned":
             raise EnergyMarginError("--model is only for --policy learned")
         model, model_info = _load_model(args.model, task_name)
-    result, _ = run_control(
+    result, dataset = run_control(
         task_name,
         n_objects=n_objects,
         episodes=args.episodes,
@@ -206,9 +206,17 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress and not args.json,
     )
     summary = result.to_dict()
+    dropped = dataset.metadata.get("dropped") or []
     if args.json:
-        print_json(summary)
-    else:
-        print(format_summary(summary))
-        print(f"wrote {args.out} (energy-margin analyze {args.out} scores its frames)")
+        # The run's summary, and the episodes left out of the dataset when there are any.
+        print_json({**summary, "dropped": dropped} if dropped else summary)
+        return 0
+    print(format_summary(summary))
+    if dropped:
+        print(
+            f"left out of the dataset {len(dropped)} episode(s) with a physically impossible frame (listed in "
+            f"dataset.json's dropped; the first: {dropped[0]['rollout']}: {dropped[0]['reason']}); the summary "
+            "counts every episode"
+        )
+    print(f"wrote {args.out} (energy-margin analyze {args.out} scores its frames)")
     return 0

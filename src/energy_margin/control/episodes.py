@@ -29,6 +29,7 @@ from energy_margin.compat import save_npz
 from energy_margin.control.commands import CommandSpace, RobotInputs, command_space, controllable_tasks
 from energy_margin.control.costs import CostContext, CostWeights, MarginPredictor, get_cost
 from energy_margin.control.disturbances import Disturbance, Push, get_disturbance, push_wrenches
+from energy_margin.control.episode_dataset import write_episodes_dataset
 from energy_margin.control.episode_draws import (
     EPISODE_STREAMS,
     ControlSettings,
@@ -39,10 +40,10 @@ from energy_margin.control.episode_draws import (
 from energy_margin.control.episode_scores import ControlResult, _frame_scores, summarize
 from energy_margin.control.mppi import Controller, ControllerConfig
 from energy_margin.data.dataset import FRAMES_FILE, METADATA_FILE, Dataset, load_dataset
-from energy_margin.data.generate import records_dataset, trajectory_record
+from energy_margin.data.generate import trajectory_record
 from energy_margin.errors import EnergyMarginError, InvalidParameterError, check_int, check_seed
 from energy_margin.runs import Progress, RunSpec, progress_bar, run_directory
-from energy_margin.runs.files import atomic_path, write_json
+from energy_margin.runs.files import atomic_path
 from energy_margin.sim import Simulator
 from energy_margin.sim.base import ModelCommand
 from energy_margin.tasks import ScriptedMotion, Task, Trajectory, command_robot, get_task
@@ -387,7 +388,8 @@ def run_control(
         (out / EPISODES_DIR).mkdir(exist_ok=True)
         ordered = _episodes(task, settings, model, out, workers=workers, progress=progress, on_episode=on_episode)
         summary = summarize(settings, [result["info"] for result in ordered])
-        _write_dataset(task, settings, summary, ordered, out)
+        extra = {"control": {"settings": settings.to_dict(), "summary": summary.to_dict()}}
+        write_episodes_dataset(task, [result["record"] for result in ordered], out, extra=extra)
         run.write_settings({"summary": summary.to_dict(), "package_version": __version__})
     return summary, load_dataset(out)
 
@@ -431,19 +433,3 @@ def _control_task(
     if model is not None and model.task_name != task.name:
         raise EnergyMarginError(f"the model was learned on task {model.task_name!r}, not {task.name!r}")
     return task
-
-
-def _write_dataset(
-    task: Task, settings: ControlSettings, summary: ControlResult, ordered: list[dict[str, Any]], out: Path
-) -> None:
-    """Write the episodes' records as a dataset at ``out``, with the settings and the summary."""
-    dataset = records_dataset(
-        task,
-        [result["record"] for result in ordered],
-        out,
-        engine="mujoco",
-        extra={"control": {"settings": settings.to_dict(), "summary": summary.to_dict()}},
-    )
-    with atomic_path(out / FRAMES_FILE) as temporary, open(temporary, "wb") as stream:
-        save_npz(stream, dataset.arrays, compressed=True)
-    write_json(out / METADATA_FILE, dataset.metadata)

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from energy_margin.data.dataset import FRAMES_FILE, Dataset, Problem, raise_first, read_dataset
-from energy_margin.data.physical import state_problems
+from energy_margin.data.physical import frame_violations, state_problems
 from energy_margin.data.provenance import version_findings
 from energy_margin.data.scores_file import (
     COLUMNS,
@@ -117,6 +117,39 @@ def overlap_problems(dataset: Dataset) -> list[Problem]:
                         )
                     return problems
     return problems
+
+
+def unphysical_trajectories(dataset: Dataset) -> dict[int, str]:
+    """The trajectories of ``dataset`` with a physically impossible frame, each with its first one in words.
+
+    The checks of :func:`check_dataset`, per trajectory up to its first failing frame: every object
+    inside the task's frame box and under its speed bound, and no objects interpenetrating deeper
+    than :func:`overlap_limits` allow (each trajectory's own scene: its friction and drive).
+
+    Returns:
+        ``{trajectory: "frame k: what is wrong"}``, empty when every frame is possible.
+
+    """
+    task, arrays = dataset.task, dataset.arrays
+    box, engine = task.frame_box, str(dataset.metadata.get("engine", "mujoco"))
+    found: dict[int, str] = {}
+    for trajectory in range(dataset.n_trajectories):
+        simulator = task.make_simulator(
+            dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory], engine
+        )
+        limits = overlap_limits(simulator.scene)
+        for frame in range(dataset.n_frames):
+            state = dataset.frame(trajectory, frame)
+            violations = frame_violations(box, state)
+            if violations:
+                found[trajectory] = f"frame {frame}: {violations[0].message}"
+                break
+            simulator.reset(state)
+            overlapping = deep_overlaps(simulator, limits)
+            if overlapping:
+                found[trajectory] = f"frame {frame}: {describe_overlap(*overlapping[0])}"
+                break
+    return found
 
 
 def scores_problems(path: Path | str, dataset: Dataset) -> list[Problem]:
@@ -270,4 +303,5 @@ __all__ = [
     "overlaps_expected",
     "require_valid",
     "scores_problems",
+    "unphysical_trajectories",
 ]
