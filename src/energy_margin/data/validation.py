@@ -33,6 +33,7 @@ from energy_margin.data.scores_file import (
 )
 from energy_margin.sim import Simulator
 from energy_margin.world.scene import Scene
+from energy_margin.world.state import FrameState
 
 #: Interpenetration deeper than this fraction of an object's largest half-extent, and deeper than
 #: :data:`OVERLAP_FLOOR`, is an overlap. Soft contacts leave some penetration in valid frames: up to
@@ -77,6 +78,24 @@ def deep_overlaps(simulator: Simulator, limits: list[float]) -> list[tuple[int, 
     return found
 
 
+def trajectory_simulator(dataset: Dataset, trajectory: int) -> tuple[Simulator, list[float]]:
+    """A simulator of one trajectory's own scene (its friction and drive) and its :func:`overlap_limits`, m."""
+    arrays = dataset.arrays
+    simulator = dataset.task.make_simulator(
+        dataset.n_objects,
+        float(arrays["friction"][trajectory]),
+        arrays["drive"][trajectory],
+        str(dataset.metadata.get("engine", "mujoco")),
+    )
+    return simulator, overlap_limits(simulator.scene)
+
+
+def overlaps_at(simulator: Simulator, limits: list[float], state: FrameState) -> list[tuple[int, int, float, float]]:
+    """:func:`deep_overlaps` of ``state``, which ``simulator`` is reset to."""
+    simulator.reset(state)
+    return deep_overlaps(simulator, limits)
+
+
 def describe_overlap(obj: int, other: int, depth: float, limit: float) -> str:
     """One overlap of :func:`deep_overlaps` in words."""
     what = f"object {other}" if other >= 0 else "the end-effector or an obstacle"
@@ -85,24 +104,16 @@ def describe_overlap(obj: int, other: int, depth: float, limit: float) -> str:
 
 def overlap_problems(dataset: Dataset) -> list[Problem]:
     """Frames where objects overlap each other, the end-effector or an obstacle."""
-    task = dataset.task
-    engine = str(dataset.metadata.get("engine", "mujoco"))
     problems: list[Problem] = []
-    arrays = dataset.arrays
     for trajectory in range(dataset.n_trajectories):
         try:
-            simulator = task.make_simulator(
-                dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory], engine
-            )
-            scene = simulator.scene
+            simulator, limits = trajectory_simulator(dataset, trajectory)
         except (ValueError, OverflowError, FloatingPointError, ZeroDivisionError) as error:
             return [
                 Problem("dataset.json", "task_config", "", f"cannot build the scene ({' '.join(str(error).split())})")
             ]
-        limits = overlap_limits(scene)
         for frame in range(dataset.n_frames):
-            simulator.reset(dataset.frame(trajectory, frame))
-            for overlap in deep_overlaps(simulator, limits):
+            for overlap in overlaps_at(simulator, limits, dataset.frame(trajectory, frame)):
                 problems.append(
                     Problem(
                         FRAMES_FILE, "object_pos", f"trajectory {trajectory}, frame {frame}", describe_overlap(*overlap)
@@ -130,22 +141,17 @@ def unphysical_trajectories(dataset: Dataset) -> dict[int, str]:
         ``{trajectory: "frame k: what is wrong"}``, empty when every frame is possible.
 
     """
-    task, arrays = dataset.task, dataset.arrays
-    box, engine = task.frame_box, str(dataset.metadata.get("engine", "mujoco"))
+    box = dataset.task.frame_box
     found: dict[int, str] = {}
     for trajectory in range(dataset.n_trajectories):
-        simulator = task.make_simulator(
-            dataset.n_objects, float(arrays["friction"][trajectory]), arrays["drive"][trajectory], engine
-        )
-        limits = overlap_limits(simulator.scene)
+        simulator, limits = trajectory_simulator(dataset, trajectory)
         for frame in range(dataset.n_frames):
             state = dataset.frame(trajectory, frame)
             violations = frame_violations(box, state)
             if violations:
                 found[trajectory] = f"frame {frame}: {violations[0].message}"
                 break
-            simulator.reset(state)
-            overlapping = deep_overlaps(simulator, limits)
+            overlapping = overlaps_at(simulator, limits, state)
             if overlapping:
                 found[trajectory] = f"frame {frame}: {describe_overlap(*overlapping[0])}"
                 break
