@@ -41,6 +41,8 @@ def _page(tmp_path: Path, body: str) -> Path:
         ("log.txt#L2", "second line"),
         ("results.json#/a/b :neg.2f", "-0.90"),
         ("table.csv#method=est,budget=300/ap :neg", "-0.8952"),
+        ("results.json#/a/b :ms.0f", "895"),
+        ("results.json#/a/b :us,.0f", "895,230"),
     ],
 )
 def test_a_marker_reads_json_csv_and_text(tmp_path: Path, marker: str, expected: str) -> None:

@@ -10,7 +10,8 @@ A quoted figure is written between two markers that name its source::
   for any other file ``L5`` (line 5, stripped);
 * after `` :`` an optional Python format spec (``.3f``, ``.2f``, ``,.0f``); without it the value as
   written in the file. ``neg`` before the spec (``:neg.3f``) quotes the value negated: a change the
-  file holds as negative, written as a loss.
+  file holds as negative, written as a loss; ``ms`` or ``us`` (``:us.1f``) quotes seconds in
+  milliseconds or microseconds.
 
 A table of a results file is a block generated from a template: its lines without a ``{cell}``
 (the header and the separator) as they are, then its row line once per record of the file::
@@ -141,20 +142,25 @@ def lookup(path: str, key: str, root: Path = ROOT) -> Any:
     return lines[int(match.group(1)) - 1].strip()
 
 
+#: Prefixes of a format spec that scale a number before it is formatted: a change the file holds as
+#: negative written as a loss (``neg``), seconds written in milliseconds or microseconds.
+SCALES = {"neg": -1.0, "ms": 1e3, "us": 1e6}
+
+
 def render(value: Any, spec: str | None) -> str:
-    """A value as quoted: formatted by ``spec`` (numbers from CSV and text files too; ``neg``: negated first)."""
-    negate = spec is not None and spec.startswith("neg")
-    if spec is not None and negate:
-        spec = spec[3:]
-    if not spec and not negate:
+    """A value as quoted: formatted by ``spec`` (numbers from CSV and text files too), scaled first by a prefix."""
+    prefix = next((name for name in SCALES if spec is not None and spec.startswith(name)), None)
+    if spec is not None and prefix is not None:
+        spec = spec[len(prefix) :]
+    if not spec and prefix is None:
         return str(value)
-    if isinstance(value, str) or negate:
+    if isinstance(value, str) or prefix is not None:
         try:
             value = float(value)
         except (TypeError, ValueError) as error:
             raise FigureError(f"{value!r} is not a number for format {spec!r}") from error
-    if negate:
-        value = -value
+    if prefix is not None:
+        value = SCALES[prefix] * value
     try:
         return format(value, spec)
     except (TypeError, ValueError) as error:
