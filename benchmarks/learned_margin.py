@@ -3,10 +3,12 @@
 The learned-margin tables of docs/howto/control.md, in one resumable run under ``--work``:
 
 1. ``energy-margin learn --task pushing --objects 5,10,20 --trajectories 80 --frames 10 --holdout 0.1
-   --seed 0`` generates, analyses (``analyze``'s defaults) and fits the set network;
+   --seed 0`` generates, analyses (the defaults with the tree's own success score, as ``learn``
+   does) and fits the set network;
 2. ``energy-margin learn`` on the same three analysed sets with ``--kind boosting``;
 3. three sets of generation seeds used for nothing else (5 objects, 40 trajectories, seed 41; 10, 40,
-   31; 20, 30, 43), analysed at the defaults, seed 0;
+   31; 20, 30, 43), analysed as ``learn`` analyses (the tree's own success score, ``--continuation
+   0``, else the defaults), seed 0;
 4. ``bench_learned_ap.compare`` of both models on the three (APs with paired intervals, R²) and
    ``bench_learned.measure_dataset`` of the set network (per-query time, one process, one core,
    BLAS threads 1, beside 10 of the same frames' trees).
@@ -102,7 +104,7 @@ def main() -> None:
                 "generate", "--task", "pushing", "--objects", str(objects), "--trajectories", str(trajectories),
                 "--frames", "10", "--seed", str(seed), "--out", str(path),
             )  # fmt: skip
-        _, seconds = timed("analyze", str(path), "--workers", workers, "--seed", "0")
+        _, seconds = timed("analyze", str(path), "--workers", workers, "--seed", "0", "--continuation", "0")
         document["steps"][f"analyze_{name}"] = {"wall_s": seconds}
         tests.append((name, objects, trajectories, seed, str(path)))
     rows = []
