@@ -22,3 +22,13 @@ def test_a_table_row_per_set_and_model_with_every_question() -> None:
     assert table["set"] == "push5c" and table["model"] == "set" and table["r2"] == "0.870 / –"
     assert table["q0"].startswith("1.000 / 1.000") and table["q1"] == "–"
     assert len([key for key in table if key.startswith("q")]) == 6
+
+
+def test_every_study_fits_on_sets_learn_writes_and_scores_sets_of_other_seeds() -> None:
+    bench = load_benchmark("learned_margin")
+    for name, study in bench.STUDIES.items():
+        learn_seed = study.learn[study.learn.index("--seed") + 1]
+        for _, source in study.tests:
+            assert source[source.index("--seed") + 1] != learn_seed, name
+        assert all(part.startswith(("objects-", "scene")) for part in study.sets), name
+    assert [name for name, study in bench.STUDIES.items() if study.speed] == ["pushing"]
