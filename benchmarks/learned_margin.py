@@ -79,7 +79,7 @@ STUDIES: dict[str, Study] = {
     "scooping": Study(
         ("--task", "scooping", "--trajectories", "80", "--seed", "0"),
         ("objects-5",),
-        (("scoop5c", ("--task", "scooping", "--trajectories", "30", "--seed", "34")),),
+        (("scoop5c", ("--task", "scooping", "--objects", "5", "--trajectories", "30", "--seed", "34")),),
     ),
     "pushing_scene": Study(
         ("--scene", _scene("pushing"), "--trajectories", "108", "--seed", "5"),
