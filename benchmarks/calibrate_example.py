@@ -15,14 +15,12 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from energy_margin.runs.versions import engine_versions
-from results_document import document_head, work_arguments, write_document
+from results_document import document_head, energy_margin, work_arguments, write_document
 
 __all__ = ["RUNS", "calibrate"]
 
@@ -32,15 +30,6 @@ RUNS: dict[str, list[str]] = {
     "lambda": [],
     "grow": ["--wrench-scales", "0.5", "1", "2", "--duration-scales", "1"],
 }
-
-
-def energy_margin(*arguments: str) -> str:
-    """Run the command line in this interpreter; its standard output (exit on failure)."""
-    command = [sys.executable, "-m", "energy_margin", *arguments]
-    done = subprocess.run(command, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
-    return done.stdout
 
 
 def calibrate(dataset: Path, out: Path, options: list[str], *, workers: int, seed: int) -> dict[str, Any]:

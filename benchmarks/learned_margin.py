@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +38,7 @@ from bench_learned import measure_dataset
 from bench_learned_ap import CAPTURE_WINDOWS, SUCCESS_SPANS, compare
 from energy_margin.learning.margin_model import load_margin_model
 from energy_margin.runs.versions import engine_versions
-from results_document import document_head, work_arguments, write_document
+from results_document import document_head, energy_margin, work_arguments, write_document
 
 __all__ = ["STUDIES", "Study", "cell", "run_study", "table_rows"]
 
@@ -93,15 +91,6 @@ STUDIES: dict[str, Study] = {
     ),
 }
 QUESTIONS = (*CAPTURE_WINDOWS, *SUCCESS_SPANS)
-
-
-def energy_margin(*arguments: str) -> str:
-    """Run the command line in this interpreter; its standard output (exit on failure)."""
-    command = [sys.executable, "-m", "energy_margin", *arguments]
-    done = subprocess.run(command, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
-    return done.stdout
 
 
 def cell(entry: dict[str, Any] | None) -> str:

@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 from bench_analysis import machine  # the machine line of the other benchmarks
 
-__all__ = ["document_head", "work_arguments", "write_document"]
+__all__ = ["document_head", "energy_margin", "work_arguments", "write_document"]
 
 
 def work_arguments(
@@ -44,3 +46,12 @@ def write_document(path: Path, document: dict[str, Any]) -> None:
     """Write ``document`` as indented JSON at ``path``, making its folder."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+
+
+def energy_margin(*arguments: str) -> str:
+    """Run ``energy-margin ARGUMENTS`` in this interpreter; its standard output (exit with its error on failure)."""
+    command = [sys.executable, "-m", "energy_margin", *arguments]
+    done = subprocess.run(command, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr[-2000:]}")
+    return done.stdout
