@@ -1,7 +1,5 @@
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -166,16 +164,13 @@ def test_warm_start_gives_the_same_ellipsoid() -> None:
     assert warm.center == pytest.approx(reference.center, abs=1e-6)
 
 
-def test_ten_points_in_2d_take_well_under_10_ms() -> None:
+def test_ten_points_in_2d_converge_in_few_khachiyan_steps() -> None:
+    # The work a fit does, not its wall time (benchmarks/bench_ellipsoid.py times it): a regression
+    # of the step rule shows as many more steps, on any machine and under any load.
     rng = np.random.default_rng(0)
-    sets = [rng.uniform(-1.0, 1.0, (10, 2)) for _ in range(30)]
-    min_volume_ellipsoid(sets[0])  # warm-up
-    durations = []
-    for points in sets:
-        started = time.perf_counter()
-        min_volume_ellipsoid(points)
-        durations.append(time.perf_counter() - started)
-    assert float(np.median(durations)) < 0.010
+    fits = [min_volume_ellipsoid(rng.uniform(-1.0, 1.0, (10, 2))) for _ in range(30)]
+    assert all(fit.converged for fit in fits)
+    assert float(np.median([fit.iterations for fit in fits])) < 100
 
 
 @pytest.mark.parametrize(
